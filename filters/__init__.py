@@ -1,0 +1,1 @@
+"""surfgen.filters: mesh metrics, verdicts, cleanup, remeshing and de-duplication."""

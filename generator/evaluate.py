@@ -1,0 +1,30 @@
+"""One entry point to sample a formula on a grid, whichever evaluator does the work."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from surfgen.generator.errors import FormulaError
+from surfgen.generator.expr import Expr
+from surfgen.generator.grid import Field, Grid
+from surfgen.generator.reference import evaluate_reference
+
+EVALUATORS = ("fast", "reference")
+
+
+def evaluate(
+    tree: Expr,
+    grid: Grid,
+    params: Mapping[str, float] | None = None,
+    evaluator: str = "fast",
+) -> Field:
+    """Sample ``tree`` on ``grid`` with the named evaluator (``fast`` or ``reference``)."""
+    if evaluator == "reference":
+        return evaluate_reference(tree, grid, params)
+    if evaluator == "fast":
+        try:
+            from surfgen.generator.fast import evaluate_fast
+        except ImportError:  # the compiled evaluator has not landed in this checkout
+            return evaluate_reference(tree, grid, params)
+        return evaluate_fast(tree, grid, params)
+    raise FormulaError(f"unknown evaluator '{evaluator}' (allowed: {', '.join(EVALUATORS)})")

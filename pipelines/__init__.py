@@ -1,0 +1,1 @@
+"""surfgen.pipelines: sampling runs, the catalogue, curation, export and the CLI."""
