@@ -9,7 +9,9 @@ We read ``u/|u|`` as **+1 at u = 0** (:func:`unit_sign`). Then the paper's segme
 ``1 - (x-a)(x-b) / (|x-a| |x-b|)`` is exactly ``2`` on the half-open interval ``[a, b)`` and ``0``
 elsewhere, so
 
-- ``fcc`` interpolates its points and is continuous at interior nodes (value ``y_i``),
+- ``fcc`` interpolates its points on ``[x_1, x_{n+1})`` (value ``y_i`` at node ``x_i``; the
+  segments are joined only where the points are shared) and is 0 outside, *including* at the
+  last node ``x_{n+1}``,
 - ``saw1`` is ``frac(x/r)``, ``tri1`` is ``|2 frac(x/r) - 1|`` and ``stair1`` is ``h floor(x/r)``
   on their domain ``[-(p+1) r, p r)``, with no NaN anywhere.
 
@@ -18,7 +20,9 @@ The quotients of ``rect3`` (``asin(sin u) / atan(tan u)`` and its inverse) are 0
 
 The trigonometric forms use ``cot(u) = 1/tan(u)`` and Maple's ``arccot(u) = pi/2 - atan(u)``
 (range (0, pi)), so ``arccot(cot(u)) = u mod pi`` and ``saw2`` is ``frac(x/r)`` on all of R.
-At the jumps (x/r an integer) that form depends on the rounding of ``tan`` and gives 0 or 1.
+At the jumps (x/r an integer) that form depends on the rounding of ``tan`` and gives 0 or 1
+(so ``saw2``/``stair2``/``rect2`` take one of their two one-sided limits there, never NaN;
+``tri3`` is 1 and ``tri2`` is 0 at x = k r either way).
 
 Where the alternative forms agree and differ (tested in ``tests/generator/test_constituents.py``):
 
@@ -26,15 +30,15 @@ Where the alternative forms agree and differ (tested in ``tests/generator/test_c
 function                domain                           relation
 ======================  ===============================  ===========================================
 saw1 (eq 2)             [-(p+1)r, pr), 0 outside         = saw2 inside its domain (both frac(x/r))
-saw2 (eq 9)             all of R                          period r, range [0, 1)
+saw2 (eq 9)             all of R                         period r, [0, 1) (0 or 1 at x = k r)
 tri1 (eq 3)             [-(p+1)r, pr), 1 outside         = tri3 inside its domain, peaks at x = k r
-tri2 (eq 10)            all of R                          = 1 - tri3: the same wave upside down
-tri3 (eq 11)            all of R                          range [0, 1]
+tri2 (eq 10)            all of R                         = 1 - tri3 (upside down = shifted r/2)
+tri3 (eq 11)            all of R                         range [0, 1], 1 at x = k r
 stair1 (eq 4)           [-(p+1)r, pr), h x/r outside     = stair2 inside its domain (h floor(x/r))
-stair2 (eq 12)          all of R                          steps of height h, width r
+stair2 (eq 12)          all of R                         steps of height h, width r
 rect1 (eq 5)            all of R, |t| < 1                period 2, value 1 where sin(pi x) < -t
 rect2 (eq 6)            all of R, t/r not an integer     period r, value floor(x/r + t/r) - floor(x/r)
-rect3 (eq 7)            all of R, t not an integer       period 2, values {-1, 0} (rect1 has {0, 1})
+rect3 (eq 7)            all of R, t not an integer       period 1, values {-1, 0} (rect1 has {0, 1})
 ======================  ===============================  ===========================================
 """
 
@@ -48,19 +52,20 @@ from surfgen.generator.errors import FormulaError
 ArrayLike = np.ndarray | float
 
 # Figure 1.1: eight segments, each [a, b) with the line slope*x + intercept it carries.
-# Transcribed from f_cc = 0.5 (f_cc1 + f_cc2). The printed f_cc2 has two typesetting slips:
-# "+6 - s(7,9)" and "-5 s(10,10.5)" lack the factor "(1 - s)" every other segment has, which
-# would add a constant 2.5 outside [7, 9] and give 8 segments no longer; we read them as
-# (1 - s(7,9))*6 and (1 - s(10,10.5))*(-5), the only reading that yields eight segments.
+# Transcribed from f_cc = 0.5 (f_cc1 + f_cc2). The printed f_cc2 contains "+ 6 - s(7,9) ...
+# - 5 s(10,10.5)": that is Maple's expansion of (1 - s(7,9))*1 + (1 - s(10,10.5))*5 (the
+# constants 1 + 5 were collected into 6), so the last-but-two and last segments are the
+# constants 1 on [7, 9) and 5 on [10, 10.5), and the printed formula is 0 outside [1, 10.5).
+# tests/generator/test_constituents.py evaluates the printed formula itself against this table.
 FIGURE_1_1_SEGMENTS: tuple[tuple[float, float, float, float], ...] = (
     (1.0, 2.0, 1.0, -1.0),
     (2.0, 3.0, 2.0, -3.0),
     (3.0, 4.0, 3.0, -6.0),
     (4.0, 5.0, -4.0, 22.0),
     (5.0, 7.0, 0.5, 4.5),
-    (7.0, 9.0, 0.0, 6.0),
+    (7.0, 9.0, 0.0, 1.0),
     (9.0, 10.0, -1.0, 10.0),
-    (10.0, 10.5, 0.0, -5.0),
+    (10.0, 10.5, 0.0, 5.0),
 )
 
 
@@ -78,7 +83,7 @@ def segment_selector(x: ArrayLike, a: float, b: float) -> np.ndarray:
 
 
 def cot(u: ArrayLike) -> np.ndarray:
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):  # 1/0 and 1/subnormal are +-inf
         return 1.0 / np.tan(u)
 
 
@@ -180,6 +185,7 @@ def rect1(x: ArrayLike, t: float) -> np.ndarray:
 def rect2(x: ArrayLike, r: float, t: float) -> np.ndarray:
     """Eq. (6): ``t/r - arccot(cot(pi (x+t)/r))/pi + arccot(cot(pi x/r))/pi``, t/r not whole."""
     _check(math.isfinite(r) and r > 0, f"rect2: r must be a finite number > 0, got {r}")
+    _check(math.isfinite(t), f"rect2: t must be a finite number, got {t}")
     _check(not float(t / r).is_integer(), f"rect2: t/r must not be a whole number, got {t / r}")
     x = np.asarray(x, dtype=np.float64)
     return t / r - acot(cot(np.pi * (x + t) / r)) / np.pi + acot(cot(np.pi * x / r)) / np.pi
@@ -194,6 +200,7 @@ def _ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def rect3(x: ArrayLike, t: float) -> np.ndarray:
     """Eq. (7): ``1/2 (asin(sin u)/atan(tan u) * atan(tan v)/asin(sin v) - 1)``, u=pi x, v=pi(x+t)."""
+    _check(math.isfinite(t), f"rect3: t must be a finite number, got {t}")
     _check(not float(t).is_integer(), f"rect3: t must not be a whole number, got {t}")
     u = np.pi * np.asarray(x, dtype=np.float64)
     v = np.pi * (np.asarray(x, dtype=np.float64) + t)
@@ -230,6 +237,7 @@ def tri3(x: ArrayLike, r: float) -> np.ndarray:
 def stair2(x: ArrayLike, r: float, h: float) -> np.ndarray:
     """Eq. (12): ``h (x/r - arccot(cot(pi x/r))/pi)``."""
     _check_r("stair2", r)
+    _check(math.isfinite(h), f"stair2: h must be a finite number, got {h}")
     x = np.asarray(x, dtype=np.float64)
     return h * (x / r - acot(cot(np.pi * x / r)) / np.pi)
 

@@ -16,6 +16,7 @@ Names are ``x y z``, ``pi``, declared parameters, and the functions of
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -84,7 +85,7 @@ class _Parser:
                     "unbalanced parentheses: '(' is never closed", self.open_parens[-1]
                 )
             return FormulaSyntaxError("formula ends too early", t.column)
-        if t.text == ")":
+        if t.text == ")" and not self.open_parens:
             return FormulaSyntaxError("unbalanced parentheses: ')' has no matching '('", t.column)
         return FormulaSyntaxError(f"unexpected {t.text!r}", t.column)
 
@@ -99,7 +100,7 @@ class _Parser:
     # -- grammar
     def parse(self) -> Expr:
         if self.tok.kind == "end":
-            raise FormulaSyntaxError("empty formula")
+            raise FormulaSyntaxError("empty formula", 1)
         tree = self.sum()
         if self.tok.kind != "end":
             raise self.unexpected()
@@ -139,7 +140,10 @@ class _Parser:
         t = self.tok
         if t.kind == "num":
             self.advance()
-            return num(float(t.text))
+            value = float(t.text)
+            if not math.isfinite(value):  # e.g. 1e400: a num node must be finite
+                raise FormulaSyntaxError(f"number {t.text} is out of range", t.column)
+            return num(value)
         if t.kind == "name":
             self.advance()
             if self.is_op("("):
@@ -186,6 +190,10 @@ class _Parser:
         n = len(args)
         if n < fdef.min_args or (fdef.max_args is not None and n > fdef.max_args):
             raise FormulaSyntaxError(f"{name} takes {fdef.arity_text()}, got {n}", t.column)
+        if name == "fcc" and (n - 1) % 2:
+            raise FormulaSyntaxError(
+                f"fcc takes x then pairs x1,y1,x2,y2,...: got {n - 1} coordinates", t.column
+            )
         if fdef.const_from is not None:
             for k, a in enumerate(args[fdef.const_from :], start=fdef.const_from + 1):
                 if not is_constant(a):

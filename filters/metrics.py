@@ -1,0 +1,120 @@
+"""What a mesh is like, in numbers: :class:`Metrics` and :func:`measure_mesh`.
+
+Edges, Euler characteristic, orientation, area, volume and bbox are counted with numpy (one sort
+of the ``3F`` half-edges); components and non-manifold vertices come from pymeshlab through
+:mod:`surfgen.filters.meshlab`.  About 1 s for 500k faces, most of it in pymeshlab.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from surfgen.filters import meshlab
+from surfgen.generator.errors import MeshError
+from surfgen.generator.mesh import Mesh
+
+
+@dataclass(frozen=True, slots=True)
+class Metrics:
+    """Measures of one mesh.
+
+    ``euler`` is V - E + F over referenced vertices.  ``watertight``: every edge has exactly two
+    faces.  The mesh is *closed* when it is watertight, has no non-manifold vertex and its faces
+    are consistently oriented; only then are ``genus`` (total over components, from
+    ``euler = 2*components - 2*genus``) and ``volume`` (signed: positive when normals point
+    outward) given, else they are None.  ``nonmanifold_edges`` counts distinct edges with more
+    than two faces.  ``bbox`` is ``(xmin, xmax, ymin, ymax, zmin, zmax)``.
+    """
+
+    vertices: int
+    faces: int
+    components: int
+    euler: int
+    genus: int | None
+    watertight: bool
+    boundary_edges: int
+    nonmanifold_edges: int
+    nonmanifold_vertices: int
+    area: float
+    volume: float | None
+    bbox: tuple[float, float, float, float, float, float]
+
+    @property
+    def closed(self) -> bool:
+        return self.genus is not None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-ready Python values under exactly the field names."""
+        d = asdict(self)
+        d["bbox"] = [float(v) for v in self.bbox]
+        return d
+
+
+def measure_mesh(mesh: Mesh) -> Metrics:
+    """Measure ``mesh`` (``(V, 3)`` vertices, ``(F, 3)`` faces).
+
+    Raises :class:`MeshError` for a mesh without faces.
+    """
+    if mesh.n_faces == 0:
+        raise MeshError("cannot measure an empty mesh (no faces)")
+    v, f = mesh.vertices, mesh.faces
+    edges = _edge_counts(f, mesh.n_vertices)
+    topo = meshlab.topology(mesh)
+    used = np.bincount(f.reshape(-1), minlength=mesh.n_vertices) > 0
+    euler = int(np.count_nonzero(used)) - edges.count + mesh.n_faces
+    components = int(topo["components"])  # type: ignore[arg-type]
+    nonmanifold_vertices = int(topo["nonmanifold_vertices"])  # type: ignore[arg-type]
+    watertight = edges.boundary == 0 and edges.nonmanifold == 0
+    closed = watertight and nonmanifold_vertices == 0 and edges.oriented
+
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    area = float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    genus = volume = None
+    if closed:
+        # chi = 2c - 2g holds for closed orientable surfaces; chi is even there.
+        genus = (2 * components - euler) // 2
+        # Divergence theorem about the bbox centre, which keeps the sum well conditioned.
+        o = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        volume = float(np.einsum("ij,ij->i", a - o, np.cross(b - o, c - o)).sum() / 6.0)
+    lo, hi = v[used].min(axis=0), v[used].max(axis=0)
+    return Metrics(
+        vertices=mesh.n_vertices,
+        faces=mesh.n_faces,
+        components=components,
+        euler=int(euler),
+        genus=None if genus is None else int(genus),
+        watertight=bool(watertight),
+        boundary_edges=edges.boundary,
+        nonmanifold_edges=edges.nonmanifold,
+        nonmanifold_vertices=nonmanifold_vertices,
+        area=area,
+        volume=volume,
+        bbox=tuple(float(x) for pair in zip(lo, hi, strict=True) for x in pair),  # type: ignore[arg-type]
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class _Edges:
+    count: int  # distinct undirected edges
+    boundary: int  # edges with one face
+    nonmanifold: int  # edges with more than two faces
+    oriented: bool  # every two-face edge is walked once in each direction
+
+
+def _edge_counts(faces: np.ndarray, n_vertices: int) -> _Edges:
+    """Count edges from the ``3F`` half-edges with one sort (fast on 500k faces)."""
+    start = faces.reshape(-1)
+    end = faces[:, [1, 2, 0]].reshape(-1)
+    lo, hi = np.minimum(start, end), np.maximum(start, end)
+    key = lo * np.int64(n_vertices) + hi
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    forward = np.bincount(inverse.reshape(-1), weights=start < end, minlength=len(counts))
+    two = counts == 2
+    return _Edges(
+        count=len(counts),
+        boundary=int(np.count_nonzero(counts == 1)),
+        nonmanifold=int(np.count_nonzero(counts > 2)),
+        oriented=bool(np.all(forward[two] == 1)),
+    )

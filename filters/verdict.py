@@ -1,0 +1,222 @@
+"""Filters: is a sampled shape worth keeping? Each rejection names its reason.
+
+Two stages (see README, "Filters"):
+
+- :func:`screen_field` looks at a sampled field (cheap): too many non-finite samples, no inside
+  or no outside, or signs that flip between most neighbours (noise);
+- :func:`judge` looks at the mesh's metrics (:func:`shape_metrics`): non-empty, manifold,
+  and complex enough but not speckle.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+from surfgen.filters.metrics import measure_mesh
+from surfgen.generator.errors import SpecError
+from surfgen.generator.mesh import Mesh
+
+REASONS = (
+    "no_crossing",  # no d gives a surface (the sum is constant or non-finite on the coarse grid)
+    "nonfinite",  # too many NaN/inf samples
+    "noise",  # signs flip between most neighbours
+    "empty",  # (almost) nothing inside
+    "full",  # (almost) everything inside
+    "too_small",  # too few faces
+    "nonmanifold",  # non-manifold edges or vertices after repair
+    "not_watertight",  # open, although capped
+    "speckle",  # too many components, or no dominant one
+    "box_dominated",  # mostly the caps on the box faces
+    "blob",  # one smooth genus-0 lump
+    "too_complex",  # genus beyond the limit
+    "duplicate",  # the same formula and grid is already in the catalogue
+    "timeout",  # took longer than the run's timeout
+    "crashed",  # its worker process died or raised an unexpected error
+)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Thresholds of the ``[filters]`` table (see ``surfgen config show``)."""
+
+    coarse_grid: int = 24
+    max_nonfinite_fraction: float = 0.5
+    max_flip_fraction: float = 0.15
+    min_inside_fraction: float = 0.01
+    max_inside_fraction: float = 0.75
+    min_faces: int = 400
+    max_components: int = 40
+    min_largest_component_fraction: float = 0.25
+    max_box_fraction: float = 0.35
+    max_genus: int = 500
+    blob_max_curvature: float = 1.25
+    require_manifold: bool = True
+
+    def __post_init__(self) -> None:
+        if not 4 <= self.coarse_grid <= 256:
+            raise SpecError("config [filters]: coarse_grid must be from 4 to 256")
+        for name in (
+            "max_nonfinite_fraction",
+            "max_flip_fraction",
+            "min_inside_fraction",
+            "max_inside_fraction",
+            "min_largest_component_fraction",
+            "max_box_fraction",
+        ):
+            v = getattr(self, name)
+            if not 0 <= v <= 1:
+                raise SpecError(f"config [filters]: {name} must be in [0, 1], got {v}")
+        for name in ("min_faces", "max_components", "max_genus"):
+            if getattr(self, name) < 0:
+                raise SpecError(f"config [filters]: {name} must be >= 0")
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> FilterConfig:
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise SpecError(f"config [filters]: unknown key '{unknown[0]}'")
+        try:
+            return cls(**data)
+        except TypeError as exc:
+            raise SpecError(f"config [filters]: {exc}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """``accepted`` with no reasons, or rejected with at least one reason of :data:`REASONS`."""
+
+    accepted: bool
+    reasons: tuple[str, ...] = ()
+
+    @classmethod
+    def reject(cls, *reasons: str) -> Verdict:
+        return cls(False, tuple(reasons))
+
+
+ACCEPT = Verdict(True)
+
+
+def field_statistics(values: np.ndarray, level: float = 0.0) -> dict[str, float]:
+    """Inside, non-finite and sign-flip fractions of a field of shape (Nx, Ny, Nz)."""
+    finite = np.isfinite(values)
+    inside = finite & (values < level)  # non-finite samples are outside
+    flips = 0
+    pairs = 0
+    for axis in range(3):
+        a = np.swapaxes(inside, 0, axis)
+        flips += int(np.count_nonzero(a[1:] != a[:-1]))
+        pairs += a[1:].size
+    n = values.size
+    return {
+        "inside_fraction": float(np.count_nonzero(inside)) / n,
+        "nonfinite_fraction": float(n - np.count_nonzero(finite)) / n,
+        "flip_fraction": flips / pairs if pairs else 0.0,
+    }
+
+
+def screen_field(values: np.ndarray, level: float, cfg: FilterConfig, coarse: bool) -> Verdict:
+    """The cheap verdict on a field; ``coarse`` also checks for noise."""
+    s = field_statistics(values, level)
+    if s["nonfinite_fraction"] > cfg.max_nonfinite_fraction:
+        return Verdict.reject("nonfinite")
+    if s["inside_fraction"] < cfg.min_inside_fraction:
+        return Verdict.reject("empty")
+    if s["inside_fraction"] > cfg.max_inside_fraction:
+        return Verdict.reject("full")
+    if coarse and s["flip_fraction"] > cfg.max_flip_fraction:
+        return Verdict.reject("noise")
+    return ACCEPT
+
+
+def shape_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
+    """:func:`measure_mesh` plus what the complexity filter needs.
+
+    ``box_fraction``: share of the area on the box's faces; ``largest_component_fraction``:
+    area of the largest component / total; ``total_curvature``: sum over vertices of the
+    absolute angle deficit, / 4 pi (1 for any convex closed surface, more for wavy ones).
+    """
+    m = measure_mesh(mesh).to_dict()
+    v, f = mesh.vertices, mesh.faces
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    areas = 0.5 * np.linalg.norm(cross, axis=1)
+    total = float(areas.sum()) or 1.0
+    lo = np.array(box[0::2])
+    hi = np.array(box[1::2])
+    tol = 1e-9 * float(np.max(hi - lo))
+    on_face = np.zeros(len(f), dtype=bool)
+    for k in range(3):
+        c = tri[:, :, k]
+        on_face |= np.all(np.abs(c - lo[k]) <= tol, axis=1) | np.all(
+            np.abs(c - hi[k]) <= tol, axis=1
+        )
+    m["box_fraction"] = float(areas[on_face].sum()) / total
+    m["largest_component_fraction"] = _largest_component_fraction(mesh, areas, total)
+    m["total_curvature"] = _total_abs_curvature(v, f) / (4 * math.pi)
+    return m
+
+
+def _largest_component_fraction(mesh: Mesh, areas: np.ndarray, total: float) -> float:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = mesh.faces
+    n = mesh.n_vertices
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    per = np.bincount(labels[f[:, 0]], weights=areas)
+    return float(per.max()) / total if per.size else 0.0
+
+
+def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
+    """Sum of |2 pi - sum of corner angles| over vertices (discrete Gauss-Bonnet)."""
+    angle_sum = np.zeros(len(v))
+    for k in range(3):
+        a = v[f[:, (k + 1) % 3]] - v[f[:, k]]
+        b = v[f[:, (k + 2) % 3]] - v[f[:, k]]
+        cos = np.einsum("ij,ij->i", a, b) / (
+            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) + 1e-300
+        )
+        np.add.at(angle_sum, f[:, k], np.arccos(np.clip(cos, -1.0, 1.0)))
+    used = np.zeros(len(v), dtype=bool)
+    used[f.ravel()] = True
+    return float(np.abs(2 * math.pi - angle_sum[used]).sum())
+
+
+def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:
+    """The verdict on a repaired mesh's :func:`shape_metrics`; all failing reasons are listed."""
+    reasons: list[str] = []
+    if metrics["faces"] < cfg.min_faces:
+        reasons.append("too_small")
+    if cfg.require_manifold and (metrics["nonmanifold_edges"] or metrics["nonmanifold_vertices"]):
+        reasons.append("nonmanifold")
+    if capped and not metrics["watertight"]:
+        reasons.append("not_watertight")
+    if (
+        metrics["components"] > cfg.max_components
+        or metrics["largest_component_fraction"] < cfg.min_largest_component_fraction
+    ):
+        reasons.append("speckle")
+    if metrics["box_fraction"] > cfg.max_box_fraction:
+        reasons.append("box_dominated")
+    genus = metrics.get("genus")
+    if (
+        metrics["components"] == 1
+        and genus == 0
+        and metrics["total_curvature"] < cfg.blob_max_curvature
+        and metrics["box_fraction"] < 0.05
+    ):
+        reasons.append("blob")
+    if genus is not None and genus > cfg.max_genus:
+        reasons.append("too_complex")
+    return Verdict(not reasons, tuple(reasons))

@@ -1,0 +1,274 @@
+"""The seeded stochastic sampler of equation (13).
+
+Shape ``index`` of a run with ``seed`` draws from
+``np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))`` only, so any shape
+can be regenerated alone, in any order, on any worker: :func:`draw_equation` is a pure function
+of ``(seed, index, config)``.
+
+Every distribution lives in :class:`SamplerConfig` (the ``[sampler]`` table of the TOML config;
+``surfgen config show`` prints the defaults with their meaning).
+
+Choosing d: a random ``d`` almost always leaves the box empty. We evaluate the sum of products on
+a coarse grid and take ``d`` at a drawn quantile of its finite values, rounded to 6 significant
+digits (so the printed formula is short and the key is stable to the last bit of a libm).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+from surfgen.generator.equation13 import (
+    CONSTITUENT_TRANSFORMS,
+    DIRECT_TRIG,
+    INVERSE_TRIG,
+    Equation13,
+    Factor,
+    PowerFunction,
+    PowerTerm,
+    Transform,
+)
+from surfgen.generator.errors import SpecError
+from surfgen.generator.evaluate import evaluate
+from surfgen.generator.grid import Box, Grid
+
+SAMPLER_VERSION = 1
+# Transforms whose values stay in [-1, 1], and inverse functions defined on all of R.
+BOUNDED_TRANSFORMS = (
+    "sin",
+    "cos",
+    "saw1",
+    "saw2",
+    "tri1",
+    "tri2",
+    "tri3",
+    "rect1",
+    "rect2",
+    "rect3",
+)
+UNBOUNDED_INVERSE = ("atan", "acot")
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """The distributions of a random eq. (13) instance (see ``surfgen config show``)."""
+
+    sum_terms: tuple[int, ...] = (1, 2, 3)  # choices for the number of i terms...
+    sum_terms_weights: tuple[float, ...] = (0.6, 0.3, 0.1)  # ...and their weights
+    factors: tuple[int, ...] = (1, 2)  # choices for the number of m factors per term
+    factors_weights: tuple[float, ...] = (0.85, 0.15)
+    power_terms_max: int = 3  # terms per power function: 1..max
+    coefficient_max: float = 1.5  # |a| <= this, 2 decimals
+    integer_exponent_prob: float = 0.6  # b, c, d: whole 1..integer_exponent_max, else real
+    integer_exponent_max: int = 2
+    exponent_real: tuple[float, float] = (0.2, 2.0)
+    variables_per_term_max: int = 2
+    absolute_vars_prob: float = 0.35  # |x|, |y|, |z| in a power function with whole exponents
+    trivial_denominator_prob: float = 0.5  # P2, P6, P8 = 1
+    lambda_choices: tuple[float, ...] = (1.0, 2.0, 3.0, 0.5, 1.5)
+    lambda_weights: tuple[float, ...] = (0.6, 0.2, 0.0, 0.1, 0.1)
+    mu_choices: tuple[int, ...] = (1, 2, 3)  # mu1, mu3
+    mu_weights: tuple[float, ...] = (0.6, 0.3, 0.1)
+    omit_element_prob: float = 0.5  # each of A, D (lambda=0), B, E, C, F (mu=0) left out
+    constituent_prob: float = 0.2  # H or G is a constituent function instead of trigonometric
+    constituent_r: tuple[float, float] = (0.5, 3.0)
+    constituent_p: tuple[int, int] = (2, 8)
+    abs_prob: float = 0.3  # each of A..F in |.|
+    box_half: tuple[float, float] = (1.0, 2.5)
+    d_quantile: tuple[float, float] = (0.25, 0.75)
+    d_grid: int = 20  # coarse grid used to choose d
+
+    def __post_init__(self) -> None:
+        pairs = (
+            ("sum_terms", "sum_terms_weights"),
+            ("factors", "factors_weights"),
+            ("lambda_choices", "lambda_weights"),
+            ("mu_choices", "mu_weights"),
+        )
+        for a, b in pairs:
+            if len(getattr(self, a)) != len(getattr(self, b)) or not getattr(self, a):
+                raise SpecError(f"sampler: {a} and {b} must be non-empty lists of the same length")
+            if any(w < 0 for w in getattr(self, b)) or sum(getattr(self, b)) <= 0:
+                raise SpecError(f"sampler: {b} must be non-negative and not all zero")
+        for name in ("sum_terms", "factors"):
+            if any(int(v) != v or v < 1 for v in getattr(self, name)):
+                raise SpecError(f"sampler: {name} must be whole numbers >= 1")
+        for name in (
+            "integer_exponent_prob",
+            "absolute_vars_prob",
+            "trivial_denominator_prob",
+            "omit_element_prob",
+            "constituent_prob",
+            "abs_prob",
+        ):
+            v = getattr(self, name)
+            if not 0 <= v <= 1:
+                raise SpecError(f"sampler: {name} must be a probability in [0, 1], got {v}")
+        for name in ("exponent_real", "constituent_r", "box_half", "d_quantile", "constituent_p"):
+            lo, hi = getattr(self, name)
+            if not lo <= hi:
+                raise SpecError(f"sampler: {name} must be [low, high] with low <= high")
+        if not self.box_half[0] > 0:
+            raise SpecError("sampler: box_half must be > 0")
+        if not 0 <= self.d_quantile[0] <= self.d_quantile[1] <= 1:
+            raise SpecError("sampler: d_quantile must lie in [0, 1]")
+        if self.power_terms_max < 1 or not 1 <= self.variables_per_term_max <= 3:
+            raise SpecError("sampler: power_terms_max >= 1 and variables_per_term_max in 1..3")
+        if self.integer_exponent_max < 1:
+            raise SpecError("sampler: integer_exponent_max must be >= 1")
+        if not 4 <= self.d_grid <= 128:
+            raise SpecError("sampler: d_grid must be from 4 to 128")
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> SamplerConfig:
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise SpecError(f"config [sampler]: unknown key '{unknown[0]}'")
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        try:
+            return cls(**kw)
+        except TypeError as exc:
+            raise SpecError(f"config [sampler]: {exc}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+def rng_for(seed: int, index: int) -> np.random.Generator:
+    """The random stream of shape ``index`` of the run with ``seed``."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+
+
+def _choice(rng: np.random.Generator, values, weights) -> Any:
+    w = np.asarray(weights, dtype=np.float64)
+    return values[int(rng.choice(len(values), p=w / w.sum()))]
+
+
+def _round(v: float, digits: int = 2) -> float:
+    return float(round(v, digits)) + 0.0
+
+
+def draw_power_function(
+    rng: np.random.Generator, cfg: SamplerConfig, nonnegative: bool = False
+) -> PowerFunction:
+    """A random eq. (8) power function; ``nonnegative`` makes it >= 0 everywhere."""
+    n_terms = int(rng.integers(1, cfg.power_terms_max + 1))
+    terms = []
+    any_real = False
+    for _ in range(n_terms):
+        a = _round(rng.uniform(-cfg.coefficient_max, cfg.coefficient_max))
+        if a == 0:
+            a = 1.0
+        if nonnegative:
+            a = abs(a)
+        exps = [0.0, 0.0, 0.0]
+        k = int(rng.integers(1, cfg.variables_per_term_max + 1))
+        for axis in rng.choice(3, size=k, replace=False):
+            if rng.random() < cfg.integer_exponent_prob:
+                exps[int(axis)] = float(rng.integers(1, cfg.integer_exponent_max + 1))
+            else:
+                exps[int(axis)] = _round(rng.uniform(*cfg.exponent_real))
+                any_real = any_real or not exps[int(axis)].is_integer()
+        terms.append(PowerTerm(a, *exps))
+    # Real exponents of negative numbers are NaN: such power functions use |x|, |y|, |z|.
+    absolute = any_real or nonnegative or bool(rng.random() < cfg.absolute_vars_prob)
+    return PowerFunction(tuple(terms), absolute)
+
+
+def draw_transform(
+    rng: np.random.Generator, cfg: SamplerConfig, family: tuple[str, ...]
+) -> Transform:
+    if rng.random() < cfg.constituent_prob:
+        name = str(rng.choice(sorted(CONSTITUENT_TRANSFORMS)))
+        params = []
+        for pname in CONSTITUENT_TRANSFORMS[name]:
+            if pname == "r":
+                params.append(_round(rng.uniform(*cfg.constituent_r)))
+            elif pname == "p":
+                params.append(float(rng.integers(cfg.constituent_p[0], cfg.constituent_p[1] + 1)))
+            elif pname == "h":
+                params.append(_round(rng.uniform(0.2, 2.0)))
+            else:  # t: |t| < 1 and t/r, t not whole
+                params.append(_round(rng.uniform(0.1, 0.9)))
+        return Transform(name, tuple(params))
+    return Transform(str(rng.choice(family)))
+
+
+def draw_factor(rng: np.random.Generator, cfg: SamplerConfig) -> Factor:
+    lambdas = [float(_choice(rng, cfg.lambda_choices, cfg.lambda_weights)) for _ in range(8)]
+    powers = []
+    for k in range(8):
+        if k in (1, 5, 7) and rng.random() < cfg.trivial_denominator_prob:
+            powers.append(PowerFunction.constant(1.0))
+            continue
+        powers.append(draw_power_function(rng, cfg, nonnegative=not lambdas[k].is_integer()))
+    mus = [float(_choice(rng, cfg.mu_choices, cfg.mu_weights)) for _ in range(4)]
+    h = draw_transform(rng, cfg, DIRECT_TRIG)
+    # asin/acos are NaN outside [-1, 1]: after an H that leaves [-1, 1] (tan, cot, sec, csc,
+    # a staircase) G is drawn from the inverse functions defined everywhere.
+    bounded = h.name in BOUNDED_TRANSFORMS
+    g = draw_transform(rng, cfg, INVERSE_TRIG if bounded else UNBOUNDED_INVERSE)
+    # Leave some elements out (exponent 0 makes them exactly 1), but never all of them.
+    omit = rng.random(6) < cfg.omit_element_prob
+    if omit.all():
+        omit[int(rng.integers(0, 6))] = False
+    for flag, (kind, k) in zip(
+        omit, (("l", 0), ("m", 0), ("m", 2), ("l", 1), ("m", 1), ("m", 3)), strict=True
+    ):
+        if flag:
+            (lambdas if kind == "l" else mus)[k] = 0.0
+    return Factor(
+        powers=tuple(powers),
+        lambdas=tuple(lambdas),
+        mus=tuple(mus),
+        h=h,
+        g=g,
+        absolute=tuple(bool(v) for v in rng.random(6) < cfg.abs_prob),
+    )
+
+
+@dataclass(frozen=True)
+class Draw:
+    """One random instance before d is chosen: the model, its box and the d quantile."""
+
+    equation: Equation13
+    box: Box
+    d_quantile: float
+
+
+def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
+    """Shape ``index`` of the run ``seed``: a pure function of its arguments."""
+    rng = rng_for(seed, index)
+    n_sum = int(_choice(rng, cfg.sum_terms, cfg.sum_terms_weights))
+    terms = []
+    for _ in range(n_sum):
+        n_fac = int(_choice(rng, cfg.factors, cfg.factors_weights))
+        terms.append(tuple(draw_factor(rng, cfg) for _ in range(n_fac)))
+    half = _round(rng.uniform(*cfg.box_half), 1)
+    q = float(rng.uniform(*cfg.d_quantile))
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q)
+
+
+def choose_d(draw: Draw, cfg: SamplerConfig, evaluator: str = "fast") -> float | None:
+    """``d`` at the draw's quantile of the body's finite values on a coarse grid.
+
+    Returns ``None`` when the body has fewer than two distinct finite values there
+    (no ``d`` can make a surface).
+    """
+    grid = Grid(draw.box, (cfg.d_grid,) * 3)
+    values = evaluate(draw.equation.body(), grid, evaluator=evaluator).values
+    finite = values[np.isfinite(values)]
+    if finite.size < 8 or finite.min() == finite.max():
+        return None
+    d = float(np.quantile(finite, draw.d_quantile))
+    return round_significant(d, 6)
+
+
+def round_significant(v: float, digits: int) -> float:
+    if v == 0 or not math.isfinite(v):
+        return 0.0
+    return float(f"{v:.{digits - 1}e}") + 0.0

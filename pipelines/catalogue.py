@@ -1,0 +1,302 @@
+"""The catalogue: one SQLite database (WAL, one writer) plus mesh and picture files.
+
+Layout of a catalogue folder (default ``out/catalogue``)::
+
+    catalogue.sqlite       runs, shapes (accepted and rejected draws), tags
+    meshes/<key>.ply       accepted meshes (binary PLY)
+    thumbs/<key>.png       256x256 thumbnails
+    turntables/<key>.png   12 views side by side
+
+Rows of a run are committed in index order, each with the run's progress in the same
+transaction, so the database always holds a prefix of the run: a killed run resumes exactly
+where it stopped. Files are written to a temporary name and renamed before their row commits.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from surfgen.generator.errors import SurfgenError
+from surfgen.generator.spec import SurfaceSpec
+
+DEFAULT_CATALOGUE = Path("out/catalogue")
+DB_NAME = "catalogue.sqlite"
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+    id INTEGER PRIMARY KEY,
+    seed INTEGER NOT NULL,
+    n INTEGER NOT NULL,
+    grid INTEGER NOT NULL,
+    config TEXT NOT NULL,
+    config_hash TEXT NOT NULL,
+    sampler_version INTEGER NOT NULL,
+    versions TEXT NOT NULL,
+    started TEXT NOT NULL,
+    ended TEXT,
+    status TEXT NOT NULL,
+    next_index INTEGER NOT NULL DEFAULT 0,
+    accepted INTEGER NOT NULL DEFAULT 0,
+    counts TEXT NOT NULL DEFAULT '{}',
+    UNIQUE (seed, config_hash, grid)
+);
+CREATE TABLE IF NOT EXISTS shapes (
+    key TEXT PRIMARY KEY,
+    run INTEGER NOT NULL REFERENCES runs(id),
+    idx INTEGER NOT NULL,
+    spec TEXT NOT NULL,
+    formula TEXT NOT NULL,
+    identity TEXT NOT NULL,
+    d REAL,
+    model TEXT,
+    verdict TEXT NOT NULL,
+    reasons TEXT NOT NULL,
+    metrics TEXT NOT NULL,
+    faces INTEGER,
+    vertices INTEGER,
+    components INTEGER,
+    genus INTEGER,
+    euler INTEGER,
+    area REAL,
+    volume REAL,
+    mesh_path TEXT,
+    thumb_path TEXT,
+    turntable_path TEXT,
+    timings TEXT NOT NULL DEFAULT '{}',
+    error TEXT,
+    stars INTEGER NOT NULL DEFAULT 0,
+    user_rejected TEXT,
+    note TEXT,
+    duplicate_of TEXT,
+    descriptor TEXT,
+    UNIQUE (run, idx)
+);
+CREATE INDEX IF NOT EXISTS shapes_identity ON shapes (identity, verdict);
+CREATE TABLE IF NOT EXISTS tags (
+    key TEXT NOT NULL REFERENCES shapes(key),
+    tag TEXT NOT NULL,
+    PRIMARY KEY (key, tag)
+);
+"""
+
+
+class CatalogueError(SurfgenError):
+    """A catalogue that cannot be opened, or a key that is not in it."""
+
+
+def now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+@dataclass
+class Run:
+    id: int
+    seed: int
+    n: int
+    grid: int
+    config_hash: str
+    status: str
+    next_index: int
+    accepted: int
+    counts: dict[str, int]
+
+
+class Catalogue:
+    """A catalogue folder and its open database connection (the one writer)."""
+
+    def __init__(self, root: Path, conn: sqlite3.Connection) -> None:
+        self.root = Path(root)
+        self.conn = conn
+
+    # -- paths
+    @property
+    def meshes(self) -> Path:
+        return self.root / "meshes"
+
+    @property
+    def thumbs(self) -> Path:
+        return self.root / "thumbs"
+
+    @property
+    def turntables(self) -> Path:
+        return self.root / "turntables"
+
+    def make_dirs(self) -> None:
+        for d in (self.meshes, self.thumbs, self.turntables):
+            d.mkdir(parents=True, exist_ok=True)
+
+    # -- runs
+    def find_run(self, seed: int, config_hash: str, grid: int) -> Run | None:
+        row = self.conn.execute(
+            "SELECT * FROM runs WHERE seed=? AND config_hash=? AND grid=?",
+            (seed, config_hash, grid),
+        ).fetchone()
+        return _run(row) if row else None
+
+    def create_run(
+        self,
+        seed: int,
+        n: int,
+        grid: int,
+        config: Mapping,
+        config_hash: str,
+        sampler_version: int,
+        versions: Mapping,
+    ) -> Run:
+        with self.conn:
+            cur = self.conn.execute(
+                "INSERT INTO runs (seed, n, grid, config, config_hash, sampler_version, versions,"
+                " started, status) VALUES (?,?,?,?,?,?,?,?,?)",
+                (
+                    seed,
+                    n,
+                    grid,
+                    json.dumps(config, sort_keys=True),
+                    config_hash,
+                    sampler_version,
+                    json.dumps(versions, sort_keys=True),
+                    now(),
+                    "running",
+                ),
+            )
+        return self.get_run(int(cur.lastrowid))
+
+    def get_run(self, run_id: int) -> Run:
+        row = self.conn.execute("SELECT * FROM runs WHERE id=?", (run_id,)).fetchone()
+        if row is None:
+            raise CatalogueError(f"no run {run_id} in the catalogue")
+        return _run(row)
+
+    def set_run_status(self, run_id: int, status: str, n: int | None = None) -> None:
+        with self.conn:
+            if n is not None:
+                self.conn.execute("UPDATE runs SET n=? WHERE id=?", (n, run_id))
+            ended = now() if status != "running" else None
+            self.conn.execute(
+                "UPDATE runs SET status=?, ended=? WHERE id=?", (status, ended, run_id)
+            )
+
+    def runs(self) -> list[dict[str, Any]]:
+        rows = self.conn.execute("SELECT * FROM runs ORDER BY id").fetchall()
+        return [dict(r) for r in rows]
+
+    # -- shapes
+    def has_accepted_identity(self, identity: str) -> str | None:
+        row = self.conn.execute(
+            "SELECT key FROM shapes WHERE identity=? AND verdict='accepted' LIMIT 1", (identity,)
+        ).fetchone()
+        return row["key"] if row else None
+
+    def record_shape(
+        self,
+        run_id: int,
+        index: int,
+        row: Mapping[str, Any],
+        accepted: bool,
+        reason_counts: Mapping[str, int],
+    ) -> None:
+        """Insert one shape (``row`` has its ``key`` and columns) and advance its run, atomically."""
+        cols = ["run", "idx", *row.keys()]
+        values = [run_id, index, *row.values()]
+        marks = ",".join("?" * len(cols))
+        with self.conn:
+            self.conn.execute(
+                f"INSERT OR REPLACE INTO shapes ({','.join(cols)}) VALUES ({marks})", values
+            )
+            self.conn.execute(
+                "UPDATE runs SET next_index=?, accepted=accepted+?, counts=? WHERE id=?",
+                (index + 1, int(accepted), json.dumps(dict(sorted(reason_counts.items()))), run_id),
+            )
+
+    def resolve(self, key_or_prefix: str) -> str:
+        """The full key of a shape from its key or a unique prefix."""
+        k = key_or_prefix.strip().lower()
+        if not k or any(c not in "0123456789abcdef" for c in k):
+            raise CatalogueError(f"'{key_or_prefix}' is not a shape key (hex digits)")
+        rows = self.conn.execute(
+            "SELECT key FROM shapes WHERE key LIKE ? ORDER BY key LIMIT 6", (k + "%",)
+        ).fetchall()
+        if not rows:
+            raise CatalogueError(f"no shape with key '{key_or_prefix}' in {self.root}")
+        if len(rows) > 1:
+            shown = ", ".join(r["key"] for r in rows[:5])
+            raise CatalogueError(
+                f"key prefix '{key_or_prefix}' is ambiguous: {shown}{', ...' if len(rows) > 5 else ''}"
+            )
+        return rows[0]["key"]
+
+    def shape(self, key_or_prefix: str) -> dict[str, Any]:
+        key = self.resolve(key_or_prefix)
+        row = dict(self.conn.execute("SELECT * FROM shapes WHERE key=?", (key,)).fetchone())
+        row["tags"] = [
+            r["tag"]
+            for r in self.conn.execute("SELECT tag FROM tags WHERE key=? ORDER BY tag", (key,))
+        ]
+        return row
+
+    def spec(self, key_or_prefix: str) -> SurfaceSpec:
+        return SurfaceSpec.from_json(self.shape(key_or_prefix)["spec"])
+
+    def shapes(self, run_id: int | None = None, verdict: str | None = None) -> list[dict[str, Any]]:
+        q = "SELECT * FROM shapes WHERE 1=1"
+        args: list[Any] = []
+        if run_id is not None:
+            q += " AND run=?"
+            args.append(run_id)
+        if verdict is not None:
+            q += " AND verdict=?"
+            args.append(verdict)
+        return [dict(r) for r in self.conn.execute(q + " ORDER BY run, idx", args)]
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+def _run(row: sqlite3.Row) -> Run:
+    return Run(
+        id=row["id"],
+        seed=row["seed"],
+        n=row["n"],
+        grid=row["grid"],
+        config_hash=row["config_hash"],
+        status=row["status"],
+        next_index=row["next_index"],
+        accepted=row["accepted"],
+        counts=json.loads(row["counts"]),
+    )
+
+
+@contextmanager
+def open_catalogue(
+    root: Path | str = DEFAULT_CATALOGUE, must_exist: bool = False
+) -> Iterator[Catalogue]:
+    """Open (or create) the catalogue in ``root``; ``must_exist`` refuses to create one."""
+    root = Path(root)
+    db = root / DB_NAME
+    if must_exist and not db.is_file():
+        raise CatalogueError(f"no catalogue at {root} (expected {db}; run `surfgen sample` first)")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        conn = sqlite3.connect(db, timeout=30.0)
+    except (OSError, sqlite3.Error) as exc:
+        raise CatalogueError(f"cannot open catalogue {db}: {exc}") from None
+    conn.row_factory = sqlite3.Row
+    try:
+        conn.execute("PRAGMA journal_mode=WAL")
+        conn.execute("PRAGMA synchronous=NORMAL")
+        conn.executescript(SCHEMA)
+    except sqlite3.DatabaseError as exc:
+        conn.close()
+        raise CatalogueError(f"{db} is not a surfgen catalogue: {exc}") from None
+    cat = Catalogue(root, conn)
+    try:
+        yield cat
+    finally:
+        cat.close()

@@ -1,0 +1,339 @@
+"""The ``surfgen`` command line: thin wrappers that parse options, call one library function and
+print a summary. Every known error becomes one line on stderr and a non-zero exit code."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from surfgen.generator.errors import SpecError, SurfgenError
+from typer.exceptions import Abort, TyperException
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    help="Generate, filter, catalogue and export 3D surfaces from random implicit functions.",
+)
+plot_app = typer.Typer(no_args_is_help=True, help="Plots of the paper's figures.")
+app.add_typer(plot_app, name="plot")
+config_app = typer.Typer(no_args_is_help=True, help="The sampling configuration.")
+app.add_typer(config_app, name="config")
+
+
+# ----------------------------------------------------------------------------- option parsing
+
+
+def parse_numbers(text: str, what: str, counts: tuple[int, ...], integer: bool = False) -> list:
+    """``"a,b,c"`` → numbers; ``counts`` are the allowed lengths."""
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [int(p) if integer else float(p) for p in parts]
+    except ValueError:
+        kind = "whole numbers" if integer else "numbers"
+        raise SpecError(f"{what} must be {kind} separated by commas, got '{text}'") from None
+    if len(values) not in counts:
+        allowed = " or ".join(str(c) for c in counts)
+        raise SpecError(f"{what} takes {allowed} values, got {len(values)} ('{text}')")
+    return values
+
+
+def parse_params(items: list[str] | None) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise SpecError(f"--param takes NAME=VALUE, got '{item}'")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise SpecError(f"--param {name.strip()}: '{value}' is not a number") from None
+    return out
+
+
+def emit_json(obj: Any) -> None:
+    typer.echo(json.dumps(obj, indent=2, sort_keys=False, default=str))
+
+
+# ----------------------------------------------------------------------------- render
+
+
+@app.command()
+def render(
+    preset: Annotated[
+        str | None, typer.Option(help="A preset name (see `surfgen presets`).")
+    ] = None,
+    formula: Annotated[
+        str | None, typer.Option(help="A formula in K3DSurf/MathMod syntax.")
+    ] = None,
+    spec: Annotated[Path | None, typer.Option(help="A spec JSON file.")] = None,
+    param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, repeatable.")] = None,
+    box: Annotated[str | None, typer.Option(help="LO,HI or XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.")] = None,
+    grid: Annotated[
+        str | None, typer.Option(help="N or NX,NY,NZ (points per axis, both ends).")
+    ] = None,
+    level: Annotated[float | None, typer.Option(help="Iso level (inside is F < level).")] = None,
+    cap: Annotated[bool, typer.Option(help="Close surfaces cut by the box.")] = False,
+    output: Annotated[
+        Path | None, typer.Option("-o", "--output", help="Mesh file .ply/.obj/.stl/.off/.glb.")
+    ] = None,
+    save_field: Annotated[
+        Path | None, typer.Option(help="Write the float64 field to FIELD.npy.")
+    ] = None,
+    png: Annotated[Path | None, typer.Option(help="Write a shaded picture (PNG).")] = None,
+    evaluator: Annotated[str, typer.Option(help="fast or reference.")] = "fast",
+    from_catalogue: Annotated[
+        tuple[Path, str] | None,
+        typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Evaluate one shape on its grid, extract F = level and write what is asked."""
+    from surfgen.pipelines.render import build_spec, render_spec
+
+    spec_obj = None
+    if from_catalogue is not None:
+        if preset or formula or spec:
+            raise SpecError("--from cannot be combined with --preset, --formula or --spec")
+        from surfgen.pipelines.catalogue import open_catalogue
+
+        with open_catalogue(from_catalogue[0], must_exist=True) as cat:
+            spec_obj = cat.spec(from_catalogue[1])
+    spec_obj = (
+        build_spec(
+            preset=preset,
+            formula=formula,
+            spec_file=spec,
+            params=parse_params(param),
+            box=parse_numbers(box, "--box", (2, 6)) if box else None,
+            grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None,
+            level=level,
+        )
+        if spec_obj is None
+        else _override(spec_obj, box, grid, level)
+    )
+    result = render_spec(
+        spec_obj,
+        cap=cap,
+        evaluator=evaluator,
+        mesh_path=output,
+        field_path=save_field,
+        png_path=png,
+    )
+    s = result.summary()
+    if as_json:
+        emit_json(s)
+        return
+    typer.echo(f"{s['formula']}")
+    typer.echo(
+        f"grid {'x'.join(map(str, s['grid']))}, box {s['box']}: "
+        + (f"{s['vertices']} vertices, {s['faces']} faces" if s["faces"] is not None else "no mesh")
+        + f", {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
+    )
+    for kind, path in s["files"].items():
+        typer.echo(f"wrote {kind}: {path}")
+
+
+def _override(spec_obj, box, grid, level):
+    from surfgen.generator.grid import Box, Grid
+
+    changes: dict[str, Any] = {}
+    if box:
+        changes["box"] = Box.from_bounds(parse_numbers(box, "--box", (2, 6))).bounds()
+    if grid:
+        changes["grid"] = Grid.from_sizes(
+            Box.cube(1), parse_numbers(grid, "--grid", (1, 3), True)
+        ).shape
+    if level is not None:
+        changes["level"] = level
+    return spec_obj.replace(**changes) if changes else spec_obj
+
+
+# ----------------------------------------------------------------------------- check
+
+
+@app.command()
+def check(
+    mesh: Annotated[Path, typer.Argument(help="A mesh file (.ply/.obj/.stl/.off/.glb).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
+    from surfgen.filters.metrics import measure_mesh
+    from surfgen.generator.mesh import load_mesh
+
+    m = measure_mesh(load_mesh(mesh)).to_dict()
+    if as_json:
+        emit_json(m)
+        return
+    width = max(len(k) for k in m)
+    for k, v in m.items():
+        typer.echo(f"{k:<{width}}  {v}")
+
+
+# ----------------------------------------------------------------------------- presets, plots
+
+
+@app.command()
+def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False) -> None:
+    """List the paper's examples and the classic surfaces."""
+    from surfgen.generator.presets import PRESETS
+
+    rows = [p.to_dict() for p in PRESETS.values()]
+    if as_json:
+        emit_json(rows)
+        return
+    for r in rows:
+        params = ", ".join(f"{k}={v:g}" for k, v in r["params"].items())
+        b = r["box"]
+        box = f"[{b[0]:g},{b[1]:g}]" if len(set(map(abs, b))) == 1 else str(b)
+        typer.echo(
+            f"{r['name']:<8} grid {r['grid'][0]}x{r['grid'][1]}x{r['grid'][2]}  box {box}"
+            f"{'  ' + params if params else ''}  — {r['source']}"
+        )
+        typer.echo(f"         {r['formula']}")
+
+
+@plot_app.command("constituents")
+def plot_constituents_cmd(
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG file.")] = Path(
+        "out/constituents.png"
+    ),
+) -> None:
+    """Redraw Figure 1.1 and the four panels of Figure 1.2."""
+    from surfgen.pipelines.plots import plot_constituents
+    from surfgen.pipelines.render import check_output_path
+
+    check_output_path(output, (".png",), "picture")
+    typer.echo(f"wrote {plot_constituents(output)}")
+
+
+# ----------------------------------------------------------------------------- sample
+
+
+@app.command()
+def sample(
+    n: Annotated[int, typer.Option("--n", help="How many accepted shapes to catalogue.")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the run: same seed, same shapes.")] = 0,
+    grid: Annotated[
+        int | None, typer.Option(help="Points per axis (default from the config).")
+    ] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Worker processes (default: all cores).")
+    ] = None,
+    out: Annotated[Path, typer.Option(help="Catalogue folder.")] = Path("out/catalogue"),
+    config: Annotated[
+        Path | None, typer.Option(help="A TOML config (see `surfgen config show`).")
+    ] = None,
+    max_draws: Annotated[
+        int | None, typer.Option(help="Stop after this many draws (default max(1000, 50 n)).")
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option(help="Continue the run with the same seed, grid and config.")
+    ] = False,
+) -> None:
+    """Draw random instances of equation (13) until N shapes pass the filters."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from surfgen.pipelines.config import load_config
+    from surfgen.pipelines.sampling import run_sample
+
+    if n <= 0:
+        raise SpecError(f"--n must be at least 1, got {n}")
+    if grid is not None and grid < 4:
+        raise SpecError(f"--grid must be at least 4, got {grid}")
+    cfg = load_config(config).with_grid(grid)
+    columns = (
+        TextColumn("accepted"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("drawn {task.fields[drawn]}"),
+        TextColumn("{task.fields[rate]:.1f}/min"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, transient=False, disable=not sys.stderr.isatty()) as bar:
+        task = bar.add_task("sample", total=n, drawn=0, rate=0.0)
+        started = __import__("time").perf_counter()
+
+        def progress(accepted: int, drawn: int, total: int) -> None:
+            minutes = (__import__("time").perf_counter() - started) / 60
+            bar.update(
+                task,
+                completed=min(accepted, total),
+                drawn=drawn,
+                rate=accepted / minutes if minutes else 0.0,
+            )
+
+        summary = run_sample(
+            n=n,
+            seed=seed,
+            config=cfg,
+            catalogue=out,
+            workers=workers,
+            max_draws=max_draws,
+            resume=resume,
+            progress=progress,
+        )
+    rejected = summary.drawn - summary.accepted
+    typer.echo(
+        f"{summary.accepted} accepted, {rejected} rejected of {summary.drawn} drawn "
+        f"({100 * summary.accepted / max(summary.drawn, 1):.0f}% acceptance) in {summary.seconds:.0f} s "
+        f"— {summary.shapes_per_minute:.0f} shapes/min"
+    )
+    if summary.counts:
+        typer.echo(
+            "rejection reasons (a shape may have several): "
+            + ", ".join(
+                f"{k} {v}" for k, v in sorted(summary.counts.items(), key=lambda kv: -kv[1])
+            )
+        )
+    typer.echo(
+        f"catalogue: {summary.catalogue / 'catalogue.sqlite'} (run {summary.run_id}, {summary.status})"
+    )
+    if summary.status == "exhausted":
+        raise SpecError(
+            f"only {summary.accepted} of {n} shapes accepted after {summary.drawn} draws (--max-draws); "
+            "loosen the [filters] thresholds or raise --max-draws"
+        )
+
+
+@config_app.command("show")
+def config_show() -> None:
+    """Print the built-in default configuration (TOML, with comments)."""
+    from surfgen.pipelines.config import default_config_text
+
+    typer.echo(default_config_text(), nl=False)
+
+
+# ----------------------------------------------------------------------------- entry point
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; known errors print one line (``error: ...``) and exit non-zero."""
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        rv = app(args=argv, standalone_mode=False)
+    except SurfgenError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        return 1
+    except TyperException as exc:  # usage errors: bad option, missing argument, ...
+        typer.echo(f"error: {exc.format_message()}", err=True)
+        return exc.exit_code or 2
+    except Abort:
+        typer.echo("aborted", err=True)
+        return 130
+    except KeyboardInterrupt:
+        typer.echo("interrupted", err=True)
+        return 130
+    return rv if isinstance(rv, int) else 0

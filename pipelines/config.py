@@ -1,0 +1,113 @@
+"""The sampling configuration: a TOML file over built-in defaults, validated and hashed.
+
+The defaults live in ``default_config.toml`` beside this module (``surfgen config show``).
+Unknown tables or keys are errors; the canonical JSON of the resolved config is hashed and the
+hash is recorded with every shape, so a catalogue says exactly how each shape was drawn.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from surfgen.filters.verdict import FilterConfig
+from surfgen.generator.errors import SpecError
+from surfgen.generator.grid import MAX_POINTS, MIN_POINTS
+from surfgen.generator.sampler import SAMPLER_VERSION, SamplerConfig
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The ``[run]`` table."""
+
+    grid: int = 64
+    cap: bool = True
+    timeout: float = 60.0
+    thumbnails: bool = True
+
+    def __post_init__(self) -> None:
+        if isinstance(self.grid, bool) or not isinstance(self.grid, int):
+            raise SpecError(f"config [run]: grid must be a whole number, got {self.grid!r}")
+        if not MIN_POINTS <= self.grid <= MAX_POINTS:
+            raise SpecError(f"grid must be from {MIN_POINTS} to {MAX_POINTS}, got {self.grid}")
+        if not self.timeout > 0:
+            raise SpecError(f"config [run]: timeout must be > 0 seconds, got {self.timeout}")
+
+
+@dataclass(frozen=True)
+class Config:
+    run: RunSettings
+    sampler: SamplerConfig
+    filters: FilterConfig
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "run": {
+                "grid": self.run.grid,
+                "cap": self.run.cap,
+                "timeout": self.run.timeout,
+                "thumbnails": self.run.thumbnails,
+            },
+            "sampler": self.sampler.to_dict(),
+            "filters": self.filters.to_dict(),
+        }
+
+    def shape_dict(self) -> dict[str, Any]:
+        """What decides the shapes and their verdicts (not timeouts or pictures)."""
+        d = self.to_dict()
+        d["run"] = {"grid": self.run.grid, "cap": self.run.cap}
+        d["sampler_version"] = SAMPLER_VERSION
+        return d
+
+    @property
+    def hash(self) -> str:
+        text = json.dumps(self.shape_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+    def with_grid(self, grid: int | None) -> Config:
+        if grid is None:
+            return self
+        r = self.run
+        return Config(RunSettings(grid, r.cap, r.timeout, r.thumbnails), self.sampler, self.filters)
+
+
+def default_config_text() -> str:
+    return resources.files("surfgen.pipelines").joinpath("default_config.toml").read_text()
+
+
+def load_config(path: Path | None = None) -> Config:
+    """The defaults, overridden by the TOML file at ``path``. Raises :class:`SpecError`."""
+    data = tomllib.loads(default_config_text())
+    if path is not None:
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise SpecError(f"cannot read config {path}: {exc.strerror}") from None
+        try:
+            user = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise SpecError(f"config {path} is not valid TOML: {exc}") from None
+        unknown = sorted(set(user) - set(data))
+        if unknown:
+            raise SpecError(
+                f"config {path}: unknown table [{unknown[0]}] (allowed: run, sampler, filters)"
+            )
+        for table, values in user.items():
+            if not isinstance(values, dict):
+                raise SpecError(f"config {path}: '{table}' must be a table")
+            bad = sorted(set(values) - set(data[table]))
+            if bad:
+                raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
+            data[table].update(values)
+    try:
+        run = RunSettings(**data["run"])
+    except TypeError as exc:
+        raise SpecError(f"config [run]: {exc}") from None
+    return Config(
+        run, SamplerConfig.from_mapping(data["sampler"]), FilterConfig.from_mapping(data["filters"])
+    )

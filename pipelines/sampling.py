@@ -1,0 +1,369 @@
+"""A sampling run: draw shapes in index order, evaluate, mesh, filter, catalogue.
+
+Shape ``i`` is a pure function of ``(seed, i, config)`` (:func:`make_shape`), computed in worker
+processes in any order; the parent (the catalogue's only writer) commits results strictly in
+index order and stops at the ``n``-th accepted shape. So the catalogue holds exactly the first
+``n`` accepted shapes by index, whatever the number of workers, and a killed run resumed with
+``resume=True`` ends identical to an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from surfgen.filters.verdict import REASONS, Verdict, judge, screen_field, shape_metrics
+from surfgen.generator import __version__
+from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.evaluate import evaluate
+from surfgen.generator.grid import Grid
+from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
+from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
+from surfgen.generator.spec import SurfaceSpec
+from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
+from surfgen.pipelines.config import Config
+from surfgen.pipelines.executor import KillablePool
+
+log = logging.getLogger(__name__)
+
+METRIC_DIGITS = 10  # significant digits kept in stored metrics
+
+
+@dataclass(frozen=True)
+class ShapeOutcome:
+    """What a worker hands back for one index: the row to store and the files' bytes."""
+
+    index: int
+    row: dict[str, Any]
+    verdict: Verdict
+    mesh_file: Path | None = None
+    thumb_file: Path | None = None
+    turntable_file: Path | None = None
+
+
+@dataclass
+class RunSummary:
+    run_id: int
+    seed: int
+    n: int
+    accepted: int
+    drawn: int
+    counts: dict[str, int]
+    seconds: float
+    catalogue: Path
+    status: str
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def shapes_per_minute(self) -> float:
+        return 60.0 * self.accepted / self.seconds if self.seconds > 0 else 0.0
+
+
+def versions() -> dict[str, str]:
+    import numba
+    import pymeshlab
+    import skimage
+    import trimesh
+
+    return {
+        "surfgen": __version__,
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "scikit-image": skimage.__version__,
+        "trimesh": trimesh.__version__,
+        "pymeshlab": getattr(pymeshlab, "__version__", "2025.7.post1"),
+    }
+
+
+def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for k, v in sorted(m.items()):
+        if isinstance(v, float):
+            v = float(f"{v:.{METRIC_DIGITS - 1}e}") if np.isfinite(v) else None
+        elif isinstance(v, list | tuple):
+            v = [float(f"{x:.{METRIC_DIGITS - 1}e}") if isinstance(x, float) else x for x in v]
+        out[k] = v
+    return out
+
+
+def identity_of(spec: SurfaceSpec) -> str:
+    """What makes two shapes exact duplicates: the formula, params, box, grid and level."""
+    d = spec.to_dict()
+    d.pop("provenance")
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def make_shape(
+    index: int, *, seed: int, config: Config, staging: Path | None = None, pictures: bool = False
+) -> ShapeOutcome:
+    """Draw, evaluate, mesh, measure and judge shape ``index``: a pure function of its inputs
+    (timings aside). Known failures become a rejected verdict with its reason."""
+    t: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(stage: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        t[stage] = t.get(stage, 0.0) + now - clock
+        clock = now
+
+    cfg, fcfg, run = config.sampler, config.filters, config.run
+    draw = draw_equation(seed, index, cfg)
+    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
+    d = choose_d(draw, cfg)
+    equation = draw.equation.with_d(d or 0.0)
+    spec = SurfaceSpec.from_tree(
+        equation.to_tree(), draw.box.bounds(), (run.grid,) * 3, provenance=provenance
+    )
+    row: dict[str, Any] = {
+        "key": spec.key,
+        "spec": spec.to_json(),
+        "formula": spec.formula,
+        "identity": identity_of(spec),
+        "d": d,
+        "model": json.dumps(equation.to_dict(), sort_keys=True, separators=(",", ":")),
+    }
+    lap("eval")
+    metrics: dict[str, Any] = {}
+    mesh: Mesh | None = None
+    verdict = Verdict.reject("no_crossing") if d is None else None
+    tree = spec.tree()
+    if verdict is None:
+        coarse = evaluate(tree, Grid(draw.box, (fcfg.coarse_grid,) * 3))
+        verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True)
+        verdict = None if verdict.accepted else verdict
+    if verdict is None:
+        field_ = evaluate(tree, spec.to_grid())
+        metrics["nonfinite"] = field_.nonfinite
+        lap("eval")
+        verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
+        verdict = None if verdict.accepted else verdict
+        if verdict is None:
+            try:
+                mesh = extract_mesh(field_, spec.level, cap=run.cap)
+            except EmptySurface:
+                verdict = Verdict.reject("empty")
+            lap("mesh")
+    if verdict is None and mesh is not None:
+        # Lewiner marching cubes already gives an indexed manifold mesh; merging "close"
+        # vertices would pinch it where several vertices land on one grid point.
+        metrics.update(shape_metrics(mesh, spec.box))
+        verdict = judge(metrics, fcfg, capped=run.cap)
+        lap("filters")
+    assert verdict is not None
+    row.update(_metric_columns(_round_metrics(metrics)))
+    row["verdict"] = "accepted" if verdict.accepted else "rejected"
+    row["reasons"] = json.dumps(list(verdict.reasons))
+    out = ShapeOutcome(index, row, verdict)
+    if verdict.accepted and mesh is not None and staging is not None:
+        out = _with_files(out, mesh, staging, pictures)
+        lap("io")
+    row["timings"] = json.dumps({k: round(v, 4) for k, v in t.items()}, sort_keys=True)
+    return out
+
+
+def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
+    cols = {
+        k: m.get(k) for k in ("faces", "vertices", "components", "genus", "euler", "area", "volume")
+    }
+    cols["metrics"] = json.dumps(m, sort_keys=True, separators=(",", ":"))
+    return cols
+
+
+def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) -> ShapeOutcome:
+    """Write the accepted shape's files into the run's staging folder; the parent moves them
+    into the catalogue when it commits the row (so a discarded index leaves nothing behind)."""
+    key = out.row["key"]
+    mesh_file = save_mesh(mesh, staging / f"{key}.ply")
+    thumb = turn = None
+    if pictures:
+        from surfgen.pipelines.pictures import render_thumbnail, render_turntable
+
+        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=256)
+        turn = render_turntable(mesh, staging / f"{key}.turntable.png", views=12, size=256)
+    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb, turn)
+
+
+def run_sample(
+    *,
+    n: int,
+    seed: int,
+    config: Config,
+    catalogue: Path,
+    workers: int | None = None,
+    max_draws: int | None = None,
+    resume: bool = False,
+    progress: Callable[[int, int, int], None] | None = None,
+) -> RunSummary:
+    """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
+
+    ``progress(accepted, drawn, n)`` is called after each committed index.
+    Raises :class:`SpecError` for bad options and :class:`CatalogueError` when a run with the
+    same seed, grid and config exists and ``resume`` is false.
+    """
+    if n <= 0:
+        raise SpecError(f"--n must be at least 1, got {n}")
+    workers = os.cpu_count() or 1 if workers is None else workers
+    if workers < 1:
+        raise SpecError(f"--workers must be at least 1, got {workers}")
+    max_draws = max_draws if max_draws is not None else max(1000, 50 * n)
+    if max_draws < 1:
+        raise SpecError(f"--max-draws must be at least 1, got {max_draws}")
+    start = time.perf_counter()
+    with open_catalogue(catalogue) as cat:
+        cat.make_dirs()
+        run = cat.find_run(seed, config.hash, config.run.grid)
+        if run is not None and not resume:
+            raise CatalogueError(
+                f"{catalogue} already has run {run.id} with seed {seed}, grid {run.grid} and this "
+                f"config ({run.accepted}/{run.n} accepted, {run.status}): use --resume to continue it"
+            )
+        if run is None:
+            run = cat.create_run(
+                seed, n, config.run.grid, config.to_dict(), config.hash, SAMPLER_VERSION, versions()
+            )
+        cat.set_run_status(run.id, "running", n=max(n, run.n) if resume else n)
+        status = "interrupted"
+        try:
+            status, stage = _drive(cat, run.id, n, seed, config, workers, max_draws, progress)
+        finally:
+            cat.set_run_status(run.id, status)
+        final = cat.get_run(run.id)
+    return RunSummary(
+        run_id=final.id,
+        seed=seed,
+        n=n,
+        accepted=final.accepted,
+        drawn=final.next_index,
+        counts=final.counts,
+        seconds=time.perf_counter() - start,
+        catalogue=Path(catalogue),
+        status=status,
+        stage_seconds=stage,
+    )
+
+
+def _drive(
+    cat: Catalogue,
+    run_id: int,
+    n: int,
+    seed: int,
+    config: Config,
+    workers: int,
+    max_draws: int,
+    progress,
+) -> tuple[str, dict[str, float]]:
+    run = cat.get_run(run_id)
+    accepted, next_index = run.accepted, run.next_index
+    counts: Counter[str] = Counter(run.counts)
+    stage: Counter[str] = Counter()
+    if accepted >= n:
+        return "complete", {}
+    staging = cat.root / ".staging"
+    staging.mkdir(exist_ok=True)
+    fn = partial(
+        make_shape, seed=seed, config=config, staging=staging, pictures=config.run.thumbnails
+    )
+    buffer: dict[int, Any] = {}
+
+    def tasks():
+        i = next_index
+        while i < max_draws and accepted < n:
+            yield i
+            i += 1
+
+    with KillablePool(fn, workers, config.run.timeout) as pool:
+        for result in pool.run(tasks()):
+            buffer[result.task] = result
+            while next_index in buffer and accepted < n:
+                res = buffer.pop(next_index)
+                outcome = _outcome(res, seed, config)
+                if outcome.verdict.accepted:
+                    dup = cat.has_accepted_identity(outcome.row["identity"])
+                    if dup is not None:
+                        outcome = _rejected(outcome, ("duplicate",))
+                        outcome.row["duplicate_of"] = dup
+                _commit(cat, run_id, outcome, counts)
+                accepted += int(outcome.verdict.accepted)
+                for k, v in json.loads(outcome.row.get("timings", "{}")).items():
+                    stage[k] += v
+                next_index += 1
+                if progress is not None:
+                    progress(accepted, next_index, n)
+            if accepted >= n:
+                break
+    shutil.rmtree(staging, ignore_errors=True)
+    status = "complete" if accepted >= n else "exhausted"
+    return status, dict(stage)
+
+
+def _rejected(outcome: ShapeOutcome, reasons: tuple[str, ...]) -> ShapeOutcome:
+    row = dict(outcome.row, verdict="rejected", reasons=json.dumps(list(reasons)))
+    return ShapeOutcome(outcome.index, row, Verdict.reject(*reasons))
+
+
+def _outcome(res, seed: int, config: Config) -> ShapeOutcome:
+    """A worker's outcome, or a rejection recording why the worker gave none."""
+    if res.status == "ok":
+        return res.value
+    reason = "timeout" if res.status == "timeout" else "crashed"
+    log.warning("shape %d: %s (%s)", res.task, reason, res.message)
+    # The spec of a shape is cheap and safe to rebuild here: draw and d need no meshing.
+    draw = draw_equation(seed, res.task, config.sampler)
+    provenance = {
+        "seed": seed,
+        "index": res.task,
+        "sampler": SAMPLER_VERSION,
+        "config": config.hash,
+    }
+    spec = SurfaceSpec.from_tree(
+        draw.equation.to_tree(),
+        draw.box.bounds(),
+        (config.run.grid,) * 3,
+        provenance={**provenance, "failed": reason},
+    )
+    row = {
+        "key": spec.key,
+        "spec": spec.to_json(),
+        "formula": spec.formula,
+        "identity": identity_of(spec),
+        "d": None,
+        "model": json.dumps(draw.equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        "verdict": "rejected",
+        "reasons": json.dumps([reason]),
+        "metrics": "{}",
+        "timings": "{}",
+        "error": res.message,
+    }
+    return ShapeOutcome(res.task, row, Verdict.reject(reason))
+
+
+def _commit(cat: Catalogue, run_id: int, outcome: ShapeOutcome, counts: Counter) -> None:
+    row = dict(outcome.row)
+    key = row["key"]
+    if outcome.verdict.accepted:
+        files = (
+            ("mesh_path", cat.meshes / f"{key}.ply", outcome.mesh_file),
+            ("thumb_path", cat.thumbs / f"{key}.png", outcome.thumb_file),
+            ("turntable_path", cat.turntables / f"{key}.png", outcome.turntable_file),
+        )
+        for column, path, staged in files:
+            if staged is not None:
+                os.replace(staged, path)
+                row[column] = str(path.relative_to(cat.root))
+    else:
+        for r in outcome.verdict.reasons:
+            counts[r] += 1
+    assert all(r in REASONS for r in outcome.verdict.reasons), outcome.verdict.reasons
+    cat.record_shape(run_id, outcome.index, row, outcome.verdict.accepted, counts)

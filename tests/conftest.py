@@ -1,0 +1,123 @@
+"""Shared test fixtures: the canonical shapes, sampled on small grids.
+
+Each shape is data (:class:`Shape`): formula, box, grid size and the properties tests check
+(genus, components, analytic volume and area).  Fields and meshes are built once per session.
+Fixtures:
+
+- ``shapes``: the :data:`SHAPES` table (name -> :class:`Shape`);
+- ``shape_field(name) -> Field`` and ``shape_mesh(name, cap=False) -> Mesh``;
+- ``sphere_mesh``, ``torus_mesh``, ``genus2_mesh``, ``two_spheres_mesh`` for the common ones.
+
+Add new canonical shapes to :data:`SHAPES`, new fixtures below the existing ones.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import pytest
+from surfgen.generator.grid import Box, Field, Grid
+from surfgen.generator.mesh import Mesh, extract_mesh
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import evaluate_reference
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A canonical closed shape and what is true of it (``volume``/``area`` analytic, or None)."""
+
+    formula: str
+    half: float  # box is [-half, half]^3
+    n: int  # grid n^3 (<= 48 keeps tests fast)
+    genus: int
+    components: int
+    volume: float | None = None
+    area: float | None = None
+
+    @property
+    def grid(self) -> Grid:
+        return Grid(Box.cube(self.half), (self.n,) * 3)
+
+
+SHAPES: dict[str, Shape] = {
+    "sphere": Shape(
+        "x^2+y^2+z^2-1", 1.5, 40, genus=0, components=1, volume=4 / 3 * math.pi, area=4 * math.pi
+    ),
+    # R = 1, r = 0.4: V = 2 pi^2 R r^2, A = 4 pi^2 R r.
+    "torus": Shape(
+        "(sqrt(x^2+y^2)-1)^2+z^2-0.16",
+        1.6,
+        40,
+        genus=1,
+        components=1,
+        volume=2 * math.pi**2 * 0.16,
+        area=4 * math.pi**2 * 0.4,
+    ),
+    # A thick tube around the figure eight x^2 (1 - x^2) = y^2: genus 2.  (The classic
+    # 2y(y^2-3x^2)(1-z^2)+(x^2+y^2)^2-(9z^2-1)(1-z^2) is cut open by every box we tried.)
+    "genus2": Shape("(x^2*(1-x^2)-y^2)^2+z^2-0.04", 1.3, 40, genus=2, components=1),
+    # Radius 0.5 at x = -0.8 and x = 0.8.
+    "two_spheres": Shape(
+        "min((x-0.8)^2+y^2+z^2-0.25, (x+0.8)^2+y^2+z^2-0.25)",
+        1.5,
+        40,
+        genus=0,
+        components=2,
+        volume=2 * 4 / 3 * math.pi * 0.125,
+        area=2 * 4 * math.pi * 0.25,
+    ),
+}
+
+
+@pytest.fixture(scope="session")
+def shapes() -> dict[str, Shape]:
+    return SHAPES
+
+
+@pytest.fixture(scope="session")
+def shape_field() -> Callable[[str], Field]:
+    """``shape_field(name)``: the named :data:`SHAPES` entry sampled by the reference evaluator."""
+    cache: dict[str, Field] = {}
+
+    def get(name: str) -> Field:
+        if name not in cache:
+            shape = SHAPES[name]
+            cache[name] = evaluate_reference(parse(shape.formula), shape.grid)
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def shape_mesh(shape_field: Callable[[str], Field]) -> Callable[..., Mesh]:
+    """``shape_mesh(name, cap=False)``: the named shape's surface at level 0."""
+    cache: dict[tuple[str, bool], Mesh] = {}
+
+    def get(name: str, cap: bool = False) -> Mesh:
+        if (name, cap) not in cache:
+            cache[name, cap] = extract_mesh(shape_field(name), 0.0, cap=cap)
+        return cache[name, cap]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def sphere_mesh(shape_mesh: Callable[..., Mesh]) -> Mesh:
+    return shape_mesh("sphere")
+
+
+@pytest.fixture(scope="session")
+def torus_mesh(shape_mesh: Callable[..., Mesh]) -> Mesh:
+    return shape_mesh("torus")
+
+
+@pytest.fixture(scope="session")
+def genus2_mesh(shape_mesh: Callable[..., Mesh]) -> Mesh:
+    return shape_mesh("genus2")
+
+
+@pytest.fixture(scope="session")
+def two_spheres_mesh(shape_mesh: Callable[..., Mesh]) -> Mesh:
+    return shape_mesh("two_spheres")

@@ -1,0 +1,223 @@
+"""Grid -> mesh: topology, orientation, caps, the level and non-finite rules, and file I/O.
+
+trimesh is the independent oracle here (Euler characteristic, watertightness, volume).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from surfgen.generator.errors import EmptySurface, MeshError
+from surfgen.generator.grid import Box, Field, Grid
+from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, load_mesh, save_mesh
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import evaluate_reference
+
+CANONICAL = ["sphere", "torus", "genus2", "two_spheres"]
+
+
+def as_trimesh(mesh: Mesh) -> trimesh.Trimesh:
+    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+
+
+def field_of(formula: str, box: Box, n: int) -> Field:
+    return evaluate_reference(parse(formula), Grid(box, (n, n, n)))
+
+
+def assert_in_box(mesh: Mesh, box: Box) -> None:
+    assert np.all(mesh.vertices >= np.asarray(box.lo))
+    assert np.all(mesh.vertices <= np.asarray(box.hi))
+
+
+# ----------------------------------------------------------------------------- extraction
+
+
+@pytest.mark.parametrize("name", CANONICAL)
+def test_canonical_topology_and_volume(name, shapes, shape_mesh):
+    shape = shapes[name]
+    tm = as_trimesh(shape_mesh(name))
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert len(tm.split(only_watertight=False)) == shape.components
+    assert tm.euler_number == 2 * shape.components - 2 * shape.genus
+    assert tm.volume > 0  # outward normals
+    if shape.volume is not None:
+        assert tm.volume == pytest.approx(shape.volume, rel=0.03)
+
+
+def test_sphere_geometry_in_box_coordinates(sphere_mesh):
+    assert sphere_mesh.vertices.dtype == np.float64 and sphere_mesh.faces.dtype == np.int64
+    r = np.linalg.norm(sphere_mesh.vertices, axis=1)
+    assert np.abs(r - 1).max() < 0.01
+    normals = as_trimesh(sphere_mesh).face_normals
+    centres = sphere_mesh.vertices[sphere_mesh.faces].mean(axis=1)
+    assert np.all(np.einsum("ij,ij->i", normals, centres) > 0)  # every face points outward
+
+
+def test_level_moves_the_surface(shape_field):
+    mesh = extract_mesh(shape_field("sphere"), level=0.21)  # x^2+y^2+z^2 = 1.21
+    assert np.linalg.norm(mesh.vertices, axis=1).mean() == pytest.approx(1.1, abs=0.005)
+
+
+def test_open_surface_without_cap_has_boundary():
+    box = Box.cube(0.8)
+    tm = as_trimesh(extract_mesh(field_of("x^2+y^2+z^2-1", box, 24)))
+    assert not tm.is_watertight
+
+
+@pytest.mark.parametrize(
+    ("formula", "box", "volume", "genus"),
+    [
+        ("x^2+y^2+z^2-1", Box.cube(0.8), None, 0),  # ball cut by all six faces
+        ("x^2+y^2+z^2-1", Box((0, 0, 0), (1.5, 1.5, 1.5)), math.pi / 6, 0),  # box corner inside
+        ("z-0.3", Box.cube(1), 2 * 2 * 1.3, 0),  # a slab: caps meet at box edges and corners
+        ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", Box.cube(1.0), None, 1),  # torus cut by four faces
+    ],
+)
+def test_cap_closes_cut_surfaces(formula, box, volume, genus):
+    mesh = extract_mesh(field_of(formula, box, 24), cap=True)
+    tm = as_trimesh(mesh)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert tm.euler_number == 2 - 2 * genus
+    assert tm.volume > 0
+    if volume is not None:
+        assert tm.volume == pytest.approx(volume, rel=0.02)
+    assert_in_box(mesh, box)
+    # the cap lies exactly on the box faces and its copies of box-edge samples are merged
+    on_box = np.any((mesh.vertices == box.lo) | (mesh.vertices == box.hi), axis=1)
+    assert on_box.any()
+    assert len(np.unique(mesh.vertices[on_box], axis=0)) == np.count_nonzero(on_box)
+
+
+def test_cap_of_a_plane_is_exact():
+    mesh = extract_mesh(field_of("z-0.3", Box.cube(1), 11), cap=True)
+    assert as_trimesh(mesh).volume == pytest.approx(5.2, abs=1e-5)
+
+
+def test_cap_on_random_fields_is_always_closed_and_manifold():
+    rng = np.random.default_rng(7)
+    for _ in range(25):
+        grid = Grid(Box.cube(1), tuple(int(n) for n in rng.integers(4, 10, size=3)))
+        values = rng.normal(size=grid.shape) + rng.uniform(-1, 1)
+        values[rng.random(grid.shape) < 0.1] = np.nan
+        try:
+            mesh = extract_mesh(Field(grid, values), cap=True)
+        except EmptySurface:
+            continue
+        tm = as_trimesh(mesh)
+        assert tm.is_watertight and tm.is_winding_consistent
+        assert tm.volume > 0
+        assert_in_box(mesh, grid.box)
+
+
+# ----------------------------------------------------------------------------- the rules
+
+
+def test_samples_on_the_level_are_outside():
+    grid = Grid(Box.cube(1), (5, 5, 5))
+    values = np.zeros(grid.shape)
+    with pytest.raises(EmptySurface, match="outside"):
+        extract_mesh(Field(grid, values))
+    values[2, 2, 2] = -1.0  # one inside sample among samples exactly on the level
+    tm = as_trimesh(extract_mesh(Field(grid, values)))
+    assert tm.is_watertight and tm.euler_number == 2 and tm.volume > 0
+
+
+def test_a_plane_through_samples_is_decided_strictly():
+    # z = 0 is a grid plane: its samples are on the level, hence outside, so inside is z < 0.
+    box = Box.cube(1)
+    mesh = extract_mesh(field_of("z", box, 9), cap=True)
+    assert as_trimesh(mesh).volume == pytest.approx(4.0, abs=1e-5)
+    assert np.abs(mesh.vertices[:, 2]).max() == 1.0 and mesh.vertices[:, 2].max() <= 0.0
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_nonfinite_samples_are_outside(shape_field, bad):
+    field = shape_field("sphere")
+    values = np.array(field.values)
+    values[20, 20, 20] = bad  # a sample deep inside the ball
+    mesh = extract_mesh(Field(field.grid, values))
+    tm = as_trimesh(mesh)
+    parts = tm.split(only_watertight=False)
+    assert len(parts) == 2  # the sphere and a cavity around the non-finite sample
+    cavity = min(parts, key=lambda p: p.area)
+    assert cavity.volume < 0  # normals point into the cavity, i.e. towards "outside"
+    # the cavity's crossings sit at mid-edge or nearer the inside samples, never on them
+    h = field.grid.spacing[0]
+    centre = np.asarray(field.grid.axes()[0][20]).repeat(3)
+    d = np.linalg.norm(cavity.vertices - centre, axis=1)
+    assert d.min() >= 0.45 * h and d.max() <= 1.5 * h
+
+
+def test_nonfinite_outside_everywhere_keeps_the_sphere(shape_field, sphere_mesh):
+    field = shape_field("sphere")
+    values = np.where(field.values > 0.3, np.nan, field.values)  # a NaN shell outside
+    tm = as_trimesh(extract_mesh(Field(field.grid, values)))
+    assert tm.is_watertight and tm.euler_number == 2 and tm.volume > 0
+
+
+def test_all_outside_and_all_inside_raise_empty_surface():
+    grid = Grid(Box.cube(1), (6, 6, 6))
+    with pytest.raises(EmptySurface, match="all 216 samples are outside"):
+        extract_mesh(Field(grid, np.ones(grid.shape)))
+    with pytest.raises(EmptySurface, match="outside.*non-finite"):
+        extract_mesh(Field(grid, np.full(grid.shape, np.nan)), cap=True)
+    with pytest.raises(EmptySurface, match="all 216 samples are inside"):
+        extract_mesh(Field(grid, -np.ones(grid.shape)), cap=True)
+
+
+def test_huge_and_tiny_values_keep_their_sign():
+    grid = Grid(Box.cube(1), (6, 6, 6))
+    values = np.full(grid.shape, 1e300)
+    values[2:4, 2:4, 2:4] = -1e-320  # subnormal: float32 would round it to -0
+    tm = as_trimesh(extract_mesh(Field(grid, values)))
+    assert tm.is_watertight and tm.euler_number == 2 and tm.volume > 0
+
+
+# ----------------------------------------------------------------------------- files
+
+
+@pytest.mark.parametrize("suffix", MESH_SUFFIXES)
+def test_save_load_round_trip(tmp_path, torus_mesh, suffix):
+    path = save_mesh(torus_mesh, tmp_path / f"torus{suffix}")
+    assert [p.name for p in tmp_path.iterdir()] == [f"torus{suffix}"]  # no temporary left
+    back = load_mesh(path)
+    assert back.n_faces == torus_mesh.n_faces
+    assert back.n_vertices == torus_mesh.n_vertices  # STL's corners are merged again
+    if suffix != ".stl":
+        assert np.array_equal(back.faces, torus_mesh.faces)
+        assert np.allclose(back.vertices, torus_mesh.vertices, atol=1e-6)
+    assert as_trimesh(back).volume == pytest.approx(as_trimesh(torus_mesh).volume, rel=1e-5)
+
+
+def test_save_replaces_an_existing_file(tmp_path, sphere_mesh, torus_mesh):
+    path = tmp_path / "m.ply"
+    save_mesh(sphere_mesh, path)
+    save_mesh(torus_mesh, path)
+    assert load_mesh(path).n_faces == torus_mesh.n_faces
+
+
+def test_unknown_suffix_is_a_one_line_error(tmp_path, sphere_mesh):
+    with pytest.raises(MeshError) as err:
+        save_mesh(sphere_mesh, tmp_path / "m.vtk")
+    message = str(err.value)
+    assert "\n" not in message and all(s in message for s in MESH_SUFFIXES)
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(MeshError, match=".ply"):
+        load_mesh(tmp_path / "m.xyz")
+
+
+def test_load_missing_or_unreadable(tmp_path):
+    with pytest.raises(MeshError, match="no mesh file"):
+        load_mesh(tmp_path / "missing.obj")
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"this is not a ply file\n")
+    with pytest.raises(MeshError):
+        load_mesh(bad)
+
+
+def test_save_into_missing_directory(tmp_path, sphere_mesh):
+    with pytest.raises(MeshError, match="cannot write"):
+        save_mesh(sphere_mesh, tmp_path / "nowhere" / "m.obj")
