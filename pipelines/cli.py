@@ -316,6 +316,14 @@ def config_show() -> None:
     typer.echo(default_config_text(), nl=False)
 
 
+# ----------------------------------------------------------------------------- commands from other modules
+# Each module below defines its commands and adds them with ``register(app)``.
+_REGISTER: list[str] = []
+
+for _module in _REGISTER:
+    __import__(_module, fromlist=["register"]).register(app)
+
+
 # ----------------------------------------------------------------------------- entry point
 
 

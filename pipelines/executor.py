@@ -7,6 +7,7 @@ the parent kills and replaces a worker whose task overruns its deadline or that 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing as mp
 import time
@@ -131,10 +132,8 @@ class KillablePool:
     def close(self) -> None:
         for w in self.workers:
             if w.proc.is_alive() and not w.busy:
-                try:
+                with contextlib.suppress(OSError):
                     w.conn.send(None)
-                except OSError:
-                    pass
             w.kill() if w.busy else w.proc.join(timeout=5)
         for w in self.workers:
             if w.proc.is_alive():

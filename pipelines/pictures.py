@@ -403,22 +403,21 @@ def _corner_normals(
     for i in range(n_vertices):
         start[i + 1] += start[i]
     fill = start[:-1].copy()
-    corners = np.empty(3 * faces.shape[0], dtype=np.int64)  # corner 3t+k, grouped by vertex
+    incident = np.empty(3 * faces.shape[0], dtype=np.int64)  # faces around each vertex
     for t in range(faces.shape[0]):
         for k in range(3):
             i = faces[t, k]
-            corners[fill[i]] = 3 * t + k
+            incident[fill[i]] = t
             fill[i] += 1
-    flat = out.reshape(-1, 3)
-    for i in range(n_vertices):  # vertex by vertex: the fan's normals stay in cache
-        crisp = start[i + 1] - start[i] <= max_fan
-        for a in range(start[i], start[i + 1]):
-            t = corners[a] // 3
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            i = faces[t, k]
+            crisp = start[i + 1] - start[i] <= max_fan
             sx = 0.0
             sy = 0.0
             sz = 0.0
-            for b in range(start[i], start[i + 1]):
-                g = corners[b] // 3
+            for j in range(start[i], start[i + 1]):
+                g = incident[j]
                 cos = unit[g, 0] * unit[t, 0] + unit[g, 1] * unit[t, 1] + unit[g, 2] * unit[t, 2]
                 if cos >= cos_crease or not crisp:
                     sx += weighted[g, 0]
@@ -426,9 +425,9 @@ def _corner_normals(
                     sz += weighted[g, 2]
             length = math.sqrt(sx * sx + sy * sy + sz * sz)
             if length > 1e-300:
-                flat[corners[a], 0] = sx / length
-                flat[corners[a], 1] = sy / length
-                flat[corners[a], 2] = sz / length
+                out[t, k, 0] = sx / length
+                out[t, k, 1] = sy / length
+                out[t, k, 2] = sz / length
 
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)

@@ -72,9 +72,9 @@ class RunSummary:
 
 def versions() -> dict[str, str]:
     import numba
-    import pymeshlab
     import skimage
     import trimesh
+    from surfgen.filters.meshlab import installed_version
 
     return {
         "surfgen": __version__,
@@ -82,7 +82,7 @@ def versions() -> dict[str, str]:
         "numba": numba.__version__,
         "scikit-image": skimage.__version__,
         "trimesh": trimesh.__version__,
-        "pymeshlab": getattr(pymeshlab, "__version__", "2025.7.post1"),
+        "pymeshlab": installed_version(),
     }
 
 
