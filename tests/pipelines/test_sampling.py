@@ -1,0 +1,278 @@
+"""Sampling runs: determinism across workers, resume after kill -9, filters, bad options."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
+from surfgen.generator.errors import SpecError
+from surfgen.generator.mesh import load_mesh
+from surfgen.generator.sampler import SamplerConfig, draw_equation
+from surfgen.pipelines.catalogue import CatalogueError, open_catalogue
+from surfgen.pipelines.cli import main
+from surfgen.pipelines.config import default_config_text, load_config
+from surfgen.pipelines.sampling import make_shape, run_sample
+
+GRID = 20
+N = 4
+
+
+def small_config(tmp_path: Path, extra: str = ""):
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[run]\nthumbnails = false\n" + extra)
+    return load_config(cfg).with_grid(GRID)
+
+
+def table(root: Path) -> list[tuple]:
+    """What must be identical between equivalent runs: everything but timings and files."""
+    con = sqlite3.connect(root / "catalogue.sqlite")
+    rows = con.execute(
+        "SELECT idx, key, spec, formula, d, model, verdict, reasons, metrics FROM shapes ORDER BY idx"
+    ).fetchall()
+    con.close()
+    return rows
+
+
+@pytest.fixture(scope="module")
+def reference_run(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("ref")
+    cfg = small_config(root)
+    summary = run_sample(n=N, seed=11, config=cfg, catalogue=root / "cat", workers=1)
+    assert summary.accepted == N and summary.status == "complete"
+    return root / "cat"
+
+
+def test_same_catalogue_with_one_and_two_workers(reference_run: Path, tmp_path: Path) -> None:
+    run_sample(n=N, seed=11, config=small_config(tmp_path), catalogue=tmp_path / "cat", workers=2)
+    a, b = table(reference_run), table(tmp_path / "cat")
+    assert a == b
+    assert sum(r[6] == "accepted" for r in a) == N
+    assert a[-1][6] == "accepted"  # the run stops at the n-th accepted index
+
+
+def test_rejected_draws_are_recorded_with_reasons(reference_run: Path) -> None:
+    rows = table(reference_run)
+    assert [r[0] for r in rows] == list(range(len(rows)))
+    for r in rows:
+        reasons = json.loads(r[7])
+        assert (r[6] == "accepted") == (reasons == [])
+    with open_catalogue(reference_run, must_exist=True) as cat:
+        (run,) = cat.runs()
+        counts = json.loads(run["counts"])
+        assert sum(counts.values()) >= len(rows) - N
+
+
+def test_accepted_meshes_pass_the_filters_again(reference_run: Path) -> None:
+    cfg = FilterConfig()
+    with open_catalogue(reference_run, must_exist=True) as cat:
+        for row in cat.shapes(verdict="accepted"):
+            mesh = load_mesh(reference_run / row["mesh_path"])
+            spec = json.loads(row["spec"])
+            m = shape_metrics(mesh, tuple(spec["box"]))
+            assert judge(m, cfg, capped=True).accepted, row["key"]
+            assert m["faces"] == row["faces"] and m["genus"] == row["genus"]
+
+
+def test_shape_is_a_pure_function_of_seed_and_index(tmp_path: Path) -> None:
+    cfg = small_config(tmp_path)
+    a = make_shape(5, seed=3, config=cfg)
+    b = make_shape(5, seed=3, config=cfg)
+    assert {k: v for k, v in a.row.items() if k != "timings"} == {
+        k: v for k, v in b.row.items() if k != "timings"
+    }
+    assert draw_equation(3, 5, SamplerConfig()) == draw_equation(3, 5, SamplerConfig())
+    assert draw_equation(3, 5, SamplerConfig()) != draw_equation(3, 6, SamplerConfig())
+
+
+def test_resume_after_kill_gives_the_identical_catalogue(
+    reference_run: Path, tmp_path: Path
+) -> None:
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\n")
+    cat = tmp_path / "cat"
+    args = [
+        sys.executable,
+        "-c",
+        "from surfgen.pipelines.cli import main; raise SystemExit(main())",
+        "sample",
+        "--n",
+        str(N),
+        "--seed",
+        "11",
+        "--grid",
+        str(GRID),
+        "--workers",
+        "2",
+        "--config",
+        str(cfg_file),
+        "--out",
+        str(cat),
+    ]
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    db = cat / "catalogue.sqlite"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if db.exists():
+            try:
+                con = sqlite3.connect(db)
+                done = con.execute(
+                    "SELECT count(*) FROM shapes WHERE verdict='accepted'"
+                ).fetchone()[0]
+                con.close()
+            except sqlite3.Error:
+                done = 0
+            if done >= 1:
+                break
+        time.sleep(0.05)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL) if False else proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    partial = table(cat)
+    assert 0 < sum(r[6] == "accepted" for r in partial) < N or proc.returncode == 0
+    # Re-running without --resume refuses and leaves the catalogue alone.
+    assert (
+        main(
+            [
+                "sample",
+                "--n",
+                str(N),
+                "--seed",
+                "11",
+                "--grid",
+                str(GRID),
+                "--workers",
+                "1",
+                "--config",
+                str(cfg_file),
+                "--out",
+                str(cat),
+            ]
+        )
+        == 1
+    )
+    assert table(cat) == partial
+    assert (
+        main(
+            [
+                "sample",
+                "--n",
+                str(N),
+                "--seed",
+                "11",
+                "--grid",
+                str(GRID),
+                "--workers",
+                "2",
+                "--config",
+                str(cfg_file),
+                "--out",
+                str(cat),
+                "--resume",
+            ]
+        )
+        == 0
+    )
+    assert table(cat) == table(reference_run)
+    with open_catalogue(cat, must_exist=True) as c:
+        files = sorted(p.name for p in c.meshes.glob("*.ply"))
+        assert files == sorted(r["key"] + ".ply" for r in c.shapes(verdict="accepted"))
+        assert not (cat / ".staging").exists()
+
+
+def test_impossible_thresholds_end_after_max_draws(tmp_path: Path, capsys) -> None:
+    cfg_file = tmp_path / "impossible.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\n[filters]\nmin_faces = 100000000\n")
+    code = main(
+        [
+            "sample",
+            "--n",
+            "2",
+            "--seed",
+            "1",
+            "--grid",
+            "16",
+            "--workers",
+            "1",
+            "--config",
+            str(cfg_file),
+            "--out",
+            str(tmp_path / "cat"),
+            "--max-draws",
+            "6",
+        ]
+    )
+    assert code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "only 0 of 2 shapes accepted after 6 draws" in err[0]
+    assert len(table(tmp_path / "cat")) == 6
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--n", "0"], "--n must be at least 1"),
+        (["--n", "-3"], "--n must be at least 1"),
+        (["--grid", "3"], "--grid must be at least 4"),
+        (["--workers", "0"], "--workers must be at least 1"),
+        (["--config", "/nonexistent/cfg.toml"], "cannot read config /nonexistent/cfg.toml"),
+        (["--n", "abc"], "Invalid value for '--n'"),
+    ],
+)
+def test_bad_options_get_one_line_errors(args, message, tmp_path: Path, capsys) -> None:
+    code = main(["sample", "--out", str(tmp_path / "cat"), *args])
+    assert code != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ("[sampler]\nnot_a_key = 1\n", "unknown key 'not_a_key' in [sampler]"),
+        ("[nonsense]\na = 1\n", "unknown table [nonsense]"),
+        ("[filters]\nmax_flip_fraction = 2.0\n", "max_flip_fraction must be in [0, 1]"),
+        ("[sampler]\nsum_terms = [1, 2]\n", "sum_terms and sum_terms_weights"),
+        ("this is = not toml [", "is not valid TOML"),
+    ],
+)
+def test_bad_configs_are_refused(toml: str, message: str, tmp_path: Path, capsys) -> None:
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(toml)
+    assert main(["sample", "--config", str(cfg), "--out", str(tmp_path / "cat")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "cat").exists()
+
+
+def test_default_toml_matches_the_dataclass_defaults() -> None:
+    cfg = load_config()
+    assert cfg.sampler == SamplerConfig()
+    assert cfg.filters == FilterConfig()
+    assert "[sampler]" in default_config_text()
+
+
+def test_config_hash_changes_with_what_shapes_depend_on(tmp_path: Path) -> None:
+    base = load_config()
+    assert base.hash == load_config().hash
+    assert base.with_grid(32).hash != base.hash
+    f = tmp_path / "c.toml"
+    f.write_text("[run]\ntimeout = 5.0\nthumbnails = false\n")
+    assert load_config(f).hash == base.hash  # timeouts and pictures do not change shapes
+    f.write_text("[sampler]\nabs_prob = 0.5\n")
+    assert load_config(f).hash != base.hash
+
+
+def test_sampler_config_validation() -> None:
+    with pytest.raises(SpecError, match="probability"):
+        SamplerConfig(abs_prob=1.5)
+    with pytest.raises(CatalogueError, match="no catalogue"):
+        with open_catalogue(Path("/nonexistent/cat"), must_exist=True):
+            pass
