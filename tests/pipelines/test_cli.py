@@ -1,0 +1,236 @@
+"""`surfgen render`, `check`, `presets`, `config show`: results and one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from surfgen.generator.presets import PRESETS
+from surfgen.generator.reference import evaluate_reference
+from surfgen.pipelines.cli import main
+
+CANONICAL = {
+    # name: (formula, box, grid, components, genus)
+    "sphere": ("x^2+y^2+z^2-1", "-1.5,1.5", "32", 1, 0),
+    "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", "-1.6,1.6", "40", 1, 1),
+    "genus2": ("(x^2*(1-x^2)-y^2)^2+z^2-0.04", "-1.3,1.3", "40", 1, 2),
+    "two_spheres": (
+        "min((x-1)^2+y^2+z^2-0.5,(x+1)^2+y^2+z^2-0.5)",
+        "-2.2,2.2,-1.2,1.2,-1.2,1.2",
+        "44,24,24",
+        2,
+        0,
+    ),
+    # a sphere cut by the box: --cap closes it
+    "cut_sphere": ("x^2+y^2+z^2-1", "-0.8,0.8", "24", 1, 0),
+}
+
+
+def run_json(args: list[str], capsys) -> dict:
+    assert main(args) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("name", sorted(CANONICAL))
+def test_render_cap_then_check_gives_components_and_genus(
+    name: str, tmp_path: Path, capsys
+) -> None:
+    formula, box, grid, components, genus = CANONICAL[name]
+    mesh = tmp_path / f"{name}.ply"
+    r = run_json(
+        [
+            "render",
+            "--formula",
+            formula,
+            "--box",
+            box,
+            "--grid",
+            grid,
+            "--cap",
+            "-o",
+            str(mesh),
+            "--json",
+        ],
+        capsys,
+    )
+    assert r["faces"] > 0 and r["nonfinite"] == 0
+    c = run_json(["check", str(mesh), "--json"], capsys)
+    assert set(c) >= {
+        "vertices",
+        "faces",
+        "components",
+        "euler",
+        "genus",
+        "watertight",
+        "boundary_edges",
+        "nonmanifold_edges",
+        "nonmanifold_vertices",
+        "area",
+        "volume",
+        "bbox",
+    }
+    assert c["watertight"] is True and c["boundary_edges"] == 0
+    assert c["nonmanifold_edges"] == 0 and c["nonmanifold_vertices"] == 0
+    assert (c["components"], c["genus"]) == (components, genus)
+    assert c["euler"] == 2 * components - 2 * genus * components
+    assert c["volume"] > 0
+
+
+def test_render_json_keys_and_field_file(tmp_path: Path, capsys) -> None:
+    field = tmp_path / "f.npy"
+    r = run_json(["render", "--preset", "I5", "--save-field", str(field), "--json"], capsys)
+    for key in (
+        "formula",
+        "box",
+        "grid",
+        "level",
+        "params",
+        "vertices",
+        "faces",
+        "nonfinite",
+        "seconds",
+    ):
+        assert key in r
+    assert r["box"] == [-7.05, 7.05] * 3 and r["grid"] == [33, 33, 33]
+    assert r["faces"] is None  # --save-field without -o: no mesh is extracted
+    values = np.load(field)
+    spec = PRESETS["I5"].spec()
+    want = evaluate_reference(spec.tree(), spec.to_grid()).values
+    assert values.dtype == np.float64 and values.shape == (33, 33, 33)
+    np.testing.assert_array_equal(np.isnan(values), np.isnan(want))
+    fin = np.isfinite(want)
+    np.testing.assert_allclose(values[fin], want[fin], rtol=1e-12)
+    assert r["nonfinite"] == int((~np.isfinite(want)).sum()) > 0
+
+
+def test_render_params_and_grid_overrides(capsys) -> None:
+    r = run_json(
+        [
+            "render",
+            "--preset",
+            "eqC",
+            "--param",
+            "m=0.5",
+            "--grid",
+            "20,22,24",
+            "--box",
+            "-5,5",
+            "--json",
+        ],
+        capsys,
+    )
+    assert r["params"] == {"m": 0.5} and r["grid"] == [20, 22, 24] and r["box"] == [-5.0, 5.0] * 3
+
+
+def test_spec_file_round_trip(tmp_path: Path, capsys) -> None:
+    spec = tmp_path / "s.json"
+    spec.write_text(PRESETS["torus"].spec().replace(grid=(24, 24, 24)).to_json())
+    r = run_json(["render", "--spec", str(spec), "--json"], capsys)
+    assert r["formula"] == PRESETS["torus"].spec().formula and r["faces"] > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ["render", "--formula", "sinn(x)"],
+            "unknown function 'sinn' at column 1 (did you mean sin?)",
+        ),
+        (["render", "--formula", "x + (y"], "unbalanced parentheses"),
+        (["render", "--formula", "x + y)"], "unbalanced parentheses"),
+        (["render", "--formula", "sin(x, y)"], "sin takes 1 argument, got 2"),
+        (["render", "--formula", "   "], "empty formula"),
+        (["render", "--formula", "x + q"], "unknown variable 'q' at column 5"),
+        (["render", "--formula", "x^2+y^2+z^2+5"], "no surface"),
+        (["render", "--preset", "nope"], "unknown preset 'nope'"),
+        (["render", "--preset", "eqA", "--param", "q=1"], "has no parameter 'q'"),
+        (["render", "--preset", "eqA", "--param", "m"], "--param takes NAME=VALUE"),
+        (["render", "--preset", "sphere", "--grid", "3"], "grid: Nx must be a whole number from 4"),
+        (["render", "--preset", "sphere", "--grid", "a,b"], "--grid must be whole numbers"),
+        (["render", "--preset", "sphere", "--box", "1,-1"], "xmin must be less than xmax"),
+        (["render", "--preset", "sphere", "--box", "1,2,3"], "--box takes 2 or 6 values"),
+        (
+            ["render", "--preset", "sphere", "--formula", "x"],
+            "exactly one of --preset, --formula or --spec",
+        ),
+        (["render"], "exactly one of --preset, --formula or --spec"),
+        (["render", "--spec", "/nonexistent.json"], "cannot read spec file"),
+        (["render", "--preset", "sphere", "--evaluator", "magic"], "unknown evaluator 'magic'"),
+        (["check", "/nonexistent.ply"], "/nonexistent.ply"),
+    ],
+)
+def test_bad_input_one_line_error_and_no_output(args, message, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "mesh.ply"
+    extra = ["-o", str(out)] if args[0] == "render" else []
+    assert main([*args, *extra]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and message in err[0], err
+    assert list(tmp_path.iterdir()) == []  # no partial output file
+
+
+def test_bad_output_paths_fail_before_work(tmp_path: Path, capsys) -> None:
+    assert main(["render", "--preset", "sphere", "-o", str(tmp_path / "m.xyz")]) == 1
+    assert "unknown format '.xyz'" in capsys.readouterr().err
+    assert main(["render", "--preset", "sphere", "-o", str(tmp_path / "no" / "m.ply")]) == 1
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_bad_spec_file(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"formula": "x", "box": [0, 1], "grid": 8, "colour": 1}')
+    assert main(["render", "--spec", str(bad)]) == 1
+    assert "unknown key 'colour'" in capsys.readouterr().err
+    bad.write_text("{not json")
+    assert main(["render", "--spec", str(bad)]) == 1
+    assert "not valid JSON" in capsys.readouterr().err
+
+
+def test_presets_listing(capsys) -> None:
+    rows = run_json(["presets", "--json"], capsys)
+    names = [r["name"] for r in rows]
+    for name in (
+        "eqA",
+        "eqB",
+        "eqC",
+        "I1",
+        "I2",
+        "I3",
+        "I4",
+        "I5",
+        "C-m0.25",
+        "C-m0.5",
+        "C-m0.75",
+        "C-m1",
+        "sphere",
+        "torus",
+        "gyroid",
+        "klein",
+        "clebsch",
+        "schwarz",
+        "chmutov",
+    ):
+        assert name in names
+    assert main(["presets"]) == 0
+    assert "I5" in capsys.readouterr().out
+
+
+def test_config_show_is_the_default_toml(capsys) -> None:
+    import tomllib
+
+    assert main(["config", "show"]) == 0
+    data = tomllib.loads(capsys.readouterr().out)
+    assert set(data) == {"run", "sampler", "filters"}
+
+
+def test_render_png_and_every_mesh_format(tmp_path: Path, capsys) -> None:
+    for suffix in (".ply", ".obj", ".stl", ".off", ".glb"):
+        out = tmp_path / f"t{suffix}"
+        assert main(["render", "--preset", "torus", "--grid", "24", "-o", str(out)]) == 0
+        capsys.readouterr()
+        c = run_json(["check", str(out), "--json"], capsys)
+        assert c["genus"] == 1, suffix
+    png = tmp_path / "t.png"
+    assert main(["render", "--preset", "torus", "--grid", "24", "--png", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
