@@ -1,0 +1,68 @@
+"""Throughput of `surfgen sample`: accepted shapes per minute, time by stage, acceptance rate.
+
+    python benchmarks/bench_sample.py [--n 200] [--seed 7] [--workers 2] [--grid 64]
+
+The machine is shared and noisy, so the figure is also printed as a ratio against a baseline
+measured in the same run: the time to evaluate, mesh and measure the `gyroid` preset at the
+same grid (one shape's full path through a known formula), in shapes per minute.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from surfgen.filters.metrics import measure_mesh
+from surfgen.generator.evaluate import evaluate
+from surfgen.generator.mesh import extract_mesh
+from surfgen.generator.presets import get_preset
+from surfgen.pipelines.config import load_config
+from surfgen.pipelines.sampling import run_sample
+
+
+def baseline_per_minute(grid: int, repeats: int = 5) -> float:
+    spec = get_preset("gyroid").spec().replace(grid=(grid,) * 3)
+    tree = spec.tree()
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        mesh = extract_mesh(evaluate(tree, spec.to_grid()), cap=True)
+        measure_mesh(mesh)
+        best = min(best, time.perf_counter() - t)
+    return 60.0 / best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--grid", type=int, default=None)
+    args = ap.parse_args()
+    config = load_config().with_grid(args.grid)
+    grid = config.run.grid
+    base = baseline_per_minute(grid)
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        s = run_sample(n=args.n, seed=args.seed, config=config, catalogue=Path(tmp) / "cat",
+                       workers=args.workers)
+        wall = time.perf_counter() - t
+    rate = 60.0 * s.accepted / wall
+    total_stage = sum(s.stage_seconds.values()) or 1.0
+    print(f"sample --n {args.n} --seed {args.seed} --grid {grid} --workers {args.workers}")
+    print(f"  accepted {s.accepted} of {s.drawn} drawn: acceptance {100 * s.accepted / s.drawn:.1f}%")
+    print(f"  wall time {wall:.1f} s: {rate:.1f} accepted shapes/min")
+    print(f"  baseline (gyroid preset, eval+mesh+measure, 1 process): {base:.0f} shapes/min")
+    print(f"  ratio accepted-shapes rate / baseline: {rate / base:.3f}")
+    print("  worker time by stage: " + ", ".join(
+        f"{k} {v:.1f} s ({100 * v / total_stage:.0f}%)" for k, v in sorted(s.stage_seconds.items())))
+    print("  rejections: " + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items(), key=lambda kv: -kv[1])))
+    est = 1000 / rate
+    print(f"  projected `sample --n 1000 --seed 7`: {est:.1f} min")
+
+
+if __name__ == "__main__":
+    main()
