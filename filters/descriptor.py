@@ -92,8 +92,8 @@ def descriptor_distances(a: np.ndarray, others: np.ndarray) -> np.ndarray:
     Raises :class:`ValueError` if the lengths differ (descriptors of another version).
     """
     a = np.asarray(a, dtype=np.float64)
-    others = np.asarray(others, dtype=np.float64).reshape(-1, a.shape[-1] if a.ndim else 0)
-    if a.shape != (SIZE,) or others.shape[1] != SIZE:
+    others = np.atleast_2d(np.asarray(others, dtype=np.float64))
+    if a.shape != (SIZE,) or others.ndim != 2 or others.shape[1] != SIZE:
         raise ValueError(f"descriptors must have {SIZE} values, got {a.shape} and {others.shape}")
     parts = []
     for lo, hi in ((0, D2_BINS), (D2_BINS, SIZE)):

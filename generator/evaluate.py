@@ -17,8 +17,12 @@ def evaluate(
     grid: Grid,
     params: Mapping[str, float] | None = None,
     evaluator: str = "fast",
+    threads: int | None = None,
 ) -> Field:
-    """Sample ``tree`` on ``grid`` with the named evaluator (``fast`` or ``reference``)."""
+    """Sample ``tree`` on ``grid`` with the named evaluator (``fast`` or ``reference``).
+
+    ``threads`` is for the fast evaluator: 1 in worker processes, ``None`` for numba's default.
+    """
     if evaluator == "reference":
         return evaluate_reference(tree, grid, params)
     if evaluator == "fast":
@@ -26,5 +30,5 @@ def evaluate(
             from surfgen.generator.fast import evaluate_fast
         except ImportError:  # the compiled evaluator has not landed in this checkout
             return evaluate_reference(tree, grid, params)
-        return evaluate_fast(tree, grid, params)
+        return evaluate_fast(tree, grid, params, threads=threads)
     raise FormulaError(f"unknown evaluator '{evaluator}' (allowed: {', '.join(EVALUATORS)})")

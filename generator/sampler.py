@@ -253,14 +253,16 @@ def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q)
 
 
-def choose_d(draw: Draw, cfg: SamplerConfig, evaluator: str = "fast") -> float | None:
+def choose_d(
+    draw: Draw, cfg: SamplerConfig, evaluator: str = "fast", threads: int | None = None
+) -> float | None:
     """``d`` at the draw's quantile of the body's finite values on a coarse grid.
 
     Returns ``None`` when the body has fewer than two distinct finite values there
     (no ``d`` can make a surface).
     """
     grid = Grid(draw.box, (cfg.d_grid,) * 3)
-    values = evaluate(draw.equation.body(), grid, evaluator=evaluator).values
+    values = evaluate(draw.equation.body(), grid, evaluator=evaluator, threads=threads).values
     finite = values[np.isfinite(values)]
     if finite.size < 8 or finite.min() == finite.max():
         return None

@@ -121,7 +121,7 @@ def make_shape(
     cfg, fcfg, run = config.sampler, config.filters, config.run
     draw = draw_equation(seed, index, cfg)
     provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
-    d = choose_d(draw, cfg)
+    d = choose_d(draw, cfg, threads=1)  # one process per core: numba single-threaded inside
     equation = draw.equation.with_d(d or 0.0)
     spec = SurfaceSpec.from_tree(
         equation.to_tree(), draw.box.bounds(), (run.grid,) * 3, provenance=provenance
@@ -140,11 +140,11 @@ def make_shape(
     verdict = Verdict.reject("no_crossing") if d is None else None
     tree = spec.tree()
     if verdict is None:
-        coarse = evaluate(tree, Grid(draw.box, (fcfg.coarse_grid,) * 3))
+        coarse = evaluate(tree, Grid(draw.box, (fcfg.coarse_grid,) * 3), threads=1)
         verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True)
         verdict = None if verdict.accepted else verdict
     if verdict is None:
-        field_ = evaluate(tree, spec.to_grid())
+        field_ = evaluate(tree, spec.to_grid(), threads=1)
         metrics["nonfinite"] = field_.nonfinite
         lap("eval")
         verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
