@@ -11,6 +11,7 @@ Never call ``MeshSet.save_snapshot``: it aborts the process (SIGABRT) without a 
 from __future__ import annotations
 
 import logging
+import time
 from importlib import metadata
 from typing import Any
 
@@ -254,3 +255,99 @@ def _drop_unreferenced(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
     used[faces.reshape(-1)] = True
     renumber = np.cumsum(used) - 1
     return Mesh(vertices[used], renumber[faces])
+
+
+# --- batched repairs and fast remeshing (used by surfgen.filters.cleanup) ----------------------
+
+
+def _repair_params(name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """Our repair options -> pymeshlab parameters (filter names stay in :data:`FILTERS`)."""
+    if name == "merge_close_vertices":
+        return {"threshold": pymeshlab.PureValue(float(options["threshold"]))}
+    if name == "repair_nonmanifold_edges":
+        method = options.get("method", "remove_faces")
+        if method not in NONMANIFOLD_EDGE_METHODS:
+            raise MeshError(
+                f"unknown non-manifold edge repair '{method}' "
+                f"(allowed: {', '.join(NONMANIFOLD_EDGE_METHODS)})"
+            )
+        return {"method": NONMANIFOLD_EDGE_METHODS[method]}
+    if name == "repair_nonmanifold_vertices":
+        return {"vertdispratio": float(options.get("displacement", 0.0))}
+    if name == "close_holes":
+        return {"maxholesize": int(options["max_hole_edges"]), "selfintersection": True}
+    if name in ("remove_duplicate_faces", "remove_degenerate_faces", "orient_coherently"):
+        return {}
+    raise MeshError(f"unknown repair '{name}' (allowed: {', '.join(REPAIRS)})")
+
+
+# Repairs run_repairs knows: our name -> key in FILTERS.
+REPAIRS: dict[str, str] = {
+    "merge_close_vertices": "merge_close_vertices",
+    "remove_duplicate_faces": "remove_duplicate_faces",
+    "remove_degenerate_faces": "remove_null_faces",
+    "repair_nonmanifold_edges": "repair_nonmanifold_edges",
+    "repair_nonmanifold_vertices": "repair_nonmanifold_vertices",
+    "close_holes": "close_holes",
+    "orient_coherently": "orient_coherently",
+}
+
+
+def run_repairs(
+    mesh: Mesh, repairs: list[tuple[str, dict[str, Any]]]
+) -> tuple[Mesh, list[dict[str, Any]]]:
+    """Run several repairs on one copy of ``mesh`` (one MeshSet: no copy in and out per step).
+
+    ``repairs`` are ``(name, options)`` with names from :data:`REPAIRS` and options
+    ``merge_close_vertices: threshold`` (box units), ``repair_nonmanifold_edges: method``,
+    ``repair_nonmanifold_vertices: displacement``, ``close_holes: max_hole_edges``.
+    Unreferenced vertices are dropped after every step.  Returns the repaired mesh and, per
+    step, ``{"name", "vertices", "faces", "seconds"}`` counted after it.  Raises
+    :class:`MeshError` for an unknown repair, a failing filter or an empty mesh.
+    """
+    ms = _meshset(mesh)
+    counts: list[dict[str, Any]] = []
+    for name, options in repairs:
+        if name not in REPAIRS:
+            raise MeshError(f"unknown repair '{name}' (allowed: {', '.join(REPAIRS)})")
+        filter_name = FILTERS[REPAIRS[name]]
+        params = _repair_params(name, options)
+        start = time.perf_counter()
+        try:
+            ms.apply_filter(filter_name, **params)
+            ms.apply_filter(FILTERS["remove_unreferenced_vertices"])
+        except pymeshlab.PyMeshLabException as exc:
+            raise MeshError(f"meshlab {filter_name} failed: {exc}") from None
+        m = ms.current_mesh()
+        counts.append(
+            {
+                "name": name,
+                "vertices": int(m.vertex_number()),
+                "faces": int(m.face_number()),
+                "seconds": time.perf_counter() - start,
+            }
+        )
+    return _from_meshset(ms), counts
+
+
+def remesh_isotropic(
+    mesh: Mesh,
+    target_edge_length: float,
+    iterations: int = 1,
+    feature_degrees: float = 30.0,
+) -> Mesh:
+    """Isotropic explicit remeshing towards edges of ``target_edge_length`` (box units).
+
+    Unlike :func:`isotropic_remesh` it skips pymeshlab's surface-distance check on every
+    collapse and flip (3x faster on 200k faces); vertices are still reprojected onto the input
+    surface after each iteration, and edges whose faces meet at more than ``feature_degrees``
+    (the box caps' rims) are kept as creases.
+    """
+    params = {
+        "targetlen": pymeshlab.PureValue(float(target_edge_length)),
+        "iterations": int(iterations),
+        "featuredeg": float(feature_degrees),
+        "checksurfdist": False,
+        "reprojectflag": True,
+    }
+    return _apply(mesh, ("isotropic_remesh", params))

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
+from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
 from surfgen.generator.mesh import Mesh
@@ -49,8 +50,8 @@ class FilterConfig:
     min_inside_fraction: float = 0.01
     max_inside_fraction: float = 0.75
     min_faces: int = 400
-    max_components: int = 40
-    min_largest_component_fraction: float = 0.25
+    max_components: int = 60
+    min_largest_component_fraction: float = 0.2
     max_box_fraction: float = 0.35
     max_genus: int = 500
     blob_max_curvature: float = 1.25
@@ -105,25 +106,37 @@ ACCEPT = Verdict(True)
 
 
 def field_statistics(values: np.ndarray, level: float = 0.0) -> dict[str, float]:
-    """Inside, non-finite and sign-flip fractions of a field of shape (Nx, Ny, Nz)."""
+    """Statistics of a field of shape (Nx, Ny, Nz) (non-finite samples count as outside).
+
+    ``inside_fraction``, ``nonfinite_fraction``; ``flip_fraction``: neighbour pairs with
+    opposite sides; ``box_fraction_estimate``: the share of a capped mesh's area that would lie
+    on the box, from the inside samples on the grid's faces (cap area) and the sign changes
+    (surface area: each crossing edge stands for about one cell face, / 1.5 for the average
+    over-count of a staircase surface).
+    """
     finite = np.isfinite(values)
-    inside = finite & (values < level)  # non-finite samples are outside
+    inside = finite & (values < level)
     flips = 0
     pairs = 0
     for axis in range(3):
         a = np.swapaxes(inside, 0, axis)
         flips += int(np.count_nonzero(a[1:] != a[:-1]))
         pairs += a[1:].size
+    faces = [inside[0], inside[-1], inside[:, 0], inside[:, -1], inside[:, :, 0], inside[:, :, -1]]
+    cap_cells = float(sum(np.count_nonzero(f) for f in faces))
     n = values.size
     return {
         "inside_fraction": float(np.count_nonzero(inside)) / n,
         "nonfinite_fraction": float(n - np.count_nonzero(finite)) / n,
         "flip_fraction": flips / pairs if pairs else 0.0,
+        "box_fraction_estimate": cap_cells / (cap_cells + flips / 1.5) if cap_cells else 0.0,
     }
 
 
-def screen_field(values: np.ndarray, level: float, cfg: FilterConfig, coarse: bool) -> Verdict:
-    """The cheap verdict on a field; ``coarse`` also checks for noise."""
+def screen_field(
+    values: np.ndarray, level: float, cfg: FilterConfig, coarse: bool, capped: bool = True
+) -> Verdict:
+    """The cheap verdict on a field; ``coarse`` also checks for noise and clear box-domination."""
     s = field_statistics(values, level)
     if s["nonfinite_fraction"] > cfg.max_nonfinite_fraction:
         return Verdict.reject("nonfinite")
@@ -133,17 +146,16 @@ def screen_field(values: np.ndarray, level: float, cfg: FilterConfig, coarse: bo
         return Verdict.reject("full")
     if coarse and s["flip_fraction"] > cfg.max_flip_fraction:
         return Verdict.reject("noise")
+    # Only clear cases: the full check on the mesh decides the rest.
+    if coarse and capped and s["box_fraction_estimate"] > 1.5 * cfg.max_box_fraction:
+        return Verdict.reject("box_dominated")
     return ACCEPT
 
 
-def shape_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
-    """:func:`measure_mesh` plus what the complexity filter needs.
-
-    ``box_fraction``: share of the area on the box's faces; ``largest_component_fraction``:
-    area of the largest component / total; ``total_curvature``: sum over vertices of the
-    absolute angle deficit, / 4 pi (1 for any convex closed surface, more for wavy ones).
-    """
-    m = measure_mesh(mesh).to_dict()
+def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
+    """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
+    ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
+    (area of the largest component / total)."""
     v, f = mesh.vertices, mesh.faces
     tri = v[f]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -158,64 +170,65 @@ def shape_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
         on_face |= np.all(np.abs(c - lo[k]) <= tol, axis=1) | np.all(
             np.abs(c - hi[k]) <= tol, axis=1
         )
-    m["box_fraction"] = float(areas[on_face].sum()) / total
-    m["largest_component_fraction"] = _largest_component_fraction(mesh, areas, total)
-    m["total_curvature"] = _total_abs_curvature(v, f) / (4 * math.pi)
+    labels = face_components(mesh)
+    per = np.bincount(labels, weights=areas)
+    return {
+        "faces": mesh.n_faces,
+        "components": int(per.size),
+        "box_fraction": float(areas[on_face].sum()) / total,
+        "largest_component_fraction": float(per.max()) / total if per.size else 0.0,
+    }
+
+
+def shape_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
+    """:func:`measure_mesh` (manifoldness through pymeshlab, genus, ...), :func:`quick_metrics`,
+    and ``total_curvature``: the sum over vertices of the absolute angle deficit, / 4 pi
+    (1 for any convex closed surface, more for wavy ones)."""
+    m = measure_mesh(mesh).to_dict()
+    m.update(quick_metrics(mesh, box))
+    m["total_curvature"] = _total_abs_curvature(mesh.vertices, mesh.faces) / (4 * math.pi)
     return m
-
-
-def _largest_component_fraction(mesh: Mesh, areas: np.ndarray, total: float) -> float:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    f = mesh.faces
-    n = mesh.n_vertices
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    graph = coo_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
-    per = np.bincount(labels[f[:, 0]], weights=areas)
-    return float(per.max()) / total if per.size else 0.0
 
 
 def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
     """Sum of |2 pi - sum of corner angles| over vertices (discrete Gauss-Bonnet)."""
-    angle_sum = np.zeros(len(v))
+    angles = np.empty(f.shape)
     for k in range(3):
         a = v[f[:, (k + 1) % 3]] - v[f[:, k]]
         b = v[f[:, (k + 2) % 3]] - v[f[:, k]]
         cos = np.einsum("ij,ij->i", a, b) / (
             np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) + 1e-300
         )
-        np.add.at(angle_sum, f[:, k], np.arccos(np.clip(cos, -1.0, 1.0)))
-    used = np.zeros(len(v), dtype=bool)
-    used[f.ravel()] = True
+        angles[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
+    angle_sum = np.bincount(f.ravel(), weights=angles.ravel(), minlength=len(v))
+    used = np.bincount(f.ravel(), minlength=len(v)) > 0
     return float(np.abs(2 * math.pi - angle_sum[used]).sum())
 
 
 def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:
-    """The verdict on a repaired mesh's :func:`shape_metrics`; all failing reasons are listed."""
+    """The verdict on :func:`shape_metrics` (or only :func:`quick_metrics`: the checks whose
+    metrics are missing are skipped). Every failing reason is listed."""
+    m = metrics
     reasons: list[str] = []
-    if metrics["faces"] < cfg.min_faces:
+    if m["faces"] < cfg.min_faces:
         reasons.append("too_small")
-    if cfg.require_manifold and (metrics["nonmanifold_edges"] or metrics["nonmanifold_vertices"]):
+    if cfg.require_manifold and (m.get("nonmanifold_edges") or m.get("nonmanifold_vertices")):
         reasons.append("nonmanifold")
-    if capped and not metrics["watertight"]:
+    if capped and m.get("watertight") is False:
         reasons.append("not_watertight")
     if (
-        metrics["components"] > cfg.max_components
-        or metrics["largest_component_fraction"] < cfg.min_largest_component_fraction
+        m["components"] > cfg.max_components
+        or m["largest_component_fraction"] < cfg.min_largest_component_fraction
     ):
         reasons.append("speckle")
-    if metrics["box_fraction"] > cfg.max_box_fraction:
+    if m["box_fraction"] > cfg.max_box_fraction:
         reasons.append("box_dominated")
-    genus = metrics.get("genus")
+    genus = m.get("genus")
     if (
-        metrics["components"] == 1
+        m["components"] == 1
         and genus == 0
-        and metrics["total_curvature"] < cfg.blob_max_curvature
-        and metrics["box_fraction"] < 0.05
-    ):
+        and m.get("total_curvature", math.inf) < cfg.blob_max_curvature
+    ):  # a closed genus-0 surface with integral |K| = 4 pi is convex: a lump, caps or not
         reasons.append("blob")
     if genus is not None and genus > cfg.max_genus:
         reasons.append("too_complex")

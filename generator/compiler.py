@@ -153,7 +153,11 @@ class Program:
     def constant(self) -> float | None:
         """The value when the formula is a constant, else ``None``."""
         c0, c1 = self.blocks[OUT, 0], self.blocks[OUT, 1]
-        if c1 - c0 == 1 and self.code[c0, 1] == M_S and self.blocks[OUT, 3] - self.blocks[OUT, 2] == 1:
+        if (
+            c1 - c0 == 1
+            and self.code[c0, 1] == M_S
+            and self.blocks[OUT, 3] - self.blocks[OUT, 2] == 1
+        ):
             load = self.loads[self.blocks[OUT, 2]]
             if load[0] == 0:
                 return float(self.consts[load[1]])
@@ -182,7 +186,9 @@ class Program:
                 tail = f" #{imm}" if OPNAMES[int(op)] in ("powi", "series", "segsum") else ""
                 lines.append(f"  W{d} = {OPNAMES[int(op)]}({ops}){tail}")
             for slot, kind, row in self.stores[s0:s1]:
-                lines.append(f"  {LEVEL_NAMES[int(kind)] if kind != OUT else 'out'}[{row}] <- W{slot}")
+                lines.append(
+                    f"  {LEVEL_NAMES[int(kind)] if kind != OUT else 'out'}[{row}] <- W{slot}"
+                )
         return "\n".join(lines)
 
 
@@ -303,10 +309,10 @@ _NP_BINARY = {
 }
 _TREE_BINARY = {"+": "add", "-": "sub", "*": "mul", "/": "div"}
 # Functions of the formula language that are one opcode.
-_DIRECT = {
-    name
-    for name in ["sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "exp", "log", "log10", "sqrt", "cbrt", "abs", "sign", "floor", "ceil"]
-}
+_DIRECT = frozenset(
+    ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh")
+    + ("atanh", "exp", "log", "log10", "sqrt", "cbrt", "abs", "sign", "floor", "ceil")
+)
 
 
 # ----------------------------------------------------------------------------- lowering
@@ -349,9 +355,8 @@ class _Lowerer:
         if fdef is None:
             raise FormulaError(f"unknown function '{op}'")
         args = [self.lower(a) for a in node.args]
-        if fdef.const_from is not None:
-            if not all(d.is_const(a) for a in args[fdef.const_from :]):
-                raise FormulaError(f"{op}: parameters must be constant")
+        if fdef.const_from is not None and not all(d.is_const(a) for a in args[fdef.const_from :]):
+            raise FormulaError(f"{op}: parameters must be constant")
         if all(d.is_const(a) for a in args):
             return d.const(self._fold_function(op, args))
         if fdef.const_from is not None:
@@ -359,6 +364,8 @@ class _Lowerer:
             with np.errstate(all="ignore"):  # the reference's own parameter checks
                 fdef.reference(*[np.zeros(())] * fdef.const_from, *consts)
             return self._constituent(op, args[0], consts)
+        if op == "fcc8":
+            return self._constituent(op, args[0], [])
         return self._function(op, args)
 
     def _fold_function(self, op: str, args: list[int]) -> float:
@@ -426,7 +433,9 @@ class _Lowerer:
             return d.op("sub", k(0.5), d.op("mul", k(0.5), us))
         if op == "rect2":
             r, t = c
-            a = d.op("div", self._acot_cot(d.op("div", d.op("mul", pi, d.op("add", x, k(t))), k(r))), pi)
+            a = d.op(
+                "div", self._acot_cot(d.op("div", d.op("mul", pi, d.op("add", x, k(t))), k(r))), pi
+            )
             b = d.op("div", self._acot_cot(self._pi_x_over_r(x, r)), pi)
             return d.op("add", d.op("sub", k(t / r), a), b)
         if op == "rect3":
@@ -516,6 +525,8 @@ def _schedule(dag: _Dag, root: int, formula: str) -> Program:
         for a in nd.args:
             if nodes[a].op not in ("const", "var") and level[a] != nd.level:
                 consumers_outside.add(a)
+    if level[root] != OUT and nodes[root].op not in ("const", "var"):
+        consumers_outside.add(root)  # the output block copies (broadcasts) it
     for n in order:
         if n in consumers_outside:
             store_row[n] = rows[level[n]]
@@ -627,7 +638,7 @@ class _Block:
         for n in out_stores:
             last[n] = len(steps)
         # Vector loads first: everything read from lower levels along the run axis.
-        for t, n in enumerate(steps):
+        for n in steps:
             args = nodes[n].args if n >= 0 else (copy_of,)
             for a in args:
                 inside = self.level[a] == self.lv and nodes[a].op != "var"
@@ -720,4 +731,3 @@ __all__ = [
     "describe",
     "LEVEL_NAMES",
 ]
-

@@ -13,6 +13,7 @@ thread pool (the sampler runs one process per core); ``threads=None`` uses numba
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -30,8 +31,10 @@ log = logging.getLogger(__name__)
 
 TILE_MAX = 256  # points per W row: n_vector rows of this stay in L1/L2
 CHUNKS_PER_THREAD = 4  # slabs per thread, for load balance when threads are shared
+COMPILED_CACHE = 64  # programs kept by evaluate_fast, keyed by (tree, params)
 
 compile_program = compile_tree
+_NO_PROFILE = np.empty(0)
 
 
 def evaluate_fast(
@@ -45,7 +48,13 @@ def evaluate_fast(
     Raises :class:`FormulaError` as :func:`surfgen.generator.reference.evaluate_reference`
     does, and for a ``threads`` that is not a whole number >= 1.
     """
-    return evaluate_program(compile_tree(tree, params), grid, threads)
+    return evaluate_program(_compiled(tree, tuple(sorted((params or {}).items()))), grid, threads)
+
+
+@functools.lru_cache(maxsize=COMPILED_CACHE)
+def _compiled(tree: Expr, params: tuple[tuple[str, float], ...]) -> Program:
+    """Programs of recent trees: the sampler evaluates one tree on a coarse, then a fine grid."""
+    return compile_tree(tree, dict(params))
 
 
 def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -> Field:
@@ -57,14 +66,15 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
     n_threads = _resolve_threads(threads)
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
-    args = _kernel_args(program, ax, ay, az, out)
+    prog = _prog(program)
+    tile = _tile(grid.shape[2])  # rows along z; x and y runs are cut to the same length
     if n_threads == 1:
-        kernels.run_serial(*args)
+        kernels.run_serial(prog, tile, ax, ay, az, out, _NO_PROFILE)
     else:
         previous = numba.get_num_threads()
         numba.set_num_threads(n_threads)
         try:
-            kernels.run_parallel(*args, n_threads * CHUNKS_PER_THREAD)
+            kernels.run_parallel(prog, tile, ax, ay, az, out, n_threads * CHUNKS_PER_THREAD)
         finally:
             numba.set_num_threads(previous)
     return Field(grid, out)
@@ -96,7 +106,18 @@ def _tile(n: int) -> int:
     return max(1, math.ceil(n / pieces))
 
 
-def _kernel_args(program: Program, ax, ay, az, out) -> tuple:
+def scratch_bytes(program: Program, grid: Grid, threads: int = 1) -> int:
+    """Bytes the interpreter allocates besides the output field (Nx*Ny*Nz*8 bytes): the x, y,
+    z and yz stores, and per thread the register file and the xy and xz rows."""
+    nx, ny, nz = grid.shape
+    r = program.rows
+    tile = _tile(nz)
+    shared = r[1] * nx + r[2] * ny + r[4] * nz + r[6] * ny * nz
+    per_thread = (program.n_vector + 2) * tile + program.n_scalar + r[3] * ny + r[5] * nz
+    return int(8 * (shared + max(1, threads) * per_thread))
+
+
+def _prog(program: Program) -> tuple:
     return (
         program.code,
         program.blocks,
@@ -106,12 +127,20 @@ def _kernel_args(program: Program, ax, ay, az, out) -> tuple:
         program.rows,
         program.n_vector,
         program.n_scalar,
-        _tile(out.shape[2]),  # rows along z; x and y runs are cut to the same length
-        ax,
-        ay,
-        az,
-        out,
     )
+
+
+def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
+    """Run ``program`` on one thread counting CPU cycles per code row.
+
+    Returns the field and a float64 array with the cycles of each row of ``program.code``
+    (for benchmarks and for finding where the time goes; slower than a plain run).
+    """
+    ax, ay, az = grid.axes()
+    out = np.empty(grid.shape, np.float64)
+    prof = np.zeros(len(program.code))
+    kernels.run_serial(_prog(program), _tile(grid.shape[2]), ax, ay, az, out, prof)
+    return Field(grid, out), prof
 
 
 def _warm_tree() -> Expr:

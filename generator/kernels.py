@@ -87,6 +87,21 @@ def _fma(typingctx, a, b, c):
     return sig, codegen
 
 
+@intrinsic
+def _cycles(typingctx):
+    """The CPU's cycle counter (for profiles only)."""
+    sig = types.int64()
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(i64, []), "llvm.readcyclecounter"
+        )
+        return builder.call(fn, [])
+
+    return sig, codegen
+
+
 # ----------------------------------------------------------------------------- scalar helpers
 
 
@@ -181,55 +196,59 @@ def _series(x, r, p):
 
 
 # ----------------------------------------------------------------------------- row operations
+#
+# Every operation reads and writes rows of the register file W (n_vector, tile) by index:
+# creating array views per instruction costs reference counting that, per row of a few
+# hundred points, is as expensive as the arithmetic.
 
 
 @njit(**_OPTS)
-def _powi(o, a, n, m, T):
-    """o = a^m for an integer |m| >= 2 (o is not a). Double-double power, C pow where the
+def _powi(W, d, a, n, m, T):
+    """W[d] = W[a]^m for an integer |m| >= 2 (d != a). Double-double power, C pow where the
     rounding could differ (about 6% of inputs, and every non-finite or extreme one)."""
-    H = T[0]
-    L = T[1]
     e = abs(m)
     for k in range(n):
-        H[k] = a[k]
-        L[k] = 0.0
+        T[0, k] = W[a, k]
+        T[1, k] = 0.0
     for _ in range(e - 1):
         for k in range(n):
-            u = a[k]
-            h = H[k]
+            u = W[a, k]
+            h = T[0, k]
             p = h * u
-            s = _fma(h, u, -p) + L[k] * u
+            s = _fma(h, u, -p) + T[1, k] * u
             hh = p + s
-            L[k] = s - (hh - p)
-            H[k] = hh
+            T[1, k] = s - (hh - p)
+            T[0, k] = hh
     if m < 0:
         for k in range(n):
-            h = H[k]
+            h = T[0, k]
             q = 1.0 / h
-            c = q * (_fma(-q, h, 1.0) - q * L[k])
+            c = q * (_fma(-q, h, 1.0) - q * T[1, k])
             hh = q + c
-            L[k] = c - (hh - q)
-            H[k] = hh
+            T[1, k] = c - (hh - q)
+            T[0, k] = hh
     bad = 0
-    for k in range(n):
-        h = H[k]
-        ok = (h + L[k] * _POWI_MARGIN == h) and (abs(h) > 1e-300) and (abs(h) < 1e300)
-        o[k] = h
-        bad += not ok
+    for k in range(n):  # branch-free so that it vectorizes; T[1] becomes the fallback flag
+        h = T[0, k]
+        ah = abs(h)
+        ok = (h + T[1, k] * _POWI_MARGIN == h) & (ah > 1e-300) & (ah < 1e300)
+        W[d, k] = h
+        T[1, k] = 0.0 if ok else 1.0
+        bad += 0 if ok else 1
     if bad:
         fm = float(m)
         for k in range(n):
-            h = H[k]
-            if not ((h + L[k] * _POWI_MARGIN == h) and (abs(h) > 1e-300) and (abs(h) < 1e300)):
-                o[k] = a[k] ** fm
+            if T[1, k] != 0.0:
+                W[d, k] = W[a, k] ** fm
 
 
 @njit(**_OPTS)
-def _segsum(o, a, n, consts, base):
+def _segsum(W, d, a, n, consts, base):
+    """W[d] = 0.5 * sum over segments of selector * line, in the reference's order."""
     kind = consts[base]
     nseg = int(consts[base + 1])
     for k in range(n):
-        x = a[k]
+        x = W[a, k]
         total = 0.0
         for s in range(nseg):
             q = base + 2 + 6 * s
@@ -239,231 +258,266 @@ def _segsum(o, a, n, consts, base):
             else:  # fcc8: slope x + intercept
                 line = consts[q + 2] * x + consts[q + 3]
             total = total + sel * line
-        o[k] = 0.5 * total
+        W[d, k] = 0.5 * total
 
 
 @njit(**_OPTS)
-def _unary(op, o, a, n, consts, imm, T):
+def _series_row(W, d, a, n, consts, base):
+    r = consts[base]
+    p = int(consts[base + 1])
+    if consts[base + 2] != 0.0:
+        for k in range(n):
+            W[d, k] = _series_exact(W[a, k], r, p)
+    else:
+        for k in range(n):
+            W[d, k] = _series(W[a, k], r, p)
+
+
+@njit(**_OPTS)
+def _unary(op, W, d, a, n, consts, imm, T):
+    """The operations of one vector operand."""
     if op == OP_COPY:
         for k in range(n):
-            o[k] = a[k]
+            W[d, k] = W[a, k]
     elif op == OP_NEG:
         for k in range(n):
-            o[k] = -a[k]
+            W[d, k] = -W[a, k]
     elif op == OP_ABS:
         for k in range(n):
-            o[k] = abs(a[k])
+            W[d, k] = abs(W[a, k])
     elif op == OP_SQUARE:
         for k in range(n):
-            o[k] = a[k] * a[k]
+            W[d, k] = W[a, k] * W[a, k]
     elif op == OP_RECIP:
         for k in range(n):
-            o[k] = 1.0 / a[k]
+            W[d, k] = 1.0 / W[a, k]
     elif op == OP_SQRT:
         for k in range(n):
-            o[k] = math.sqrt(a[k])
+            W[d, k] = math.sqrt(W[a, k])
     elif op == OP_SIN:
         for k in range(n):
-            o[k] = math.sin(a[k])
+            W[d, k] = math.sin(W[a, k])
     elif op == OP_COS:
         for k in range(n):
-            o[k] = math.cos(a[k])
+            W[d, k] = math.cos(W[a, k])
     elif op == OP_TAN:
         for k in range(n):
-            o[k] = math.tan(a[k])
+            W[d, k] = math.tan(W[a, k])
     elif op == OP_ATAN:
         for k in range(n):
-            o[k] = math.atan(a[k])
+            W[d, k] = math.atan(W[a, k])
     elif op == OP_ASIN:
         for k in range(n):
-            o[k] = math.asin(a[k])
+            W[d, k] = math.asin(W[a, k])
     elif op == OP_ACOS:
         for k in range(n):
-            o[k] = math.acos(a[k])
+            W[d, k] = math.acos(W[a, k])
     elif op == OP_POWI:
-        _powi(o, a, n, imm, T)
+        _powi(W, d, a, n, imm, T)
     elif op == OP_USIGN:
         for k in range(n):
-            o[k] = _usign(a[k])
+            W[d, k] = _usign(W[a, k])
     elif op == OP_EXP:
         for k in range(n):
-            o[k] = math.exp(a[k])
+            W[d, k] = math.exp(W[a, k])
     elif op == OP_LOG:
         for k in range(n):
-            o[k] = math.log(a[k])
+            W[d, k] = math.log(W[a, k])
     elif op == OP_LOG10:
         for k in range(n):
-            o[k] = math.log10(a[k])
+            W[d, k] = math.log10(W[a, k])
     elif op == OP_SINH:
         for k in range(n):
-            o[k] = math.sinh(a[k])
+            W[d, k] = math.sinh(W[a, k])
     elif op == OP_COSH:
         for k in range(n):
-            o[k] = math.cosh(a[k])
+            W[d, k] = math.cosh(W[a, k])
     elif op == OP_TANH:
         for k in range(n):
-            o[k] = math.tanh(a[k])
+            W[d, k] = math.tanh(W[a, k])
     elif op == OP_ASINH:
         for k in range(n):
-            o[k] = math.asinh(a[k])
+            W[d, k] = math.asinh(W[a, k])
     elif op == OP_ACOSH:
         for k in range(n):
-            o[k] = math.acosh(a[k])
+            W[d, k] = math.acosh(W[a, k])
     elif op == OP_ATANH:
         for k in range(n):
-            o[k] = math.atanh(a[k])
+            W[d, k] = math.atanh(W[a, k])
     elif op == OP_CBRT:
         for k in range(n):
-            o[k] = np.cbrt(a[k])
+            W[d, k] = np.cbrt(W[a, k])
     elif op == OP_SIGN:
         for k in range(n):
-            o[k] = _sign(a[k])
+            W[d, k] = _sign(W[a, k])
     elif op == OP_FLOOR:
         for k in range(n):
-            o[k] = np.floor(a[k])
+            W[d, k] = np.floor(W[a, k])
     elif op == OP_CEIL:
         for k in range(n):
-            o[k] = np.ceil(a[k])
+            W[d, k] = np.ceil(W[a, k])
     elif op == OP_SERIES:
-        r = consts[imm]
-        p = int(consts[imm + 1])
-        if consts[imm + 2] != 0.0:
-            for k in range(n):
-                o[k] = _series_exact(a[k], r, p)
-        else:
-            for k in range(n):
-                o[k] = _series(a[k], r, p)
+        _series_row(W, d, a, n, consts, imm)
     elif op == OP_SEGSUM:
-        _segsum(o, a, n, consts, imm)
+        _segsum(W, d, a, n, consts, imm)
 
 
 @njit(**_OPTS)
-def _binary_vv(op, o, a, b, n):
+def _binary_vv(op, W, d, a, b, n):
     if op == OP_MUL:
         for k in range(n):
-            o[k] = a[k] * b[k]
+            W[d, k] = W[a, k] * W[b, k]
     elif op == OP_ADD:
         for k in range(n):
-            o[k] = a[k] + b[k]
+            W[d, k] = W[a, k] + W[b, k]
     elif op == OP_SUB:
         for k in range(n):
-            o[k] = a[k] - b[k]
+            W[d, k] = W[a, k] - W[b, k]
     elif op == OP_DIV:
         for k in range(n):
-            o[k] = a[k] / b[k]
+            W[d, k] = W[a, k] / W[b, k]
     elif op == OP_POW:
         for k in range(n):
-            o[k] = a[k] ** b[k]
+            W[d, k] = W[a, k] ** W[b, k]
     elif op == OP_MIN:
         for k in range(n):
-            o[k] = _minimum(a[k], b[k])
+            W[d, k] = _minimum(W[a, k], W[b, k])
     elif op == OP_MAX:
         for k in range(n):
-            o[k] = _maximum(a[k], b[k])
+            W[d, k] = _maximum(W[a, k], W[b, k])
     elif op == OP_ATAN2:
         for k in range(n):
-            o[k] = math.atan2(a[k], b[k])
+            W[d, k] = math.atan2(W[a, k], W[b, k])
     elif op == OP_RATIO1:
         for k in range(n):
-            o[k] = _ratio1(a[k], b[k])
+            W[d, k] = _ratio1(W[a, k], W[b, k])
 
 
 @njit(**_OPTS)
-def _binary_vs(op, o, a, s, n):
+def _binary_vs(op, W, d, a, s, n):
     if op == OP_MUL:
         for k in range(n):
-            o[k] = a[k] * s
+            W[d, k] = W[a, k] * s
     elif op == OP_ADD:
         for k in range(n):
-            o[k] = a[k] + s
+            W[d, k] = W[a, k] + s
     elif op == OP_SUB:
         for k in range(n):
-            o[k] = a[k] - s
+            W[d, k] = W[a, k] - s
     elif op == OP_DIV:
         for k in range(n):
-            o[k] = a[k] / s
+            W[d, k] = W[a, k] / s
     elif op == OP_POW:
         if s == 2.0 or s == 0.5 or s == -1.0 or s == 1.0 or s == 0.0:
             for k in range(n):
-                o[k] = _pow_scalar_exponent(a[k], s)
+                W[d, k] = _pow_scalar_exponent(W[a, k], s)
         else:
             for k in range(n):
-                o[k] = a[k] ** s
+                W[d, k] = W[a, k] ** s
     elif op == OP_MIN:
         for k in range(n):
-            o[k] = _minimum(a[k], s)
+            W[d, k] = _minimum(W[a, k], s)
     elif op == OP_MAX:
         for k in range(n):
-            o[k] = _maximum(a[k], s)
+            W[d, k] = _maximum(W[a, k], s)
     elif op == OP_ATAN2:
         for k in range(n):
-            o[k] = math.atan2(a[k], s)
+            W[d, k] = math.atan2(W[a, k], s)
     elif op == OP_RATIO1:
         for k in range(n):
-            o[k] = _ratio1(a[k], s)
+            W[d, k] = _ratio1(W[a, k], s)
 
 
 @njit(**_OPTS)
-def _binary_sv(op, o, s, b, n):
+def _binary_sv(op, W, d, s, b, n):
     if op == OP_MUL:
         for k in range(n):
-            o[k] = s * b[k]
+            W[d, k] = s * W[b, k]
     elif op == OP_ADD:
         for k in range(n):
-            o[k] = s + b[k]
+            W[d, k] = s + W[b, k]
     elif op == OP_SUB:
         for k in range(n):
-            o[k] = s - b[k]
+            W[d, k] = s - W[b, k]
     elif op == OP_DIV:
         for k in range(n):
-            o[k] = s / b[k]
+            W[d, k] = s / W[b, k]
     elif op == OP_POW:  # numpy has no fast path for a varying exponent
         for k in range(n):
-            o[k] = s ** b[k]
+            W[d, k] = s ** W[b, k]
     elif op == OP_MIN:
         for k in range(n):
-            o[k] = _minimum(s, b[k])
+            W[d, k] = _minimum(s, W[b, k])
     elif op == OP_MAX:
         for k in range(n):
-            o[k] = _maximum(s, b[k])
+            W[d, k] = _maximum(s, W[b, k])
     elif op == OP_ATAN2:
         for k in range(n):
-            o[k] = math.atan2(s, b[k])
+            W[d, k] = math.atan2(s, W[b, k])
     elif op == OP_RATIO1:
         for k in range(n):
-            o[k] = _ratio1(s, b[k])
+            W[d, k] = _ratio1(s, W[b, k])
 
 
 @njit(**_OPTS)
-def _exec(code, c0, c1, consts, W, S, T, n):
-    """Run code rows [c0, c1) on the first n entries of the W rows."""
+def _exec(code, c0, c1, consts, W, S, T, n, prof):
+    """Run code rows [c0, c1) on the first n columns of W; with a non-empty ``prof``,
+    add the cycles each row takes to ``prof[row]``."""
+    profiling = prof.size > 0
+    t0 = 0
     for pc in range(c0, c1):
+        if profiling:
+            t0 = _cycles()
         op = code[pc, 0]
         mode = code[pc, 1]
-        o = W[code[pc, 2]]
+        d = code[pc, 2]
         a = code[pc, 3]
         b = code[pc, 4]
         if mode == M_VV:
-            _binary_vv(op, o, W[a], W[b], n)
+            _binary_vv(op, W, d, a, b, n)
         elif mode == M_VS:
-            _binary_vs(op, o, W[a], S[b], n)
+            _binary_vs(op, W, d, a, S[b], n)
         elif mode == M_V:
-            _unary(op, o, W[a], n, consts, code[pc, 5], T)
+            _unary(op, W, d, a, n, consts, code[pc, 5], T)
         elif mode == M_SV:
-            _binary_sv(op, o, S[a], W[b], n)
+            _binary_sv(op, W, d, S[a], b, n)
         elif mode == M_S:
             s = S[a]
             for k in range(n):
-                o[k] = s
+                W[d, k] = s
+        if profiling:
+            prof[pc] += _cycles() - t0
 
 
 # ----------------------------------------------------------------------------- blocks and drivers
 
 
 @njit(**_OPTS)
-def _run(lv, prog, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, i, j, nrun):
-    """Run the block of level ``lv`` over ``nrun`` points along its axis at row (i, j)."""
-    code, blocks, loads, stores = prog
+def _block(
+    lv,
+    i,
+    j0,
+    j1,
+    nrun,
+    code,
+    blocks,
+    loads,
+    stores,
+    consts,
+    sx,
+    sy,
+    sz,
+    sxy,
+    sxz,
+    syz,
+    out,
+    W,
+    S,
+    T,
+    prof,
+):
+    """Run the block of level ``lv`` for rows j0 <= j < j1 (at x index i), ``nrun`` points
+    along its axis each, tile by tile: scalar loads per row, vector loads, code, stores."""
     c0 = blocks[lv, 0]
     c1 = blocks[lv, 1]
     l0 = blocks[lv, 2]
@@ -472,65 +526,75 @@ def _run(lv, prog, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, i, j, nrun):
     s1 = blocks[lv, 5]
     if c0 == c1:
         return
-    for q in range(l0, l1):
-        if loads[q, 3] == 0:
-            kind = loads[q, 0]
-            row = loads[q, 1]
-            if kind == 0:
-                S[loads[q, 2]] = consts[row]
-            elif kind == 1:
-                S[loads[q, 2]] = sx[row, i]
-            elif kind == 2:
-                S[loads[q, 2]] = sy[row, j]
-            else:
-                S[loads[q, 2]] = sxy[row, j]
     tile = W.shape[1]
-    r0 = 0
-    while r0 < nrun:
-        n = min(tile, nrun - r0)
+    for j in range(j0, j1):
         for q in range(l0, l1):
-            if loads[q, 3] == 1:
+            if loads[q, 3] == 0:
                 kind = loads[q, 0]
                 row = loads[q, 1]
-                if kind == 4:
-                    src = sz[row]
-                elif kind == 6:
-                    src = syz[row, j]
-                elif kind == 5:
-                    src = sxz[row]
+                if kind == 0:
+                    S[loads[q, 2]] = consts[row]
+                elif kind == 1:
+                    S[loads[q, 2]] = sx[row, i]
                 elif kind == 2:
-                    src = sy[row]
+                    S[loads[q, 2]] = sy[row, j]
                 else:
-                    src = sx[row]
-                dst = W[loads[q, 2]]
-                for k in range(n):
-                    dst[k] = src[r0 + k]
-        _exec(code, c0, c1, consts, W, S, T, n)
-        for q in range(s0, s1):
-            src = W[stores[q, 0]]
-            kind = stores[q, 1]
-            row = stores[q, 2]
-            if kind == 7:
-                dst = out[i, j]
-            elif kind == 6:
-                dst = syz[row, j]
-            elif kind == 5:
-                dst = sxz[row]
-            elif kind == 3:
-                dst = sxy[row]
-            elif kind == 4:
-                dst = sz[row]
-            elif kind == 2:
-                dst = sy[row]
-            else:
-                dst = sx[row]
-            for k in range(n):
-                dst[r0 + k] = src[k]
-        r0 += n
+                    S[loads[q, 2]] = sxy[row, j]
+        r0 = 0
+        while r0 < nrun:
+            n = min(tile, nrun - r0)
+            for q in range(l0, l1):
+                if loads[q, 3] == 1:
+                    kind = loads[q, 0]
+                    row = loads[q, 1]
+                    slot = loads[q, 2]
+                    if kind == 4:
+                        for k in range(n):
+                            W[slot, k] = sz[row, r0 + k]
+                    elif kind == 6:
+                        for k in range(n):
+                            W[slot, k] = syz[row, j, r0 + k]
+                    elif kind == 5:
+                        for k in range(n):
+                            W[slot, k] = sxz[row, r0 + k]
+                    elif kind == 2:
+                        for k in range(n):
+                            W[slot, k] = sy[row, r0 + k]
+                    else:
+                        for k in range(n):
+                            W[slot, k] = sx[row, r0 + k]
+            _exec(code, c0, c1, consts, W, S, T, n, prof)
+            for q in range(s0, s1):
+                slot = stores[q, 0]
+                kind = stores[q, 1]
+                row = stores[q, 2]
+                if kind == 7:
+                    for k in range(n):
+                        out[i, j, r0 + k] = W[slot, k]
+                elif kind == 6:
+                    for k in range(n):
+                        syz[row, j, r0 + k] = W[slot, k]
+                elif kind == 5:
+                    for k in range(n):
+                        sxz[row, r0 + k] = W[slot, k]
+                elif kind == 3:
+                    for k in range(n):
+                        sxy[row, r0 + k] = W[slot, k]
+                elif kind == 4:
+                    for k in range(n):
+                        sz[row, r0 + k] = W[slot, k]
+                elif kind == 2:
+                    for k in range(n):
+                        sy[row, r0 + k] = W[slot, k]
+                else:
+                    for k in range(n):
+                        sx[row, r0 + k] = W[slot, k]
+            r0 += n
 
 
 @njit(**_OPTS)
-def _scratch(nv, ns, tile):
+def _scratch(prog, tile):
+    nv, ns = prog[6], prog[7]
     return np.empty((nv, tile)), np.empty(ns), np.empty((2, tile))
 
 
@@ -547,62 +611,69 @@ def _stores(rows, ax, ay, az):
 
 
 @njit(**_OPTS)
-def _prologue(prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out):
+def _prologue(prog, tile, sx, sy, sz, syz, out, prof):
     """The x, y and z blocks (1-D, once per grid)."""
-    W, S, T = _scratch(nv, ns, tile)
-    empty = np.empty((0, 1))
-    _run(1, prog, consts, sx, sy, sz, empty, empty, syz, out, W, S, T, 0, 0, sx.shape[1])
-    _run(2, prog, consts, sx, sy, sz, empty, empty, syz, out, W, S, T, 0, 0, sy.shape[1])
-    _run(4, prog, consts, sx, sy, sz, empty, empty, syz, out, W, S, T, 0, 0, sz.shape[1])
+    code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
+    W, S, T = _scratch(prog, tile)
+    e = np.empty((0, 1))
+    args = (code, blocks, loads, stores, consts, sx, sy, sz, e, e, syz, out, W, S, T, prof)
+    _block(1, 0, 0, 1, sx.shape[1], *args)
+    _block(2, 0, 0, 1, sy.shape[1], *args)
+    _block(4, 0, 0, 1, sz.shape[1], *args)
 
 
 @njit(**_OPTS)
-def _yz_rows(j0, j1, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out):
+def _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof):
     """The yz block for rows j0 <= j < j1 (once per grid)."""
-    W, S, T = _scratch(nv, ns, tile)
-    empty = np.empty((0, 1))
-    for j in range(j0, j1):
-        _run(6, prog, consts, sx, sy, sz, empty, empty, syz, out, W, S, T, 0, j, sz.shape[1])
+    code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
+    W, S, T = _scratch(prog, tile)
+    e = np.empty((0, 1))
+    args = (code, blocks, loads, stores, consts, sx, sy, sz, e, e, syz, out, W, S, T, prof)
+    _block(6, 0, j0, j1, sz.shape[1], *args)
 
 
 @njit(**_OPTS)
-def _slab(i0, i1, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out):
+def _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof):
     """x indices i0 <= i < i1: per i the xy and xz rows, then the xyz block row by row."""
-    W, S, T = _scratch(nv, ns, tile)
+    code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]
+    W, S, T = _scratch(prog, tile)
     ny = sy.shape[1]
     nz = sz.shape[1]
     sxy = np.empty((rows[3], ny))
     sxz = np.empty((rows[5], nz))
+    args = (code, blocks, loads, stores, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, prof)
     for i in range(i0, i1):
-        _run(3, prog, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, i, 0, ny)
-        _run(5, prog, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, i, 0, nz)
-        for j in range(ny):
-            _run(7, prog, consts, sx, sy, sz, sxy, sxz, syz, out, W, S, T, i, j, nz)
+        _block(3, i, 0, 1, ny, *args)
+        _block(5, i, 0, 1, nz, *args)
+        _block(7, i, 0, ny, nz, *args)
 
 
 @njit(**_OPTS)
-def run_serial(code, blocks, loads, stores, consts, rows, nv, ns, tile, ax, ay, az, out):
-    """Evaluate a program into ``out`` (Nx, Ny, Nz) on one thread."""
-    prog = (code, blocks, loads, stores)
-    sx, sy, sz, syz = _stores(rows, ax, ay, az)
-    _prologue(prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
-    _yz_rows(0, ay.size, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
-    _slab(0, ax.size, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
+def run_serial(prog, tile, ax, ay, az, out, prof):
+    """Evaluate a program into ``out`` (Nx, Ny, Nz) on one thread.
+
+    ``prog`` is ``(code, blocks, loads, stores, consts, rows, n_vector, n_scalar)`` of a
+    :class:`~surfgen.generator.compiler.Program`; ``prof`` is empty, or float64 of one entry
+    per code row to receive cycle counts."""
+    sx, sy, sz, syz = _stores(prog[5], ax, ay, az)
+    _prologue(prog, tile, sx, sy, sz, syz, out, prof)
+    _yz_rows(0, ay.size, prog, tile, sx, sy, sz, syz, out, prof)
+    _slab(0, ax.size, prog, tile, sx, sy, sz, syz, out, prof)
 
 
 @njit(parallel=True, **_OPTS)
-def run_parallel(code, blocks, loads, stores, consts, rows, nv, ns, tile, ax, ay, az, out, chunks):
+def run_parallel(prog, tile, ax, ay, az, out, chunks):
     """Evaluate a program into ``out`` with ``chunks`` slabs of x (and of y for the yz
     plane) shared among numba's threads."""
-    prog = (code, blocks, loads, stores)
-    sx, sy, sz, syz = _stores(rows, ax, ay, az)
-    _prologue(prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
+    prof = np.empty(0)
+    sx, sy, sz, syz = _stores(prog[5], ax, ay, az)
+    _prologue(prog, tile, sx, sy, sz, syz, out, prof)
     ny = ay.size
     nx = ax.size
-    if rows[6] > 0:
+    if prog[5][6] > 0:
         cy = min(chunks, ny)
         for c in prange(cy):
-            _yz_rows(c * ny // cy, (c + 1) * ny // cy, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
+            _yz_rows(c * ny // cy, (c + 1) * ny // cy, prog, tile, sx, sy, sz, syz, out, prof)
     cx = min(chunks, nx)
     for c in prange(cx):
-        _slab(c * nx // cx, (c + 1) * nx // cx, prog, consts, rows, nv, ns, tile, sx, sy, sz, syz, out)
+        _slab(c * nx // cx, (c + 1) * nx // cx, prog, tile, sx, sy, sz, syz, out, prof)

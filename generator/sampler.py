@@ -71,14 +71,14 @@ class SamplerConfig:
     lambda_choices: tuple[float, ...] = (1.0, 2.0, 3.0, 0.5, 1.5)
     lambda_weights: tuple[float, ...] = (0.6, 0.2, 0.0, 0.1, 0.1)
     mu_choices: tuple[int, ...] = (1, 2, 3)  # mu1, mu3
-    mu_weights: tuple[float, ...] = (0.6, 0.3, 0.1)
-    omit_element_prob: float = 0.5  # each of A, D (lambda=0), B, E, C, F (mu=0) left out
+    mu_weights: tuple[float, ...] = (0.7, 0.3, 0.0)
+    omit_element_prob: float = 0.6  # each of A, D (lambda=0), B, E, C, F (mu=0) left out
     constituent_prob: float = 0.2  # H or G is a constituent function instead of trigonometric
     constituent_r: tuple[float, float] = (0.5, 3.0)
     constituent_p: tuple[int, int] = (2, 8)
     abs_prob: float = 0.3  # each of A..F in |.|
-    box_half: tuple[float, float] = (1.0, 2.5)
-    d_quantile: tuple[float, float] = (0.25, 0.75)
+    box_half: tuple[float, float] = (0.8, 2.0)
+    d_quantile: tuple[float, float] = (0.05, 0.45)
     d_grid: int = 20  # coarse grid used to choose d
 
     def __post_init__(self) -> None:

@@ -2,7 +2,7 @@
 
 Layout of a catalogue folder (default ``out/catalogue``)::
 
-    catalogue.sqlite       runs, shapes (accepted and rejected draws), tags
+    catalogue.sqlite       runs, shapes (accepted and rejected draws), tags, curation (log)
     meshes/<key>.ply       accepted meshes (binary PLY)
     thumbs/<key>.png       256x256 thumbnails
     turntables/<key>.png   12 views side by side
@@ -84,6 +84,14 @@ CREATE TABLE IF NOT EXISTS tags (
     tag TEXT NOT NULL,
     PRIMARY KEY (key, tag)
 );
+CREATE TABLE IF NOT EXISTS curation (
+    id INTEGER PRIMARY KEY,
+    key TEXT NOT NULL REFERENCES shapes(key),
+    at TEXT NOT NULL,
+    action TEXT NOT NULL,
+    value TEXT
+);
+CREATE INDEX IF NOT EXISTS curation_key ON curation (key);
 """
 
 

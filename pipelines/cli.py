@@ -318,7 +318,7 @@ def config_show() -> None:
 
 # ----------------------------------------------------------------------------- commands from other modules
 # Each module below defines its commands and adds them with ``register(app)``.
-_REGISTER: list[str] = []
+_REGISTER: list[str] = ["surfgen.pipelines.curation", "surfgen.pipelines.gallery", "surfgen.pipelines.report", "surfgen.pipelines.export"]
 
 for _module in _REGISTER:
     __import__(_module, fromlist=["register"]).register(app)

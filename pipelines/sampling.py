@@ -23,7 +23,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from surfgen.filters.verdict import REASONS, Verdict, judge, screen_field, shape_metrics
+from surfgen.filters.verdict import (
+    REASONS,
+    Verdict,
+    judge,
+    quick_metrics,
+    screen_field,
+    shape_metrics,
+)
 from surfgen.generator import __version__
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
@@ -38,6 +45,9 @@ from surfgen.pipelines.executor import KillablePool
 log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
+# Turntable frames are smaller than thumbnails: 12 views at 256 px cost more than the rest of
+# a shape's pipeline together; 160 px is plenty for the gallery's hover spin.
+TURNTABLE_SIZE = 160
 
 
 @dataclass(frozen=True)
@@ -141,7 +151,7 @@ def make_shape(
     tree = spec.tree()
     if verdict is None:
         coarse = evaluate(tree, Grid(draw.box, (fcfg.coarse_grid,) * 3), threads=1)
-        verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True)
+        verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True, capped=run.cap)
         verdict = None if verdict.accepted else verdict
     if verdict is None:
         field_ = evaluate(tree, spec.to_grid(), threads=1)
@@ -158,8 +168,11 @@ def make_shape(
     if verdict is None and mesh is not None:
         # Lewiner marching cubes already gives an indexed manifold mesh; merging "close"
         # vertices would pinch it where several vertices land on one grid point.
-        metrics.update(shape_metrics(mesh, spec.box))
+        metrics.update(quick_metrics(mesh, spec.box))  # cheap checks first...
         verdict = judge(metrics, fcfg, capped=run.cap)
+        if verdict.accepted:  # ...then pymeshlab's topology and the curvature
+            metrics.update(shape_metrics(mesh, spec.box))
+            verdict = judge(metrics, fcfg, capped=run.cap)
         lap("filters")
     assert verdict is not None
     row.update(_metric_columns(_round_metrics(metrics)))
@@ -191,7 +204,9 @@ def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) ->
         from surfgen.pipelines.pictures import render_thumbnail, render_turntable
 
         thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=256)
-        turn = render_turntable(mesh, staging / f"{key}.turntable.png", views=12, size=256)
+        turn = render_turntable(
+            mesh, staging / f"{key}.turntable.png", views=12, size=TURNTABLE_SIZE
+        )
     return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb, turn)
 
 

@@ -68,7 +68,9 @@ def test_sum_of_products_and_d() -> None:
     x, y, z = rng.uniform(-2, 2, (3, 200))
     with np.errstate(all="ignore"):
         one = direct(x, y, z)
-        np.testing.assert_allclose(evaluate_points(eq.to_tree(), x, y, z), one * one + one + 1.5, rtol=1e-12)
+        np.testing.assert_allclose(
+            evaluate_points(eq.to_tree(), x, y, z), one * one + one + 1.5, rtol=1e-12
+        )
 
 
 def test_printed_formula_parses_back_to_the_same_tree() -> None:
@@ -111,6 +113,8 @@ def test_sampler_draws_are_reproducible_and_cut_the_box() -> None:
         from surfgen.generator.grid import Grid
         from surfgen.generator.reference import evaluate_reference
 
-        v = evaluate_reference(d.equation.with_d(value).to_tree(), Grid(d.box, (cfg.d_grid,) * 3)).values
+        v = evaluate_reference(
+            d.equation.with_d(value).to_tree(), Grid(d.box, (cfg.d_grid,) * 3)
+        ).values
         cut += bool((v < 0).any() and (v > 0).any())
     assert cut >= 10  # choosing d at a quantile makes the surface cross the box

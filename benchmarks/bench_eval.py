@@ -1,0 +1,375 @@
+"""Points per second of the fast evaluator and of the numpy reference, measured in one run.
+
+    python benchmarks/bench_eval.py            # the issue's cases (about 10 minutes here)
+    python benchmarks/bench_eval.py --quick    # smaller grids, 10 random formulas (~1 minute)
+
+Cases: presets A (82^3, 256^3), B (34^3, 256^3), C (256^3) and random eq. (13) formulas at
+128^3; fast path on 1 and 2 threads against the reference; the one-time compile cost of the
+interpreter (cold, in a fresh numba cache, and from the cache); the peak memory of a 512^3
+evaluation; and a cycle profile of the fast path by opcode. Speed figures are ratios measured
+in the same run, because the machine is shared and absolute times are noisy. Every fast field is
+also checked against the reference (max relative difference, non-finite positions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+from surfgen.generator.compiler import LEVEL_NAMES, OPNAMES, Program, compile_tree
+from surfgen.generator.expr import Expr
+from surfgen.generator.fast import evaluate_program, profile_program, scratch_bytes, warm_up
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.presets import get_preset
+from surfgen.generator.reference import evaluate_reference
+
+LIBM = {"pow", "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log", "log10"}
+LIBM |= {"sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "cbrt"}
+
+# ----------------------------------------------------------------------------- random eq. (13)
+
+
+def random_eq13(rng: np.random.Generator) -> Expr:
+    """An eq. (13) formula drawn the way the sampler draws them (1-2 sums of 1-2 factors, power
+    functions of 1-3 terms, real exponents on absolute values, trigonometric and constituent
+    H and G, absolute values on elements)."""
+    from surfgen.generator import equation13 as eq
+
+    def power() -> eq.PowerFunction:
+        absolute = bool(rng.random() < 0.6)
+        terms = []
+        for _ in range(rng.integers(1, 4)):
+            exps = []
+            for _ in range(3):
+                if rng.random() < 0.35:
+                    exps.append(0.0)
+                elif absolute and rng.random() < 0.5:
+                    exps.append(float(rng.choice([0.31, 0.5, 1.3, 1.38, 2.7, 3.3])))
+                else:
+                    exps.append(float(rng.integers(1, 5)))
+            a = float(np.round(rng.uniform(0.2, 3.0), 2) * rng.choice([1, 1, -1]))
+            terms.append(eq.PowerTerm(a, *exps))
+        return eq.PowerFunction(tuple(terms), absolute)
+
+    def transform(names) -> eq.Transform:
+        if rng.random() < 0.2:
+            name = str(rng.choice(list(eq.CONSTITUENT_TRANSFORMS)))
+            params = {"r": 0.5 + rng.random(), "p": float(rng.integers(1, 6)), "h": 1.5}
+            params["t"] = 0.3 if name != "rect3" else 0.5
+            return eq.Transform(name, tuple(params[k] for k in eq.CONSTITUENT_TRANSFORMS[name]))
+        return eq.Transform(str(rng.choice(names)))
+
+    def exponent() -> float:
+        return float(rng.choice([1, 1, 1, 2, 3, -1, 0.5, 1.5]))
+
+    products = []
+    for _ in range(rng.integers(1, 3)):
+        factors = []
+        for _ in range(rng.integers(1, 3)):
+            powers = tuple(
+                power() if rng.random() < 0.85 else eq.PowerFunction.constant() for _ in range(8)
+            )
+            factors.append(
+                eq.Factor(
+                    powers=powers,
+                    lambdas=tuple(exponent() for _ in range(8)),
+                    mus=tuple(exponent() for _ in range(4)),
+                    h=transform(eq.DIRECT_TRIG),
+                    g=transform(eq.INVERSE_TRIG),
+                    absolute=tuple(bool(rng.random() < 0.4) for _ in range(6)),
+                )
+            )
+        products.append(tuple(factors))
+    return eq.Equation13(tuple(products), float(np.round(rng.uniform(-1, 1), 2))).to_tree()
+
+
+def kept_eq13(rng: np.random.Generator, tries: int = 100) -> Expr:
+    """A random eq. (13) formula (own generator) whose 16^3 field changes sign."""
+    coarse = Grid(Box.cube(2.0), (16, 16, 16))
+    for _ in range(tries):
+        tree = random_eq13(rng)
+        v = evaluate_reference(tree, coarse).values
+        if (v < 0).any() and (v > 0).any():
+            return tree
+    return tree
+
+
+def sampled_eq13(seed: int, count: int) -> list[tuple[Expr, Box]]:
+    """The first ``count`` formulas of the project's sampler (default config) that get a d,
+    with their boxes; falls back to :func:`kept_eq13` when the sampler is not there."""
+    try:
+        from surfgen.generator.sampler import SamplerConfig, choose_d, draw_equation
+    except ImportError:
+        rngs = (np.random.default_rng(np.random.SeedSequence([seed, i])) for i in range(count))
+        return [(kept_eq13(rng), Box.cube(2.0)) for rng in rngs]
+    cfg = SamplerConfig()
+    out, index = [], 0
+    while len(out) < count:
+        draw = draw_equation(seed, index, cfg)
+        index += 1
+        d = choose_d(draw, cfg, evaluator="reference")
+        if d is not None:
+            out.append((draw.equation.with_d(d).to_tree(), draw.box))
+    return out
+
+
+# ----------------------------------------------------------------------------- timing
+
+
+@dataclass
+class Case:
+    name: str
+    tree: Expr
+    box: Box
+    n: int
+    params: dict
+
+
+@dataclass
+class Row:
+    name: str
+    n: int
+    fast1: float  # points per second
+    fast2: float
+    ref: float
+    maxrel: float
+    same_nonfinite: bool
+    finite: float
+
+    @property
+    def ratio1(self) -> float:
+        return self.fast1 / self.ref
+
+    @property
+    def ratio2(self) -> float:
+        return self.fast2 / self.ref
+
+    @property
+    def scaling(self) -> float:
+        return self.fast2 / self.fast1
+
+
+def best_time(fn, repeats: int) -> tuple[float, np.ndarray]:
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def compare(a: np.ndarray, b: np.ndarray) -> tuple[float, bool]:
+    same = np.array_equal(np.isnan(a), np.isnan(b)) and np.array_equal(np.isinf(a), np.isinf(b))
+    fin = np.isfinite(a) & np.isfinite(b)
+    d = np.abs(a[fin] - b[fin])
+    m = np.maximum(np.abs(a[fin]), np.abs(b[fin]))
+    rel = np.divide(d, m, out=np.zeros_like(d), where=m > 0)
+    return (float(rel.max()) if rel.size else 0.0), same
+
+
+def run_case(case: Case, repeats: int) -> Row:
+    grid = Grid(case.box, (case.n,) * 3)
+    program = compile_tree(case.tree, case.params)
+    t1, fast = best_time(lambda: evaluate_program(program, grid, threads=1).values, repeats)
+    t2, _ = best_time(lambda: evaluate_program(program, grid, threads=2).values, repeats)
+    tr, ref = best_time(lambda: evaluate_reference(case.tree, grid, case.params).values, repeats)
+    maxrel, same = compare(fast, ref)
+    pts = grid.size
+    return Row(
+        case.name, case.n, pts / t1, pts / t2, pts / tr, maxrel, same, np.isfinite(ref).mean()
+    )
+
+
+# ----------------------------------------------------------------------------- compile, memory
+
+_STARTUP = """
+import json, time
+t0 = time.perf_counter()
+from surfgen.generator.fast import warm_up
+t1 = time.perf_counter()
+serial = warm_up(parallel=False)
+both = warm_up(parallel=True) if {parallel} else 0.0
+print(json.dumps({{"import": t1 - t0, "serial": serial, "parallel": both}}))
+"""
+
+
+def startup(cache_dir: str | None, parallel: bool) -> dict:
+    env = dict(os.environ)
+    if cache_dir:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    code = _STARTUP.format(parallel=parallel)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+_MEMORY = """
+import json, numpy as np
+from surfgen.generator.compiler import compile_tree
+from surfgen.generator.fast import evaluate_program, warm_up
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.presets import get_preset
+
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+
+spec = get_preset("{name}").spec()
+program = compile_tree(spec.tree(), spec.params)
+grid = Grid(Box.from_bounds(spec.box), ({n}, {n}, {n}))
+warm_up(parallel={threads} > 1)
+open("/proc/self/clear_refs", "w").write("5")  # reset the peak (VmHWM) to the current RSS
+before = status("VmRSS:")
+field = evaluate_program(program, grid, threads={threads})
+print(json.dumps({{"before": before, "peak": status("VmHWM:"), "field": field.values.nbytes}}))
+"""
+
+
+def peak_memory(name: str, n: int, threads: int) -> dict:
+    code = _MEMORY.format(name=name, n=n, threads=threads)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+# ----------------------------------------------------------------------------- profile
+
+
+def profile(programs: list[tuple[Program, Box]], n: int) -> tuple[dict, dict, float]:
+    """Share of fast-path cycles by opcode (per-point block) and by level."""
+    by_op: dict[str, float] = defaultdict(float)
+    by_level: dict[str, float] = defaultdict(float)
+    total = 0.0
+    for program, box in programs:
+        _, cycles = profile_program(program, Grid(box, (n, n, n)))
+        for lv, name in LEVEL_NAMES.items():
+            c0, c1 = program.blocks[lv, :2]
+            by_level[name] += cycles[c0:c1].sum()
+        c0, c1 = program.blocks[7, :2]
+        for row, c in zip(program.code[c0:c1], cycles[c0:c1], strict=True):
+            by_op[OPNAMES[int(row[0])]] += c
+        total += cycles.sum()
+    return by_op, by_level, total
+
+
+# ----------------------------------------------------------------------------- main
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument(
+        "--quick", action="store_true", help="small grids, 10 formulas, no cold compile"
+    )
+    ap.add_argument("--formulas", type=int, default=None, help="random eq. (13) formulas")
+    ap.add_argument("--seed", type=int, default=2024)
+    ap.add_argument("--skip-compile", action="store_true", help="do not measure compile cost")
+    ap.add_argument("--skip-memory", action="store_true", help="do not measure 512^3 memory")
+    args = ap.parse_args()
+    quick = args.quick
+    n_formulas = args.formulas or (10 if quick else 50)
+    big, rand_n, mem_n = (128, 64, 256) if quick else (256, 128, 512)
+
+    print(f"numba interpreter warm-up (compiles on first use): {warm_up():.2f} s", flush=True)
+    cases = []
+    for preset, sizes in (("eqA", (82, big)), ("eqB", (34, big)), ("eqC", (big,))):
+        spec = get_preset(preset).spec()
+        for n in sizes:
+            box = Box.from_bounds(spec.box)
+            cases.append(Case(preset, spec.tree(), box, n, dict(spec.params)))
+    randoms = [
+        Case(f"eq13 #{i}", tree, box, rand_n, {})
+        for i, (tree, box) in enumerate(sampled_eq13(args.seed, n_formulas))
+    ]
+
+    header = (
+        f"{'case':12s} {'grid':>6s} {'fast 1T':>9s} {'fast 2T':>9s} {'numpy':>8s}"
+        f" {'1T/np':>6s} {'2T/np':>6s} {'2T/1T':>6s} {'finite':>6s} {'max rel':>8s} nonfinite"
+    )
+    print("\nMpoints/s, ratios fast/reference (same run; best of repeats)")
+    print(header)
+    print("-" * len(header))
+    rows: list[Row] = []
+    for case in cases + randoms:
+        repeats = 1 if case.n >= 256 else 3 if case.n > 64 else 5
+        row = run_case(case, repeats)
+        rows.append(row)
+        print(
+            f"{row.name:12s} {row.n:>4d}^3 {row.fast1 / 1e6:9.2f} {row.fast2 / 1e6:9.2f}"
+            f" {row.ref / 1e6:8.2f} {row.ratio1:6.1f} {row.ratio2:6.1f} {row.scaling:6.2f}"
+            f" {row.finite:6.0%} {row.maxrel:8.1e} {'same' if row.same_nonfinite else 'DIFFER'}",
+            flush=True,
+        )
+    preset_rows, random_rows = rows[: len(cases)], rows[len(cases) :]
+    med1 = float(np.median([r.ratio1 for r in random_rows]))
+    med2 = float(np.median([r.ratio2 for r in random_rows]))
+    scal = float(np.median([r.scaling for r in rows if r.n >= 128]))
+    print("-" * len(header))
+    print(
+        f"random eq. (13) at {rand_n}^3, median fast/numpy: 1 thread {med1:.1f}x, 2 threads {med2:.1f}x"
+    )
+    print(f"presets, fast/numpy on 1 thread: min {min(r.ratio1 for r in preset_rows):.1f}x")
+    print(f"2 threads / 1 thread, median over grids >= 128^3: {scal:.2f}x")
+    exact = all(r.maxrel == 0 and r.same_nonfinite for r in rows)
+    print(f"fast == reference bit for bit in every case: {exact}")
+
+    # Where the time goes.
+    programs = [(compile_tree(c.tree, c.params), c.box) for c in randoms]
+    by_op, by_level, total = profile(programs, 48 if quick else 64)
+    xyz = sum(by_op.values())
+    print(
+        f"\nfast-path profile, {len(programs)} random formulas (cycles by opcode, per-point block)"
+    )
+    print(
+        f"  per-point block: {xyz / total:.0%} of all cycles; by level: "
+        + ", ".join(f"{k} {v / total:.1%}" for k, v in by_level.items() if v / total >= 0.001)
+    )
+    libm = sum(v for k, v in by_op.items() if k in LIBM)
+    print(f"  C library calls (pow with a real exponent, trigonometric, ...): {libm / xyz:.0%}")
+    for k, v in sorted(by_op.items(), key=lambda kv: -kv[1])[:10]:
+        print(f"    {k:8s} {v / xyz:6.1%}")
+
+    if not args.skip_compile:
+        print("\nstart-up of the interpreter (subprocesses)")
+        if not quick:
+            with tempfile.TemporaryDirectory() as tmp:
+                cold = startup(tmp, parallel=True)
+                cached = startup(tmp, parallel=True)
+            print(
+                f"  cold compile (empty cache): serial {cold['serial']:.1f} s + parallel {cold['parallel']:.1f} s"
+            )
+        else:
+            cached = startup(None, parallel=True)
+        print(f"  import surfgen.generator.fast: {cached['import']:.2f} s")
+        print(
+            f"  from cache: serial kernel {cached['serial']:.2f} s, parallel kernel {cached['parallel']:.2f} s"
+        )
+
+    if not args.skip_memory:
+        print(f"\npeak memory of one {mem_n}^3 evaluation on 2 threads (subprocess, VmHWM)")
+        for name in ("eqA", "eqB", "eqC"):
+            if quick and name != "eqC":
+                continue
+            m = peak_memory(name, mem_n, threads=2)
+            extra = m["peak"] - m["before"] - m["field"]
+            spec = get_preset(name).spec()
+            grid = Grid(Box.from_bounds(spec.box), (mem_n,) * 3)
+            planned = scratch_bytes(compile_tree(spec.tree(), spec.params), grid, threads=2)
+            print(
+                f"  {name}: field {m['field'] / 2**20:.0f} MiB; peak resident beyond it"
+                f" {extra / 2**20:.1f} MiB = {extra / m['field']:.2%} of the field"
+                f" (interpreter scratch {planned / 2**20:.1f} MiB)"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,842 @@
+"""Curation of the catalogue: query it, star, reject, tag and annotate shapes, mark near duplicates.
+
+- :func:`parse_where` turns the ``--where`` mini-language into an SQL condition whose values are
+  bound parameters; :func:`parse_sort` does the same for ``--sort``. Both only accept the fields
+  of :data:`FIELDS`, so no text from the user ever reaches SQL unchecked.
+- :func:`select_shapes` runs a query and returns JSON-ready records (:func:`shape_record`).
+- :func:`apply_action` is the one function that writes a curation change (star, reject,
+  unreject, tag, untag, note): it validates, writes, logs the action in the ``curation`` table
+  and commits at once. The CLI and the web gallery both go through it.
+- :func:`dedupe_catalogue` computes the shape descriptors (:mod:`surfgen.filters.descriptor`)
+  and marks each accepted shape that nearly copies an earlier one with that shape's key.
+
+The ``--where`` language::
+
+    expr       := term ("or" term)*
+    term       := factor ("and" factor)*
+    factor     := "not" factor | "(" expr ")" | comparison | FLAG
+    comparison := FIELD OP VALUE          OP: = == != < <= > >= ~ (~: contains)
+    VALUE      := number | word | 'quoted' | "quoted" | null
+
+e.g. ``genus >= 2 and components < 5 and tag = nice and stars > 0 and run = 1``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+from surfgen.pipelines.catalogue import (
+    DEFAULT_CATALOGUE,
+    Catalogue,
+    CatalogueError,
+    now,
+    open_catalogue,
+)
+
+log = logging.getLogger(__name__)
+
+MAX_STARS = 5
+_TAG = re.compile(r"^[a-z0-9][a-z0-9_.\-]{0,39}$")
+_YES = {"yes", "true", "1", "y"}
+_NO = {"no", "false", "0", "n"}
+
+
+class WhereError(CatalogueError):
+    """A ``--where`` or ``--sort`` expression that does not parse or names an unknown field."""
+
+
+class CurationError(CatalogueError):
+    """A curation action that cannot be applied (bad tag, star count, empty reason...)."""
+
+
+# ----------------------------------------------------------------------------- fields
+
+
+@dataclass(frozen=True)
+class Field:
+    """A queryable field: its kind (number, text, key, tag, reason, flag) and SQL expression.
+
+    ``sql`` is fixed text chosen here, never built from user input.
+    """
+
+    kind: str
+    sql: str
+    help: str
+
+
+def _metric(name: str) -> str:
+    return f"json_extract(shapes.metrics, '$.{name}')"
+
+
+FIELDS: dict[str, Field] = {
+    "genus": Field("number", "shapes.genus", "genus of the closed surface (null if open)"),
+    "components": Field("number", "shapes.components", "connected components"),
+    "faces": Field("number", "shapes.faces", "triangles"),
+    "vertices": Field("number", "shapes.vertices", "vertices"),
+    "euler": Field("number", "shapes.euler", "Euler characteristic"),
+    "area": Field("number", "shapes.area", "surface area"),
+    "volume": Field("number", "shapes.volume", "enclosed volume"),
+    "stars": Field("number", "shapes.stars", f"stars given by curators (0-{MAX_STARS})"),
+    "run": Field("number", "shapes.run", "run id"),
+    "index": Field("number", "shapes.idx", "index of the draw in its run"),
+    "seed": Field(
+        "number", "(SELECT runs.seed FROM runs WHERE runs.id = shapes.run)", "seed of the run"
+    ),
+    "grid": Field("number", "json_extract(shapes.spec, '$.grid[0]')", "points per axis"),
+    "d": Field("number", "shapes.d", "the constant d of eq. (13)"),
+    "box_fraction": Field("number", _metric("box_fraction"), "area on the box faces / area"),
+    "largest_component_fraction": Field(
+        "number", _metric("largest_component_fraction"), "area of the largest component / area"
+    ),
+    "total_curvature": Field("number", _metric("total_curvature"), "total |Gauss curvature|"),
+    "nonfinite": Field("number", _metric("nonfinite"), "non-finite samples of the field"),
+    "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
+    "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
+    "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),
+    "note": Field("text", "shapes.note", "curator's note (~ for contains)"),
+    "tag": Field("tag", "", "has this tag (= != ~)"),
+    "reason": Field("reason", "", "a rejection reason of the filters (= !=)"),
+    "rejected": Field("flag", "shapes.user_rejected IS NOT NULL", "rejected by a curator"),
+    "duplicate": Field("flag", "shapes.duplicate_of IS NOT NULL", "marked as a duplicate"),
+    "starred": Field("flag", "shapes.stars > 0", "has at least one star"),
+}
+SORT_FIELDS = tuple(n for n, f in FIELDS.items() if f.kind in ("number", "key")) + ("random",)
+_ORDER_BY = {n: FIELDS[n].sql for n in SORT_FIELDS if n != "random"} | {"random": "RANDOM()"}
+
+
+def _fields_hint() -> str:
+    return "fields: " + ", ".join(sorted(FIELDS))
+
+
+# ----------------------------------------------------------------------------- --where parser
+
+_TOKEN = re.compile(
+    r"""
+    (?P<space>\s+)
+  | (?P<op>>=|<=|!=|==|=|<|>|~)
+  | (?P<lparen>\()
+  | (?P<rparen>\))
+  | (?P<number>[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![\w.\-]))
+  | (?P<string>'[^']*'|"[^"]*")
+  | (?P<word>[A-Za-z0-9_][\w.\-]*)
+    """,
+    re.VERBOSE,
+)
+
+
+@dataclass(frozen=True)
+class Token:
+    kind: str  # op, lparen, rparen, number, string, word, end
+    text: str
+    column: int  # 1-based
+
+
+def tokenize(text: str) -> list[Token]:
+    """Split a ``--where`` expression into tokens. Raises :class:`WhereError`."""
+    tokens: list[Token] = []
+    pos = 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None:
+            what = "unterminated string" if text[pos] in "'\"" else f"unexpected '{text[pos]}'"
+            raise _error(text, pos + 1, what)
+        if m.lastgroup != "space":
+            tokens.append(Token(m.lastgroup or "", m.group(), pos + 1))
+        pos = m.end()
+    tokens.append(Token("end", "", len(text) + 1))
+    return tokens
+
+
+def _error(text: str, column: int, what: str) -> WhereError:
+    return WhereError(f"--where: {what} at column {column} of '{text}' ({_fields_hint()})")
+
+
+class _Parser:
+    """Recursive descent over the tokens, building SQL text and its parameters."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.tokens = tokenize(text)
+        self.pos = 0
+        self.params: list[Any] = []
+        self.fields: set[str] = set()
+
+    @property
+    def tok(self) -> Token:
+        return self.tokens[self.pos]
+
+    def keyword(self, word: str) -> bool:
+        if self.tok.kind == "word" and self.tok.text.lower() == word:
+            self.pos += 1
+            return True
+        return False
+
+    def fail(self, what: str, tok: Token | None = None) -> WhereError:
+        tok = tok or self.tok
+        found = "the end" if tok.kind == "end" else f"'{tok.text}'"
+        return _error(self.text, tok.column, f"{what}, found {found}")
+
+    def parse(self) -> str:
+        if self.tok.kind == "end":
+            raise self.fail("expected a condition such as 'genus >= 2'")
+        sql = self.expr()
+        if self.tok.kind != "end":
+            raise self.fail("expected 'and', 'or' or the end")
+        return sql
+
+    def expr(self) -> str:
+        parts = [self.term()]
+        while self.keyword("or"):
+            parts.append(self.term())
+        return parts[0] if len(parts) == 1 else "(" + " OR ".join(parts) + ")"
+
+    def term(self) -> str:
+        parts = [self.factor()]
+        while self.keyword("and"):
+            parts.append(self.factor())
+        return parts[0] if len(parts) == 1 else "(" + " AND ".join(parts) + ")"
+
+    def factor(self) -> str:
+        if self.keyword("not"):
+            return f"NOT ({self.factor()})"
+        if self.tok.kind == "lparen":
+            self.pos += 1
+            sql = self.expr()
+            if self.tok.kind != "rparen":
+                raise self.fail("expected ')'")
+            self.pos += 1
+            return sql
+        return self.comparison()
+
+    def comparison(self) -> str:
+        name_tok = self.tok
+        if name_tok.kind != "word":
+            raise self.fail("expected a field name")
+        name = name_tok.text.lower()
+        if name not in FIELDS:
+            raise _error(self.text, name_tok.column, f"unknown field '{name_tok.text}'")
+        self.pos += 1
+        self.fields.add(name)
+        field = FIELDS[name]
+        if field.kind == "flag" and self.tok.kind != "op":
+            return f"({field.sql})"  # a bare flag: 'starred', 'not rejected'
+        op_tok = self.tok
+        if op_tok.kind != "op":
+            raise self.fail(f"expected an operator (= != < <= > >= ~) after '{name_tok.text}'")
+        self.pos += 1
+        value_tok = self.tok
+        if value_tok.kind not in ("number", "string", "word"):
+            raise self.fail(f"expected a value after '{name_tok.text} {op_tok.text}'")
+        self.pos += 1
+        op = "=" if op_tok.text == "==" else op_tok.text
+        return self.condition(name, field, op, op_tok, value_tok)
+
+    def condition(self, name: str, field: Field, op: str, op_tok: Token, vt: Token) -> str:
+        value = vt.text[1:-1] if vt.kind == "string" else vt.text
+        is_null = vt.kind == "word" and value.lower() in ("null", "none")
+
+        def allow(*ops: str) -> None:
+            if op not in ops:
+                raise _error(
+                    self.text,
+                    op_tok.column,
+                    f"'{name}' takes {' '.join(ops)}, not '{op}'",
+                )
+
+        if field.kind == "number":
+            if is_null:
+                allow("=", "!=")
+                return f"({field.sql} IS {'NOT ' if op == '!=' else ''}NULL)"
+            allow("=", "!=", "<", "<=", ">", ">=")
+            if vt.kind != "number":
+                raise _error(self.text, vt.column, f"'{name}' needs a number, got '{value}'")
+            self.params.append(float(value))
+            return f"({field.sql} {op} ?)"
+        if field.kind == "flag":
+            allow("=", "!=")
+            low = value.lower()
+            if low not in _YES | _NO:
+                raise _error(self.text, vt.column, f"'{name}' is yes or no, got '{value}'")
+            truth = (low in _YES) == (op == "=")
+            return f"({field.sql})" if truth else f"(NOT ({field.sql}))"
+        if field.kind == "key":
+            allow("=", "!=")
+            prefix = value.lower()
+            if not prefix or any(c not in "0123456789abcdef" for c in prefix):
+                raise _error(self.text, vt.column, f"'{value}' is not a key (hex digits)")
+            self.params.append(prefix + "%")
+            return f"({'NOT ' if op == '!=' else ''}{field.sql} LIKE ?)"
+        if field.kind == "tag":
+            allow("=", "!=", "~")
+            test = "instr(tags.tag, ?) > 0" if op == "~" else "tags.tag = ?"
+            self.params.append(value.lower())
+            exists = f"EXISTS (SELECT 1 FROM tags WHERE tags.key = shapes.key AND {test})"
+            return f"(NOT {exists})" if op == "!=" else f"({exists})"
+        if field.kind == "reason":
+            allow("=", "!=")
+            from surfgen.filters.verdict import REASONS
+
+            if value not in REASONS:
+                raise _error(
+                    self.text,
+                    vt.column,
+                    f"unknown reason '{value}' (reasons: {', '.join(REASONS)})",
+                )
+            self.params.append(value)
+            exists = "EXISTS (SELECT 1 FROM json_each(shapes.reasons) WHERE json_each.value = ?)"
+            return f"(NOT {exists})" if op == "!=" else f"({exists})"
+        # text
+        if is_null:
+            allow("=", "!=")
+            return f"({field.sql} IS {'NOT ' if op == '!=' else ''}NULL)"
+        allow("=", "!=", "~")
+        self.params.append(value if op != "~" else value.lower())
+        if op == "~":
+            return f"(instr(lower({field.sql}), ?) > 0)"
+        return f"({field.sql} {op} ?)"
+
+
+@dataclass(frozen=True)
+class Where:
+    """A parsed ``--where``: SQL condition text, its bound parameters and the fields it uses."""
+
+    sql: str
+    params: tuple[Any, ...]
+    fields: frozenset[str]
+
+
+def parse_where(text: str | None) -> Where:
+    """Parse a ``--where`` expression (see the module docstring). Empty or None: no condition.
+
+    Raises :class:`WhereError` naming the column of the first problem and the allowed fields.
+    """
+    if text is None or not text.strip():
+        return Where("1", (), frozenset())
+    p = _Parser(text)
+    sql = p.parse()
+    return Where(sql, tuple(p.params), frozenset(p.fields))
+
+
+def parse_sort(text: str | None) -> str:
+    """``FIELD``, ``-FIELD`` (descending), or several separated by commas → SQL ``ORDER BY``.
+
+    Missing values sort last; ties are broken by run and index. Raises :class:`WhereError`.
+    """
+    terms = []
+    for part in (text or "").split(","):
+        part = part.strip()
+        if not part:
+            continue
+        desc = part.startswith("-")
+        name = part.lstrip("+-").strip().lower()
+        if name not in _ORDER_BY:
+            raise WhereError(
+                f"--sort: unknown field '{name}' (sortable: {', '.join(SORT_FIELDS)};"
+                " prefix with - for descending)"
+            )
+        sql = _ORDER_BY[name]
+        terms.append(
+            sql if name == "random" else f"{sql} IS NULL, {sql} {'DESC' if desc else 'ASC'}"
+        )
+    return ", ".join([*terms, "shapes.run", "shapes.idx"])
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def _loads(text: str | None, default: Any) -> Any:
+    if not text:
+        return default
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return default
+
+
+def shape_record(
+    row: dict[str, Any], tags: Sequence[str] = (), full: bool = False
+) -> dict[str, Any]:
+    """A JSON-ready view of a ``shapes`` row: JSON columns decoded, file paths relative to the
+    catalogue root. ``full`` adds the model, timings and error."""
+    spec = _loads(row.get("spec"), {})
+    rec = {
+        "key": row["key"],
+        "run": row["run"],
+        "index": row["idx"],
+        "formula": row["formula"],
+        "spec": spec,
+        "provenance": spec.get("provenance", {}),
+        "identity": row.get("identity"),
+        "d": row.get("d"),
+        "verdict": row["verdict"],
+        "reasons": _loads(row.get("reasons"), []),
+        "metrics": _loads(row.get("metrics"), {}),
+        **{
+            k: row.get(k)
+            for k in ("faces", "vertices", "components", "genus", "euler", "area", "volume")
+        },
+        "stars": row.get("stars") or 0,
+        "rejected": row.get("user_rejected"),
+        "note": row.get("note"),
+        "duplicate_of": row.get("duplicate_of"),
+        "tags": list(tags),
+        "mesh": row.get("mesh_path"),
+        "thumb": row.get("thumb_path"),
+        "turntable": row.get("turntable_path"),
+    }
+    if full:
+        rec["model"] = _loads(row.get("model"), None)
+        rec["timings"] = _loads(row.get("timings"), {})
+        rec["error"] = row.get("error")
+    return rec
+
+
+def tags_of(cat: Catalogue, keys: Iterable[str] | None = None) -> dict[str, list[str]]:
+    """Tags of every shape (or of ``keys``), sorted: ``{key: [tag, ...]}``."""
+    out: dict[str, list[str]] = {}
+    wanted = None if keys is None else set(keys)
+    for r in cat.conn.execute("SELECT key, tag FROM tags ORDER BY key, tag"):
+        if wanted is None or r["key"] in wanted:
+            out.setdefault(r["key"], []).append(r["tag"])
+    return out
+
+
+def select_shapes(
+    cat: Catalogue,
+    where: str | None = None,
+    sort: str | None = None,
+    limit: int | None = None,
+    everything: bool = False,
+    full: bool = False,
+) -> list[dict[str, Any]]:
+    """Records of the shapes matching ``where``, ordered by ``sort``, at most ``limit``.
+
+    Only shapes the filters accepted, unless ``everything`` or ``where`` mentions ``verdict`` or
+    ``reason``. Raises :class:`WhereError` for a bad expression.
+    """
+    cond = parse_where(where)
+    order = parse_sort(sort)
+    if limit is not None and limit < 0:
+        raise WhereError(f"--limit must be >= 0, got {limit}")
+    scope = "1" if everything or cond.fields & {"verdict", "reason"} else "verdict = 'accepted'"
+    q = f"SELECT shapes.* FROM shapes WHERE {scope} AND {cond.sql} ORDER BY {order}"
+    params = list(cond.params)
+    if limit is not None:
+        q += " LIMIT ?"
+        params.append(limit)
+    rows = [dict(r) for r in cat.conn.execute(q, params)]
+    tags = tags_of(cat, (r["key"] for r in rows)) if rows else {}
+    return [shape_record(r, tags.get(r["key"], []), full=full) for r in rows]
+
+
+def get_shape(cat: Catalogue, key_or_prefix: str, full: bool = True) -> dict[str, Any]:
+    """The record of one shape, with its run and curation history. Raises :class:`CatalogueError`."""
+    row = cat.shape(key_or_prefix)
+    rec = shape_record(row, row["tags"], full=full)
+    if full:
+        run = cat.conn.execute("SELECT * FROM runs WHERE id=?", (row["run"],)).fetchone()
+        if run is not None:
+            rec["run_info"] = {
+                "seed": run["seed"],
+                "grid": run["grid"],
+                "config_hash": run["config_hash"],
+                "sampler_version": run["sampler_version"],
+                "versions": _loads(run["versions"], {}),
+                "started": run["started"],
+                "status": run["status"],
+            }
+        rec["history"] = [
+            dict(r)
+            for r in cat.conn.execute(
+                "SELECT at, action, value FROM curation WHERE key=? ORDER BY id", (rec["key"],)
+            )
+        ]
+    return rec
+
+
+# ----------------------------------------------------------------------------- writing
+
+ACTIONS = ("star", "reject", "unreject", "tag", "untag", "note")
+
+
+def normalise_tags(tags: Iterable[str]) -> list[str]:
+    """Lower-cased, stripped, de-duplicated tags. Raises :class:`CurationError` for a bad one."""
+    out: list[str] = []
+    for t in tags:
+        tag = str(t).strip().lower()
+        if not _TAG.match(tag):
+            raise CurationError(
+                f"bad tag '{t}': 1-40 characters a-z 0-9 _ . -, starting with a letter or digit"
+            )
+        if tag not in out:
+            out.append(tag)
+    if not out:
+        raise CurationError("give at least one tag")
+    return out
+
+
+def apply_action(
+    cat: Catalogue, key_or_prefix: str, action: str, value: Any = None
+) -> dict[str, Any]:
+    """Apply one curation ``action`` to a shape and commit at once; returns its new record.
+
+    ``star``: value 0-5 (None: 1); ``reject``: value is the reason (required); ``unreject``;
+    ``tag``/``untag``: value is a list of tags; ``note``: value is the text ('' clears).
+    Raises :class:`CatalogueError` for an unknown key and :class:`CurationError` for a bad value.
+    """
+    key = cat.resolve(key_or_prefix)
+    sql, params, logged = _action_sql(key, action, value)
+    with cat.conn:  # one transaction: the change and its log line
+        for statement, args in zip(sql, params, strict=True):
+            cat.conn.execute(statement, args)
+        cat.conn.execute(
+            "INSERT INTO curation (key, at, action, value) VALUES (?,?,?,?)",
+            (key, now(), action, logged),
+        )
+    log.info("%s %s %s", action, key, logged)
+    return get_shape(cat, key, full=False)
+
+
+def _action_sql(key: str, action: str, value: Any) -> tuple[list[str], list[tuple], str | None]:
+    """Validated SQL statements for one action, their parameters and the value to log."""
+    if action == "star":
+        stars = 1 if value is None else value
+        if isinstance(stars, bool) or not isinstance(stars, int | str):
+            raise CurationError(f"stars must be a whole number 0-{MAX_STARS}, got {value!r}")
+        try:
+            stars = int(stars)
+        except ValueError:
+            raise CurationError(
+                f"stars must be a whole number 0-{MAX_STARS}, got {value!r}"
+            ) from None
+        if not 0 <= stars <= MAX_STARS:
+            raise CurationError(f"stars must be from 0 to {MAX_STARS}, got {stars}")
+        return ["UPDATE shapes SET stars=? WHERE key=?"], [(stars, key)], str(stars)
+    if action == "reject":
+        why = str(value or "").strip()
+        if not why:
+            raise CurationError("say why the shape is rejected (--why TEXT)")
+        return ["UPDATE shapes SET user_rejected=? WHERE key=?"], [(why, key)], why
+    if action == "unreject":
+        return ["UPDATE shapes SET user_rejected=NULL WHERE key=?"], [(key,)], None
+    if action in ("tag", "untag"):
+        items = [value] if isinstance(value, str) else list(value or [])
+        tags = normalise_tags(items)
+        stmt = (
+            "INSERT OR IGNORE INTO tags (key, tag) VALUES (?, ?)"
+            if action == "tag"
+            else "DELETE FROM tags WHERE key=? AND tag=?"
+        )
+        return [stmt] * len(tags), [(key, t) for t in tags], " ".join(tags)
+    if action == "note":
+        text = str(value or "").strip()
+        return ["UPDATE shapes SET note=? WHERE key=?"], [(text or None, key)], text
+    raise CurationError(f"unknown action '{action}' (actions: {', '.join(ACTIONS)})")
+
+
+# ----------------------------------------------------------------------------- de-duplication
+
+
+@dataclass(frozen=True)
+class DedupeResult:
+    """What :func:`dedupe_catalogue` found: ``marked`` is ``(key, duplicate_of, distance)``."""
+
+    checked: int
+    computed: int
+    marked: list[tuple[str, str, float]]
+    missing: list[str]
+
+
+def ensure_descriptors(
+    cat: Catalogue, progress: Callable[[int, int], None] | None = None
+) -> tuple[dict[str, np.ndarray], int, list[str]]:
+    """Descriptors of every accepted shape in (run, index) order, computing and storing the
+    missing ones from their meshes. Returns ``({key: descriptor}, computed, keys without mesh)``."""
+    from surfgen.filters.descriptor import descriptor, descriptor_from_text, descriptor_to_text
+    from surfgen.generator.errors import MeshError
+    from surfgen.generator.mesh import load_mesh
+
+    rows = cat.conn.execute(
+        "SELECT key, mesh_path, descriptor FROM shapes WHERE verdict='accepted' ORDER BY run, idx"
+    ).fetchall()
+    out: dict[str, np.ndarray] = {}
+    computed, missing = 0, []
+    for i, r in enumerate(rows):
+        d = descriptor_from_text(r["descriptor"])
+        if d is None:
+            try:
+                if not r["mesh_path"]:
+                    raise MeshError("no mesh file recorded")
+                d = descriptor(load_mesh(cat.root / r["mesh_path"]))
+            except MeshError as exc:
+                log.warning("shape %s: no descriptor (%s)", r["key"], exc)
+                missing.append(r["key"])
+                continue
+            with cat.conn:
+                cat.conn.execute(
+                    "UPDATE shapes SET descriptor=? WHERE key=?", (descriptor_to_text(d), r["key"])
+                )
+            computed += 1
+        out[r["key"]] = d
+        if progress is not None:
+            progress(i + 1, len(rows))
+    return out, computed, missing
+
+
+def find_near_duplicates(
+    descriptors: dict[str, np.ndarray], threshold: float
+) -> list[tuple[str, str, float]]:
+    """Greedy, in the dict's order: each shape closer than ``threshold`` to an earlier original
+    is a duplicate of the nearest one. Returns ``(key, original key, distance)``."""
+    from surfgen.filters.descriptor import descriptor_distances
+
+    originals: list[str] = []
+    stack: list[np.ndarray] = []
+    marked = []
+    for key, d in descriptors.items():
+        if stack:
+            dist = descriptor_distances(d, np.stack(stack))
+            j = int(np.argmin(dist))
+            if dist[j] < threshold:
+                marked.append((key, originals[j], float(dist[j])))
+                continue
+        originals.append(key)
+        stack.append(d)
+    return marked
+
+
+def dedupe_catalogue(
+    cat: Catalogue,
+    threshold: float | None = None,
+    dry_run: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> DedupeResult:
+    """Mark near duplicates among the accepted shapes: each gets ``duplicate_of`` = the key of the
+    earliest (by run, index) shape it copies. Earlier marks on accepted shapes are recomputed, so
+    a new threshold takes effect; exact duplicates rejected while sampling are left alone.
+    Raises :class:`CurationError` for a threshold outside (0, 1]."""
+    from surfgen.filters.descriptor import DEFAULT_THRESHOLD
+
+    threshold = DEFAULT_THRESHOLD if threshold is None else float(threshold)
+    if not 0.0 < threshold <= 1.0:
+        raise CurationError(f"--threshold must be in (0, 1], got {threshold}")
+    descriptors, computed, missing = ensure_descriptors(cat, progress)
+    marked = find_near_duplicates(descriptors, threshold)
+    if not dry_run:
+        with cat.conn:
+            cat.conn.execute("UPDATE shapes SET duplicate_of=NULL WHERE verdict='accepted'")
+            cat.conn.executemany(
+                "UPDATE shapes SET duplicate_of=? WHERE key=?", [(of, k) for k, of, _ in marked]
+            )
+    log.info(
+        "dedupe: %d shapes, %d near duplicates (threshold %g)",
+        len(descriptors),
+        len(marked),
+        threshold,
+    )
+    return DedupeResult(len(descriptors), computed, marked, missing)
+
+
+# ----------------------------------------------------------------------------- CLI
+
+CatalogueOption = Annotated[
+    Path,
+    typer.Option("--catalogue", "-C", envvar="SURFGEN_CATALOGUE", help="Catalogue folder."),
+]
+catalogue_app = typer.Typer(no_args_is_help=True, help="Browse and curate the catalogue.")
+
+
+def _emit_json(obj: Any) -> None:
+    typer.echo(json.dumps(obj, indent=2, default=str))
+
+
+def _num(v: Any, fmt: str = "g") -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def _flags(rec: dict[str, Any]) -> str:
+    out = []
+    if rec["verdict"] != "accepted":
+        out.append("filtered:" + ",".join(rec["reasons"]))
+    if rec["rejected"]:
+        out.append("rejected")
+    if rec["duplicate_of"]:
+        out.append(f"dup:{rec['duplicate_of'][:8]}")
+    return " ".join(out)
+
+
+@catalogue_app.command("list")
+def list_cmd(
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    where: Annotated[
+        str | None, typer.Option(help="Filter, e.g. 'genus >= 2 and tag = nice'.")
+    ] = None,
+    sort: Annotated[
+        str | None, typer.Option(help="FIELD or -FIELD (descending), comma-separated.")
+    ] = None,
+    limit: Annotated[int | None, typer.Option(help="At most this many shapes.")] = None,
+    everything: Annotated[
+        bool, typer.Option("--all", help="Include the draws the filters rejected.")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON records.")] = False,
+) -> None:
+    """List shapes, filtered and sorted by their metrics, tags and curation."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        recs = select_shapes(cat, where=where, sort=sort, limit=limit, everything=everything)
+    if as_json:
+        _emit_json(recs)
+        return
+    typer.echo(
+        f"{'key':<16} {'run':>3} {'index':>5} {'genus':>5} {'comp':>4} {'faces':>7} "
+        f"{'area':>8}  {'stars':<5} tags"
+    )
+    for r in recs:
+        stars = "*" * r["stars"] or "-"
+        extra = " ".join(filter(None, [",".join(r["tags"]), _flags(r)]))
+        typer.echo(
+            f"{r['key']:<16} {r['run']:>3} {r['index']:>5} {_num(r['genus']):>5} "
+            f"{_num(r['components']):>4} {_num(r['faces']):>7} {_num(r['area'], '.4g'):>8}  "
+            f"{stars:<5} {extra}".rstrip()
+        )
+    typer.echo(f"{len(recs)} shape{'s' if len(recs) != 1 else ''}", err=True)
+
+
+@catalogue_app.command("show")
+def show_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Everything about one shape: formula, spec, metrics, curation, files, provenance."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        rec = get_shape(cat, key)
+    if as_json:
+        _emit_json(rec)
+        return
+    prov = rec["provenance"]
+    lines = [
+        f"key        {rec['key']}",
+        f"formula    {rec['formula']}",
+        f"box        {rec['spec'].get('box')}   grid {rec['spec'].get('grid')}   level {rec['spec'].get('level')}",
+        f"verdict    {rec['verdict']}"
+        + (f" ({', '.join(rec['reasons'])})" if rec["reasons"] else ""),
+        f"run        {rec['run']}  index {rec['index']}  seed {prov.get('seed')}  "
+        f"sampler {prov.get('sampler')}  config {prov.get('config')}",
+        f"stars      {rec['stars']}",
+        f"tags       {' '.join(rec['tags']) or '-'}",
+        f"rejected   {rec['rejected'] or '-'}",
+        f"note       {rec['note'] or '-'}",
+        f"duplicate  {rec['duplicate_of'] or '-'}",
+        f"files      {', '.join(p for p in (rec['mesh'], rec['thumb'], rec['turntable']) if p) or '-'}",
+        "metrics",
+    ]
+    lines += [f"  {k:<28} {v}" for k, v in sorted(rec["metrics"].items())]
+    typer.echo("\n".join(lines))
+
+
+def _report(rec: dict[str, Any]) -> None:
+    typer.echo(
+        f"{rec['key']}: stars {rec['stars']}, tags {' '.join(rec['tags']) or '-'}"
+        f", rejected {rec['rejected'] or '-'}, note {rec['note'] or '-'}"
+    )
+
+
+@catalogue_app.command("star")
+def star_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    stars: Annotated[int, typer.Argument(help=f"Stars 0-{MAX_STARS} (0 removes them).")] = 1,
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Give a shape stars."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "star", stars))
+
+
+@catalogue_app.command("reject")
+def reject_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    why: Annotated[str, typer.Option("--why", help="Why it is rejected (required).")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Reject a shape by hand (it stays in the catalogue, hidden from the gallery)."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "reject", why))
+
+
+@catalogue_app.command("unreject")
+def unreject_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Undo a curator's rejection."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "unreject"))
+
+
+@catalogue_app.command("tag")
+def tag_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    tags: Annotated[list[str], typer.Argument(help="One or more tags.")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Add tags to a shape."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "tag", tags))
+
+
+@catalogue_app.command("untag")
+def untag_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    tags: Annotated[list[str], typer.Argument(help="One or more tags.")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Remove tags from a shape."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "untag", tags))
+
+
+@catalogue_app.command("note")
+def note_cmd(
+    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
+    text: Annotated[str, typer.Argument(help="The note ('' removes it).")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+) -> None:
+    """Write a note on a shape."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        _report(apply_action(cat, key, "note", text))
+
+
+@catalogue_app.command("dedupe")
+def dedupe_cmd(
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    threshold: Annotated[
+        float | None,
+        typer.Option(help="Descriptor distance below which shapes are duplicates (default 0.012)."),
+    ] = None,
+    dry_run: Annotated[bool, typer.Option(help="Report, change nothing.")] = False,
+) -> None:
+    """Mark near-duplicate shapes (close shape descriptors) with the key they copy."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        res = dedupe_catalogue(cat, threshold, dry_run=dry_run)
+    for key, of, dist in res.marked:
+        typer.echo(f"{key} duplicates {of} (distance {dist:.4f})")
+    typer.echo(
+        f"{len(res.marked)} near duplicate{'s' if len(res.marked) != 1 else ''} among {res.checked} "
+        f"accepted shapes ({res.computed} descriptors computed"
+        + (f", {len(res.missing)} without mesh" if res.missing else "")
+        + ")"
+        + (" — dry run, nothing written" if dry_run else "")
+    )
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``surfgen catalogue ...`` to the CLI."""
+    app.add_typer(catalogue_app, name="catalogue")

@@ -1,0 +1,507 @@
+"""Looking at the catalogue: thumbnails, contact sheets and the browser gallery.
+
+- :func:`render_pictures` renders missing thumbnails and turntables (``surfgen thumbnails``);
+- :func:`write_contact_sheet` composes thumbnails into one PNG (``surfgen contact-sheet``);
+- :func:`create_app` is the live gallery (``surfgen serve``): a Flask app over one catalogue,
+  with a JSON API whose writes all go through :func:`surfgen.pipelines.curation.apply_action`,
+  so every click is committed at once;
+- :func:`export_gallery` writes the same page as static, read-only files (``surfgen gallery``).
+
+The page (``templates/gallery.html``, ``static/gallery.js``/``.css``) carries its data as JSON
+and loads nothing from the internet. JSON API of the live gallery:
+
+====== ============================== ===================================================
+GET    /api/health                    ``{"ok": true, "shapes": N}``
+GET    /api/shapes?where=&sort=&limit= shape records (``keys=1``: only their keys)
+GET    /api/shapes/KEY                one record with its run and curation history
+POST   /api/shapes/KEY/star           ``{"stars": 0-5}``
+POST   /api/shapes/KEY/reject         ``{"why": "..."}``; ``/unreject`` with ``{}``
+POST   /api/shapes/KEY/tag            ``{"tags": ["a", "b"]}``; ``/untag`` likewise
+POST   /api/shapes/KEY/note           ``{"note": "..."}`` (empty removes it)
+POST   /api/export                    form field ``keys`` (comma-separated): a zip of meshes
+                                      and specs
+====== ============================== ===================================================
+
+Writes must be ``application/json`` (a cross-site form cannot send that without a preflight the
+app never grants) and, when bound to a loopback address, requests must name a loopback host.
+Errors come back as ``{"error": "..."}`` with status 400 (bad value), 404 (unknown key) or 415.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import shutil
+import zipfile
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+from surfgen.generator.errors import SurfgenError
+from surfgen.pipelines.catalogue import (
+    DEFAULT_CATALOGUE,
+    Catalogue,
+    CatalogueError,
+    now,
+    open_catalogue,
+)
+from surfgen.pipelines.curation import (
+    FIELDS,
+    CatalogueOption,
+    CurationError,
+    WhereError,
+    apply_action,
+    get_shape,
+    select_shapes,
+)
+
+if TYPE_CHECKING:
+    from flask import Flask
+    from werkzeug.serving import BaseWSGIServer
+
+log = logging.getLogger(__name__)
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1", "[::1]")
+# The value each API action reads from the request body.
+_ACTION_FIELD = {
+    "star": "stars",
+    "reject": "why",
+    "unreject": None,
+    "tag": "tags",
+    "untag": "tags",
+    "note": "note",
+}
+
+
+class GalleryError(SurfgenError):
+    """A gallery, sheet or picture that cannot be made (no thumbnails, unwritable folder...)."""
+
+
+# ----------------------------------------------------------------------------- pictures
+
+
+@dataclass(frozen=True)
+class PictureResult:
+    rendered: int
+    skipped: int
+    failed: list[tuple[str, str]]
+
+
+def render_pictures(
+    cat: Catalogue,
+    force: bool = False,
+    where: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> PictureResult:
+    """Render the thumbnail (256², ``thumbs/KEY.png``) and 12-view turntable
+    (``turntables/KEY.png``) of every accepted shape that lacks one (all with ``force``),
+    from its mesh, and record their paths. Shapes whose mesh cannot be read are listed in
+    ``failed``, the others still rendered. Raises :class:`WhereError` for a bad ``where``."""
+    from surfgen.generator.mesh import load_mesh
+    from surfgen.pipelines.pictures import render_thumbnail, render_turntable
+
+    cat.make_dirs()
+    shapes = select_shapes(cat, where=where)
+    rendered = skipped = 0
+    failed: list[tuple[str, str]] = []
+    for i, s in enumerate(shapes):
+        key = s["key"]
+        thumb, turn = cat.thumbs / f"{key}.png", cat.turntables / f"{key}.png"
+        have = all(rel and (cat.root / rel).is_file() for rel in (s["thumb"], s["turntable"]))
+        if have and not force:
+            skipped += 1
+        elif not s["mesh"]:
+            failed.append((key, "no mesh recorded"))
+        else:
+            try:
+                mesh = load_mesh(cat.root / s["mesh"])
+                render_thumbnail(mesh, thumb, size=256)
+                render_turntable(mesh, turn, views=12, size=256)
+            except SurfgenError as exc:
+                log.warning("shape %s: no pictures (%s)", key, exc)
+                failed.append((key, str(exc)))
+            else:
+                with cat.conn:
+                    cat.conn.execute(
+                        "UPDATE shapes SET thumb_path=?, turntable_path=? WHERE key=?",
+                        (str(thumb.relative_to(cat.root)), str(turn.relative_to(cat.root)), key),
+                    )
+                rendered += 1
+        if progress is not None:
+            progress(i + 1, len(shapes))
+    return PictureResult(rendered, skipped, failed)
+
+
+def write_contact_sheet(
+    cat: Catalogue,
+    path: Path,
+    where: str | None = None,
+    sort: str | None = None,
+    limit: int | None = None,
+    columns: int = 6,
+) -> tuple[Path, int]:
+    """A grid of the thumbnails of the selected shapes, each labelled with its short key.
+
+    Returns the path and the number of thumbnails. Raises :class:`GalleryError` when no
+    selected shape has a thumbnail, :class:`WhereError` for a bad ``where``/``sort``.
+    """
+    from surfgen.pipelines.pictures import contact_sheet
+
+    if columns < 1:
+        raise GalleryError(f"--columns must be at least 1, got {columns}")
+    if path.suffix.lower() != ".png":
+        raise GalleryError(f"the contact sheet is a PNG: '{path}' should end in .png")
+    shapes = select_shapes(cat, where=where, sort=sort)
+    items = [
+        (cat.root / s["thumb"], s["key"][:8])
+        for s in shapes
+        if s["thumb"] and (cat.root / s["thumb"]).is_file()
+    ]
+    if limit is not None:
+        items = items[: max(limit, 0)]
+    if not items:
+        raise GalleryError(
+            f"none of the {len(shapes)} selected shapes has a thumbnail"
+            + (" (run `surfgen thumbnails` first)" if shapes else "")
+        )
+    return contact_sheet(items, path, columns=columns), len(items)
+
+
+# ----------------------------------------------------------------------------- the page
+
+
+def gallery_data(cat: Catalogue, readonly: bool, where: str | None = None) -> dict[str, Any]:
+    """Everything the page shows: the accepted shapes (``where`` selects some), runs, fields."""
+    shapes = select_shapes(cat, where=where)
+    for s in shapes:
+        s.pop("identity", None)
+    runs = {}
+    for r in cat.runs():
+        runs[str(r["id"])] = {
+            "seed": r["seed"],
+            "grid": r["grid"],
+            "status": r["status"],
+            "started": r["started"],
+            "config_hash": r["config_hash"],
+            "versions": json.loads(r["versions"] or "{}"),
+        }
+    return {
+        "readonly": readonly,
+        "catalogue": str(cat.root),
+        "generated": now(),
+        "meshes": not readonly,
+        "runs": runs,
+        "where_fields": {name: f.help for name, f in FIELDS.items()},
+        "shapes": shapes,
+    }
+
+
+def _script_json(data: Any) -> str:
+    """JSON safe inside ``<script>``: no ``</script>`` or HTML comment can close it."""
+    text = json.dumps(data, separators=(",", ":"), allow_nan=False, default=str)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def render_page(data: dict[str, Any], title: str = "surfgen gallery") -> str:
+    """The gallery HTML for ``data`` (from :func:`gallery_data`)."""
+    import jinja2
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("surfgen.pipelines", "templates"),
+        autoescape=jinja2.select_autoescape(["html"]),
+    )
+    n = len(data["shapes"])
+    subtitle = f"{n} shape{'s' if n != 1 else ''} · {data['catalogue']}"
+    return env.get_template("gallery.html").render(
+        title=title, subtitle=subtitle, readonly=data["readonly"], data_json=_script_json(data)
+    )
+
+
+def _static_dir() -> Path:
+    return Path(str(resources.files("surfgen.pipelines").joinpath("static")))
+
+
+# ----------------------------------------------------------------------------- static export
+
+
+def export_gallery(
+    root: Path, out: Path, where: str | None = None, meshes: bool = False
+) -> tuple[Path, int]:
+    """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
+    ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
+
+    Returns the index path and the number of shapes. Raises :class:`CatalogueError` for a
+    missing catalogue and :class:`GalleryError` if ``out`` cannot be written.
+    """
+    with open_catalogue(root, must_exist=True) as cat:
+        data = gallery_data(cat, readonly=True, where=where)
+        data["catalogue"] = cat.root.name
+        data["meshes"] = meshes
+    out = Path(out)
+    if out.resolve() == Path(root).resolve():
+        raise GalleryError("write the gallery to another folder than the catalogue")
+    try:
+        for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
+            (out / sub).mkdir(parents=True, exist_ok=True)
+        for f in _static_dir().iterdir():
+            if f.is_file():
+                shutil.copy2(f, out / "static" / f.name)
+        for s in data["shapes"]:
+            for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
+                rel = s[kind]
+                if rel and (Path(root) / rel).is_file():
+                    (out / rel).parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copy2(Path(root) / rel, out / rel)
+                else:
+                    s[kind] = None
+            if not meshes:
+                s["mesh"] = None
+        write_page(out / "index.html", render_page(data))
+    except OSError as exc:
+        raise GalleryError(f"cannot write the gallery to {out}: {exc}") from None
+    return out / "index.html", len(data["shapes"])
+
+
+def write_page(path: Path, text: str) -> Path:
+    """Write an HTML page atomically, readable by all (it is meant to be published)."""
+    from surfgen.pipelines.render import write_atomic
+
+    write_atomic(path, text.encode("utf-8"))
+    path.chmod(0o644)
+    return path
+
+
+# ----------------------------------------------------------------------------- live app
+
+
+def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
+    """The live gallery over the catalogue at ``root`` (which must exist).
+
+    Each request opens its own connection (SQLite connections are per thread). Raises
+    :class:`CatalogueError` if there is no catalogue at ``root``.
+    """
+    from flask import Flask, Response, abort, g, jsonify, request, send_from_directory
+
+    root = Path(root).resolve()
+    with open_catalogue(root, must_exist=True):
+        pass
+    app = Flask(__name__, static_folder=str(_static_dir()), static_url_path="/static")
+    app.json.sort_keys = False  # type: ignore[attr-defined]
+    if host in LOOPBACK:
+        app.config["TRUSTED_HOSTS"] = list(LOOPBACK)
+
+    def cat() -> Catalogue:
+        if "cat" not in g:
+            g.stack = ExitStack()
+            g.cat = g.stack.enter_context(open_catalogue(root, must_exist=True))
+        return g.cat
+
+    @app.teardown_appcontext
+    def _close(_exc: BaseException | None) -> None:
+        stack = g.pop("stack", None)
+        if stack is not None:
+            stack.close()
+
+    @app.errorhandler(CatalogueError)
+    def _catalogue_error(exc: CatalogueError):
+        status = 400 if isinstance(exc, CurationError | WhereError) else 404
+        return jsonify(error=str(exc)), status
+
+    @app.get("/")
+    def index() -> Response:
+        return Response(render_page(gallery_data(cat(), readonly=False)), mimetype="text/html")
+
+    for folder in ("thumbs", "turntables", "meshes"):
+
+        def send(name: str, _folder: str = folder) -> Response:
+            return send_from_directory(root / _folder, name, max_age=0)
+
+        app.add_url_rule(f"/{folder}/<path:name>", f"file_{folder}", send)
+
+    @app.get("/api/health")
+    def health():
+        n = cat().conn.execute("SELECT count(*) FROM shapes WHERE verdict='accepted'").fetchone()[0]
+        return jsonify(ok=True, shapes=n)
+
+    @app.get("/api/shapes")
+    def shapes():
+        limit = request.args.get("limit", type=int)
+        recs = select_shapes(
+            cat(),
+            where=request.args.get("where"),
+            sort=request.args.get("sort"),
+            limit=limit,
+            everything=request.args.get("all") == "1",
+        )
+        if request.args.get("keys") == "1":
+            return jsonify(keys=[r["key"] for r in recs])
+        return jsonify(count=len(recs), shapes=recs)
+
+    @app.get("/api/shapes/<key>")
+    def shape(key: str):
+        return jsonify(shape=get_shape(cat(), key))
+
+    @app.post("/api/shapes/<key>/<action>")
+    def curate(key: str, action: str):
+        if action not in _ACTION_FIELD:
+            abort(404)
+        if not request.is_json:
+            return jsonify(error="send the action as application/json"), 415
+        body = request.get_json(silent=True)
+        if not isinstance(body, dict):
+            return jsonify(error="the body must be a JSON object"), 400
+        field = _ACTION_FIELD[action]
+        value = body.get(field) if field else None
+        return jsonify(shape=apply_action(cat(), key, action, value))
+
+    @app.post("/api/export")
+    def export():
+        keys = [k for k in request.form.get("keys", "").split(",") if k.strip()]
+        if not keys:
+            return jsonify(error="no shapes to export"), 400
+        data = _export_zip(cat(), keys)
+        stamp = now().replace(":", "").replace("-", "")[:15]
+        return Response(
+            data,
+            mimetype="application/zip",
+            headers={"Content-Disposition": f'attachment; filename="surfgen-{stamp}.zip"'},
+        )
+
+    return app
+
+
+def _export_zip(cat: Catalogue, keys: list[str]) -> bytes:
+    """A zip of ``meshes/KEY.ply``, ``specs/KEY.json`` and ``shapes.json`` for ``keys``."""
+    buf = io.BytesIO()
+    records = []
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        for key in keys:
+            rec = get_shape(cat, key, full=False)
+            records.append(rec)
+            z.writestr(f"specs/{rec['key']}.json", json.dumps(rec["spec"], indent=2))
+            if rec["mesh"] and (cat.root / rec["mesh"]).is_file():
+                z.write(cat.root / rec["mesh"], f"meshes/{rec['key']}.ply")
+        z.writestr("shapes.json", json.dumps(records, indent=1))
+    return buf.getvalue()
+
+
+def make_server(root: Path, host: str = "127.0.0.1", port: int = 8000) -> BaseWSGIServer:
+    """A threaded HTTP server of the live gallery (``port`` 0: any free port); call its
+    ``serve_forever()``. Raises :class:`GalleryError` if the address cannot be bound."""
+    from werkzeug.serving import make_server as werkzeug_server
+
+    app = create_app(root, host)
+    try:
+        return werkzeug_server(host, port, app, threaded=True)
+    except (OSError, SystemExit) as exc:  # werkzeug exits when the port is taken
+        raise GalleryError(f"cannot listen on {host}:{port}: {exc}") from None
+
+
+def server_url(server: BaseWSGIServer) -> str:
+    host = server.host
+    return f"http://{f'[{host}]' if ':' in host else host}:{server.server_port}/"
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def thumbnails_cmd(
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    force: Annotated[bool, typer.Option(help="Render again even where pictures exist.")] = False,
+    where: Annotated[
+        str | None, typer.Option(help="Only these shapes (see `catalogue list`).")
+    ] = None,
+) -> None:
+    """Render missing thumbnails and turntables of the accepted shapes."""
+    import sys
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    with (
+        open_catalogue(catalogue, must_exist=True) as cat,
+        Progress(
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            disable=not sys.stderr.isatty(),
+        ) as bar,
+    ):
+        task = bar.add_task("pictures", total=None)
+        res = render_pictures(
+            cat,
+            force=force,
+            where=where,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+        )
+    for key, why in res.failed:
+        typer.echo(f"{key}: {why}", err=True)
+    typer.echo(
+        f"rendered {res.rendered}, already there {res.skipped}, failed {len(res.failed)} "
+        f"(thumbnails in {Path(catalogue) / 'thumbs'})"
+    )
+    if res.failed and not res.rendered and not res.skipped:
+        raise GalleryError(f"no pictures could be rendered ({len(res.failed)} failed)")
+
+
+def contact_sheet_cmd(
+    output: Annotated[Path, typer.Option("-o", "--output", help="The sheet (PNG).")] = Path(
+        "out/contact-sheet.png"
+    ),
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    where: Annotated[str | None, typer.Option(help="Which shapes (see `catalogue list`).")] = None,
+    sort: Annotated[str | None, typer.Option(help="FIELD or -FIELD.")] = None,
+    limit: Annotated[int | None, typer.Option(help="At most this many.")] = 48,
+    columns: Annotated[int, typer.Option(help="Thumbnails per row.")] = 6,
+) -> None:
+    """A grid of thumbnails with short keys, for a quick look or a figure."""
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        path, n = write_contact_sheet(cat, output, where, sort, limit, columns)
+    typer.echo(f"wrote {path} ({n} shapes)")
+
+
+def serve_cmd(
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    port: Annotated[int, typer.Option(help="Port (0: any free one).")] = 8000,
+    host: Annotated[
+        str, typer.Option(help="Address to bind; anything but loopback exposes the catalogue.")
+    ] = "127.0.0.1",
+) -> None:
+    """Browse and curate the catalogue in a web browser (writes at once)."""
+    if not 0 <= port <= 65535:
+        raise GalleryError(f"--port must be 0-65535, got {port}")
+    if host not in LOOPBACK:
+        log.warning("serving on %s: anyone who can reach it can edit the catalogue", host)
+    server = make_server(catalogue, host, port)
+    typer.echo(f"gallery of {catalogue} at {server_url(server)} (Ctrl+C to stop)")
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        typer.echo("stopped")
+    finally:
+        server.server_close()
+
+
+def gallery_cmd(
+    output: Annotated[Path, typer.Option("-o", "--output", help="Folder to write.")],
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    where: Annotated[
+        str | None, typer.Option(help="Only these shapes (see `catalogue list`).")
+    ] = None,
+    meshes: Annotated[bool, typer.Option(help="Copy the meshes too, for download.")] = False,
+) -> None:
+    """Write the gallery as static, read-only files to publish or share."""
+    index, n = export_gallery(catalogue, output, where=where, meshes=meshes)
+    typer.echo(f"wrote {index} ({n} shapes); open it in a browser")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``thumbnails``, ``contact-sheet``, ``serve`` and ``gallery`` to the CLI."""
+    app.command("thumbnails")(thumbnails_cmd)
+    app.command("contact-sheet")(contact_sheet_cmd)
+    app.command("serve")(serve_cmd)
+    app.command("gallery")(gallery_cmd)

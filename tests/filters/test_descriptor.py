@@ -1,0 +1,122 @@
+"""Tests for surfgen.filters.descriptor: invariances, near duplicates by construction, storage."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from surfgen.filters.descriptor import (
+    D1_BINS,
+    D2_BINS,
+    DEFAULT_THRESHOLD,
+    NORMAL_BINS,
+    SIZE,
+    descriptor,
+    descriptor_distance,
+    descriptor_distances,
+    descriptor_from_text,
+    descriptor_to_text,
+    is_near_duplicate,
+)
+from surfgen.generator.errors import MeshError
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.mesh import Mesh, extract_mesh
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import evaluate_reference
+
+
+def _mesh(formula: str, half: float, n: int) -> Mesh:
+    field = evaluate_reference(parse(formula), Grid(Box.cube(half), (n,) * 3))
+    return extract_mesh(field, 0.0)
+
+
+def _shifted(formula: str, dx: float, dy: float, dz: float) -> str:
+    """The same surface moved by (dx, dy, dz) inside its box."""
+    return (
+        formula.replace("x", "(x-X)")
+        .replace("y", "(y-Y)")
+        .replace("z", "(z-Z)")
+        .replace("X", repr(dx))
+        .replace("Y", repr(dy))
+        .replace("Z", repr(dz))
+    )
+
+
+def test_descriptor_is_five_normalised_histograms(sphere_mesh: Mesh) -> None:
+    d = descriptor(sphere_mesh)
+    assert d.shape == (SIZE,) and d.dtype == np.float64
+    edges = np.cumsum([0, D2_BINS, D1_BINS, NORMAL_BINS, NORMAL_BINS, NORMAL_BINS])
+    for lo, hi in itertools.pairwise(edges):
+        assert d[lo:hi].sum() == pytest.approx(1.0)
+        assert (d[lo:hi] >= 0).all()
+
+
+def test_descriptor_is_deterministic(torus_mesh: Mesh) -> None:
+    a = descriptor(torus_mesh)
+    b = descriptor(Mesh(torus_mesh.vertices.copy(), torus_mesh.faces.copy()))
+    assert np.array_equal(a, b)
+
+
+def test_invariant_to_translation_and_scale(genus2_mesh: Mesh) -> None:
+    d = descriptor(genus2_mesh)
+    moved = Mesh(genus2_mesh.vertices + np.array([3.0, -1.5, 10.0]), genus2_mesh.faces)
+    scaled = Mesh(genus2_mesh.vertices * 7.5, genus2_mesh.faces)
+    assert descriptor_distance(d, descriptor(moved)) < 1e-3
+    assert descriptor_distance(d, descriptor(scaled)) < 1e-3
+    assert descriptor_distance(d, d) == 0.0
+
+
+@pytest.mark.parametrize("name", ["sphere", "torus", "genus2", "two_spheres"])
+def test_duplicates_by_construction(name: str, shapes, shape_mesh) -> None:
+    """The same shape moved inside its box, or on a finer or coarser grid, is a near duplicate."""
+    s = shapes[name]
+    base = descriptor(shape_mesh(name))
+    moved = descriptor(_mesh(_shifted(s.formula, 0.07, -0.05, 0.04), s.half, s.n))
+    finer = descriptor(_mesh(s.formula, s.half, 48))
+    coarser = descriptor(_mesh(s.formula, s.half, 28))
+    for other in (moved, finer, coarser):
+        assert is_near_duplicate(base, other), descriptor_distance(base, other)
+
+
+def test_distinct_shapes_are_not_duplicates(shape_mesh) -> None:
+    names = ["sphere", "torus", "genus2", "two_spheres"]
+    descs = {n: descriptor(shape_mesh(n)) for n in names}
+    # An ellipsoid and a rounded cube: close to the sphere in D2 alone.
+    descs["ellipsoid"] = descriptor(_mesh("x^2/1.2+y^2+z^2/0.7-1", 1.5, 40))
+    descs["rounded_cube"] = descriptor(_mesh("x^8+y^8+z^8-1", 1.5, 40))
+    for a, b in itertools.combinations(descs, 2):
+        dist = descriptor_distance(descs[a], descs[b])
+        assert dist > 1.5 * DEFAULT_THRESHOLD, (a, b, dist)
+        assert not is_near_duplicate(descs[a], descs[b])
+
+
+def test_distances_vectorised_match_pairwise(sphere_mesh, torus_mesh, genus2_mesh) -> None:
+    a, b, c = (descriptor(m) for m in (sphere_mesh, torus_mesh, genus2_mesh))
+    many = descriptor_distances(a, np.stack([a, b, c]))
+    assert many.shape == (3,)
+    assert many[0] == 0.0
+    assert many[1] == pytest.approx(descriptor_distance(a, b))
+    assert descriptor_distance(b, c) == pytest.approx(descriptor_distance(c, b))
+    assert 0.0 <= many.max() <= 1.0
+
+
+def test_bad_inputs() -> None:
+    flat = Mesh(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], float), np.array([[0, 1, 2]]))
+    with pytest.raises(MeshError, match="area"):
+        descriptor(flat)
+    with pytest.raises(MeshError):
+        descriptor(Mesh(np.zeros((0, 3)), np.zeros((0, 3), int)))
+    with pytest.raises(ValueError, match="values"):
+        descriptor_distance(np.zeros(SIZE), np.zeros(SIZE - 1))
+
+
+def test_text_round_trip(torus_mesh: Mesh) -> None:
+    d = descriptor(torus_mesh)
+    back = descriptor_from_text(descriptor_to_text(d))
+    assert back is not None and np.allclose(back, d, atol=1e-6)
+    assert descriptor_distance(d, back) < 1e-5
+    assert descriptor_from_text(None) is None
+    assert descriptor_from_text("not json") is None
+    assert descriptor_from_text('{"v": 999, "d": []}') is None  # another version: recompute
+    assert descriptor_from_text('{"v": 1, "d": [1, 2]}') is None  # wrong size

@@ -1,0 +1,97 @@
+"""Filters: field screening and mesh verdicts on shapes whose answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from surfgen.filters.verdict import (
+    FilterConfig,
+    field_statistics,
+    judge,
+    quick_metrics,
+    screen_field,
+    shape_metrics,
+)
+from surfgen.generator.errors import SpecError
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.mesh import extract_mesh
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import evaluate_reference
+
+CFG = FilterConfig(min_faces=100)
+
+
+def mesh_of(formula: str, half: float, n: int = 32, cap: bool = True):
+    grid = Grid(Box.cube(half), (n, n, n))
+    return extract_mesh(evaluate_reference(parse(formula), grid), cap=cap), grid
+
+
+def test_convex_lump_is_a_blob_and_a_torus_is_not() -> None:
+    sphere, g = mesh_of("x^2+y^2+z^2-1", 1.5)
+    m = shape_metrics(sphere, g.box.bounds())
+    assert 0.9 < m["total_curvature"] < 1.1  # Gauss-Bonnet: integral |K| = 4 pi for convex
+    assert judge(m, CFG, capped=True).reasons == ("blob",)
+    torus, g = mesh_of("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 40)
+    assert judge(shape_metrics(torus, g.box.bounds()), CFG, capped=True).accepted
+
+
+def test_a_slab_cut_by_the_box_is_box_dominated_and_convex() -> None:
+    slab, g = mesh_of("z-0.5", 1.0, 16)
+    m = shape_metrics(slab, g.box.bounds())
+    assert m["box_fraction"] > 0.7
+    assert set(judge(m, CFG, capped=True).reasons) == {"box_dominated", "blob"}
+
+
+def test_speckle_many_small_components() -> None:
+    speckle, g = mesh_of("sin(6*x)*sin(6*y)*sin(6*z)-0.7", 3.0, 48)
+    q = quick_metrics(speckle, g.box.bounds())
+    assert q["components"] > 60
+    assert "speckle" in judge(q, CFG, capped=True).reasons
+
+
+def test_quick_metrics_agree_with_full_metrics() -> None:
+    torus, g = mesh_of("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 40)
+    q, m = quick_metrics(torus, g.box.bounds()), shape_metrics(torus, g.box.bounds())
+    assert q["components"] == m["components"] == 1 and q["faces"] == m["faces"]
+
+
+def test_screen_field_reasons() -> None:
+    cfg = FilterConfig()
+    g = Grid(Box.cube(1), (24, 24, 24))
+    x, y, z = g.open_axes()
+    assert screen_field(np.broadcast_to(x + 5.0, g.shape), 0, cfg, coarse=True).reasons == (
+        "empty",
+    )
+    assert screen_field(np.broadcast_to(x - 5.0, g.shape), 0, cfg, coarse=True).reasons == ("full",)
+    noise = np.random.default_rng(0).standard_normal(g.shape)
+    assert screen_field(noise, 0, cfg, coarse=True).reasons == ("noise",)
+    nan = np.full(g.shape, np.nan)
+    assert screen_field(nan, 0, cfg, coarse=True).reasons == ("nonfinite",)
+    sphere = np.broadcast_to(x**2 + y**2 + z**2 - 0.5, g.shape)
+    assert screen_field(sphere, 0, cfg, coarse=True).accepted
+    slab = np.broadcast_to(z + 0 * x - 0.5, g.shape)
+    assert screen_field(slab, 0, cfg, coarse=True).reasons == ("full",) or screen_field(
+        slab, 0, cfg, coarse=True
+    ).reasons == ("box_dominated",)
+
+
+def test_field_statistics_counts_nonfinite_as_outside() -> None:
+    v = np.array([[[-1.0, np.nan], [np.inf, -np.inf]]] * 2)
+    s = field_statistics(v)
+    assert s["nonfinite_fraction"] == 0.75 and s["inside_fraction"] == 0.25
+
+
+def test_exact_zeros_of_a_staircase_give_a_manifold_mesh() -> None:
+    """stair2 makes F exactly 0 on whole slabs; exact zeros are outside (F < level is inside)."""
+    mesh, g = mesh_of("stair1(z,0.5,1,4)+0*x", 1.3, 27)
+    values = evaluate_reference(parse("stair1(z,0.5,1,4)+0*x"), g).values
+    assert (values == 0).sum() > 1000
+    m = shape_metrics(mesh, g.box.bounds())
+    assert m["nonmanifold_edges"] == 0 and m["nonmanifold_vertices"] == 0 and m["watertight"]
+
+
+def test_config_validation() -> None:
+    with pytest.raises(SpecError, match="max_box_fraction must be in"):
+        FilterConfig(max_box_fraction=2)
+    with pytest.raises(SpecError, match="unknown key 'nope'"):
+        FilterConfig.from_mapping({"nope": 1})
