@@ -35,6 +35,33 @@ def baseline_per_minute(grid: int, repeats: int = 5) -> float:
     return 60.0 / best
 
 
+def crossing_rates(seed: int, draws: int, config) -> dict[str, float]:
+    """How often the surface F = 0 crosses the box (coarse grid), for three ways to pick d."""
+    import numpy as np
+
+    from surfgen.generator.grid import Grid
+    from surfgen.generator.sampler import choose_d, draw_equation
+
+    cfg = config.sampler
+    rng = np.random.default_rng(seed)
+    hits = {"d = 0": 0, "d uniform in [-10, 10]": 0, "d at a quantile (surfgen)": 0}
+    for i in range(draws):
+        draw = draw_equation(seed, i, cfg)
+        body = evaluate(draw.equation.body(), Grid(draw.box, (cfg.d_grid,) * 3), threads=1).values
+        q = choose_d(draw, cfg, threads=1)
+        for name, d in (
+            ("d = 0", 0.0),
+            ("d uniform in [-10, 10]", rng.uniform(-10, 10)),
+            ("d at a quantile (surfgen)", q),
+        ):
+            if d is None:
+                continue
+            v = body - d
+            fin = np.isfinite(v)
+            hits[name] += bool((v[fin] < 0).any() and (v[fin] >= 0).any())
+    return {k: v / draws for k, v in hits.items()}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=200)
@@ -47,19 +74,36 @@ def main() -> None:
     base = baseline_per_minute(grid)
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
-        s = run_sample(n=args.n, seed=args.seed, config=config, catalogue=Path(tmp) / "cat",
-                       workers=args.workers)
+        s = run_sample(
+            n=args.n,
+            seed=args.seed,
+            config=config,
+            catalogue=Path(tmp) / "cat",
+            workers=args.workers,
+        )
         wall = time.perf_counter() - t
     rate = 60.0 * s.accepted / wall
     total_stage = sum(s.stage_seconds.values()) or 1.0
     print(f"sample --n {args.n} --seed {args.seed} --grid {grid} --workers {args.workers}")
-    print(f"  accepted {s.accepted} of {s.drawn} drawn: acceptance {100 * s.accepted / s.drawn:.1f}%")
+    print(
+        f"  accepted {s.accepted} of {s.drawn} drawn: acceptance {100 * s.accepted / s.drawn:.1f}%"
+    )
     print(f"  wall time {wall:.1f} s: {rate:.1f} accepted shapes/min")
     print(f"  baseline (gyroid preset, eval+mesh+measure, 1 process): {base:.0f} shapes/min")
     print(f"  ratio accepted-shapes rate / baseline: {rate / base:.3f}")
-    print("  worker time by stage: " + ", ".join(
-        f"{k} {v:.1f} s ({100 * v / total_stage:.0f}%)" for k, v in sorted(s.stage_seconds.items())))
-    print("  rejections: " + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items(), key=lambda kv: -kv[1])))
+    print(
+        "  worker time by stage: "
+        + ", ".join(
+            f"{k} {v:.1f} s ({100 * v / total_stage:.0f}%)"
+            for k, v in sorted(s.stage_seconds.items())
+        )
+    )
+    print(
+        "  rejections: "
+        + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items(), key=lambda kv: -kv[1]))
+    )
+    for name, rate_ in crossing_rates(args.seed, 300, config).items():
+        print(f"  surface crosses the box with {name}: {100 * rate_:.0f}% of 300 draws")
     est = 1000 / rate
     print(f"  projected `sample --n 1000 --seed 7`: {est:.1f} min")
 

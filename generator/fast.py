@@ -88,7 +88,9 @@ def warm_up(parallel: bool = True) -> float:
     evaluate_program(program, grid, threads=1)
     if parallel and numba.config.NUMBA_NUM_THREADS > 1:
         evaluate_program(program, grid, threads=2)
-    return time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    log.debug("fast evaluator ready in %.2f s (parallel kernel: %s)", seconds, parallel)
+    return seconds
 
 
 def _resolve_threads(threads: int | None) -> int:

@@ -276,3 +276,16 @@ def test_sampler_config_validation() -> None:
     with pytest.raises(CatalogueError, match="no catalogue"):
         with open_catalogue(Path("/nonexistent/cat"), must_exist=True):
             pass
+
+
+def test_render_from_catalogue_regenerates_the_shape(reference_run: Path, tmp_path: Path, capsys) -> None:
+    with open_catalogue(reference_run, must_exist=True) as cat:
+        row = cat.shapes(verdict="accepted")[0]
+    out = tmp_path / "again.ply"
+    assert main(["render", "--from", str(reference_run), row["key"][:8], "--cap", "-o", str(out), "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["key"] == row["key"] and r["formula"] == row["formula"] and r["faces"] == row["faces"]
+    assert main(["render", "--from", str(reference_run), "ffffffffff"]) == 1
+    assert "no shape with key 'ffffffffff'" in capsys.readouterr().err
+    assert main(["render", "--from", str(tmp_path / "none"), "abc"]) == 1
+    assert "no catalogue at" in capsys.readouterr().err
