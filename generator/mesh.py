@@ -206,6 +206,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
         data = data.encode("utf-8")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600; results are meant to be shared
     except OSError as exc:
         raise MeshError(f"cannot write '{path}': {exc.strerror}") from None
     try:

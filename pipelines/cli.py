@@ -235,6 +235,12 @@ def sample(
     resume: Annotated[
         bool, typer.Option(help="Continue the run with the same seed, grid and config.")
     ] = False,
+    dedupe: Annotated[
+        bool, typer.Option(help="Reject near duplicates of accepted shapes on the fly.")
+    ] = False,
+    thumbnails: Annotated[
+        bool, typer.Option(help="Render thumbnails and turntables (--no-thumbnails to skip).")
+    ] = True,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""
     from rich.progress import (
@@ -253,6 +259,10 @@ def sample(
     if grid is not None and grid < 4:
         raise SpecError(f"--grid must be at least 4, got {grid}")
     cfg = load_config(config).with_grid(grid)
+    if dedupe:
+        cfg = cfg.with_run(dedupe=True)
+    if not thumbnails:
+        cfg = cfg.with_run(thumbnails=False)
     columns = (
         TextColumn("accepted"),
         BarColumn(),
@@ -318,7 +328,12 @@ def config_show() -> None:
 
 # ----------------------------------------------------------------------------- commands from other modules
 # Each module below defines its commands and adds them with ``register(app)``.
-_REGISTER: list[str] = ["surfgen.pipelines.curation", "surfgen.pipelines.gallery", "surfgen.pipelines.report", "surfgen.pipelines.export"]
+_REGISTER: list[str] = [
+    "surfgen.pipelines.curation",
+    "surfgen.pipelines.gallery",
+    "surfgen.pipelines.report",
+    "surfgen.pipelines.export",
+]
 
 for _module in _REGISTER:
     __import__(_module, fromlist=["register"]).register(app)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -29,8 +29,14 @@ class RunSettings:
     cap: bool = True
     timeout: float = 60.0
     thumbnails: bool = True
+    dedupe: bool = False
+    dedupe_threshold: float = 0.012
 
     def __post_init__(self) -> None:
+        if not self.dedupe_threshold >= 0:
+            raise SpecError(
+                f"config [run]: dedupe_threshold must be >= 0, got {self.dedupe_threshold}"
+            )
         if isinstance(self.grid, bool) or not isinstance(self.grid, int):
             raise SpecError(f"config [run]: grid must be a whole number, got {self.grid!r}")
         if not MIN_POINTS <= self.grid <= MAX_POINTS:
@@ -52,6 +58,8 @@ class Config:
                 "cap": self.run.cap,
                 "timeout": self.run.timeout,
                 "thumbnails": self.run.thumbnails,
+                "dedupe": self.run.dedupe,
+                "dedupe_threshold": self.run.dedupe_threshold,
             },
             "sampler": self.sampler.to_dict(),
             "filters": self.filters.to_dict(),
@@ -61,6 +69,8 @@ class Config:
         """What decides the shapes and their verdicts (not timeouts or pictures)."""
         d = self.to_dict()
         d["run"] = {"grid": self.run.grid, "cap": self.run.cap}
+        if self.run.dedupe:  # near-duplicate rejection changes which shapes are accepted
+            d["run"]["dedupe_threshold"] = self.run.dedupe_threshold
         d["sampler_version"] = SAMPLER_VERSION
         return d
 
@@ -70,10 +80,10 @@ class Config:
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
     def with_grid(self, grid: int | None) -> Config:
-        if grid is None:
-            return self
-        r = self.run
-        return Config(RunSettings(grid, r.cap, r.timeout, r.thumbnails), self.sampler, self.filters)
+        return self if grid is None else self.with_run(grid=grid)
+
+    def with_run(self, **changes: Any) -> Config:
+        return Config(replace(self.run, **changes), self.sampler, self.filters)
 
 
 def default_config_text() -> str:

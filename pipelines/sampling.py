@@ -23,6 +23,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from surfgen.filters.descriptor import (
+    descriptor,
+    descriptor_distances,
+    descriptor_from_text,
+    descriptor_to_text,
+)
 from surfgen.filters.verdict import (
     REASONS,
     Verdict,
@@ -40,6 +46,7 @@ from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
+from surfgen.pipelines.curation import ensure_descriptors
 from surfgen.pipelines.executor import KillablePool
 
 log = logging.getLogger(__name__)
@@ -179,6 +186,8 @@ def make_shape(
     row["verdict"] = "accepted" if verdict.accepted else "rejected"
     row["reasons"] = json.dumps(list(verdict.reasons))
     out = ShapeOutcome(index, row, verdict)
+    if verdict.accepted and mesh is not None:
+        row["descriptor"] = descriptor_to_text(descriptor(mesh))
     if verdict.accepted and mesh is not None and staging is not None:
         out = _with_files(out, mesh, staging, pictures)
         lap("io")
@@ -291,6 +300,7 @@ def _drive(
         make_shape, seed=seed, config=config, staging=staging, pictures=config.run.thumbnails
     )
     buffer: dict[int, Any] = {}
+    known = ensure_descriptors(cat)[0] if config.run.dedupe else {}
 
     def tasks():
         i = next_index
@@ -306,9 +316,13 @@ def _drive(
                 outcome = _outcome(res, seed, config)
                 if outcome.verdict.accepted:
                     dup = cat.has_accepted_identity(outcome.row["identity"])
+                    if dup is None and config.run.dedupe:
+                        dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
                     if dup is not None:
                         outcome = _rejected(outcome, ("duplicate",))
                         outcome.row["duplicate_of"] = dup
+                    elif config.run.dedupe:
+                        known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
                 _commit(cat, run_id, outcome, counts)
                 accepted += int(outcome.verdict.accepted)
                 for k, v in json.loads(outcome.row.get("timings", "{}")).items():
@@ -321,6 +335,20 @@ def _drive(
     shutil.rmtree(staging, ignore_errors=True)
     status = "complete" if accepted >= n else "exhausted"
     return status, dict(stage)
+
+
+def _near_duplicate(
+    outcome: ShapeOutcome, known: dict[str, np.ndarray], threshold: float
+) -> str | None:
+    """The key of the first accepted shape whose descriptor is within ``threshold``, if any."""
+    if not known:
+        return None
+    keys = list(known)
+    dist = descriptor_distances(
+        descriptor_from_text(outcome.row["descriptor"]), np.stack(list(known.values()))
+    )
+    j = int(np.argmin(dist))
+    return keys[j] if dist[j] < threshold else None
 
 
 def _rejected(outcome: ShapeOutcome, reasons: tuple[str, ...]) -> ShapeOutcome:

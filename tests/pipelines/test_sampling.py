@@ -278,14 +278,62 @@ def test_sampler_config_validation() -> None:
             pass
 
 
-def test_render_from_catalogue_regenerates_the_shape(reference_run: Path, tmp_path: Path, capsys) -> None:
+def test_render_from_catalogue_regenerates_the_shape(
+    reference_run: Path, tmp_path: Path, capsys
+) -> None:
     with open_catalogue(reference_run, must_exist=True) as cat:
         row = cat.shapes(verdict="accepted")[0]
     out = tmp_path / "again.ply"
-    assert main(["render", "--from", str(reference_run), row["key"][:8], "--cap", "-o", str(out), "--json"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                "--from",
+                str(reference_run),
+                row["key"][:8],
+                "--cap",
+                "-o",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     r = json.loads(capsys.readouterr().out)
     assert r["key"] == row["key"] and r["formula"] == row["formula"] and r["faces"] == row["faces"]
     assert main(["render", "--from", str(reference_run), "ffffffffff"]) == 1
     assert "no shape with key 'ffffffffff'" in capsys.readouterr().err
     assert main(["render", "--from", str(tmp_path / "none"), "abc"]) == 1
     assert "no catalogue at" in capsys.readouterr().err
+
+
+def test_dedupe_on_the_fly_marks_what_each_duplicate_copies(tmp_path: Path, capsys) -> None:
+    """With a threshold that calls everything a near duplicate, only the first shape stays."""
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\ndedupe_threshold = 100.0\n")
+    cat = tmp_path / "cat"
+    args = [
+        "sample",
+        "--n",
+        "2",
+        "--seed",
+        "11",
+        "--grid",
+        str(GRID),
+        "--workers",
+        "1",
+        "--config",
+        str(cfg_file),
+        "--out",
+        str(cat),
+        "--max-draws",
+        "12",
+    ]
+    assert main([*args, "--dedupe"]) == 1  # only 1 of 2 accepted: the rest are duplicates
+    with open_catalogue(cat, must_exist=True) as c:
+        (first,) = c.shapes(verdict="accepted")
+        dups = [
+            r for r in c.shapes(verdict="rejected") if json.loads(r["reasons"]) == ["duplicate"]
+        ]
+        assert dups and all(r["duplicate_of"] == first["key"] for r in dups)
+        assert first["descriptor"]
