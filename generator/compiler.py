@@ -20,11 +20,15 @@ vectors, the others are scalars for the row. Power functions ``sum a x^b y^c z^d
 cost one multiply-add per term and point; ``x^b`` is computed Nx times, ``a x^b y^c`` Nx*Ny times.
 
 Numeric semantics are those of :mod:`surfgen.generator.reference` on numpy 2.x, operation for
-operation, so results are bit-identical except where noted in :data:`OPCODES` ("powi" matches
-C ``pow`` whenever the exact power is not within 0.03 ulp of a rounding boundary, and calls it
-otherwise; "tanh" is C ``tanh`` while numpy uses its own SIMD tanh: both are within 1 ulp).
+operation in the same order, with the C library's transcendental functions (which numpy calls
+too on x86-64 without AVX-512), so results are bit-identical, with two notes: "powi" (an integer
+exponent 3..32 or -2..-32) computes the power in double-double and returns it when it is more
+than 0.03 ulp away from a rounding boundary, where C ``pow`` (error <= 0.52 ulp) rounds the same
+way, and calls C ``pow`` otherwise (about 6% of inputs); "tanh" is C ``tanh``, while numpy
+uses its own SIMD tanh (both within 1 ulp, so they may differ by 1 ulp).
 ``x^c`` with a constant ``c`` follows numpy's scalar-exponent fast path of ``np.power``:
-``c = 2, 0.5, -1, 1, 0`` give ``x*x``, ``sqrt(x)``, ``1/x``, ``x`` and ``1``.
+``c = 2, 0.5, -1, 1, 0`` give ``x*x``, ``sqrt(x)``, ``1/x``, ``x`` and ``1`` (the kernel applies
+the same rule when the exponent is a row scalar at run time).
 
 Tape format (all int64, see :class:`Program`): ``code`` rows ``(op, mode, dst, a, b, imm)``;
 ``mode`` says which operands are vectors (W rows) or row scalars (S slots); ``imm`` is an
