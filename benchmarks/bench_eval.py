@@ -188,6 +188,42 @@ def run_case(case: Case, repeats: int) -> Row:
     )
 
 
+# ----------------------------------------------------------------------------- machine check
+
+
+def thread_calibration() -> tuple[float, float]:
+    """Speed-up of 2 numba threads over 1 on a pure compute loop (not the interpreter), and the
+    load average: on a shared machine this says how many cores the run really had."""
+    import math
+
+    import numba
+    from numba import njit, prange
+
+    @njit(cache=True)
+    def spin(i0, i1, out):
+        for i in range(i0, i1):
+            s = 0.0
+            for k in range(100_000):
+                s += math.sin(k * 1e-3 + i)
+            out[i] = s
+
+    @njit(parallel=True, cache=True)
+    def spread(out):
+        for c in prange(16):
+            spin(c * out.size // 16, (c + 1) * out.size // 16, out)
+
+    out = np.zeros(128)
+    spread(out)
+    times = {}
+    previous = numba.get_num_threads()
+    for threads in (1, 2, 1, 2):
+        numba.set_num_threads(threads)
+        t, _ = best_time(lambda: spread(out), 2)
+        times[threads] = min(times.get(threads, t), t)
+    numba.set_num_threads(previous)
+    return times[1] / times[2], os.getloadavg()[0]
+
+
 # ----------------------------------------------------------------------------- compile, memory
 
 _STARTUP = """
@@ -279,6 +315,12 @@ def main() -> int:
     big, rand_n, mem_n = (128, 64, 256) if quick else (256, 128, 512)
 
     print(f"numba interpreter warm-up (compiles on first use): {warm_up():.2f} s", flush=True)
+    speedup, load = thread_calibration()
+    print(
+        f"machine check: 2 threads on a plain numba compute loop run {speedup:.2f}x faster"
+        f" than 1 (load average {load:.1f} on {os.cpu_count()} cores)",
+        flush=True,
+    )
     cases = []
     for preset, sizes in (("eqA", (82, big)), ("eqB", (34, big)), ("eqC", (big,))):
         spec = get_preset(preset).spec()
@@ -318,6 +360,8 @@ def main() -> int:
     )
     print(f"presets, fast/numpy on 1 thread: min {min(r.ratio1 for r in preset_rows):.1f}x")
     print(f"2 threads / 1 thread, median over grids >= 128^3: {scal:.2f}x")
+    speedup, load = thread_calibration()
+    print(f"machine check after the run: plain loop 2T/1T {speedup:.2f}x, load average {load:.1f}")
     exact = all(r.maxrel == 0 and r.same_nonfinite for r in rows)
     print(f"fast == reference bit for bit in every case: {exact}")
 

@@ -129,7 +129,8 @@ class Program:
     - ``blocks``: int64 ``(8, 6)``: for each level mask ``[c0, c1, l0, l1, s0, s1]``, its
       code rows, loads and stores;
     - ``loads``: int64 ``(k, 4)`` rows ``(kind, row, slot, vector)``: kind is a level mask
-      (0 = const pool) of the store read, ``vector`` 1 for a W row, 0 for an S slot;
+      (0 = const pool) of the store read, ``vector`` 0 for an S slot, 1 for a W row, 2 for a
+      W row of the per-point block that keeps its value for all j of one x index;
     - ``stores``: int64 ``(s, 3)`` rows ``(slot, kind, row)``; kind 7 is the output;
     - ``rows``: int64 ``(8,)`` rows of each level's store (x, y, z keep their axis in row 0);
     - ``n_vector``/``n_scalar``: W rows and S slots the blocks need.
@@ -606,6 +607,7 @@ class _Block:
         self.slot: dict[int, int] = {}  # node -> W row holding it
         self.scalar_slot: dict[tuple[int, int], int] = {}
         self.free: list[int] = []
+        self.pinned: set[int] = set()
         self.n_vector = 0
 
     def _new_slot(self) -> int:
@@ -649,7 +651,11 @@ class _Block:
                 if not inside and self._is_vector(a) and a not in self.slot:
                     self.slot[a] = self._new_slot()
                     kind, row = self._source(a)
-                    self.loads.append((kind, row, self.slot[a], 1))
+                    # z and xz rows do not change with j: the per-point block loads them once
+                    # per x index into rows that nothing else writes.
+                    if self.lv == OUT and kind in (4, 5):
+                        self.pinned.add(a)
+                    self.loads.append((kind, row, self.slot[a], 2 if a in self.pinned else 1))
         for t, n in enumerate(steps):
             if n < 0:
                 a = copy_of
@@ -672,16 +678,17 @@ class _Block:
                 mode, a, b = M_VS, self.slot[nd.args[0]], self._scalar(nd.args[1])
             else:
                 mode, a, b = M_SV, self._scalar(nd.args[0]), self.slot[nd.args[1]]
-            # Free operands that die here, so the result may reuse their row (elementwise ops
-            # are safe in place; powi needs its input after writing, so it gets a fresh row).
-            dying = [x for x in dict.fromkeys(nd.args) if x in self.slot and last.get(x) == t]
-            if nd.op != "powi":
-                for x in dying:
-                    self.free.append(self.slot[x])
+            # The result never shares a row with an operand: in place, the compiler's runtime
+            # alias check fails and the loop runs scalar (and powi reads its input after
+            # writing). Operands that die here are freed for the next instructions.
+            dying = [
+                x
+                for x in dict.fromkeys(nd.args)
+                if x in self.slot and last.get(x) == t and x not in self.pinned
+            ]
             d = self._new_slot()
-            if nd.op == "powi":
-                for x in dying:
-                    self.free.append(self.slot[x])
+            for x in dying:
+                self.free.append(self.slot[x])
             self.slot[n] = d
             imm = nd.imm
             if isinstance(imm, tuple):  # op parameters: a contiguous run of the pool

@@ -1,9 +1,9 @@
 """The fast evaluator: compile a tree once (:mod:`.compiler`), run it with the numba interpreter
 (:mod:`.kernels`) on any number of grids.
 
->>> program = compile_program(tree, params)        # once per formula
->>> coarse = evaluate_program(program, coarse_grid)  # then any grid,
->>> fine = evaluate_program(program, fine_grid, threads=1)  # in a worker process: one thread
+    program = compile_program(tree, params)                  # once per formula
+    coarse = evaluate_program(program, coarse_grid)          # then any grid,
+    fine = evaluate_program(program, fine_grid, threads=1)   # in a worker process: one thread
 
 The only full-size array is the output; scratch is a few tiles per thread plus one (Ny, Nz)
 plane per yz-level value that the per-point code reads. ``threads=1`` never starts numba's
@@ -26,6 +26,10 @@ from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Field, Grid
+
+# pymeshlab ships an old libtbb; once it is loaded numba would try it first, warn that it is
+# too old and fall back. Ask for OpenMP, then numba's own workqueue, TBB only last.
+numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 log = logging.getLogger(__name__)
 

@@ -527,6 +527,9 @@ def _block(
     if c0 == c1:
         return
     tile = W.shape[1]
+    # A root of a lower level (a formula of one or two variables): the output is a broadcast,
+    # written straight from its source instead of through the register file.
+    broadcast = lv == 7 and c1 - c0 == 1 and code[c0, 0] == OP_COPY
     for j in range(j0, j1):
         for q in range(l0, l1):
             if loads[q, 3] == 0:
@@ -540,11 +543,17 @@ def _block(
                     S[loads[q, 2]] = sy[row, j]
                 else:
                     S[loads[q, 2]] = sxy[row, j]
+        if broadcast:
+            _broadcast_row(
+                code[c0, 1], code[c0, 3], loads, l0, l1, S, sz, sxz, syz, out, i, j, nrun
+            )
+            continue
         r0 = 0
         while r0 < nrun:
             n = min(tile, nrun - r0)
             for q in range(l0, l1):
-                if loads[q, 3] == 1:
+                vec = loads[q, 3]
+                if vec == 1 or (vec == 2 and (j == j0 or nrun > tile)):
                     kind = loads[q, 0]
                     row = loads[q, 1]
                     slot = loads[q, 2]
@@ -590,6 +599,29 @@ def _block(
                     for k in range(n):
                         sx[row, r0 + k] = W[slot, k]
             r0 += n
+
+
+@njit(**_OPTS)
+def _broadcast_row(mode, a, loads, l0, l1, S, sz, sxz, syz, out, i, j, nrun):
+    """out[i, j, :] = the root, a row scalar (mode S) or a z, xz or yz row (mode V)."""
+    if mode == M_S:
+        s = S[a]
+        for k in range(nrun):
+            out[i, j, k] = s
+        return
+    for q in range(l0, l1):
+        if loads[q, 3] >= 1 and loads[q, 2] == a:
+            kind = loads[q, 0]
+            row = loads[q, 1]
+            if kind == 4:
+                for k in range(nrun):
+                    out[i, j, k] = sz[row, k]
+            elif kind == 5:
+                for k in range(nrun):
+                    out[i, j, k] = sxz[row, k]
+            else:
+                for k in range(nrun):
+                    out[i, j, k] = syz[row, j, k]
 
 
 @njit(**_OPTS)

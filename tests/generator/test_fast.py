@@ -208,8 +208,9 @@ def test_constant_and_low_level_formulas_fill_the_grid():
     check_text("x")
     check_text("sin(y)")
     check_text("z^2")
-    check_text("x*y")
-    check_text("cos(y*z)")
+    for text in ("x*y", "cos(y*z)", "exp(x*z)", "y-z", "z"):  # written as broadcasts
+        check_text(text)
+        check_text(text, threads=2)
 
 
 # ----------------------------------------------------------------------------- constituents
