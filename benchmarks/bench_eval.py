@@ -24,6 +24,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
+
 from surfgen.generator.compiler import LEVEL_NAMES, OPNAMES, Program, compile_tree
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import evaluate_program, profile_program, scratch_bytes, warm_up

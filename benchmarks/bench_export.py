@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 import trimesh
+
 from surfgen.filters.cleanup import CleanupOptions, edge_lengths, refine_mesh, repair_mesh
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.evaluate import evaluate

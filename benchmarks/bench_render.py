@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from skimage import measure
+
 from surfgen.generator.mesh import Mesh
 from surfgen.pipelines.pictures import render_image, render_thumbnail, render_turntable
 

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+
 from surfgen.filters import meshlab
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh

@@ -33,6 +33,7 @@ import json
 import logging
 
 import numpy as np
+
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh
 

@@ -19,6 +19,7 @@ import numpy as np
 import pymeshlab
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh
 

@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+
 from surfgen.filters import meshlab
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh

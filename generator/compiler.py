@@ -44,6 +44,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
 from surfgen.generator import constituents as cf
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of, to_string

@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from surfgen.generator.errors import FormulaError
 
 ArrayLike = np.ndarray | float

@@ -21,6 +21,7 @@ from collections.abc import Mapping
 
 import numba
 import numpy as np
+
 from surfgen.generator import kernels
 from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.errors import FormulaError

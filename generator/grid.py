@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
 from surfgen.generator.errors import GridError
 
 MIN_POINTS = 4

@@ -22,6 +22,7 @@ from llvmlite import ir
 from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 
 _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}

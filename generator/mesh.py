@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 from scipy.ndimage import maximum_filter
 from skimage.measure import marching_cubes
+
 from surfgen.generator.errors import EmptySurface, MeshError
 from surfgen.generator.grid import Field
 

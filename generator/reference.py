@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of
 from surfgen.generator.functions import FUNCTIONS

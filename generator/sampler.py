@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
+
 from surfgen.generator.equation13 import (
     CONSTITUENT_TRANSFORMS,
     DIRECT_TRIG,

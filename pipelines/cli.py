@@ -10,8 +10,9 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from surfgen.generator.errors import SpecError, SurfgenError
 from typer.exceptions import Abort, TyperException
+
+from surfgen.generator.errors import SpecError, SurfgenError
 
 app = typer.Typer(
     add_completion=False,
@@ -251,6 +252,7 @@ def sample(
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
+
     from surfgen.pipelines.config import load_config
     from surfgen.pipelines.sampling import run_sample
 

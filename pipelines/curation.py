@@ -33,6 +33,7 @@ from typing import Annotated, Any
 
 import numpy as np
 import typer
+
 from surfgen.pipelines.catalogue import (
     DEFAULT_CATALOGUE,
     Catalogue,

@@ -27,6 +27,7 @@ from typing import Annotated, Any
 import numpy as np
 import trimesh
 import typer
+
 from surfgen.filters.cleanup import (
     CleanupOptions,
     CleanupResult,

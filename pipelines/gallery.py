@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+
 from surfgen.generator.errors import SurfgenError
 from surfgen.pipelines.catalogue import (
     DEFAULT_CATALOGUE,

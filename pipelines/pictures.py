@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, TypeAlias
 
 import numba
 import numpy as np
+
 from surfgen.generator.errors import MeshError, SurfgenError
 from surfgen.generator.mesh import Mesh
 

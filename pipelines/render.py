@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.grid import Box, Field, Grid

@@ -20,6 +20,7 @@ from typing import Annotated, Any
 
 import numpy as np
 import typer
+
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, Catalogue, now, open_catalogue
 from surfgen.pipelines.curation import CatalogueOption
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from surfgen.filters.descriptor import (
     descriptor,
     descriptor_distances,
@@ -91,6 +92,7 @@ def versions() -> dict[str, str]:
     import numba
     import skimage
     import trimesh
+
     from surfgen.filters.meshlab import installed_version
 
     return {

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import pytest
+
 from surfgen.generator.grid import Box, Field, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh
 from surfgen.generator.parser import parse

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from surfgen.filters import meshlab
 from surfgen.filters.cleanup import (
     CleanupError,

@@ -6,6 +6,7 @@ import itertools
 
 import numpy as np
 import pytest
+
 from surfgen.filters.descriptor import (
     D1_BINS,
     D2_BINS,

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pymeshlab
 import pytest
+
 from surfgen.filters import meshlab
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import MeshError

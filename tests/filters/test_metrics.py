@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import MeshError
 from surfgen.generator.grid import Box, Grid

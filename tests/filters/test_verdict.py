@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from surfgen.filters.verdict import (
     FilterConfig,
     field_statistics,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from surfgen.generator.compiler import (
     M_S,
     OP,

@@ -39,6 +39,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
 from surfgen.generator import constituents as cf
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.parser import parse

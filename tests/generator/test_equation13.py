@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from surfgen.generator.equation13 import Equation13, Factor, PowerFunction, PowerTerm, Transform
 from surfgen.generator.errors import SpecError
 from surfgen.generator.expr import to_string

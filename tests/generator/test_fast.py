@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
 from surfgen.generator.compiler import compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.evaluate import evaluate

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 import trimesh
+
 from surfgen.generator.errors import EmptySurface, MeshError
 from surfgen.generator.grid import Box, Field, Grid
 from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, load_mesh, save_mesh

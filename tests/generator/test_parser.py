@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
 from surfgen.generator.errors import FormulaSyntaxError
 from surfgen.generator.expr import PI, Expr, X, Y, Z, call, num, param, to_string
 from surfgen.generator.functions import FUNCTIONS, FunctionDef

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
 from surfgen.generator.mesh import extract_mesh

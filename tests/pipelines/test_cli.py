@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from surfgen.generator.presets import PRESETS
 from surfgen.generator.reference import evaluate_reference
 from surfgen.pipelines.cli import main

@@ -9,6 +9,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+
 from surfgen.filters.verdict import shape_metrics
 from surfgen.generator.mesh import extract_mesh, save_mesh
 from surfgen.generator.parser import parse

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+
 from surfgen.filters.cleanup import edge_lengths
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.evaluate import evaluate

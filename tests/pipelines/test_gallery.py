@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 from PIL import Image
+
 from surfgen.filters.verdict import shape_metrics
 from surfgen.generator.mesh import extract_mesh, save_mesh
 from surfgen.generator.parser import parse

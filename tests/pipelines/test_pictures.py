@@ -9,6 +9,7 @@ import pytest
 import trimesh
 from PIL import Image
 from skimage import measure
+
 from surfgen.generator.errors import MeshError, SurfgenError
 from surfgen.generator.mesh import Mesh
 from surfgen.pipelines.pictures import (

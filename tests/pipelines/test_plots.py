@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.image import imread
+
 from surfgen.pipelines.plots import break_jumps, plot_constituents
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from surfgen.filters.descriptor import D1_BINS, D2_BINS, NORMAL_BINS, SIZE, descriptor_to_text
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import CatalogueError, open_catalogue

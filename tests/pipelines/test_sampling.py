@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
 from surfgen.generator.errors import SpecError
 from surfgen.generator.mesh import load_mesh
@@ -273,9 +274,11 @@ def test_config_hash_changes_with_what_shapes_depend_on(tmp_path: Path) -> None:
 def test_sampler_config_validation() -> None:
     with pytest.raises(SpecError, match="probability"):
         SamplerConfig(abs_prob=1.5)
-    with pytest.raises(CatalogueError, match="no catalogue"):
-        with open_catalogue(Path("/nonexistent/cat"), must_exist=True):
-            pass
+    with (
+        pytest.raises(CatalogueError, match="no catalogue"),
+        open_catalogue(Path("/nonexistent/cat"), must_exist=True),
+    ):
+        pass
 
 
 def test_render_from_catalogue_regenerates_the_shape(
