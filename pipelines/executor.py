@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing as mp
+import signal
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
@@ -31,6 +32,9 @@ class TaskResult:
 
 
 def _worker_main(conn: Connection, fn: Callable[[Any], Any]) -> None:
+    # Ctrl-C reaches the whole process group: the parent decides, the workers carry on until
+    # it kills them (so no worker prints a KeyboardInterrupt traceback of its own).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     while True:
         try:
             task = conn.recv()
@@ -113,9 +117,10 @@ class KillablePool:
         if w.conn in ready:
             try:
                 status, _, value, message = w.conn.recv()
-            except (EOFError, OSError):
-                status, value, message = "crashed", None, "worker process died"
+            except (EOFError, OSError):  # the pipe closed: the process is gone
                 w.kill()
+                status, value = "crashed", None
+                message = f"worker process died (exit code {w.proc.exitcode})"
             w.task = None  # after a Python exception the worker itself is fine and stays
             return TaskResult(task, status, value, message)
         if w.proc.sentinel in ready or not w.proc.is_alive():
