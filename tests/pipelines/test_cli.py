@@ -235,3 +235,11 @@ def test_render_png_and_every_mesh_format(tmp_path: Path, capsys) -> None:
     png = tmp_path / "t.png"
     assert main(["render", "--preset", "torus", "--grid", "24", "--png", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_constituents_command(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "constituents.png"
+    assert main(["plot", "constituents", "-o", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["plot", "constituents", "-o", str(tmp_path / "c.jpg")]) == 1
+    assert "unknown format '.jpg'" in capsys.readouterr().err
