@@ -33,7 +33,7 @@ REASONS = (
     "not_watertight",  # open, although capped
     "speckle",  # too many components, or no dominant one
     "box_dominated",  # mostly the caps on the box faces
-    "blob",  # one smooth genus-0 lump
+    "blob",  # only convex lumps (plates, slabs, smooth blobs)
     "too_complex",  # genus beyond the limit
     "duplicate",  # the same formula and grid is already in the catalogue
     "timeout",  # took longer than the run's timeout
@@ -225,11 +225,9 @@ def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdic
     if m["box_fraction"] > cfg.max_box_fraction:
         reasons.append("box_dominated")
     genus = m.get("genus")
-    if (
-        m["components"] == 1
-        and genus == 0
-        and m.get("total_curvature", math.inf) < cfg.blob_max_curvature
-    ):  # a closed genus-0 surface with integral |K| = 4 pi is convex: a lump, caps or not
+    if genus == 0 and m.get("total_curvature", math.inf) < cfg.blob_max_curvature * m["components"]:
+        # Closed genus-0 components have integral |K| >= 4 pi each, with equality exactly when
+        # convex: these are lumps, plates or stacks of slabs, capped or not.
         reasons.append("blob")
     if genus is not None and genus > cfg.max_genus:
         reasons.append("too_complex")

@@ -96,3 +96,10 @@ def test_config_validation() -> None:
         FilterConfig(max_box_fraction=2)
     with pytest.raises(SpecError, match="unknown key 'nope'"):
         FilterConfig.from_mapping({"nope": 1})
+
+
+def test_a_stack_of_plates_is_a_blob() -> None:
+    plates, g = mesh_of("sin(3*z)+0.6+0*x", 2.0, 32)
+    m = shape_metrics(plates, g.box.bounds())
+    assert m["components"] >= 2 and m["genus"] == 0
+    assert "blob" in judge(m, CFG, capped=True).reasons
