@@ -287,16 +287,25 @@ def sample(
                 rate=accepted / minutes if minutes else 0.0,
             )
 
-        summary = run_sample(
-            n=n,
-            seed=seed,
-            config=cfg,
-            catalogue=out,
-            workers=workers,
-            max_draws=max_draws,
-            resume=resume,
-            progress=progress,
-        )
+        try:
+            summary = run_sample(
+                n=n,
+                seed=seed,
+                config=cfg,
+                catalogue=out,
+                workers=workers,
+                max_draws=max_draws,
+                resume=resume,
+                progress=progress,
+            )
+        except KeyboardInterrupt:
+            bar.stop()
+            typer.echo(
+                "interrupted: what was catalogued is kept; run the same command with --resume "
+                "to continue",
+                err=True,
+            )
+            raise typer.Exit(130) from None
     rejected = summary.drawn - summary.accepted
     typer.echo(
         f"{summary.accepted} accepted, {rejected} rejected of {summary.drawn} drawn "

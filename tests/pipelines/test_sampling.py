@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import signal
 import sqlite3
 import subprocess
@@ -134,7 +133,7 @@ def test_resume_after_kill_gives_the_identical_catalogue(
                 break
         time.sleep(0.05)
     if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGKILL) if False else proc.send_signal(signal.SIGKILL)
+        proc.send_signal(signal.SIGKILL)  # kill -9: no chance to clean up
     proc.wait()
     partial = table(cat)
     assert 0 < sum(r[6] == "accepted" for r in partial) < N or proc.returncode == 0
@@ -340,3 +339,68 @@ def test_dedupe_on_the_fly_marks_what_each_duplicate_copies(tmp_path: Path, caps
         ]
         assert dups and all(r["duplicate_of"] == first["key"] for r in dups)
         assert first["descriptor"]
+
+
+def test_ctrl_c_keeps_the_catalogue_and_says_how_to_resume(
+    reference_run: Path, tmp_path: Path
+) -> None:
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\n")
+    cat = tmp_path / "cat"
+    args = [
+        sys.executable,
+        "-c",
+        "from surfgen.pipelines.cli import main; raise SystemExit(main())",
+        "sample",
+        "--n",
+        str(N),
+        "--seed",
+        "11",
+        "--grid",
+        str(GRID),
+        "--workers",
+        "2",
+        "--config",
+        str(cfg_file),
+        "--out",
+        str(cat),
+    ]
+    proc = subprocess.Popen(
+        args,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    db = cat / "catalogue.sqlite"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None and not db.exists():
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before Ctrl-C arrived")
+    assert proc.returncode == 130
+    assert err.strip().splitlines()[-1].startswith("interrupted: ")
+    assert (
+        main(
+            [
+                "sample",
+                "--n",
+                str(N),
+                "--seed",
+                "11",
+                "--grid",
+                str(GRID),
+                "--workers",
+                "1",
+                "--config",
+                str(cfg_file),
+                "--out",
+                str(cat),
+                "--resume",
+            ]
+        )
+        == 0
+    )
+    assert table(cat) == table(reference_run)
