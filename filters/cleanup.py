@@ -43,7 +43,7 @@ from scipy.sparse.csgraph import connected_components
 
 from surfgen.filters import meshlab
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
 
 logger = logging.getLogger(__name__)
 
@@ -205,7 +205,7 @@ def edge_lengths(mesh: Mesh) -> np.ndarray:
 
 
 def surface_area(mesh: Mesh) -> float:
-    return float(_face_areas(mesh).sum())
+    return float(face_areas(mesh).sum())
 
 
 def signed_volume(mesh: Mesh) -> float:
@@ -220,7 +220,7 @@ def signed_volume(mesh: Mesh) -> float:
 
 
 def _run_repairs(mesh: Mesh, options: CleanupOptions, steps: list[StepReport]) -> Mesh:
-    threshold = options.merge_tolerance * _diagonal(mesh)
+    threshold = options.merge_tolerance * bbox_diagonal(mesh)
     repairs = [
         ("merge_close_vertices", {"threshold": threshold}),
         ("remove_duplicate_faces", {}),
@@ -246,11 +246,11 @@ def _run_repairs(mesh: Mesh, options: CleanupOptions, steps: list[StepReport]) -
 def _remove_small_components(mesh: Mesh, fraction: float, steps: list[StepReport]) -> Mesh:
     start = time.perf_counter()
     labels = meshlab.face_components(mesh)
-    area = np.bincount(labels, weights=_face_areas(mesh))
+    area = np.bincount(labels, weights=face_areas(mesh))
     keep_component = area >= fraction * area.sum()
     keep_component[np.argmax(area)] = True  # never drop everything
     keep = keep_component[labels]
-    out = mesh if keep.all() else _drop_unreferenced(mesh.vertices, mesh.faces[keep])
+    out = mesh if keep.all() else compact_mesh(mesh.vertices, mesh.faces[keep])
     details = {
         "components": len(area),
         "components_removed": int(np.count_nonzero(~keep_component)),
@@ -294,7 +294,7 @@ def _remesh(mesh: Mesh, options: CleanupOptions, steps: list[StepReport]) -> Mes
         target = options.target_edge
     else:
         target = target_edge_for_faces(mesh, options.target_faces or mesh.n_faces)
-    diagonal = _diagonal(mesh)
+    diagonal = bbox_diagonal(mesh)
     if target > 0.25 * diagonal:
         raise CleanupError(
             f"target edge length {target:g} is more than a quarter of the mesh's size "
@@ -411,22 +411,6 @@ def _component_volumes(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
     )
     a, b, c = (v[f[:, i]] - centroid[labels] for i in range(3))
     return np.bincount(labels, weights=np.einsum("ij,ij->i", a, np.cross(b, c)))
-
-
-def _face_areas(mesh: Mesh) -> np.ndarray:
-    v, f = mesh.vertices, mesh.faces
-    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-
-
-def _diagonal(mesh: Mesh) -> float:
-    return float(np.linalg.norm(mesh.vertices.max(axis=0) - mesh.vertices.min(axis=0)))
-
-
-def _drop_unreferenced(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    used = np.zeros(len(vertices), dtype=bool)
-    used[faces.reshape(-1)] = True
-    renumber = np.cumsum(used) - 1
-    return Mesh(vertices[used], renumber[faces])
 
 
 __all__ = [

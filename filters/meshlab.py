@@ -21,7 +21,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
 
 logger = logging.getLogger(__name__)
 
@@ -129,7 +129,7 @@ def topology(mesh: Mesh) -> dict[str, int | bool | None]:
 def merge_close_vertices(mesh: Mesh, threshold: float | None = None) -> Mesh:
     """Merge vertices closer than ``threshold`` (box units; default 1e-6 of the bbox diagonal)."""
     if threshold is None:
-        threshold = 1e-6 * _diagonal(mesh)
+        threshold = 1e-6 * bbox_diagonal(mesh)
     return _apply(mesh, ("merge_close_vertices", {"threshold": pymeshlab.PureValue(threshold)}))
 
 
@@ -167,10 +167,10 @@ def remove_small_components(mesh: Mesh, min_fraction_of_area: float) -> Mesh:
     """Drop connected components (faces joined through shared vertices) whose area is below
     ``min_fraction_of_area`` times the total area.  May return an empty mesh."""
     labels = face_components(mesh)
-    areas = _face_areas(mesh)
+    areas = face_areas(mesh)
     component_area = np.bincount(labels, weights=areas)
     keep = component_area[labels] >= min_fraction_of_area * areas.sum()
-    out = _drop_unreferenced(mesh.vertices, mesh.faces[keep])
+    out = compact_mesh(mesh.vertices, mesh.faces[keep])
     logger.debug(
         "remove_small_components: %d of %d components kept",
         int(np.count_nonzero(component_area >= min_fraction_of_area * areas.sum())),
@@ -238,24 +238,6 @@ def face_components(mesh: Mesh) -> np.ndarray:
     # Relabel 0..k-1 over faces only, so unreferenced vertices do not leave gaps.
     _, labels = np.unique(vertex_label[f[:, 0]], return_inverse=True)
     return labels.reshape(-1)
-
-
-def _face_areas(mesh: Mesh) -> np.ndarray:
-    v, f = mesh.vertices, mesh.faces
-    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-
-
-def _diagonal(mesh: Mesh) -> float:
-    if mesh.n_vertices == 0:
-        return 0.0
-    return float(np.linalg.norm(mesh.vertices.max(axis=0) - mesh.vertices.min(axis=0)))
-
-
-def _drop_unreferenced(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
-    used = np.zeros(len(vertices), dtype=bool)
-    used[faces.reshape(-1)] = True
-    renumber = np.cumsum(used) - 1
-    return Mesh(vertices[used], renumber[faces])
 
 
 # --- batched repairs and fast remeshing (used by surfgen.filters.cleanup) ----------------------

@@ -20,7 +20,7 @@ import numpy as np
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, face_areas
 
 REASONS = (
     "no_crossing",  # no d gives a surface (the sum is constant or non-finite on the coarse grid)
@@ -157,15 +157,13 @@ def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
     ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
     (area of the largest component / total)."""
-    v, f = mesh.vertices, mesh.faces
-    tri = v[f]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    areas = 0.5 * np.linalg.norm(cross, axis=1)
+    tri = mesh.vertices[mesh.faces]
+    areas = face_areas(mesh)
     total = float(areas.sum()) or 1.0
     lo = np.array(box[0::2])
     hi = np.array(box[1::2])
     tol = 1e-9 * float(np.max(hi - lo))
-    on_face = np.zeros(len(f), dtype=bool)
+    on_face = np.zeros(mesh.n_faces, dtype=bool)
     for k in range(3):
         c = tri[:, :, k]
         on_face |= np.all(np.abs(c - lo[k]) <= tol, axis=1) | np.all(

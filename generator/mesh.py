@@ -55,6 +55,27 @@ _CLIP = np.float32(1e30)
 _TINY = np.float32(np.finfo(np.float32).smallest_normal)
 
 
+def face_areas(mesh: Mesh) -> np.ndarray:
+    """Area of each face, shape ``(F,)``."""
+    v, f = mesh.vertices, mesh.faces
+    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+
+
+def bbox_diagonal(mesh: Mesh) -> float:
+    """Length of the bounding box's diagonal (0 for an empty mesh)."""
+    if mesh.n_vertices == 0:
+        return 0.0
+    return float(np.linalg.norm(mesh.vertices.max(axis=0) - mesh.vertices.min(axis=0)))
+
+
+def compact_mesh(vertices: np.ndarray, faces: np.ndarray) -> Mesh:
+    """A mesh of ``faces`` keeping only the vertices they use, renumbered in order."""
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.reshape(-1)] = True
+    renumber = np.cumsum(used) - 1
+    return Mesh(vertices[used], renumber[faces])
+
+
 def extract_mesh(field: Field, level: float = 0.0, cap: bool = False) -> Mesh:
     """Triangulate ``F = level`` in ``field`` (marching cubes, Lewiner) in box coordinates.
 

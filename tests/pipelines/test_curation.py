@@ -9,9 +9,9 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from conftest import catalogue_shapes
 
-from surfgen.filters.verdict import shape_metrics
-from surfgen.generator.mesh import extract_mesh, save_mesh
+from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
@@ -43,31 +43,18 @@ NOISE = "sin(9*x)*sin(9*y)*sin(9*z)"
 def build_catalogue(root: Path) -> dict[str, str]:
     """A catalogue of one run: the SHAPES accepted (meshes, metrics) and one rejected draw.
     Returns {name: key}."""
-    keys: dict[str, str] = {}
+    specs = {
+        name: SurfaceSpec(formula, (-half, half) * 3, (n, n, n), provenance={"index": i})
+        for i, (name, (formula, half, n)) in enumerate(SHAPES.items())
+    }
+    items = [
+        (spec, extract_mesh(evaluate_reference(parse(spec.formula), spec.to_grid()), 0.0))
+        for spec in specs.values()
+    ]
+    keys = dict(zip(specs, catalogue_shapes(root, items), strict=True))
     with open_catalogue(root) as cat:
-        cat.make_dirs()
-        run = cat.create_run(0, len(SHAPES) + 1, 40, {}, "test", 1, {"surfgen": "test"})
-        for i, (name, (formula, half, n)) in enumerate(SHAPES.items()):
-            spec = SurfaceSpec(formula, (-half, half) * 3, (n, n, n), provenance={"index": i})
-            mesh = extract_mesh(evaluate_reference(parse(formula), spec.to_grid()), 0.0)
-            metrics = shape_metrics(mesh, spec.box)
-            save_mesh(mesh, cat.meshes / f"{spec.key}.ply")
-            row = {
-                "key": spec.key,
-                "spec": spec.to_json(),
-                "formula": spec.formula,
-                "identity": spec.key,
-                "verdict": "accepted",
-                "reasons": "[]",
-                "metrics": json.dumps(metrics),
-                "mesh_path": f"meshes/{spec.key}.ply",
-                **{
-                    k: metrics[k]
-                    for k in ("faces", "vertices", "components", "genus", "euler", "area", "volume")
-                },
-            }
-            cat.record_shape(run.id, i, row, True, {})
-            keys[name] = spec.key
+        (run,) = cat.runs()
+        run = cat.get_run(run["id"])
         spec = SurfaceSpec(NOISE, (-1.0, 1.0) * 3, (20, 20, 20), provenance={"index": 99})
         row = {
             "key": spec.key,

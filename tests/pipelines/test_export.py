@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from conftest import catalogue_shapes
 
 from surfgen.filters.cleanup import edge_lengths
 from surfgen.filters.metrics import measure_mesh
@@ -17,7 +18,6 @@ from surfgen.generator.evaluate import evaluate
 from surfgen.generator.mesh import Mesh, extract_mesh, load_mesh, save_mesh
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
-from surfgen.pipelines.catalogue import open_catalogue
 from surfgen.pipelines.cli import main
 from surfgen.pipelines.export import FORMATS
 
@@ -46,22 +46,7 @@ def catalogue(tmp_path_factory) -> tuple[Path, list[str]]:
     specs = [*pair, other]
     # Meshed as the sampler does (the default evaluator, caps), so a spec remeshes identically.
     mesh = extract_mesh(evaluate(specs[0].tree(), specs[0].to_grid()), cap=True)
-    with open_catalogue(root) as cat:
-        cat.make_dirs()
-        run = cat.create_run(1, len(specs), 32, {}, "test", 1, {})
-        for i, spec in enumerate(specs):
-            path = save_mesh(mesh, cat.meshes / f"{spec.key}.ply")
-            row = {
-                "key": spec.key,
-                "spec": spec.to_json(),
-                "formula": spec.formula,
-                "identity": spec.key,
-                "verdict": "accepted",
-                "reasons": "[]",
-                "metrics": json.dumps(measure_mesh(mesh).to_dict()),
-                "mesh_path": str(path.relative_to(root)),
-            }
-            cat.record_shape(run.id, i, row, True, {})
+    catalogue_shapes(root, [(spec, mesh) for spec in specs], seed=1, grid=32)
     return root, [s.key for s in specs]
 
 

@@ -17,10 +17,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from conftest import catalogue_shapes
 from PIL import Image
 
-from surfgen.filters.verdict import shape_metrics
-from surfgen.generator.mesh import extract_mesh, save_mesh
+from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
@@ -42,32 +42,15 @@ ARTEFACTS = Path(__file__).resolve().parents[2] / "out" / "test-artefacts"
 
 def build_catalogue(root: Path) -> dict[str, str]:
     """The four canonical shapes as accepted rows with meshes (no pictures yet): {name: key}."""
-    keys = {}
-    with open_catalogue(root) as cat:
-        cat.make_dirs()
-        run = cat.create_run(7, len(SHAPES), GRID, {}, "test", 1, {"surfgen": "test"})
-        for i, (name, (formula, half)) in enumerate(SHAPES.items()):
-            spec = SurfaceSpec(formula, (-half, half) * 3, (GRID,) * 3, provenance={"index": i})
-            mesh = extract_mesh(evaluate_reference(parse(formula), spec.to_grid()), 0.0)
-            m = shape_metrics(mesh, spec.box)
-            save_mesh(mesh, cat.meshes / f"{spec.key}.ply")
-            row = {
-                "key": spec.key,
-                "spec": spec.to_json(),
-                "formula": spec.formula,
-                "identity": spec.key,
-                "verdict": "accepted",
-                "reasons": "[]",
-                "metrics": json.dumps(m),
-                "mesh_path": f"meshes/{spec.key}.ply",
-                **{
-                    k: m[k]
-                    for k in ("faces", "vertices", "components", "genus", "euler", "area", "volume")
-                },
-            }
-            cat.record_shape(run.id, i, row, True, {})
-            keys[name] = spec.key
-    return keys
+    specs = {
+        name: SurfaceSpec(formula, (-half, half) * 3, (GRID,) * 3, provenance={"index": i})
+        for i, (name, (formula, half)) in enumerate(SHAPES.items())
+    }
+    items = [
+        (spec, extract_mesh(evaluate_reference(parse(spec.formula), spec.to_grid()), 0.0))
+        for spec in specs.values()
+    ]
+    return dict(zip(specs, catalogue_shapes(root, items, seed=7, grid=GRID), strict=True))
 
 
 def cli(capsys, *args: str) -> tuple[int, str, str]:

@@ -31,6 +31,15 @@ def small_config(tmp_path: Path, extra: str = ""):
     return load_config(cfg).with_grid(GRID)
 
 
+def sample_command(cfg_file: Path, cat: Path) -> list[str]:
+    """The reference run's options, as a command line for a child process."""
+    return [
+        sys.executable, "-c", "from surfgen.pipelines.cli import main; raise SystemExit(main())",
+        "sample", "--n", str(N), "--seed", "11", "--grid", str(GRID), "--workers", "2",
+        "--config", str(cfg_file), "--out", str(cat),
+    ]  # fmt: skip
+
+
 def table(root: Path) -> list[tuple]:
     """What must be identical between equivalent runs: everything but timings and files."""
     con = sqlite3.connect(root / "catalogue.sqlite")
@@ -98,24 +107,7 @@ def test_resume_after_kill_gives_the_identical_catalogue(
     cfg_file = tmp_path / "cfg.toml"
     cfg_file.write_text("[run]\nthumbnails = false\n")
     cat = tmp_path / "cat"
-    args = [
-        sys.executable,
-        "-c",
-        "from surfgen.pipelines.cli import main; raise SystemExit(main())",
-        "sample",
-        "--n",
-        str(N),
-        "--seed",
-        "11",
-        "--grid",
-        str(GRID),
-        "--workers",
-        "2",
-        "--config",
-        str(cfg_file),
-        "--out",
-        str(cat),
-    ]
+    args = sample_command(cfg_file, cat)
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     db = cat / "catalogue.sqlite"
     deadline = time.monotonic() + 120
@@ -347,24 +339,7 @@ def test_ctrl_c_keeps_the_catalogue_and_says_how_to_resume(
     cfg_file = tmp_path / "cfg.toml"
     cfg_file.write_text("[run]\nthumbnails = false\n")
     cat = tmp_path / "cat"
-    args = [
-        sys.executable,
-        "-c",
-        "from surfgen.pipelines.cli import main; raise SystemExit(main())",
-        "sample",
-        "--n",
-        str(N),
-        "--seed",
-        "11",
-        "--grid",
-        str(GRID),
-        "--workers",
-        "2",
-        "--config",
-        str(cfg_file),
-        "--out",
-        str(cat),
-    ]
+    args = sample_command(cfg_file, cat)
     proc = subprocess.Popen(
         args,
         stdout=subprocess.DEVNULL,
