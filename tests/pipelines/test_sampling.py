@@ -31,13 +31,18 @@ def small_config(tmp_path: Path, extra: str = ""):
     return load_config(cfg).with_grid(GRID)
 
 
-def sample_command(cfg_file: Path, cat: Path) -> list[str]:
-    """The reference run's options, as a command line for a child process."""
+def sample_args(cfg_file: Path, cat: Path, workers: int = 2) -> list[str]:
+    """The reference run's options."""
     return [
-        sys.executable, "-c", "from surfgen.pipelines.cli import main; raise SystemExit(main())",
-        "sample", "--n", str(N), "--seed", "11", "--grid", str(GRID), "--workers", "2",
+        "sample", "--n", str(N), "--seed", "11", "--grid", str(GRID), "--workers", str(workers),
         "--config", str(cfg_file), "--out", str(cat),
     ]  # fmt: skip
+
+
+def sample_command(cfg_file: Path, cat: Path) -> list[str]:
+    """The reference run, as a command line for a child process."""
+    run_cli = "from surfgen.pipelines.cli import main; raise SystemExit(main())"
+    return [sys.executable, "-c", run_cli, *sample_args(cfg_file, cat)]
 
 
 def table(root: Path) -> list[tuple]:
@@ -130,48 +135,9 @@ def test_resume_after_kill_gives_the_identical_catalogue(
     partial = table(cat)
     assert 0 < sum(r[6] == "accepted" for r in partial) < N or proc.returncode == 0
     # Re-running without --resume refuses and leaves the catalogue alone.
-    assert (
-        main(
-            [
-                "sample",
-                "--n",
-                str(N),
-                "--seed",
-                "11",
-                "--grid",
-                str(GRID),
-                "--workers",
-                "1",
-                "--config",
-                str(cfg_file),
-                "--out",
-                str(cat),
-            ]
-        )
-        == 1
-    )
+    assert main([*sample_args(cfg_file, cat, workers=1)]) == 1
     assert table(cat) == partial
-    assert (
-        main(
-            [
-                "sample",
-                "--n",
-                str(N),
-                "--seed",
-                "11",
-                "--grid",
-                str(GRID),
-                "--workers",
-                "2",
-                "--config",
-                str(cfg_file),
-                "--out",
-                str(cat),
-                "--resume",
-            ]
-        )
-        == 0
-    )
+    assert main([*sample_args(cfg_file, cat, workers=2), "--resume"]) == 0
     assert table(cat) == table(reference_run)
     with open_catalogue(cat, must_exist=True) as c:
         files = sorted(p.name for p in c.meshes.glob("*.ply"))
@@ -357,25 +323,5 @@ def test_ctrl_c_keeps_the_catalogue_and_says_how_to_resume(
         pytest.skip("the run finished before Ctrl-C arrived")
     assert proc.returncode == 130
     assert err.strip().splitlines()[-1].startswith("interrupted: ")
-    assert (
-        main(
-            [
-                "sample",
-                "--n",
-                str(N),
-                "--seed",
-                "11",
-                "--grid",
-                str(GRID),
-                "--workers",
-                "1",
-                "--config",
-                str(cfg_file),
-                "--out",
-                str(cat),
-                "--resume",
-            ]
-        )
-        == 0
-    )
+    assert main([*sample_args(cfg_file, cat, workers=1), "--resume"]) == 0
     assert table(cat) == table(reference_run)
