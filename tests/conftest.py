@@ -24,6 +24,12 @@ from surfgen.generator.mesh import Mesh, extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 
+# The keys `surfgen check --json` promises (the list, in its order).
+CHECK_KEYS = [
+    "vertices", "faces", "components", "euler", "genus", "watertight", "boundary_edges",
+    "nonmanifold_edges", "nonmanifold_vertices", "area", "volume", "bbox",
+]  # fmt: skip
+
 
 @dataclass(frozen=True)
 class Shape:

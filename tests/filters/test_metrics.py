@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import CHECK_KEYS
 
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import MeshError
@@ -14,20 +15,7 @@ from surfgen.generator.mesh import Mesh, extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 
-KEYS = [
-    "vertices",
-    "faces",
-    "components",
-    "euler",
-    "genus",
-    "watertight",
-    "boundary_edges",
-    "nonmanifold_edges",
-    "nonmanifold_vertices",
-    "area",
-    "volume",
-    "bbox",
-]
+KEYS = CHECK_KEYS
 
 # A unit right tetrahedron, outward winding.
 TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
