@@ -30,7 +30,12 @@ from surfgen.generator.expr import Expr
 from surfgen.generator.fast import evaluate_program, profile_program, scratch_bytes, warm_up
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.presets import get_preset
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.reference import evaluate_points, evaluate_reference
+
+# A second, naive baseline: numpy on dense (Nx, Ny, Nz) coordinate arrays, so every
+# sub-expression is computed per point (what an evaluator without hoisting does). The numpy
+# reference itself evaluates on an open, broadcast grid, which already hoists.
+DENSE_MAX_N = 128
 
 LIBM = {"pow", "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log", "log10"}
 LIBM |= {"sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "cbrt"}
@@ -144,6 +149,11 @@ class Row:
     maxrel: float
     same_nonfinite: bool
     finite: float
+    dense: float | None = None  # numpy on dense 3-D coordinates: every node per point
+
+    @property
+    def ratio_dense(self) -> float | None:
+        return None if self.dense is None else self.fast1 / self.dense
 
     @property
     def ratio1(self) -> float:
@@ -184,8 +194,21 @@ def run_case(case: Case, repeats: int) -> Row:
     tr, ref = best_time(lambda: evaluate_reference(case.tree, grid, case.params).values, repeats)
     maxrel, same = compare(fast, ref)
     pts = grid.size
+    dense = None
+    if case.n <= DENSE_MAX_N:  # the dense baseline keeps every node's full array: small grids only
+        ax = [np.broadcast_to(a, grid.shape).copy() for a in grid.open_axes()]
+        td, _ = best_time(lambda: evaluate_points(case.tree, *ax, case.params), repeats)
+        dense = pts / td
     return Row(
-        case.name, case.n, pts / t1, pts / t2, pts / tr, maxrel, same, np.isfinite(ref).mean()
+        case.name,
+        case.n,
+        pts / t1,
+        pts / t2,
+        pts / tr,
+        maxrel,
+        same,
+        np.isfinite(ref).mean(),
+        dense,
     )
 
 
@@ -335,7 +358,8 @@ def main() -> int:
 
     header = (
         f"{'case':12s} {'grid':>6s} {'fast 1T':>9s} {'fast 2T':>9s} {'numpy':>8s}"
-        f" {'1T/np':>6s} {'2T/np':>6s} {'2T/1T':>6s} {'finite':>6s} {'max rel':>8s} nonfinite"
+        f" {'1T/np':>6s} {'2T/np':>6s} {'2T/1T':>6s} {'1T/dense':>8s} {'finite':>6s}"
+        f" {'max rel':>8s} nonfinite"
     )
     print("\nMpoints/s, ratios fast/reference (same run; best of repeats)")
     print(header)
@@ -348,6 +372,7 @@ def main() -> int:
         print(
             f"{row.name:12s} {row.n:>4d}^3 {row.fast1 / 1e6:9.2f} {row.fast2 / 1e6:9.2f}"
             f" {row.ref / 1e6:8.2f} {row.ratio1:6.1f} {row.ratio2:6.1f} {row.scaling:6.2f}"
+            f" {'-' if row.ratio_dense is None else f'{row.ratio_dense:.1f}':>8s}"
             f" {row.finite:6.0%} {row.maxrel:8.1e} {'same' if row.same_nonfinite else 'DIFFER'}",
             flush=True,
         )
@@ -359,6 +384,12 @@ def main() -> int:
     print(
         f"random eq. (13) at {rand_n}^3, median fast/numpy: 1 thread {med1:.1f}x, 2 threads {med2:.1f}x"
     )
+    dense = [r.ratio_dense for r in random_rows if r.ratio_dense is not None]
+    if dense:
+        print(
+            f"random eq. (13) at {rand_n}^3, median fast (1 thread) / numpy on dense arrays:"
+            f" {float(np.median(dense)):.1f}x"
+        )
     print(f"presets, fast/numpy on 1 thread: min {min(r.ratio1 for r in preset_rows):.1f}x")
     print(f"2 threads / 1 thread, median over grids >= 128^3: {scal:.2f}x")
     speedup, load = thread_calibration()
