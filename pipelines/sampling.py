@@ -251,9 +251,14 @@ def run_sample(
         cat.make_dirs()
         run = cat.find_run(seed, config.hash, config.run.grid)
         if run is not None and not resume:
+            hint = (
+                "use --resume with a larger --n to extend it"
+                if run.accepted >= run.n
+                else "use --resume to continue it"
+            )
             raise CatalogueError(
                 f"{catalogue} already has run {run.id} with seed {seed}, grid {run.grid} and this "
-                f"config ({run.accepted}/{run.n} accepted, {run.status}): use --resume to continue it"
+                f"config ({run.accepted}/{run.n} accepted, {run.status}): {hint}"
             )
         if run is None:
             run = cat.create_run(
