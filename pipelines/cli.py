@@ -79,7 +79,12 @@ def render(
         str | None, typer.Option(help="N or NX,NY,NZ (points per axis, both ends).")
     ] = None,
     level: Annotated[float | None, typer.Option(help="Iso level (inside is F < level).")] = None,
-    cap: Annotated[bool, typer.Option(help="Close surfaces cut by the box.")] = False,
+    cap: Annotated[
+        bool | None,
+        typer.Option(
+            "--cap/--no-cap", help="Close surfaces cut by the box (default: the preset's)."
+        ),
+    ] = None,
     output: Annotated[
         Path | None, typer.Option("-o", "--output", help="Mesh file .ply/.obj/.stl/.off/.glb.")
     ] = None,
@@ -95,6 +100,7 @@ def render(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Evaluate one shape on its grid, extract F = level and write what is asked."""
+    from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
 
     spec_obj = None
@@ -120,7 +126,7 @@ def render(
     )
     result = render_spec(
         spec_obj,
-        cap=cap,
+        cap=cap if cap is not None else bool(preset) and get_preset(preset).cap,
         evaluator=evaluator,
         mesh_path=output,
         field_path=save_field,

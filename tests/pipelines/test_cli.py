@@ -231,3 +231,12 @@ def test_plot_constituents_command(tmp_path: Path, capsys) -> None:
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["plot", "constituents", "-o", str(tmp_path / "c.jpg")]) == 1
     assert "unknown format '.jpg'" in capsys.readouterr().err
+
+
+def test_cut_presets_are_capped_unless_asked_not_to(tmp_path: Path, capsys) -> None:
+    capped, open_ = tmp_path / "capped.ply", tmp_path / "open.ply"
+    assert main(["render", "--preset", "gyroid", "--grid", "24", "-o", str(capped)]) == 0
+    assert main(["render", "--preset", "gyroid", "--grid", "24", "--no-cap", "-o", str(open_)]) == 0
+    capsys.readouterr()
+    assert run_json(["check", str(capped), "--json"], capsys)["watertight"] is True
+    assert run_json(["check", str(open_), "--json"], capsys)["watertight"] is False
