@@ -368,7 +368,18 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo(f"error: {exc}", err=True)
         return 1
     except TyperException as exc:  # usage errors: bad option, missing argument, ...
-        typer.echo(f"error: {exc.format_message()}", err=True)
+        if type(exc).__name__ == "NoArgsIsHelpError":  # `surfgen` or a group alone: its help
+            typer.echo(exc.format_message())
+            return 0
+        message = exc.format_message()
+        ctx = getattr(exc, "ctx", None)
+        if (
+            "No such command" in message
+            and ctx is not None
+            and hasattr(ctx.command, "list_commands")
+        ):
+            message += f" (commands: {', '.join(ctx.command.list_commands(ctx))})"
+        typer.echo(f"error: {message}", err=True)
         return exc.exit_code or 2
     except Abort:
         typer.echo("aborted", err=True)

@@ -240,3 +240,11 @@ def test_cut_presets_are_capped_unless_asked_not_to(tmp_path: Path, capsys) -> N
     capsys.readouterr()
     assert run_json(["check", str(capped), "--json"], capsys)["watertight"] is True
     assert run_json(["check", str(open_), "--json"], capsys)["watertight"] is False
+
+
+def test_help_and_unknown_commands(capsys) -> None:
+    assert main([]) == 0
+    assert "Commands:" in capsys.readouterr().out
+    assert main(["nonsense"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No such command 'nonsense'" in err[0] and "sample" in err[0]
