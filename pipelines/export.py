@@ -42,6 +42,7 @@ from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, load_mesh, save_mesh
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, now, open_catalogue
+from surfgen.pipelines.curation import CatalogueOption
 from surfgen.pipelines.render import write_atomic
 
 log = logging.getLogger(__name__)
@@ -489,9 +490,7 @@ def export_command(
         ),
     ],
     output: Annotated[Path, typer.Option("-o", "--output", help="Output folder.")],
-    catalogue: Annotated[
-        Path, typer.Option("--catalogue", help="Catalogue folder.")
-    ] = DEFAULT_CATALOGUE,
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
     fmt: Annotated[str, typer.Option("--format", help="stl, obj, ply, glb or 3mf.")] = "stl",
     remesh: Annotated[
         bool, typer.Option("--remesh", help="Isotropic remeshing (same face count by default).")
