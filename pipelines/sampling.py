@@ -41,7 +41,8 @@ from surfgen.filters.verdict import (
 from surfgen.generator import __version__
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Grid
+from surfgen.generator.expr import Expr
+from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
@@ -123,28 +124,35 @@ def identity_of(spec: SurfaceSpec) -> str:
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
+class _Stopwatch:
+    """Seconds spent per stage (``eval``, ``mesh``, ``filters``, ``io``)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self._last
+        self._last = now
+
+
 def make_shape(
     index: int, *, seed: int, config: Config, staging: Path | None = None, pictures: bool = False
 ) -> ShapeOutcome:
     """Draw, evaluate, mesh, measure and judge shape ``index``: a pure function of its inputs
     (timings aside). Known failures become a rejected verdict with its reason."""
-    t: dict[str, float] = {}
-    clock = time.perf_counter()
-
-    def lap(stage: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        t[stage] = t.get(stage, 0.0) + now - clock
-        clock = now
-
-    cfg, fcfg, run = config.sampler, config.filters, config.run
-    draw = draw_equation(seed, index, cfg)
-    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
-    d = choose_d(draw, cfg, threads=1)  # one process per core: numba single-threaded inside
+    watch = _Stopwatch()
+    draw = draw_equation(seed, index, config.sampler)
+    d = choose_d(draw, config.sampler, threads=1)  # one process per core: numba serial inside
     equation = draw.equation.with_d(d or 0.0)
+    tree = equation.to_tree()
+    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
     spec = SurfaceSpec.from_tree(
-        equation.to_tree(), draw.box.bounds(), (run.grid,) * 3, provenance=provenance
+        tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
     )
+    watch.lap("eval")
+    verdict, metrics, mesh = _judge(tree, spec, d, config, watch)
     row: dict[str, Any] = {
         "key": spec.key,
         "spec": spec.to_json(),
@@ -152,49 +160,56 @@ def make_shape(
         "identity": identity_of(spec),
         "d": d,
         "model": json.dumps(equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        **_metric_columns(_round_metrics(metrics)),
+        "verdict": "accepted" if verdict.accepted else "rejected",
+        "reasons": json.dumps(list(verdict.reasons)),
     }
-    lap("eval")
-    metrics: dict[str, Any] = {}
-    mesh: Mesh | None = None
-    verdict = Verdict.reject("no_crossing") if d is None else None
-    tree = spec.tree()
-    if verdict is None:
-        coarse = evaluate(tree, Grid(draw.box, (fcfg.coarse_grid,) * 3), threads=1)
-        verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True, capped=run.cap)
-        verdict = None if verdict.accepted else verdict
-    if verdict is None:
-        field_ = evaluate(tree, spec.to_grid(), threads=1)
-        metrics["nonfinite"] = field_.nonfinite
-        lap("eval")
-        verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
-        verdict = None if verdict.accepted else verdict
-        if verdict is None:
-            try:
-                mesh = extract_mesh(field_, spec.level, cap=run.cap)
-            except EmptySurface:
-                verdict = Verdict.reject("empty")
-            lap("mesh")
-    if verdict is None and mesh is not None:
-        # Lewiner marching cubes already gives an indexed manifold mesh; merging "close"
-        # vertices would pinch it where several vertices land on one grid point.
-        metrics.update(quick_metrics(mesh, spec.box))  # cheap checks first...
-        verdict = judge(metrics, fcfg, capped=run.cap)
-        if verdict.accepted:  # ...then pymeshlab's topology and the curvature
-            metrics.update(shape_metrics(mesh, spec.box))
-            verdict = judge(metrics, fcfg, capped=run.cap)
-        lap("filters")
-    assert verdict is not None
-    row.update(_metric_columns(_round_metrics(metrics)))
-    row["verdict"] = "accepted" if verdict.accepted else "rejected"
-    row["reasons"] = json.dumps(list(verdict.reasons))
     out = ShapeOutcome(index, row, verdict)
     if verdict.accepted and mesh is not None:
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
-    if verdict.accepted and mesh is not None and staging is not None:
-        out = _with_files(out, mesh, staging, pictures)
-        lap("io")
-    row["timings"] = json.dumps({k: round(v, 4) for k, v in t.items()}, sort_keys=True)
+        if staging is not None:
+            out = _with_files(out, mesh, staging, pictures)
+        watch.lap("io")
+    row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
+
+
+def _judge(
+    tree: Expr, spec: SurfaceSpec, d: float | None, config: Config, watch: _Stopwatch
+) -> tuple[Verdict, dict[str, Any], Mesh | None]:
+    """The cascade: coarse field, full field, mesh, cheap mesh checks, full mesh checks.
+    Returns the verdict, the metrics measured so far and the mesh (if one was made)."""
+    fcfg, run = config.filters, config.run
+    metrics: dict[str, Any] = {}
+    if d is None:
+        return Verdict.reject("no_crossing"), metrics, None
+    box = Box.from_bounds(spec.box)
+    coarse = evaluate(tree, Grid(box, (fcfg.coarse_grid,) * 3), threads=1)
+    verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True, capped=run.cap)
+    watch.lap("eval")
+    if not verdict.accepted:
+        return verdict, metrics, None
+    field_ = evaluate(tree, spec.to_grid(), threads=1)
+    metrics["nonfinite"] = field_.nonfinite
+    verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
+    watch.lap("eval")
+    if not verdict.accepted:
+        return verdict, metrics, None
+    try:
+        mesh = extract_mesh(field_, spec.level, cap=run.cap)
+    except EmptySurface:
+        return Verdict.reject("empty"), metrics, None
+    finally:
+        watch.lap("mesh")
+    # Lewiner marching cubes already gives an indexed manifold mesh; merging "close" vertices
+    # would pinch it where several vertices land on one grid point. Cheap checks first...
+    metrics.update(quick_metrics(mesh, spec.box))
+    verdict = judge(metrics, fcfg, capped=run.cap)
+    if verdict.accepted:  # ...then pymeshlab's topology and the curvature
+        metrics.update(shape_metrics(mesh, spec.box))
+        verdict = judge(metrics, fcfg, capped=run.cap)
+    watch.lap("filters")
+    return verdict, metrics, mesh
 
 
 def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
