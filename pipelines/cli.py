@@ -3,9 +3,11 @@ print a summary. Every known error becomes one line on stderr and a non-zero exi
 
 from __future__ import annotations
 
+import importlib
 import json
 import logging
 import sys
+import time
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -282,10 +284,10 @@ def sample(
     )
     with Progress(*columns, transient=False, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("sample", total=n, drawn=0, rate=0.0)
-        started = __import__("time").perf_counter()
+        started = time.perf_counter()
 
         def progress(accepted: int, drawn: int, total: int) -> None:
-            minutes = (__import__("time").perf_counter() - started) / 60
+            minutes = (time.perf_counter() - started) / 60
             bar.update(
                 task,
                 completed=min(accepted, total),
@@ -353,7 +355,7 @@ _REGISTER: list[str] = [
 ]
 
 for _module in _REGISTER:
-    __import__(_module, fromlist=["register"]).register(app)
+    importlib.import_module(_module).register(app)
 
 
 # ----------------------------------------------------------------------------- entry point
