@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,6 +21,7 @@ from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
 from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
 
 REASONS = (
     "no_crossing",  # no d gives a surface (the sum is constant or non-finite on the coarse grid)
@@ -61,34 +62,25 @@ class FilterConfig:
     def __post_init__(self) -> None:
         if not 4 <= self.coarse_grid <= 256:
             raise SpecError("config [filters]: coarse_grid must be from 4 to 256")
-        for name in (
+        fractions = (
             "max_nonfinite_fraction",
             "max_flip_fraction",
             "min_inside_fraction",
             "max_inside_fraction",
             "min_largest_component_fraction",
             "max_box_fraction",
-        ):
-            v = getattr(self, name)
-            if not 0 <= v <= 1:
-                raise SpecError(f"config [filters]: {name} must be in [0, 1], got {v}")
+        )
+        require_fractions(self, fractions, "filters")
         for name in ("min_faces", "max_components", "max_genus"):
             if getattr(self, name) < 0:
                 raise SpecError(f"config [filters]: {name} must be >= 0")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> FilterConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise SpecError(f"config [filters]: unknown key '{unknown[0]}'")
-        try:
-            return cls(**data)
-        except TypeError as exc:
-            raise SpecError(f"config [filters]: {exc}") from None
+        return settings_from_mapping(cls, data, "filters")
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        return settings_to_dict(self)
 
 
 @dataclass(frozen=True)

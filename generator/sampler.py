@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from surfgen.generator.equation13 import (
 from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.grid import Box, Grid
+from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
 
 SAMPLER_VERSION = 1
 # Transforms whose values stay in [-1, 1], and inverse functions defined on all of R.
@@ -91,52 +92,46 @@ class SamplerConfig:
         )
         for a, b in pairs:
             if len(getattr(self, a)) != len(getattr(self, b)) or not getattr(self, a):
-                raise SpecError(f"sampler: {a} and {b} must be non-empty lists of the same length")
+                raise SpecError(
+                    f"config [sampler]: {a} and {b} must be non-empty lists of the same length"
+                )
             if any(w < 0 for w in getattr(self, b)) or sum(getattr(self, b)) <= 0:
-                raise SpecError(f"sampler: {b} must be non-negative and not all zero")
+                raise SpecError(f"config [sampler]: {b} must be non-negative and not all zero")
         for name in ("sum_terms", "factors"):
             if any(int(v) != v or v < 1 for v in getattr(self, name)):
-                raise SpecError(f"sampler: {name} must be whole numbers >= 1")
-        for name in (
+                raise SpecError(f"config [sampler]: {name} must be whole numbers >= 1")
+        probabilities = (
             "integer_exponent_prob",
             "absolute_vars_prob",
             "trivial_denominator_prob",
             "omit_element_prob",
             "constituent_prob",
             "abs_prob",
-        ):
-            v = getattr(self, name)
-            if not 0 <= v <= 1:
-                raise SpecError(f"sampler: {name} must be a probability in [0, 1], got {v}")
+        )
+        require_fractions(self, probabilities, "sampler", "a probability")
         for name in ("exponent_real", "constituent_r", "box_half", "d_quantile", "constituent_p"):
             lo, hi = getattr(self, name)
             if not lo <= hi:
-                raise SpecError(f"sampler: {name} must be [low, high] with low <= high")
+                raise SpecError(f"config [sampler]: {name} must be [low, high] with low <= high")
         if not self.box_half[0] > 0:
-            raise SpecError("sampler: box_half must be > 0")
+            raise SpecError("config [sampler]: box_half must be > 0")
         if not 0 <= self.d_quantile[0] <= self.d_quantile[1] <= 1:
-            raise SpecError("sampler: d_quantile must lie in [0, 1]")
+            raise SpecError("config [sampler]: d_quantile must lie in [0, 1]")
         if self.power_terms_max < 1 or not 1 <= self.variables_per_term_max <= 3:
-            raise SpecError("sampler: power_terms_max >= 1 and variables_per_term_max in 1..3")
+            raise SpecError(
+                "config [sampler]: power_terms_max >= 1 and variables_per_term_max in 1..3"
+            )
         if self.integer_exponent_max < 1:
-            raise SpecError("sampler: integer_exponent_max must be >= 1")
+            raise SpecError("config [sampler]: integer_exponent_max must be >= 1")
         if not 4 <= self.d_grid <= 128:
-            raise SpecError("sampler: d_grid must be from 4 to 128")
+            raise SpecError("config [sampler]: d_grid must be from 4 to 128")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> SamplerConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise SpecError(f"config [sampler]: unknown key '{unknown[0]}'")
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-        try:
-            return cls(**kw)
-        except TypeError as exc:
-            raise SpecError(f"config [sampler]: {exc}") from None
+        return settings_from_mapping(cls, data, "sampler")
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        return settings_to_dict(self)
 
 
 def rng_for(seed: int, index: int) -> np.random.Generator:
