@@ -164,3 +164,13 @@ def catalogue_shapes(root, items, *, seed: int = 0, grid: int = 40) -> list[str]
             cat.record_shape(run.id, i, row, True, {})
             keys.append(spec.key)
     return keys
+
+
+@pytest.fixture
+def cat_dir(template, tmp_path):
+    """A fresh copy of the test module's ``template`` catalogue ``(root, keys)``, to write to."""
+    import shutil
+
+    root = tmp_path / "cat"
+    shutil.copytree(template[0], root)
+    return root

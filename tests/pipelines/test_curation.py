@@ -4,7 +4,6 @@ and near-duplicate marking, on a catalogue built from the canonical shapes."""
 from __future__ import annotations
 
 import json
-import shutil
 import sqlite3
 from pathlib import Path
 
@@ -74,14 +73,6 @@ def build_catalogue(root: Path) -> dict[str, str]:
 def template(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     root = tmp_path_factory.mktemp("curation") / "cat"
     return root, build_catalogue(root)
-
-
-@pytest.fixture
-def cat_dir(template, tmp_path) -> Path:
-    """A fresh copy of the template catalogue (tests may write it)."""
-    root = tmp_path / "cat"
-    shutil.copytree(template[0], root)
-    return root
 
 
 @pytest.fixture

@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import json
 import re
-import shutil
 import socket
 import subprocess
 import sys
@@ -66,13 +65,6 @@ def template(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     keys = build_catalogue(root)
     assert main(["thumbnails", "-C", str(root)]) == 0
     return root, keys
-
-
-@pytest.fixture
-def cat_dir(template, tmp_path) -> Path:
-    root = tmp_path / "cat"
-    shutil.copytree(template[0], root)
-    return root
 
 
 @pytest.fixture
