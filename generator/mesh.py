@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from scipy.ndimage import maximum_filter
 from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface, MeshError
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Field
 
 logger = logging.getLogger(__name__)
@@ -227,16 +227,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     if isinstance(data, str):
         data = data.encode("utf-8")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; results are meant to be shared
+        write_atomic(path, data)
     except OSError as exc:
-        raise MeshError(f"cannot write '{path}': {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "wb") as out:
-            out.write(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
         raise MeshError(f"cannot write '{path}': {exc.strerror}") from None
     logger.debug("save_mesh: %s (%d faces)", path, mesh.n_faces)
     return path

@@ -38,12 +38,12 @@ from surfgen.filters.cleanup import (
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.evaluate import evaluate
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, load_mesh, save_mesh
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, now, open_catalogue
 from surfgen.pipelines.curation import CatalogueOption
-from surfgen.pipelines.render import write_atomic
 
 log = logging.getLogger(__name__)
 

@@ -270,7 +270,7 @@ def export_gallery(
 
 def write_page(path: Path, text: str) -> Path:
     """Write an HTML page atomically, readable by all (it is meant to be published)."""
-    from surfgen.pipelines.render import write_atomic
+    from surfgen.generator.files import write_atomic
 
     write_atomic(path, text.encode("utf-8"))
     path.chmod(0o644)

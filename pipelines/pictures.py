@@ -25,10 +25,10 @@ Conventions, fixed so every picture in the catalogue is comparable:
 from __future__ import annotations
 
 import functools
+import io
 import logging
 import math
 import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from surfgen.generator.errors import MeshError, SurfgenError
+from surfgen.generator.files import write_atomic
 from surfgen.generator.mesh import Mesh
 
 if TYPE_CHECKING:  # pillow is imported lazily: only picture-writing code needs it
@@ -669,16 +670,9 @@ def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:
         )
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    picture = Image.fromarray(np.ascontiguousarray(array))
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600; results are meant to be shared
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            picture.save(handle, format="PNG", compress_level=6)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(array)).save(buffer, format="PNG", compress_level=6)
+    write_atomic(target, buffer.getvalue())
     log.debug("wrote %s (%dx%d)", target, array.shape[1], array.shape[0])
     return target
 

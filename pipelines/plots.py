@@ -6,9 +6,8 @@ panels of Figure 1.2 (eqs 5-7, 2 and 9, 3 and 10-11, 4 and 12) into one image.
 
 from __future__ import annotations
 
+import io
 import logging
-import os
-import uuid
 from collections.abc import Callable
 from pathlib import Path
 
@@ -18,6 +17,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from surfgen.generator import constituents as cf
+from surfgen.generator.files import write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -151,15 +151,8 @@ def plot_constituents(path: Path) -> Path:
     FigureCanvasAgg(fig)
     _draw(fig)
     fmt = path.suffix.lstrip(".").lower() or "png"
-    # A unique name in the target folder (so os.replace is atomic); open() keeps the umask,
-    # which tempfile.mkstemp (mode 0600) would not.
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        with open(tmp, "xb") as out:
-            fig.savefig(out, format=fmt)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=fmt)
+    write_atomic(path, buffer.getvalue())
     log.info("wrote %s", path)
     return path

@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import logging
 import os
-import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ import numpy as np
 
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Field, Grid
 from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, save_mesh
 from surfgen.generator.presets import get_preset
@@ -119,19 +119,6 @@ def save_field(field: Field, path: Path) -> None:
     buf = io.BytesIO()
     np.save(buf, np.asarray(field.values, dtype=np.float64))
     write_atomic(path, buf.getvalue())
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600; results are meant to be shared
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def render_spec(
