@@ -105,26 +105,21 @@ def render(
     from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
 
-    spec_obj = None
+    catalogued = None
     if from_catalogue is not None:
-        if preset or formula or spec:
-            raise SpecError("--from cannot be combined with --preset, --formula or --spec")
         from surfgen.pipelines.catalogue import open_catalogue
 
         with open_catalogue(from_catalogue[0], must_exist=True) as cat:
-            spec_obj = cat.spec(from_catalogue[1])
-    spec_obj = (
-        build_spec(
-            preset=preset,
-            formula=formula,
-            spec_file=spec,
-            params=parse_params(param),
-            box=parse_numbers(box, "--box", (2, 6)) if box else None,
-            grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None,
-            level=level,
-        )
-        if spec_obj is None
-        else _override(spec_obj, box, grid, level)
+            catalogued = cat.spec(from_catalogue[1])
+    spec_obj = build_spec(
+        preset=preset,
+        formula=formula,
+        spec_file=spec,
+        base=catalogued,
+        params=parse_params(param),
+        box=parse_numbers(box, "--box", (2, 6)) if box else None,
+        grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None,
+        level=level,
     )
     result = render_spec(
         spec_obj,
@@ -146,21 +141,6 @@ def render(
     )
     for kind, path in s["files"].items():
         typer.echo(f"wrote {kind}: {path}")
-
-
-def _override(spec_obj, box, grid, level):
-    from surfgen.generator.grid import Box, Grid
-
-    changes: dict[str, Any] = {}
-    if box:
-        changes["box"] = Box.from_bounds(parse_numbers(box, "--box", (2, 6))).bounds()
-    if grid:
-        changes["grid"] = Grid.from_sizes(
-            Box.cube(1), parse_numbers(grid, "--grid", (1, 3), True)
-        ).shape
-    if level is not None:
-        changes["level"] = level
-    return spec_obj.replace(**changes) if changes else spec_obj
 
 
 # ----------------------------------------------------------------------------- check

@@ -57,20 +57,22 @@ def build_spec(
     preset: str | None = None,
     formula: str | None = None,
     spec_file: Path | None = None,
+    base: SurfaceSpec | None = None,
     params: Mapping[str, float] | None = None,
     box: Sequence[float] | None = None,
     grid: Sequence[int] | None = None,
     level: float | None = None,
 ) -> SurfaceSpec:
-    """The spec a ``render`` call describes: exactly one source, then overrides."""
-    sources = [s for s in (preset, formula, spec_file) if s is not None]
+    """The spec a ``render`` call describes: exactly one source (a preset, a formula, a spec
+    file, or ``base``: a spec already at hand, e.g. from the catalogue), then overrides."""
+    sources = [s for s in (preset, formula, spec_file, base) if s is not None]
     if len(sources) != 1:
-        raise SpecError("give exactly one of --preset, --formula or --spec")
+        raise SpecError("give exactly one of --preset, --formula, --spec or --from")
     params = dict(params or {})
     if preset is not None:
         spec = get_preset(preset).spec(params)
-    elif spec_file is not None:
-        spec = read_spec(spec_file)
+    elif spec_file is not None or base is not None:
+        spec = base if base is not None else read_spec(spec_file)  # type: ignore[arg-type]
         if params:
             unknown = sorted(set(params) - set(spec.params))
             if unknown:

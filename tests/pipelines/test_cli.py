@@ -142,9 +142,9 @@ def test_spec_file_round_trip(tmp_path: Path, capsys) -> None:
         (["render", "--preset", "sphere", "--box", "1,2,3"], "--box takes 2 or 6 values"),
         (
             ["render", "--preset", "sphere", "--formula", "x"],
-            "exactly one of --preset, --formula or --spec",
+            "exactly one of --preset, --formula, --spec or --from",
         ),
-        (["render"], "exactly one of --preset, --formula or --spec"),
+        (["render"], "exactly one of --preset, --formula, --spec or --from"),
         (["render", "--spec", "/nonexistent.json"], "cannot read spec file"),
         (["render", "--preset", "sphere", "--evaluator", "magic"], "unknown evaluator 'magic'"),
         (["check", "/nonexistent.ply"], "/nonexistent.ply"),

@@ -325,3 +325,24 @@ def test_ctrl_c_keeps_the_catalogue_and_says_how_to_resume(
     assert err.strip().splitlines()[-1].startswith("interrupted: ")
     assert main([*sample_args(cfg_file, cat, workers=1), "--resume"]) == 0
     assert table(cat) == table(reference_run)
+
+
+def test_render_from_catalogue_takes_overrides(reference_run: Path, capsys) -> None:
+    with open_catalogue(reference_run, must_exist=True) as cat:
+        key = cat.shapes(verdict="accepted")[0]["key"]
+    args = [
+        "render",
+        "--from",
+        str(reference_run),
+        key,
+        "--grid",
+        "12",
+        "--level",
+        "0.25",
+        "--json",
+    ]
+    assert main(args) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["grid"] == [12, 12, 12] and r["level"] == 0.25
+    assert main(["render", "--from", str(reference_run), key, "--preset", "sphere"]) == 1
+    assert "exactly one of --preset, --formula, --spec or --from" in capsys.readouterr().err
