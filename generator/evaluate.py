@@ -26,9 +26,7 @@ def evaluate(
     if evaluator == "reference":
         return evaluate_reference(tree, grid, params)
     if evaluator == "fast":
-        try:
-            from surfgen.generator.fast import evaluate_fast
-        except ImportError:  # the compiled evaluator has not landed in this checkout
-            return evaluate_reference(tree, grid, params)
+        from surfgen.generator.fast import evaluate_fast  # imports numba: only when asked for
+
         return evaluate_fast(tree, grid, params, threads=threads)
     raise FormulaError(f"unknown evaluator '{evaluator}' (allowed: {', '.join(EVALUATORS)})")

@@ -81,6 +81,13 @@ class SurfaceSpec:
         return json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"), allow_nan=False)
 
     @property
+    def identity(self) -> str:
+        """What makes two shapes exact duplicates: the spec without its provenance."""
+        d = self.to_dict()
+        d.pop("provenance")
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:KEY_LENGTH]
+
+    @property
     def key(self) -> str:
         return hashlib.sha256(self.to_json().encode()).hexdigest()[:KEY_LENGTH]
 

@@ -9,7 +9,6 @@ index order and stops at the ``n``-th accepted shape. So the catalogue holds exa
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -117,13 +116,6 @@ def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def identity_of(spec: SurfaceSpec) -> str:
-    """What makes two shapes exact duplicates: the formula, params, box, grid and level."""
-    d = spec.to_dict()
-    d.pop("provenance")
-    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
-
-
 class _Stopwatch:
     """Seconds spent per stage (``eval``, ``mesh``, ``filters``, ``io``)."""
 
@@ -157,7 +149,7 @@ def make_shape(
         "key": spec.key,
         "spec": spec.to_json(),
         "formula": spec.formula,
-        "identity": identity_of(spec),
+        "identity": spec.identity,
         "d": d,
         "model": json.dumps(equation.to_dict(), sort_keys=True, separators=(",", ":")),
         **_metric_columns(_round_metrics(metrics)),
@@ -402,7 +394,7 @@ def _outcome(res, seed: int, config: Config) -> ShapeOutcome:
         "key": spec.key,
         "spec": spec.to_json(),
         "formula": spec.formula,
-        "identity": identity_of(spec),
+        "identity": spec.identity,
         "d": None,
         "model": json.dumps(draw.equation.to_dict(), sort_keys=True, separators=(",", ":")),
         "verdict": "rejected",
