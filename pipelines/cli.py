@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import json
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -230,6 +231,15 @@ def sample(
     thumbnails: Annotated[
         bool, typer.Option(help="Render thumbnails and turntables (--no-thumbnails to skip).")
     ] = True,
+    executor: Annotated[
+        str, typer.Option(help="local (worker processes here) or dask (a Dask cluster).")
+    ] = "local",
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Dask scheduler address (default $SURFGEN_SCHEDULER; none: a local cluster)."
+        ),
+    ] = None,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""
     from rich.progress import (
@@ -248,6 +258,8 @@ def sample(
         raise SpecError(f"--n must be at least 1, got {n}")
     if grid is not None and grid < 4:
         raise SpecError(f"--grid must be at least 4, got {grid}")
+    if executor == "dask" and not scheduler:
+        scheduler = os.environ.get("SURFGEN_SCHEDULER") or None
     cfg = load_config(config).with_grid(grid)
     if dedupe:
         cfg = cfg.with_run(dedupe=True)
@@ -285,6 +297,8 @@ def sample(
                 max_draws=max_draws,
                 resume=resume,
                 progress=progress,
+                executor=executor,
+                scheduler=scheduler,
             )
         except KeyboardInterrupt:
             bar.stop()

@@ -3,6 +3,11 @@
 ``concurrent.futures`` breaks the whole pool when one worker dies, and a timer inside a numba
 loop fires only when the loop ends; so each worker is a plain process fed through a pipe, and
 the parent kills and replaces a worker whose task overruns its deadline or that dies.
+
+An *executor* is anything with ``run(tasks) -> Iterator[TaskResult]`` used as a context manager
+(:class:`Executor`): :class:`KillablePool` here, and ``DaskPool`` in
+:mod:`surfgen.pipelines.cluster`, which runs chunks of tasks on a Dask cluster with a
+``KillablePool`` inside each worker. The sampling run is written once against this interface.
 """
 
 from __future__ import annotations
@@ -16,7 +21,9 @@ import traceback
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
-from typing import Any
+from typing import Any, Protocol
+
+from surfgen.generator.errors import SurfgenError
 
 log = logging.getLogger(__name__)
 
@@ -29,6 +36,22 @@ class TaskResult:
     status: str
     value: Any = None
     message: str = ""
+
+
+class ExecutorError(SurfgenError):
+    """An executor that cannot run: no cluster to connect to, mismatched workers, lost tasks."""
+
+
+class Executor(Protocol):
+    """Runs a function over tasks; every task gets exactly one :class:`TaskResult`."""
+
+    def run(self, tasks: Iterable[Any]) -> Iterator[TaskResult]:
+        """Results in any order; ``tasks`` is pulled lazily, so it may stop early."""
+        ...
+
+    def __enter__(self) -> Executor: ...
+
+    def __exit__(self, *exc: object) -> None: ...
 
 
 def _worker_main(conn: Connection, fn: Callable[[Any], Any]) -> None:
@@ -77,10 +100,13 @@ class _Worker:
 class KillablePool:
     """``workers`` processes running ``fn`` (a picklable top-level function) on tasks."""
 
-    def __init__(self, fn: Callable[[Any], Any], workers: int, timeout: float) -> None:
+    def __init__(
+        self, fn: Callable[[Any], Any], workers: int, timeout: float, context: Any = None
+    ) -> None:
         methods = mp.get_all_start_methods()
         # fork starts in milliseconds; the parent holds no threads or open catalogue writes then
-        self.ctx = mp.get_context("fork" if "fork" in methods else "spawn")
+        # (a threaded parent, such as a Dask worker, passes a forkserver ``context`` instead)
+        self.ctx = context or mp.get_context("fork" if "fork" in methods else "spawn")
         self.fn = fn
         self.timeout = timeout
         self.workers = [_Worker(self.ctx, fn) for _ in range(workers)]

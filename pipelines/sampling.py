@@ -5,6 +5,11 @@ processes in any order; the parent (the catalogue's only writer) commits results
 index order and stops at the ``n``-th accepted shape. So the catalogue holds exactly the first
 ``n`` accepted shapes by index, whatever the number of workers, and a killed run resumed with
 ``resume=True`` ends identical to an uninterrupted one.
+
+The workers are an executor (:class:`~surfgen.pipelines.executor.Executor`): local processes
+(``executor="local"``), or a Dask cluster (``executor="dask"``, :mod:`surfgen.pipelines.cluster`),
+whose workers hand the files back as bytes (:func:`make_shape_packed`). Ordering, commits and
+files are handled by one code path (:func:`_drive`) for both.
 """
 
 from __future__ import annotations
@@ -13,9 +18,11 @@ import json
 import logging
 import os
 import shutil
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -41,6 +48,7 @@ from surfgen.generator import __version__
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
@@ -48,7 +56,7 @@ from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
-from surfgen.pipelines.executor import KillablePool
+from surfgen.pipelines.executor import Executor, KillablePool
 
 log = logging.getLogger(__name__)
 
@@ -56,11 +64,20 @@ METRIC_DIGITS = 10  # significant digits kept in stored metrics
 # Turntable frames are smaller than thumbnails: 12 views at 256 px cost more than the rest of
 # a shape's pipeline together; 160 px is plenty for the gallery's hover spin.
 TURNTABLE_SIZE = 160
+EXECUTORS = ("local", "dask")
+# Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
+FILE_FIELDS = (
+    ("mesh_path", "mesh_file"),
+    ("thumb_path", "thumb_file"),
+    ("turntable_path", "turntable_file"),
+)
 
 
 @dataclass(frozen=True)
 class ShapeOutcome:
-    """What a worker hands back for one index: the row to store and the files' bytes."""
+    """What a worker hands back for one index: the row to store and its files, either staged
+    on the driver's disk (``*_file``) or, from a remote worker, as bytes (``data``: pairs of
+    a ``*_file`` field name and the file's bytes)."""
 
     index: int
     row: dict[str, Any]
@@ -68,6 +85,7 @@ class ShapeOutcome:
     mesh_file: Path | None = None
     thumb_file: Path | None = None
     turntable_file: Path | None = None
+    data: tuple[tuple[str, bytes], ...] = ()
 
 
 @dataclass
@@ -228,6 +246,58 @@ def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) ->
     return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb, turn)
 
 
+def make_shape_packed(
+    index: int, *, seed: int, config: Config, pictures: bool = False
+) -> ShapeOutcome:
+    """:func:`make_shape` for a worker that shares no disk with the driver: the accepted
+    shape's files are made in a temporary folder and handed back as bytes in ``data``."""
+    with tempfile.TemporaryDirectory(prefix="surfgen-shape-") as tmp:
+        out = make_shape(index, seed=seed, config=config, staging=Path(tmp), pictures=pictures)
+        data = tuple(
+            (name, getattr(out, name).read_bytes())
+            for _, name in FILE_FIELDS
+            if getattr(out, name) is not None
+        )
+    return ShapeOutcome(out.index, out.row, out.verdict, data=data)
+
+
+def _stage(outcome: ShapeOutcome, staging: Path) -> ShapeOutcome:
+    """Write the bytes a remote worker handed back into the driver's staging folder, so the
+    outcome looks like a local one (its files are moved in when the row commits)."""
+    if not outcome.data:
+        return outcome
+    key = outcome.row["key"]
+    suffix = {"mesh_file": ".ply", "thumb_file": ".thumb.png", "turntable_file": ".turntable.png"}
+    files = {name: write_atomic(staging / f"{key}{suffix[name]}", b) for name, b in outcome.data}
+    return ShapeOutcome(outcome.index, outcome.row, outcome.verdict, **files)
+
+
+def open_executor(
+    executor: str,
+    *,
+    seed: int,
+    config: Config,
+    staging: Path,
+    workers: int | None,
+    scheduler: str | None = None,
+) -> Executor:
+    """The workers that compute shapes: ``local`` processes, or a Dask cluster (``scheduler``
+    address, or a local one of ``workers`` processes). Raises :class:`SpecError` for an unknown
+    executor and ``ExecutorError`` when Dask is missing or unreachable."""
+    pictures = config.run.thumbnails
+    if executor == "local":
+        fn = partial(make_shape, seed=seed, config=config, staging=staging, pictures=pictures)
+        return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
+    if executor == "dask":
+        from surfgen.pipelines.cluster import DaskPool
+
+        fn = partial(make_shape_packed, seed=seed, config=config, pictures=pictures)
+        return DaskPool(
+            fn, config.run.timeout, scheduler=scheduler, workers=workers, environment=versions
+        )
+    raise SpecError(f"unknown executor '{executor}' (allowed: {', '.join(EXECUTORS)})")
+
+
 def run_sample(
     *,
     n: int,
@@ -238,18 +308,25 @@ def run_sample(
     max_draws: int | None = None,
     resume: bool = False,
     progress: Callable[[int, int, int], None] | None = None,
+    executor: str = "local",
+    scheduler: str | None = None,
 ) -> RunSummary:
     """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
 
-    ``progress(accepted, drawn, n)`` is called after each committed index.
-    Raises :class:`SpecError` for bad options and :class:`CatalogueError` when a run with the
-    same seed, grid and config exists and ``resume`` is false.
+    ``progress(accepted, drawn, n)`` is called after each committed index. ``executor`` is
+    ``local`` (``workers`` processes) or ``dask`` (the cluster at ``scheduler``, or a local one
+    of ``workers`` processes). Raises :class:`SpecError` for bad options,
+    :class:`CatalogueError` when a run with the same seed, grid and config exists and ``resume``
+    is false, and ``ExecutorError`` when the Dask cluster cannot be used.
     """
     if n <= 0:
         raise SpecError(f"--n must be at least 1, got {n}")
-    workers = os.cpu_count() or 1 if workers is None else workers
-    if workers < 1:
+    if workers is not None and workers < 1:
         raise SpecError(f"--workers must be at least 1, got {workers}")
+    if executor not in EXECUTORS:
+        raise SpecError(f"unknown executor '{executor}' (allowed: {', '.join(EXECUTORS)})")
+    if scheduler and executor != "dask":
+        raise SpecError("--scheduler needs --executor dask")
     max_draws = max_draws if max_draws is not None else max(1000, 50 * n)
     if max_draws < 1:
         raise SpecError(f"--max-draws must be at least 1, got {max_draws}")
@@ -267,16 +344,44 @@ def run_sample(
                 f"{catalogue} already has run {run.id} with seed {seed}, grid {run.grid} and this "
                 f"config ({run.accepted}/{run.n} accepted, {run.status}): {hint}"
             )
-        if run is None:
-            run = cat.create_run(
-                seed, n, config.run.grid, config.to_dict(), config.hash, SAMPLER_VERSION, versions()
+        done = run is not None and run.accepted >= n
+        staging = cat.root / ".staging"
+        # The workers start before the run is recorded: a cluster that cannot be reached
+        # leaves the catalogue as it was.
+        pool = (
+            nullcontext(None)
+            if done
+            else open_executor(
+                executor,
+                seed=seed,
+                config=config,
+                staging=staging,
+                workers=workers,
+                scheduler=scheduler,
             )
-        cat.set_run_status(run.id, "running", n=max(n, run.n) if resume else n)
-        status = "interrupted"
-        try:
-            status, stage = _drive(cat, run.id, n, seed, config, workers, max_draws, progress)
-        finally:
-            cat.set_run_status(run.id, status)
+        )
+        with pool:
+            if run is None:
+                run = cat.create_run(
+                    seed,
+                    n,
+                    config.run.grid,
+                    config.to_dict(),
+                    config.hash,
+                    SAMPLER_VERSION,
+                    versions(),
+                )
+            cat.set_run_status(run.id, "running", n=max(n, run.n) if resume else n)
+            status, stage = "interrupted", {}
+            try:
+                if done:
+                    status = "complete"
+                else:
+                    staging.mkdir(exist_ok=True)
+                    status, stage = _drive(cat, run.id, n, seed, config, pool, max_draws, progress)
+                    shutil.rmtree(staging, ignore_errors=True)
+            finally:
+                cat.set_run_status(run.id, status)
         final = cat.get_run(run.id)
     return RunSummary(
         run_id=final.id,
@@ -298,21 +403,16 @@ def _drive(
     n: int,
     seed: int,
     config: Config,
-    workers: int,
+    pool: Executor,
     max_draws: int,
     progress,
 ) -> tuple[str, dict[str, float]]:
+    """Feed indices to ``pool`` and commit its results strictly in index order."""
     run = cat.get_run(run_id)
     accepted, next_index = run.accepted, run.next_index
     counts: Counter[str] = Counter(run.counts)
     stage: Counter[str] = Counter()
-    if accepted >= n:
-        return "complete", {}
     staging = cat.root / ".staging"
-    staging.mkdir(exist_ok=True)
-    fn = partial(
-        make_shape, seed=seed, config=config, staging=staging, pictures=config.run.thumbnails
-    )
     buffer: dict[int, Any] = {}
     known = ensure_descriptors(cat)[0] if config.run.dedupe else {}
 
@@ -322,31 +422,30 @@ def _drive(
             yield i
             i += 1
 
-    with KillablePool(fn, workers, config.run.timeout) as pool:
-        for result in pool.run(tasks()):
-            buffer[result.task] = result
-            while next_index in buffer and accepted < n:
-                res = buffer.pop(next_index)
-                outcome = _outcome(res, seed, config)
-                if outcome.verdict.accepted:
-                    dup = cat.has_accepted_identity(outcome.row["identity"])
-                    if dup is None and config.run.dedupe:
-                        dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
-                    if dup is not None:
-                        outcome = _rejected(outcome, ("duplicate",))
-                        outcome.row["duplicate_of"] = dup
-                    elif config.run.dedupe:
-                        known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
-                _commit(cat, run_id, outcome, counts)
-                accepted += int(outcome.verdict.accepted)
-                for k, v in json.loads(outcome.row.get("timings", "{}")).items():
-                    stage[k] += v
-                next_index += 1
-                if progress is not None:
-                    progress(accepted, next_index, n)
-            if accepted >= n:
-                break
-    shutil.rmtree(staging, ignore_errors=True)
+    for result in pool.run(tasks()):
+        if result.task < next_index or result.task in buffer:
+            continue  # already committed or buffered: never twice (an executor's retry)
+        buffer[result.task] = _stage(_outcome(result, seed, config), staging)
+        while next_index in buffer and accepted < n:
+            outcome = buffer.pop(next_index)
+            if outcome.verdict.accepted:
+                dup = cat.has_accepted_identity(outcome.row["identity"])
+                if dup is None and config.run.dedupe:
+                    dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
+                if dup is not None:
+                    outcome = _rejected(outcome, ("duplicate",))
+                    outcome.row["duplicate_of"] = dup
+                elif config.run.dedupe:
+                    known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
+            _commit(cat, run_id, outcome, counts)
+            accepted += int(outcome.verdict.accepted)
+            for k, v in json.loads(outcome.row.get("timings", "{}")).items():
+                stage[k] += v
+            next_index += 1
+            if progress is not None:
+                progress(accepted, next_index, n)
+        if accepted >= n:
+            break
     status = "complete" if accepted >= n else "exhausted"
     return status, dict(stage)
 
