@@ -346,6 +346,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
+    "surfgen.pipelines.dataset",
 ]
 
 for _module in _REGISTER:

@@ -79,6 +79,17 @@ class Config:
         text = json.dumps(self.shape_dict(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
+    def to_toml(self) -> str:
+        """The whole config as a TOML file that :func:`load_config` reads back to an equal one."""
+        lines: list[str] = []
+        for table, values in self.to_dict().items():
+            lines.append(f"[{table}]")
+            lines += [
+                f"{k} = {json.dumps(v)}" for k, v in values.items()
+            ]  # JSON scalars/lists are TOML
+            lines.append("")
+        return "\n".join(lines)
+
     def with_grid(self, grid: int | None) -> Config:
         return self if grid is None else self.with_run(grid=grid)
 
@@ -114,6 +125,12 @@ def load_config(path: Path | None = None) -> Config:
             if bad:
                 raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
             data[table].update(values)
+    return config_from_dict(data)
+
+
+def config_from_dict(data: dict[str, Any]) -> Config:
+    """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``). Raises
+    :class:`SpecError`."""
     try:
         run = RunSettings(**data["run"])
     except TypeError as exc:
