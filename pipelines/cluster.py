@@ -157,6 +157,13 @@ class DaskPool:
                     window = deque((again if f is fut else f, i) for f, i in window)
                     done.add(again)
                     continue
+                except Exception as exc:  # noqa: BLE001 - the cluster's failures, in one line
+                    # Shapes fail inside their pool; what gets here is the worker's setup
+                    # (surfgen missing or another version, a forkserver that cannot start...).
+                    raise ExecutorError(
+                        f"tasks {items[0]}..{items[-1]} failed on the Dask cluster: "
+                        f"{type(exc).__name__}: {exc}"
+                    ) from exc
                 self._check(env)
                 finished.add(fut)
                 while window and window[0][0] in finished:

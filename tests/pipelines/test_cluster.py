@@ -161,6 +161,22 @@ def test_driver_killed_and_resumed(reference: Path, tmp_path: Path, cluster) -> 
     assert mesh_hashes(cat) == mesh_hashes(reference)
 
 
+def test_timeouts_and_crashes_stay_on_the_worker(cluster) -> None:
+    """A shape that overruns its timeout or kills its process is a result, not a lost worker."""
+    from surfgen.pipelines.cluster import DaskPool
+
+    address, client = cluster
+    before = set(client.scheduler_info()["workers"])
+    with DaskPool(time.sleep, 1.0, scheduler=address) as pool:
+        results = {r.task: r for r in pool.run([0.0, 3.0, 0.01])}
+    assert results[0.0].status == results[0.01].status == "ok"
+    assert results[3.0].status == "timeout" and "longer than 1 s" in results[3.0].message
+    with DaskPool(os._exit, 5.0, scheduler=address) as pool:
+        (result,) = pool.run([3])
+    assert result.status == "crashed" and "exit code 3" in result.message
+    assert set(client.scheduler_info()["workers"]) == before  # no Dask worker was lost
+
+
 def test_unreachable_scheduler_is_a_clear_error(tmp_path: Path) -> None:
     import socket
 
