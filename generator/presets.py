@@ -23,19 +23,27 @@ from surfgen.generator.spec import SurfaceSpec
 # ----------------------------------------------------------------------------- equation A
 
 
-def _eq_a() -> str:
+EQ_A_B = "(abs({v})^0.3/abs(cot(m*{v})))^0.3"  # B_x of equation A, with {v} for x, y or z
+
+
+def eq_a_formula(
+    b_form: str = EQ_A_B, sign: str = "-", shift_in: str = "-600", shift_out: str = "+100"
+) -> str:
+    """Equation A; the defaults give it as printed. The arguments exist for the readings of
+    Figure 2 that ``surfgen reproduce`` investigates (the B term, the sign before 0.51, the
+    constants)."""
     denom = "abs(abs(x)^1.3+abs(y)^1.3+abs(z)^1.3)"
 
     def a(v: str) -> str:
         return f"atan(tan(1-abs({v})^0.31+5.76*abs({v})^1.38/{denom}))^3"
 
     def b(v: str) -> str:
-        return f"(abs({v})^0.3/abs(cot(m*{v})))^0.3"
+        return b_form.format(v=v)
 
     return (
-        "(abs(x)^3.3+abs(y)^3.3+abs(z)^3.3-600)"
+        f"(abs(x)^3.3+abs(y)^3.3+abs(z)^3.3{shift_in})"
         f"+({a('x')}+{a('y')}+{a('z')})^3"
-        f"-0.51*({b('x')}+{b('y')}+{b('z')})^3+100"
+        f"{sign}0.51*({b('x')}+{b('y')}+{b('z')})^3{shift_out}"
     )
 
 
@@ -119,7 +127,7 @@ def _cube(n: int) -> tuple[int, int, int]:
     return (n, n, n)
 
 
-_EQ_A, _EQ_B = _eq_a(), _eq_b()
+_EQ_A, _EQ_B = eq_a_formula(), _eq_b()
 _A_BOX, _B_BOX = (-155.0, 155.0), (-7.0, 7.0)
 
 _PRESETS: list[Preset] = [
