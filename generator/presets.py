@@ -128,12 +128,31 @@ def _cube(n: int) -> tuple[int, int, int]:
 
 
 _EQ_A, _EQ_B = eq_a_formula(), _eq_b()
+_EQ_A_B1 = eq_a_formula(b_form="abs({v})^0.3/abs(cot(m*{v}))")
 _A_BOX, _B_BOX = (-155.0, 155.0), (-7.0, 7.0)
 
 _PRESETS: list[Preset] = [
     Preset("eqA", _EQ_A, _A_BOX, _cube(82), {"m": 0.861}, "paper, equation A (section 4.a.1)"),
     Preset("I1", _EQ_A, _A_BOX, _cube(82), {"m": 0.851}, "paper, Figure 2, I1: eq. A, m=0.851"),
     Preset("I2", _EQ_A, _A_BOX, _cube(82), {"m": 0.861}, "paper, Figure 2, I2: eq. A, m=0.861"),
+    # Figure 2 read with B = |x|^0.3/|cot(m x)| (the outer ^0.3 dropped): the one reading that
+    # `surfgen reproduce` found to make I1 and I2 differ as the paper says (README, Figure 2).
+    Preset(
+        "I1-b1",
+        _EQ_A_B1,
+        _A_BOX,
+        _cube(82),
+        {"m": 0.851},
+        "Figure 2, I1 read as B=|x|^0.3/|cot(m x)|",
+    ),
+    Preset(
+        "I2-b1",
+        _EQ_A_B1,
+        _A_BOX,
+        _cube(82),
+        {"m": 0.861},
+        "Figure 2, I2 read as B=|x|^0.3/|cot(m x)|",
+    ),
     Preset("eqB", _EQ_B, _B_BOX, _cube(34), {}, "paper, equation B (section 4.a.2)"),
     Preset("I3", _EQ_B, _B_BOX, _cube(34), {}, "paper, Figure 3, I3: eq. B, box ±7, grid 34³"),
     Preset("I4", _EQ_B, (-7.05, 7.05), _cube(34), {}, "paper, Figure 3, I4: box ±7.05, grid 34³"),

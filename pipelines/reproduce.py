@@ -12,15 +12,20 @@
   paper compares, the inside-sample IoU on a common fine grid, the symmetric Hausdorff distance
   relative to the box diagonal, faces, components and genus, and a verdict per claim.
 
-Verdicts. The paper makes two kinds of claims: a pair is *significantly different* (Figures 2
-and 3) or changes *only a little* (Figure 4, neighbouring m). We call two shapes different when
-IoU < :data:`IOU_SAME` or the relative Hausdorff distance > :data:`HAUSDORFF_SAME`, and similar
-otherwise. Why these numbers: sampling the same smooth shape on a grid shifted by half a cell
-moves its interpolated surface by less than half a cell, which at the paper's grids (33-82
-points) costs a few percent of IoU and at most ~1/60 of the box diagonal (``floor_iou`` in the
-JSON measures this per panel); a pair that loses a fifth of its common volume, or has a part a
-tenth of the box diagonal away from the other shape, differs in a way a reader sees at once in
-pictures of the size the paper prints.
+Verdicts. The paper's claims are about *sensitivity*: a small change of a parameter gives a
+large change of the shape (Figures 2 and 3: m by 1.2 %, the box by 0.7 %, the grid by 3 %), or a
+change of m gives only a small change (Figure 4: m in steps of 0.25). We measure it as an
+elasticity, the relative change of the shape over the relative change of the parameter:
+
+    sensitivity = (1 − IoU) / (|a − b| / ((|a| + |b|) / 2))
+
+with the largest relative change among the numbers that differ (parameters, box half-widths,
+grid points). Above :data:`SENSITIVITY_HIGH` = 1 the shape changes by a larger fraction than
+the parameter did (high sensitivity); below it, by a smaller one (low). Unit elasticity is the
+natural divide and needs no tuning; the IoU, the Hausdorff distance (relative to the box
+diagonal), faces, components and genus are reported beside it, and ``floor_iou`` gives, per
+panel, the IoU of the shape with itself sampled on a grid shifted by half a cell (what sampling
+alone changes).
 """
 
 from __future__ import annotations
@@ -57,8 +62,7 @@ PANELS: dict[int, tuple[str, ...]] = {
     3: ("I3", "I4", "I5"),
     4: ("C-m0.25", "C-m0.5", "C-m0.75", "C-m1"),
 }
-IOU_SAME = 0.8
-HAUSDORFF_SAME = 0.1
+SENSITIVITY_HIGH = 1.0
 PICTURE_SIZE = 384
 VIEW = {"azimuth": 30.0, "elevation": 25.0}  # one camera for every picture
 MIN_GRID = 8
@@ -73,18 +77,18 @@ class Claim:
     figure: int
     a: str
     b: str
-    expect: str  # "different" or "similar"
+    expect: str  # "high" or "low" sensitivity
     quote: str
 
 
 _DIFFERENT_B = "The shapes I3, I4 and I5, are significantly different."
 CLAIMS: tuple[Claim, ...] = (
-    Claim(2, "I1", "I2", "different", "both shapes are significantly different"),
-    Claim(3, "I3", "I4", "different", _DIFFERENT_B),
-    Claim(3, "I3", "I5", "different", _DIFFERENT_B),
-    Claim(3, "I4", "I5", "different", _DIFFERENT_B),
+    Claim(2, "I1", "I2", "high", "both shapes are significantly different"),
+    Claim(3, "I3", "I4", "high", _DIFFERENT_B),
+    Claim(3, "I3", "I5", "high", _DIFFERENT_B),
+    Claim(3, "I4", "I5", "high", _DIFFERENT_B),
     *(
-        Claim(4, a, b, "similar", "a small change will produce a small change in the 3D shape")
+        Claim(4, a, b, "low", "a small change will produce a small change in the 3D shape")
         for a, b in (("C-m0.25", "C-m0.5"), ("C-m0.5", "C-m0.75"), ("C-m0.75", "C-m1"))
     ),
 )
@@ -132,7 +136,7 @@ READINGS: tuple[Reading, ...] = (
     Reading(
         "b-no-outer",
         "B = |x|^0.3 / |cot(m x)|: the outer exponent 0.3 dropped",
-        eq_a_formula(b_form="abs({v})^0.3/abs(cot(m*{v}))"),
+        get_preset("I1-b1").formula,
     ),
     Reading(
         "b-outer-3",
@@ -229,7 +233,7 @@ def reproduce(
     sensitivity = {
         "grid_scale": grid_scale,
         "figures": list(figures),
-        "thresholds": {"iou_same": IOU_SAME, "hausdorff_same": HAUSDORFF_SAME},
+        "sensitivity_high": SENSITIVITY_HIGH,
         "shapes": {name: s.summary() for name, s in shapes.items()},
         "pairs": pairs,
         "figure2_readings": readings,
@@ -293,8 +297,9 @@ def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, A
         rel_h = None if a.capped is b.capped else 1.0  # one empty, one not: as far as can be
     else:
         rel_h = hausdorff(a.capped, b.capped, HAUSDORFF_SAMPLES) / diag
-    different = iou < IOU_SAME or (rel_h is not None and rel_h > HAUSDORFF_SAME)
-    found = "different" if different else "similar"
+    change = relative_change(a.spec, b.spec)
+    sensitivity = (1.0 - iou) / change if change > 0 else 0.0
+    found = "high" if sensitivity > SENSITIVITY_HIGH else "low"
     return {
         "figure": claim.figure,
         "a": claim.a,
@@ -302,6 +307,8 @@ def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, A
         "paper": claim.expect,
         "quote": claim.quote,
         "iou": round(iou, 4),
+        "relative_change": round(change, 5),
+        "sensitivity": round(sensitivity, 3),
         "hausdorff_rel": None if rel_h is None else round(rel_h, 4),
         "fine_grid": fine,
         "faces": [_faces(a.capped), _faces(b.capped)],
@@ -314,6 +321,15 @@ def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, A
         "found": found,
         "verdict": "reproduced" if found == claim.expect else "not reproduced",
     }
+
+
+def relative_change(a: SurfaceSpec, b: SurfaceSpec) -> float:
+    """The largest relative change ``|p - q| / mean(|p|, |q|)`` among the parameters, box
+    bounds and grid sizes of two specs (0 when they are the same)."""
+    pairs = [(a.params.get(k, 0.0), b.params.get(k, 0.0)) for k in set(a.params) | set(b.params)]
+    pairs += list(zip(a.box, b.box, strict=True)) + list(zip(a.grid, b.grid, strict=True))
+    changes = [abs(p - q) / ((abs(p) + abs(q)) / 2) for p, q in pairs if p != q]
+    return max(changes, default=0.0)
 
 
 def _floor_iou(shape: Shape, fine: int) -> float:
@@ -356,7 +372,10 @@ def _investigate(folder: Path, reading: Reading, grid_scale: float) -> dict[str,
         "float32": reading.float32,
         "I1": shapes[0].summary(),
         "I2": shapes[1].summary(),
-        **{k: pair[k] for k in ("iou", "hausdorff_rel", "found", "verdict", "floor_iou")},
+        **{
+            k: pair[k]
+            for k in ("iou", "sensitivity", "hausdorff_rel", "found", "verdict", "floor_iou")
+        },
     }
 
 
@@ -433,9 +452,10 @@ def _report_html(out: Path, s: dict[str, Any]) -> str:
         "figure{display:inline-block;margin:4px;text-align:center}.empty{width:220px;height:60px;"
         "background:#eee;line-height:60px}</style></head><body>",
         "<h1>The paper, reproduced</h1>",
-        f"<p>grid scale {s['grid_scale']}, {s['seconds']} s. Pairs are <i>different</i> when the "
-        f"inside-sample IoU &lt; {IOU_SAME} or the Hausdorff distance &gt; {HAUSDORFF_SAME} of the "
-        "box diagonal, <i>similar</i> otherwise.</p>",
+        f"<p>grid scale {s['grid_scale']}, {s['seconds']} s. Sensitivity = (1 − IoU) / the "
+        "relative change of the parameter; <i>high</i> above "
+        f"{SENSITIVITY_HIGH} (the shape changes by a larger fraction than the parameter), "
+        "<i>low</i> below.</p>",
     ]
     if (out / "figure1.png").exists():
         parts.append("<h2>Figure 1</h2>" + _img(out / "figure1.png", 700))
@@ -451,14 +471,15 @@ def _report_html(out: Path, s: dict[str, Any]) -> str:
                 )
     parts.append(
         "<h2>Sensitivity claims</h2><table><tr><th>figure</th><th>pair</th>"
-        "<th>paper</th><th>IoU</th><th>Hausdorff / diag</th><th>faces</th>"
+        "<th>paper</th><th>IoU</th><th>Δp/p</th><th>sensitivity</th><th>Hausdorff / diag</th><th>faces</th>"
         "<th>components</th><th>genus</th><th>half-cell floor IoU</th><th>verdict</th></tr>"
     )
     for p in s["pairs"]:
         cls = "ok" if p["verdict"] == "reproduced" else "no"
         parts.append(
             f"<tr><td>{p['figure']}</td><td>{e(p['a'])} / {e(p['b'])}</td><td>{e(p['paper'])}</td>"
-            f"<td>{p['iou']}</td><td>{_fmt(p['hausdorff_rel'])}</td><td>{_fmt(p['faces'])}</td>"
+            f"<td>{p['iou']}</td><td>{p['relative_change']}</td><td>{p['sensitivity']}</td>"
+            f"<td>{_fmt(p['hausdorff_rel'])}</td><td>{_fmt(p['faces'])}</td>"
             f"<td>{_fmt(p['components'])}</td><td>{_fmt(p['genus'])}</td>"
             f"<td>{_fmt(p['floor_iou'])}</td><td class='{cls}'>{e(p['verdict'])}</td></tr>"
         )
@@ -476,7 +497,7 @@ def _report_html(out: Path, s: dict[str, Any]) -> str:
                 f"<tr><td>{e(r['reading'])}</td><td>{e(r['text'])}</td>"
                 f"<td>{_img(folder / 'I1-capped.png', 160)}</td>"
                 f"<td>{_img(folder / 'I2-capped.png', 160)}</td><td>{r['iou']}</td>"
-                f"<td>{_fmt(r['hausdorff_rel'])}</td>"
+                f"<td>{r['sensitivity']}</td><td>{_fmt(r['hausdorff_rel'])}</td>"
                 f"<td>{r['I1']['faces']} / {r['I2']['faces']}</td>"
                 f"<td class='{cls}'>{e(r['found'])}</td></tr>"
             )
@@ -518,8 +539,9 @@ def reproduce_cmd(
     for p in result.sensitivity["pairs"]:
         h = "—" if p["hausdorff_rel"] is None else f"{p['hausdorff_rel']:.3f}"
         typer.echo(
-            f"figure {p['figure']}  {p['a']:>8} / {p['b']:<8} paper: {p['paper']:<9} "
-            f"IoU {p['iou']:.3f}  Hausdorff {h}  -> {p['verdict']}"
+            f"figure {p['figure']}  {p['a']:>8} / {p['b']:<8} paper: {p['paper']:<4} "
+            f"IoU {p['iou']:.3f}  sensitivity {p['sensitivity']:.2f}  Hausdorff {h}  "
+            f"-> {p['verdict']}"
         )
     typer.echo(f"wrote {result.folder / 'report.html'} ({result.seconds:.0f} s)")
 
