@@ -22,7 +22,9 @@ elasticity, the relative change of the shape over the relative change of the par
 with the largest relative change among the numbers that differ (parameters, box half-widths,
 grid points). Above :data:`SENSITIVITY_HIGH` = 1 the shape changes by a larger fraction than
 the parameter did (high sensitivity); below it, by a smaller one (low). Unit elasticity is the
-natural divide and needs no tuning; the IoU, the Hausdorff distance (relative to the box
+natural divide and needs no tuning. A high sensitivity must also be seen: at least
+:data:`MIN_CHANGE` (a tenth) of the solid must change, else a 1 % parameter change that moves a
+few boundary voxels would count as "significantly different"; the IoU, the Hausdorff distance (relative to the box
 diagonal), faces, components and genus are reported beside it, and ``floor_iou`` gives, per
 panel, the IoU of the shape with itself sampled on a grid shifted by half a cell (what sampling
 alone changes).
@@ -63,6 +65,7 @@ PANELS: dict[int, tuple[str, ...]] = {
     4: ("C-m0.25", "C-m0.5", "C-m0.75", "C-m1"),
 }
 SENSITIVITY_HIGH = 1.0
+MIN_CHANGE = 0.1  # 1 - IoU: the least change of the solid that counts as significant
 PICTURE_SIZE = 384
 VIEW = {"azimuth": 30.0, "elevation": 25.0}  # one camera for every picture
 MIN_GRID = 8
@@ -234,6 +237,7 @@ def reproduce(
         "grid_scale": grid_scale,
         "figures": list(figures),
         "sensitivity_high": SENSITIVITY_HIGH,
+        "min_change": MIN_CHANGE,
         "shapes": {name: s.summary() for name, s in shapes.items()},
         "pairs": pairs,
         "figure2_readings": readings,
@@ -299,7 +303,8 @@ def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, A
         rel_h = hausdorff(a.capped, b.capped, HAUSDORFF_SAMPLES) / diag
     change = relative_change(a.spec, b.spec)
     sensitivity = (1.0 - iou) / change if change > 0 else 0.0
-    found = "high" if sensitivity > SENSITIVITY_HIGH else "low"
+    seen = 1.0 - iou >= MIN_CHANGE
+    found = "high" if sensitivity > SENSITIVITY_HIGH and seen else "low"
     return {
         "figure": claim.figure,
         "a": claim.a,
@@ -455,7 +460,7 @@ def _report_html(out: Path, s: dict[str, Any]) -> str:
         f"<p>grid scale {s['grid_scale']}, {s['seconds']} s. Sensitivity = (1 − IoU) / the "
         "relative change of the parameter; <i>high</i> above "
         f"{SENSITIVITY_HIGH} (the shape changes by a larger fraction than the parameter), "
-        "<i>low</i> below.</p>",
+        f"<i>low</i> below, or when less than {MIN_CHANGE:.0%} of the solid changes.</p>",
     ]
     if (out / "figure1.png").exists():
         parts.append("<h2>Figure 1</h2>" + _img(out / "figure1.png", 700))
