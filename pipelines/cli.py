@@ -347,6 +347,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
     "surfgen.pipelines.dataset",
+    "surfgen.pipelines.reproduce",
 ]
 
 for _module in _REGISTER:

@@ -99,6 +99,13 @@ class ExportSummary:
     splits: dict[str, int]
 
 
+def _need_pyarrow() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("pyarrow") is None:
+        raise DatasetError("surfgen dataset needs pyarrow: pip install 'surfgen[dataset]'")
+
+
 # ----------------------------------------------------------------------------- samples
 
 
@@ -283,6 +290,7 @@ def export_dataset(
     docstring). Raises :class:`DatasetError` for a non-empty ``out_dir``, bad options or no
     matching shape, ``CatalogueError``/``WhereError`` for a missing catalogue or bad ``where``.
     Nothing is written unless the whole export succeeds."""
+    _need_pyarrow()
     options = options or DatasetOptions()
     out_dir = Path(out_dir)
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
@@ -662,6 +670,7 @@ def verify_dataset(
     """Check an export: every row's members exist with their hashes (for ``sample`` rows drawn
     with ``seed``), and those rows regenerate to the same key, spec, metrics, mesh, points and
     SDF samples. Raises :class:`DatasetError` when ``root`` is not an export."""
+    _need_pyarrow()
     import pyarrow.parquet as pq
 
     root = Path(root)
