@@ -67,9 +67,14 @@ def _worker_main(conn: Connection, fn: Callable[[Any], Any]) -> None:
             return
         try:
             conn.send(("ok", task, fn(task), ""))
+        except (BrokenPipeError, ConnectionResetError):
+            return  # the parent is gone (a closed pool, a Dask worker shut down): no one to answer
         except Exception as exc:  # noqa: BLE001 - the boundary that turns a bug into "crashed"
             log.error("task %r raised:\n%s", task, traceback.format_exc())
-            conn.send(("crashed", task, None, f"{type(exc).__name__}: {exc}"))
+            try:
+                conn.send(("crashed", task, None, f"{type(exc).__name__}: {exc}"))
+            except (BrokenPipeError, ConnectionResetError):
+                return
 
 
 class _Worker:
