@@ -33,8 +33,9 @@ from surfgen.pipelines.executor import ExecutorError, KillablePool, TaskResult
 log = logging.getLogger(__name__)
 
 INSTALL_HINT = "--executor dask needs Dask: pip install 'surfgen[dask]'"
-# Modules the worker-side forkserver imports once, so each shape process starts warm.
-PRELOAD = ["surfgen.pipelines.sampling"]
+# Modules the worker-side forkserver imports once, so each shape process starts warm
+# (surfgen.pipelines.warm also loads the numba kernels and pymeshlab).
+PRELOAD = ["surfgen.pipelines.sampling", "surfgen.pipelines.warm"]
 
 
 def _load_distributed():
