@@ -1,12 +1,15 @@
 """Parse K3DSurf/MathMod-style formula text into an :class:`~surfgen.generator.expr.Expr` tree.
 
-Grammar (``^`` right-associative and tighter than unary minus, as in fparser)::
+Grammar (fparser's, as MathMod uses it: ``^`` right-associative and tighter than unary minus)::
 
+    or      := and ("|" and)*
+    and     := compare ("&" compare)*
+    compare := sum (("=" | "!=" | "<" | "<=" | ">" | ">=") sum)*
     sum     := product (("+" | "-") product)*
-    product := unary (("*" | "/") unary)*
-    unary   := ("-" | "+") unary | power
+    product := unary (("*" | "/" | "%") unary)*
+    unary   := ("-" | "+" | "!") unary | power
     power   := atom ("^" unary)?
-    atom    := NUMBER | NAME | NAME "(" sum ("," sum)* ")" | "(" sum ")"
+    atom    := NUMBER | NAME | NAME "(" or ("," or)* ")" | "(" or ")"
 
 Names are ``x y z``, ``pi``, declared parameters, and the functions of
 :mod:`surfgen.generator.functions`; ``powf(a,b,c,d, ...)`` (eq. 8) is expanded in place into
@@ -27,7 +30,7 @@ from surfgen.generator.functions import FUNCTIONS, MACROS
 
 _TOKEN = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
-    r"|(?P<op>[-+*/^(),]))"
+    r"|(?P<op><=|>=|!=|[-+*/^(),%<>=!&|]))"
 )
 
 
@@ -101,10 +104,26 @@ class _Parser:
     def parse(self) -> Expr:
         if self.tok.kind == "end":
             raise FormulaSyntaxError("empty formula", 1)
-        tree = self.sum()
+        tree = self.disjunction()
         if self.tok.kind != "end":
             raise self.unexpected()
         return tree
+
+    def _left_assoc(self, ops: tuple[str, ...], operand) -> Expr:
+        left = operand()
+        while self.tok.kind == "op" and self.tok.text in ops:
+            op = self.advance().text
+            left = Expr(op, (left, operand()))
+        return left
+
+    def disjunction(self) -> Expr:
+        return self._left_assoc(("|",), self.conjunction)
+
+    def conjunction(self) -> Expr:
+        return self._left_assoc(("&",), self.comparison)
+
+    def comparison(self) -> Expr:
+        return self._left_assoc(("=", "!=", "<", "<=", ">", ">="), self.sum)
 
     def sum(self) -> Expr:
         left = self.product()
@@ -115,7 +134,7 @@ class _Parser:
 
     def product(self) -> Expr:
         left = self.unary()
-        while self.is_op("*") or self.is_op("/"):
+        while self.is_op("*") or self.is_op("/") or self.is_op("%"):
             op = self.advance().text
             left = Expr(op, (left, self.unary()))
         return left
@@ -127,6 +146,9 @@ class _Parser:
         if self.is_op("+"):
             self.advance()
             return self.unary()
+        if self.is_op("!"):
+            self.advance()
+            return Expr("not", (self.unary(),))
         return self.power()
 
     def power(self) -> Expr:
@@ -151,7 +173,7 @@ class _Parser:
             return self.name(t)
         if self.is_op("("):
             self.open_parens.append(self.advance().column)
-            inner = self.sum()
+            inner = self.disjunction()
             self.expect_close()
             return inner
         raise self.unexpected()
@@ -179,11 +201,15 @@ class _Parser:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
             raise FormulaSyntaxError(f"unknown function '{name}'", t.column, hint)
         self.open_parens.append(self.advance().column)
-        args = [] if self.is_op(")") else [self.sum()]
+        args = [] if self.is_op(")") else [self.disjunction()]
         while self.is_op(","):
             self.advance()
-            args.append(self.sum())
+            args.append(self.disjunction())
         self.expect_close()
+        if name == "pow":
+            if len(args) != 2:
+                raise FormulaSyntaxError(f"pow takes 2 arguments, got {len(args)}", t.column)
+            return Expr("^", (args[0], args[1]))
         if name in MACROS:
             return _expand_powf(args, t.column)
         fdef = FUNCTIONS[name]
