@@ -21,7 +21,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from surfgen.generator.errors import FormulaSyntaxError
@@ -60,9 +60,12 @@ def tokenize(text: str) -> list[Token]:
 
 
 class _Parser:
-    def __init__(self, text: str, params: frozenset[str]) -> None:
+    def __init__(
+        self, text: str, params: frozenset[str], functions: Mapping[str, Expr] | None = None
+    ) -> None:
         self.text = text
         self.params = params
+        self.functions = dict(functions or {})
         self.tokens = tokenize(text)
         self.i = 0
         self.open_parens: list[int] = []
@@ -197,6 +200,19 @@ class _Parser:
 
     def call(self, t: Token) -> Expr:
         name = t.text
+        if name in self.functions:
+            self.open_parens.append(self.advance().column)
+            args = [] if self.is_op(")") else [self.disjunction()]
+            while self.is_op(","):
+                self.advance()
+                args.append(self.disjunction())
+            self.expect_close()
+            if len(args) > len(FORMALS):
+                raise FormulaSyntaxError(
+                    f"{name} takes at most {len(FORMALS)} arguments (x, y, z, t), got {len(args)}",
+                    t.column,
+                )
+            return inline_call(self.functions[name], args)
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
             raise FormulaSyntaxError(f"unknown function '{name}'", t.column, hint)
@@ -230,6 +246,27 @@ class _Parser:
         return Expr(name, tuple(args))
 
 
+# The formal parameters of a user function (MathMod's Funct): f(x, y, z, t).
+FORMALS = (Expr("var", (), "x"), Expr("var", (), "y"), Expr("var", (), "z"), Expr("param", (), "t"))
+
+
+def inline_call(body: Expr, args: list[Expr]) -> Expr:
+    """``body`` with its formals x, y, z, t replaced by ``args`` (missing ones stay as they are)."""
+    mapping = dict(zip(FORMALS, args, strict=False))
+    memo: dict[Expr, Expr] = {}
+
+    def sub(node: Expr) -> Expr:
+        hit = memo.get(node)
+        if hit is None:
+            hit = mapping.get(node) or (
+                Expr(node.op, tuple(sub(a) for a in node.args), node.value) if node.args else node
+            )
+            memo[node] = hit
+        return hit
+
+    return sub(body)
+
+
 def is_constant(tree: Expr) -> bool:
     """True when the tree uses no variable x, y, z."""
     return all(n.op != "var" for n in walk(tree))
@@ -253,8 +290,11 @@ def _did_you_mean(word: str, choices: Iterable[str]) -> str:
     return f" (did you mean {close[0]}?)" if close else ""
 
 
-def parse(text: str, params: Iterable[str] = ()) -> Expr:
-    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters.
+def parse(
+    text: str, params: Iterable[str] = (), functions: Mapping[str, Expr] | None = None
+) -> Expr:
+    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters; ``functions``
+    are user functions (name -> body in x, y, z and the parameter t), inlined where called.
 
     Raises :class:`FormulaSyntaxError` naming the column of the problem.
     """
@@ -263,4 +303,4 @@ def parse(text: str, params: Iterable[str] = ()) -> Expr:
     bad = [p for p in params if p in VARIABLES or p == "pi" or p in FUNCTIONS or p in MACROS]
     if bad:
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
-    return _Parser(text, frozenset(params)).parse()
+    return _Parser(text, frozenset(params), functions).parse()
