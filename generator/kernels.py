@@ -171,7 +171,7 @@ def _truth(v):
 
 @njit(inline="always", **_OPTS)
 def _is_logic2(op):
-    return (OP_LT <= op <= OP_OR) or op == OP_PICK or op == OP_PICKN or op == OP_FMOD
+    return (OP_LT <= op <= OP_OR) or op == OP_PICK or op == OP_PICKN or op == OP_FMOD  # noqa: SIM109 (numba)
 
 
 @njit(inline="always", **_OPTS)

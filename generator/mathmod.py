@@ -254,6 +254,8 @@ def build_model(
     if len(names) < len(formulas):
         names = names + [f"{name}-{i}" for i in range(len(names), len(formulas))]
     conditions = fields.get("Cnd", [])
+    description = " ".join(s.strip() for s in fields.get("Description", []) if s.strip())
+    provenance = {"mathmod": name, **({"description": description} if description else {})}
     grids = fields.get("Grid", [])
     components = []
     for i, text in enumerate(formulas):
@@ -275,10 +277,9 @@ def build_model(
             box=box,
             grid=(n, n, n),
             params=used,
-            provenance={"mathmod": name, "component": names[i].strip()},
+            provenance={**provenance, "component": names[i].strip()},
         )
         components.append(Component(names[i].strip(), spec))
-    description = " ".join(s.strip() for s in fields.get("Description", []) if s.strip())
     return Model(name, tuple(components), description, tuple(notices))
 
 
