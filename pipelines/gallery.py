@@ -262,6 +262,10 @@ def export_gallery(
                     s[kind] = None
             if not meshes:
                 s["mesh"] = None
+        if meshes:  # 3-D detail pages need the meshes
+            from surfgen.pipelines.viewer import export_detail_pages
+
+            export_detail_pages(Path(root), out, data["shapes"])
         write_page(out / "index.html", render_page(data))
     except OSError as exc:
         raise GalleryError(f"cannot write the gallery to {out}: {exc}") from None
@@ -323,6 +327,10 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
             return send_from_directory(root / _folder, name, max_age=0)
 
         app.add_url_rule(f"/{folder}/<path:name>", f"file_{folder}", send)
+
+    from surfgen.pipelines.viewer import viewer_blueprint
+
+    app.register_blueprint(viewer_blueprint(root, cat))  # /shape/KEY, /api/explore, ...
 
     @app.get("/api/health")
     def health():
