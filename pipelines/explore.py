@@ -159,14 +159,17 @@ def _whole(name: str, value: Any) -> int:
     return int(v)
 
 
-def grid_of(value: Any) -> tuple[int, int, int]:
-    """A grid from ``N`` or ``[nx, ny, nz]``, within :data:`MAX_GRID` per axis and
-    :data:`MAX_POINTS` in all. Raises :class:`ExploreError` naming the limits."""
+def grid_of(value: Any, capped: bool = True) -> tuple[int, int, int]:
+    """A grid from ``N`` or ``[nx, ny, nz]``: within the CLI's limits, and with ``capped`` within
+    :data:`MAX_GRID` per axis and :data:`MAX_POINTS` in all. Raises :class:`ExploreError` (or the
+    CLI's ``GridError``) naming the limits."""
     sizes = value if isinstance(value, list | tuple) else [value]
     if len(sizes) not in (1, 3):
         raise ExploreError(f"'grid' takes 1 or 3 whole numbers, got {len(sizes)}")
     shape = [_whole("grid", s) for s in sizes] * (3 if len(sizes) == 1 else 1)
     Grid.from_sizes(Box.cube(1.0), shape)  # the CLI's own limits and message first
+    if not capped:
+        return tuple(shape)  # type: ignore[return-value]
     for n in shape:
         if not MIN_POINTS <= n <= MAX_GRID:
             raise ExploreError(
@@ -212,8 +215,11 @@ def check_changes(changes: Any) -> dict[str, Any]:
     return dict(changes)
 
 
-def apply_changes(spec: SurfaceSpec, changes: Mapping[str, Any]) -> SurfaceSpec:
+def apply_changes(
+    spec: SurfaceSpec, changes: Mapping[str, Any], capped: bool = True
+) -> SurfaceSpec:
     """``spec`` with a change set applied (see the module docstring); the provenance is kept.
+    ``capped``: a ``grid`` change must stay within the explore limits (:func:`grid_of`).
 
     Raises :class:`ExploreError` for an unknown name or a bad value, and the spec's own errors
     (:class:`SpecError`, ``FormulaSyntaxError``) when the result is not a valid spec.
@@ -230,7 +236,7 @@ def apply_changes(spec: SurfaceSpec, changes: Mapping[str, Any]) -> SurfaceSpec:
         if name == "box":
             update["box"] = box_of(value)
         elif name == "grid":
-            update["grid"] = grid_of(value)
+            update["grid"] = grid_of(value, capped)
         elif name == "level":
             update["level"] = _number(name, value)
         elif name == "d" and "d" not in spec.params:
@@ -405,11 +411,20 @@ def explore(spec: SurfaceSpec, cap: bool = True, threads: int | None = None) -> 
     return Explored(spec, mesh, glb, stats, seconds, empty)
 
 
+def warm_up() -> None:
+    """Load the fast evaluator (numba's cache) and meshing once, so a server's first slider step
+    is as quick as the others. Meant for a background thread."""
+    try:
+        explore(SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (8, 8, 8)))
+    except SurfgenError as exc:  # never fatal: the first real request will say what is wrong
+        log.warning("explore warm-up failed: %s", exc)
+
+
 def mesh_stats(mesh: Mesh | None) -> dict[str, Any]:
     """Cheap statistics for the viewer: vertices, faces, edges, Euler characteristic,
     components, boundary edges and (for a closed mesh) genus; numpy and scipy only."""
     if mesh is None or mesh.n_faces == 0:
-        return {"vertices": 0, "faces": 0, "edges": 0, "euler": 0, "components": 0,
+        return {"vertices": 0, "faces": 0, "bbox": None, "edges": 0, "euler": 0, "components": 0,
                 "boundary_edges": 0, "genus": None}  # fmt: skip
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -427,9 +442,11 @@ def mesh_stats(mesh: Mesh | None) -> dict[str, Any]:
     components = int(len(np.unique(labels[used]))) if n_comp else 0
     boundary = int(np.count_nonzero(counts == 1))
     closed = boundary == 0 and not np.any(counts > 2)
+    lo, hi = mesh.vertices[used].min(axis=0), mesh.vertices[used].max(axis=0)
     return {
         "vertices": mesh.n_vertices,
         "faces": mesh.n_faces,
+        "bbox": [float(v) for pair in zip(lo, hi, strict=True) for v in pair],
         "edges": int(len(counts)),
         "euler": euler,
         "components": components,

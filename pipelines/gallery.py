@@ -404,7 +404,12 @@ def make_server(root: Path, host: str = "127.0.0.1", port: int = 8000) -> BaseWS
     ``serve_forever()``. Raises :class:`GalleryError` if the address cannot be bound."""
     from werkzeug.serving import make_server as werkzeug_server
 
+    from threading import Thread
+
+    from surfgen.pipelines.explore import warm_up
+
     app = create_app(root, host)
+    Thread(target=warm_up, name="explore-warm-up", daemon=True).start()  # first slider step
     try:
         return werkzeug_server(host, port, app, threaded=True)
     except (OSError, SystemExit) as exc:  # werkzeug exits when the port is taken

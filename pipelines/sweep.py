@@ -45,8 +45,24 @@ SURFACE_SAMPLES = 4000  # points sampled on each surface for the mesh distance
 FRAME_SIZE = 256
 
 
+_SPEC_CHANGES = ("box", "grid", "level", "d")
+
+
 class SweepError(SurfgenError):
     """A sweep that cannot run: bad range, unwritable folder..."""
+
+
+def _uses_param(formula: str | None, name: str) -> bool:
+    """Whether a pasted formula uses ``name`` as a parameter (then the sweep binds it)."""
+    from surfgen.generator.expr import params_of
+    from surfgen.generator.parser import parse
+
+    if formula is None or name in _SPEC_CHANGES or not name.isidentifier():
+        return False
+    try:
+        return name in params_of(parse(formula, [name]))
+    except SurfgenError:
+        return False  # the formula's own error is reported when the spec is built
 
 
 def parse_range(text: str) -> tuple[str, list[float]]:
@@ -132,7 +148,8 @@ def _change(name: str, value: float) -> Any:
 
 def sweep_specs(base: SurfaceSpec, name: str, values: Sequence[float]) -> list[SurfaceSpec]:
     """The spec of each step. Raises the change set's errors (unknown name, bad value)."""
-    return [apply_changes(base, {name: _change(name, v)}) for v in values]
+    # The CLI's own grid limits, not the web explorer's cap: a sweep runs on its own machine.
+    return [apply_changes(base, {name: _change(name, v)}, capped=False) for v in values]
 
 
 def union_box(specs: Sequence[SurfaceSpec]) -> tuple[float, ...]:
@@ -406,9 +423,12 @@ def sweep_cmd(
 
         with open_catalogue(from_catalogue[0], must_exist=True) as cat:
             catalogued = cat.spec(from_catalogue[1])
+    # A pasted formula's swept parameter needs no separate value: the sweep starts it.
+    bound = {name: values[0]} if _uses_param(formula, name) else {}
     base = build_spec(
         preset=preset,
         formula=formula,
+        params=bound,
         base=catalogued,
         box=parse_numbers(box, "--box", (2, 6)) if box else None,
         grid=[grid] if grid is not None else None,

@@ -212,7 +212,8 @@
     $("stat-components").textContent = fmt(st.components);
     $("stat-euler").textContent = fmt(st.euler);
     $("stat-genus").textContent = st.genus === null || st.genus === undefined ? "– (open)" : fmt(st.genus);
-    if (box) $("stat-bbox").textContent = fmt(box);
+    const bbox = st.bbox || box;
+    if (bbox) $("stat-bbox").textContent = fmt(bbox);
   }
   function specLine(spec) {
     const params = Object.entries(spec.params || {}).map(([k, v]) => k + "=" + fmt(v, 6)).join(", ");
@@ -320,7 +321,7 @@
       const buf = await fetch("../" + res.mesh).then((r) => { if (!r.ok) throw new Error("mesh " + r.status); return r.arrayBuffer(); });
       if (!explore.pending) {
         await parseGlb(buf, res.box);
-        showStats(res.stats, res.box);
+        showStats(res.stats, null);
         $("formula").textContent = res.formula;
         specLine({ box: res.box, grid: res.grid, level: res.level, params: res.params });
         if (status) {
