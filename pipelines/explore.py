@@ -379,11 +379,16 @@ def check_grid(spec: SurfaceSpec) -> None:
     grid_of(list(spec.grid))
 
 
-def explore(spec: SurfaceSpec, cap: bool = True, threads: int | None = None) -> Explored:
+def explore(
+    spec: SurfaceSpec, cap: bool = True, threads: int | None = None, topology: bool = True
+) -> Explored:
     """Evaluate ``spec`` (fast evaluator), extract its surface and encode it as GLB.
 
-    An empty surface (all inside or all outside) is not an error here: the step gives an empty
-    GLB and says why in ``empty``. Raises :class:`ExploreError` for a grid over the limits.
+    ``stats`` holds :func:`mesh_stats` (with ``topology``) or only the free counts (faces,
+    vertices, bounding box): a slider step leaves the topology for later (:func:`mesh_stats`
+    costs as much as the GLB on large meshes). An empty surface (all inside or all outside) is
+    not an error here: the step gives an empty GLB and says why in ``empty``. Raises
+    :class:`ExploreError` for a grid over the limits.
     """
     from surfgen.generator.errors import EmptySurface
     from surfgen.generator.evaluate import evaluate
@@ -405,7 +410,7 @@ def explore(spec: SurfaceSpec, cap: bool = True, threads: int | None = None) -> 
         t2 = time.perf_counter()
     glb = encode_glb(mesh)
     t3 = time.perf_counter()
-    stats = mesh_stats(mesh) | {"nonfinite": field_.nonfinite}
+    stats = (mesh_stats(mesh) if topology else mesh_counts(mesh)) | {"nonfinite": field_.nonfinite}
     t4 = time.perf_counter()
     seconds = {"evaluate": t1 - t0, "mesh": t2 - t1, "glb": t3 - t2, "stats": t4 - t3}
     return Explored(spec, mesh, glb, stats, seconds, empty)
@@ -418,6 +423,15 @@ def warm_up() -> None:
         explore(SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (8, 8, 8)))
     except SurfgenError as exc:  # never fatal: the first real request will say what is wrong
         log.warning("explore warm-up failed: %s", exc)
+
+
+def mesh_counts(mesh: Mesh | None) -> dict[str, Any]:
+    """Faces, vertices and bounding box (6 numbers; None when empty): no topology."""
+    if mesh is None or mesh.n_faces == 0:
+        return {"vertices": 0, "faces": 0, "bbox": None}
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    bbox = [float(v) for pair in zip(lo, hi, strict=True) for v in pair]
+    return {"vertices": mesh.n_vertices, "faces": mesh.n_faces, "bbox": bbox}
 
 
 def mesh_stats(mesh: Mesh | None) -> dict[str, Any]:

@@ -402,9 +402,9 @@ def _export_zip(cat: Catalogue, keys: list[str]) -> bytes:
 def make_server(root: Path, host: str = "127.0.0.1", port: int = 8000) -> BaseWSGIServer:
     """A threaded HTTP server of the live gallery (``port`` 0: any free port); call its
     ``serve_forever()``. Raises :class:`GalleryError` if the address cannot be bound."""
-    from werkzeug.serving import make_server as werkzeug_server
-
     from threading import Thread
+
+    from werkzeug.serving import make_server as werkzeug_server
 
     from surfgen.pipelines.explore import warm_up
 

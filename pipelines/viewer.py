@@ -10,6 +10,7 @@ POST   /api/explore                     ``{"formula", "params", "box", "grid"}``
                                         "changes"}`` (or ``{"preset", "changes"}``) →
                                         ``{"faces", "seconds", "formula", "mesh", ...}``
 GET    /api/explore/mesh/TOKEN.glb      the GLB of a recent explore step
+GET    /api/explore/stats/TOKEN         its topology: components, Euler characteristic, genus
 POST   /api/explore/save                ``{"key", "changes"}``: catalogue the variant
 ====== ================================ =========================================================
 
@@ -37,10 +38,12 @@ from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError
 from surfgen.pipelines.curation import get_shape, select_shapes
 from surfgen.pipelines.explore import (
+    Explored,
     ExploreError,
     encode_glb,
     explore,
     knobs_of,
+    mesh_stats,
     save_variant,
     spec_from_request,
 )
@@ -111,22 +114,23 @@ def render_shape_page(data: dict[str, Any], title: str) -> str:
     )
 
 
-class GlbCache:
-    """The GLBs of the last :data:`GLB_CACHE` explore steps, by token (thread-safe)."""
+class StepCache:
+    """The last :data:`GLB_CACHE` explore steps (:class:`Explored`: GLB and mesh), by token
+    (thread-safe)."""
 
     def __init__(self, size: int = GLB_CACHE) -> None:
         self.size = size
-        self.items: OrderedDict[str, bytes] = OrderedDict()
+        self.items: OrderedDict[str, Explored] = OrderedDict()
         self.lock = Lock()
 
-    def put(self, token: str, data: bytes) -> None:
+    def put(self, token: str, data: Explored) -> None:
         with self.lock:
             self.items[token] = data
             self.items.move_to_end(token)
             while len(self.items) > self.size:
                 self.items.popitem(last=False)
 
-    def get(self, token: str) -> bytes | None:
+    def get(self, token: str) -> Explored | None:
         with self.lock:
             return self.items.get(token)
 
@@ -137,7 +141,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
     from flask import Blueprint, Response, abort, jsonify, request
 
     bp = Blueprint("viewer", __name__)
-    cache = GlbCache()
+    cache = StepCache()
 
     def glb_response(data: bytes) -> Response:
         return Response(data, mimetype="model/gltf-binary", headers={"Cache-Control": "no-store"})
@@ -206,15 +210,16 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
         if body is None:
             return jsonify(error="send the request as application/json"), 415
         spec, cap, _ = spec_from_request(body, catalogue_spec)
-        step = explore(spec, cap=cap)
+        step = explore(spec, cap=cap, topology=False)  # topology: GET .../stats/TOKEN
         token = hashlib.sha256(f"{spec.to_json()}|{cap}".encode()).hexdigest()[:20]
-        cache.put(token, step.glb)
+        cache.put(token, step)
         seconds = sum(step.seconds[k] for k in ("evaluate", "mesh", "glb"))
         return jsonify(
             faces=step.faces,
             seconds=round(seconds, 4),
             formula=spec.formula,
             mesh=f"api/explore/mesh/{token}.glb",
+            topology=f"api/explore/stats/{token}",
             params=dict(spec.params),
             box=list(spec.box),
             grid=list(spec.grid),
@@ -222,15 +227,21 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
             stats=step.stats,
             empty=step.empty,
             timings={k: round(v, 4) for k, v in step.seconds.items()},
-            knobs=[k.to_dict() for k in knobs_of(spec)],
         )
 
     @bp.get("/api/explore/mesh/<token>.glb")
     def explore_mesh(token: str) -> Response:
-        data = cache.get(token)
-        if data is None:
+        step = cache.get(token)
+        if step is None:
             abort(404)
-        return glb_response(data)
+        return glb_response(step.glb)
+
+    @bp.get("/api/explore/stats/<token>")
+    def explore_stats(token: str):
+        step = cache.get(token)
+        if step is None:
+            abort(404)
+        return jsonify(stats=mesh_stats(step.mesh) | {"nonfinite": step.stats["nonfinite"]})
 
     @bp.post("/api/explore/save")
     def save_api():

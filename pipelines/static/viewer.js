@@ -332,6 +332,8 @@
           status.className = "hint";
         }
         explore.last = res;
+        // Topology (components, genus) costs as much as the GLB: ask once the sliders rest.
+        fetchTopology(res);
       }
       const save = $("save-variant");
       if (save) save.disabled = Object.keys(explore.changes).length === 0;
@@ -341,6 +343,17 @@
       explore.inFlight = false;
       if (explore.pending) exploreNow();
     }
+  }
+
+  function fetchTopology(res) {
+    for (const id of ["stat-components", "stat-euler", "stat-genus"]) $(id).textContent = "…";
+    setTimeout(async () => {
+      if (explore.last !== res || explore.inFlight) return; // a newer step will ask again
+      try {
+        const st = (await api(res.topology.replace(/^api\//, ""))).stats;
+        if (explore.last === res) showStats(st, null);
+      } catch (err) { /* the step is gone from the server's cache: a newer one replaced it */ }
+    }, 250);
   }
 
   async function saveVariant() {

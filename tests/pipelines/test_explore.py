@@ -172,7 +172,10 @@ def test_api_explore(cat_dir, keys, capsys) -> None:
     base = client.post("/api/explore", json={"key": torus[:8], "changes": {}}).get_json()
     thin = client.post("/api/explore", json={"key": torus, "changes": {"d": 0.04}}).get_json()
     assert thin["formula"] == "(sqrt(x^2+y^2)-1)^2+z^2-0.04" and thin["faces"] < base["faces"]
-    assert thin["stats"]["genus"] == 1
+    assert thin["stats"]["faces"] == thin["faces"] and "genus" not in thin["stats"]
+    topology = client.get("/" + thin["topology"]).get_json()["stats"]
+    assert (topology["genus"], topology["components"], topology["faces"]) == (1, 1, thin["faces"])
+    assert client.get("/api/explore/stats/nothere").status_code == 404
     preset = client.post("/api/explore", json={"preset": "sphere", "changes": {"grid": 24}})
     assert preset.status_code == 200 and preset.get_json()["grid"] == [24, 24, 24]
 

@@ -66,14 +66,14 @@ def test_sweep_of_growing_spheres(capsys, tmp_path) -> None:
     for s in steps:
         assert (out / s["mesh"]).is_file() and (out / s["frame"]).is_file()
         assert (s["components"], s["genus"]) == (1, 0)
-    assert all(a["faces"] < b["faces"] for a, b in zip(steps, steps[1:]))
+    assert all(a["faces"] < b["faces"] for a, b in zip(steps[:-1], steps[1:], strict=True))
     assert steps[0]["distance_prev"] is None and steps[0]["iou_first"] == 1.0
     for s in steps[1:]:
         assert s["distance_prev"] == pytest.approx(0.2, abs=0.02)
     first = [s["distance_first"] for s in steps]
-    assert all(a < b for a, b in zip(first, first[1:]))
+    assert all(a < b for a, b in zip(first[:-1], first[1:], strict=True))
     overlap = [s["iou_first"] for s in steps]
-    assert all(a > b for a, b in zip(overlap, overlap[1:]))
+    assert all(a > b for a, b in zip(overlap[:-1], overlap[1:], strict=True))
     # nested balls: IoU is the volume ratio (r0 / r)^3, up to the grid
     assert steps[-1]["iou_first"] == pytest.approx(0.4**3, abs=0.02)
     with Image.open(out / "sweep.gif") as gif:
