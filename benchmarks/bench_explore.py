@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -93,7 +94,7 @@ def main() -> None:
     url = server_url(server)
     try:
         post(url + "api/explore", {"key": key, "changes": {}})  # first request: caches, imports
-        rounds, server_side, parts = [], [], {"evaluate": [], "mesh": [], "glb": []}
+        rounds, server_side, parts = [], [], {"evaluate": [], "mesh": [], "glb": [], "cpu": []}
         step_faces = []
         for i in range(1, args.steps + 1):
             changes = {"d": d * (1 + 0.005 * i)}
@@ -133,9 +134,13 @@ def main() -> None:
     print(
         f"  server evaluate + mesh + GLB: median {ms(statistics.median(server_side))} "
         + "("
-        + ", ".join(f"{k} {ms(statistics.median(v))}" for k, v in parts.items())
+        + ", ".join(f"{k} {ms(statistics.median(v))}" for k, v in parts.items() if k != "cpu")
         + ")"
     )
+    cpu = statistics.median(parts["cpu"])
+    print(f"  CPU time of the server thread per step (its cost on a quiet core): median {ms(cpu)}")
+    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
+    print(f"  load average after the run: {' '.join(load)} on {os.cpu_count()} cores")
     print(
         f"baseline, the same step through the CLI (new process): median {ms(statistics.median(cli))}"
     )

@@ -137,7 +137,7 @@ def test_glb_and_stats(shape_mesh) -> None:
 def test_explore_step() -> None:
     step = explore(apply_changes(SPHERE, {"d": 0.25}))
     assert step.faces > 500 and step.stats["genus"] == 0 and step.empty is None
-    assert set(step.seconds) == {"evaluate", "mesh", "glb", "stats"}
+    assert set(step.seconds) == {"evaluate", "mesh", "glb", "stats", "cpu"}
     gone = explore(apply_changes(SPHERE, {"d": -1}))
     assert gone.mesh is None and "no surface" in gone.empty and gone.glb[:4] == b"glTF"
 
