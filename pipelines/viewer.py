@@ -15,7 +15,7 @@ POST   /api/explore/save                ``{"key", "changes"}``: catalogue the va
 ====== ================================ =========================================================
 
 :func:`export_detail_pages` writes the same pages for the static gallery (``surfgen gallery
---meshes``): ``shapes/KEY.html`` and each mesh as ``meshes/KEY.glb.js``, a classic script holding
+--meshes``): ``shapes/KEY.html`` and each mesh beside it as ``shapes/KEY.glb.js``, a classic script holding
 the GLB in base64, because a page opened from disk (file://) may load scripts but not fetch files.
 Three.js comes from ``static/vendor/three`` (npm 0.180.0, bundled as one classic script).
 """
@@ -274,7 +274,7 @@ def vendor_dir() -> Path:
 
 
 def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> int:
-    """Write ``shapes/KEY.html`` and ``meshes/KEY.glb.js`` for every shape of the static gallery
+    """Write ``shapes/KEY.html`` and ``shapes/KEY.glb.js`` for every shape of the static gallery
     that has a mesh, and the vendored three.js; returns how many pages. ``shapes`` are the
     gallery's records (their ``mesh`` paths relative to ``root``). Raises ``OSError``."""
     from surfgen.generator.mesh import load_mesh
@@ -304,7 +304,7 @@ def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> 
         )
         from surfgen.generator.files import write_atomic
 
-        write_atomic(out / "meshes" / f"{key}.glb.js", script.encode("ascii"))
+        write_atomic(out / "shapes" / f"{key}.glb.js", script.encode("ascii"))
         spec = SurfaceSpec.from_dict(s["spec"])
         prev, nxt = (keys[i - 1], keys[(i + 1) % len(keys)]) if len(keys) > 1 else (None, None)
         data = page_data(s, spec, mode="static", prev=prev, next_=nxt)

@@ -258,7 +258,7 @@
       window.SURFGEN_MESH_LOADED = (k, text) => {
         if (k === SHAPE.key) parseGlb(base64ToBuffer(text), box).catch(failed);
       };
-      document.head.append(h("script", { src: "../meshes/" + SHAPE.key + ".glb.js", onerror: () => failed(new Error("mesh file missing")) }));
+      document.head.append(h("script", { src: SHAPE.key + ".glb.js", onerror: () => failed(new Error("mesh file missing")) }));
       return;
     }
     fetch("../api/shape/" + SHAPE.key + "/mesh.glb")
