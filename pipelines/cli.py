@@ -333,6 +333,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
     "surfgen.pipelines.sweep",
+    "surfgen.pipelines.reproduce",
 ]
 
 for _module in _REGISTER:
