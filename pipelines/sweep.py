@@ -8,10 +8,11 @@ a range and writes to one folder:
 - ``frames/step-NNN.png`` (256², every frame framed on the union of the steps' boxes, so sizes compare),
 - ``contact-sheet.png``, ``sweep.gif`` (the morph, Pillow),
 - ``sweep.json``: per step the value, key, faces, components, genus, and the distance to the
-  previous step and to the first: ``iou_*`` (intersection over union of the inside samples, each
-  step's samples looked up nearest-neighbour on one comparison grid over the union box, so grid
-  and box sweeps compare too) and ``distance_*`` (symmetric mean distance between points sampled
-  on the two surfaces, in box units),
+  previous step and to the first: ``iou_*`` (intersection over union of the inside samples on one
+  comparison grid over the union of the boxes, each field read as the trilinear interpolant of its
+  own samples — :func:`surfgen.filters.compare.inside_samples` — so grid and box sweeps compare
+  too), ``distance_*`` (symmetric mean distance between points sampled on the two surfaces, box
+  units) and ``hausdorff_prev`` (the largest such distance),
 - ``distance.png``: those distances along the sweep.
 """
 
@@ -33,7 +34,7 @@ import typer
 from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.explore import apply_changes, mesh_stats
 
@@ -102,6 +103,7 @@ class Step:
     empty: str | None
     iou_prev: float | None
     distance_prev: float | None
+    hausdorff_prev: float | None
     iou_first: float | None
     distance_first: float | None
     mesh: str | None
@@ -126,6 +128,7 @@ class Step:
             "empty": self.empty,
             "iou_prev": self.iou_prev,
             "distance_prev": self.distance_prev,
+            "hausdorff_prev": self.hausdorff_prev,
             "iou_first": self.iou_first,
             "distance_first": self.distance_first,
             "mesh": self.mesh,
@@ -164,56 +167,32 @@ def comparison_grid(specs: Sequence[SurfaceSpec]) -> Grid:
     return Grid(Box.from_bounds(union_box(specs)), (n, n, n))
 
 
-def inside_on(values: np.ndarray, grid: Grid, level: float, target: Grid) -> np.ndarray:
-    """The inside samples (F < level, finite) of a field on ``grid``, looked up nearest-neighbour
-    at the points of ``target``; points outside ``grid``'s box are outside. Bool, target.shape."""
-    with np.errstate(invalid="ignore"):
-        inside = np.isfinite(values) & (values < level)
-    index = []
-    valid = []
-    for axis, lo, hi, n in zip(target.axes(), grid.box.lo, grid.box.hi, grid.shape, strict=True):
-        t = (axis - lo) / (hi - lo) * (n - 1)
-        tol = 1e-9 * (n - 1)
-        valid.append((t >= -tol) & (t <= n - 1 + tol))
-        index.append(np.clip(np.rint(t), 0, n - 1).astype(np.int64))
-    out = inside[np.ix_(*index)]
-    return out & valid[0][:, None, None] & valid[1][None, :, None] & valid[2][None, None, :]
-
-
 def iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two inside masks (1 when both are empty)."""
     union = np.count_nonzero(a | b)
     return 1.0 if union == 0 else float(np.count_nonzero(a & b) / union)
 
 
-def surface_samples(mesh: Mesh | None, n: int = SURFACE_SAMPLES, seed: int = 0) -> np.ndarray:
-    """``n`` points on the surface, area-weighted, reproducible (fixed seed). ``(n, 3)``; empty
-    ``(0, 3)`` for no mesh."""
+def points_on(mesh: Mesh | None, n: int = SURFACE_SAMPLES) -> np.ndarray:
+    """``n`` area-uniform points on ``mesh`` (seeded), ``(0, 3)`` for no mesh."""
+    from surfgen.filters.compare import surface_samples
+
     if mesh is None or mesh.n_faces == 0:
         return np.empty((0, 3))
-    rng = np.random.default_rng(seed)
-    areas = face_areas(mesh)
-    total = areas.sum()
-    if not total > 0:
-        return np.asarray(mesh.vertices[:n], dtype=np.float64)
-    faces = rng.choice(mesh.n_faces, size=n, p=areas / total)
-    u, v = rng.random(n), rng.random(n)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    tri = mesh.vertices[mesh.faces[faces]]
-    return tri[:, 0] + u[:, None] * (tri[:, 1] - tri[:, 0]) + v[:, None] * (tri[:, 2] - tri[:, 0])
+    return surface_samples(mesh, n, seed=0)
 
 
-def mesh_distance(a: np.ndarray, b: np.ndarray) -> float | None:
-    """Symmetric mean nearest-neighbour distance between two point samples of surfaces (the
-    mean of both directions); None when one side is empty."""
+def mesh_distances(a: np.ndarray, b: np.ndarray) -> tuple[float | None, float | None]:
+    """Between two surfaces given as point samples: the symmetric mean nearest-neighbour
+    distance (the mean of both directions) and the Hausdorff distance (the largest); None when
+    one side is empty."""
     from scipy.spatial import cKDTree
 
     if len(a) == 0 or len(b) == 0:
-        return None
-    ab = cKDTree(b).query(a)[0].mean()
-    ba = cKDTree(a).query(b)[0].mean()
-    return float(0.5 * (ab + ba))
+        return None, None
+    ab = cKDTree(b).query(a)[0]
+    ba = cKDTree(a).query(b)[0]
+    return float(0.5 * (ab.mean() + ba.mean())), float(max(ab.max(), ba.max()))
 
 
 def _blank_frame(size: int) -> np.ndarray:
@@ -233,6 +212,7 @@ def run_sweep(
     """Evaluate ``base`` with ``{name: value}`` for each value and write the sweep's files to
     ``out`` (see the module docstring). Every step's spec is checked before anything is
     evaluated or written. Raises the change set's errors and :class:`SweepError`."""
+    from surfgen.filters.compare import inside_samples
     from surfgen.generator.evaluate import evaluate
     from surfgen.generator.mesh import extract_mesh, save_mesh
     from surfgen.pipelines.pictures import render_image, write_png
@@ -256,8 +236,8 @@ def run_sweep(
             mesh, empty = extract_mesh(field, spec.level, cap=cap), None
         except EmptySurface as exc:
             mesh, empty = None, str(exc)
-        inside = inside_on(field.values, spec.to_grid(), spec.level, target)
-        points = surface_samples(mesh)
+        inside = inside_samples(field, target, spec.level)
+        points = points_on(mesh)
         stem = f"step-{i:03d}"
         mesh_rel = None
         frame_rel = f"frames/{stem}.png"
@@ -270,6 +250,8 @@ def run_sweep(
         write_png(image, out / frame_rel)
         if i == 0:
             first_inside, first_points = inside, points
+            prev_inside, prev_points = inside, points
+        distance_prev, hausdorff_prev = mesh_distances(prev_points, points)
         steps.append(
             Step(
                 value=float(value),
@@ -277,9 +259,10 @@ def run_sweep(
                 stats=mesh_stats(mesh) | {"nonfinite": field.nonfinite},
                 empty=empty,
                 iou_prev=None if i == 0 else iou(prev_inside, inside),  # type: ignore[arg-type]
-                distance_prev=None if i == 0 else mesh_distance(prev_points, points),  # type: ignore[arg-type]
+                distance_prev=None if i == 0 else distance_prev,
+                hausdorff_prev=None if i == 0 else hausdorff_prev,
                 iou_first=iou(first_inside, inside),  # type: ignore[arg-type]
-                distance_first=mesh_distance(first_points, points),  # type: ignore[arg-type]
+                distance_first=mesh_distances(first_points, points)[0],  # type: ignore[arg-type]
                 mesh=mesh_rel,
                 frame=frame_rel,
                 seconds=time.perf_counter() - t0,

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from PIL import Image
 
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.cli import main
-from surfgen.pipelines.sweep import SweepError, inside_on, iou, parse_range, sweep_specs
+from surfgen.pipelines.sweep import SweepError, iou, mesh_distances, parse_range, sweep_specs
 
 
 def cli(capsys, *args: str) -> tuple[int, str, str]:
@@ -35,19 +36,16 @@ def test_parse_range() -> None:
             parse_range(bad)
 
 
-def test_inside_lookup_and_iou() -> None:
-    """Nearest-neighbour lookup of a coarse field onto a finer, larger grid keeps the inside
-    where it was and counts points outside the coarse box as outside."""
-    small = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (16,) * 3)
-    large = small.replace(box=(-3.0, 3.0) * 3, grid=(40,) * 3)
-    from surfgen.generator.reference import evaluate_reference
-
-    f = evaluate_reference(small.tree(), small.to_grid())
-    g = evaluate_reference(large.tree(), large.to_grid())
-    a = inside_on(f.values, small.to_grid(), 0.0, large.to_grid())
-    b = inside_on(g.values, large.to_grid(), 0.0, large.to_grid())
-    assert a.shape == (40,) * 3 and 0.7 < iou(a, b) <= 1.0
-    assert iou(a, a) == 1.0 and iou(a & False, b & False) == 1.0
+def test_iou_and_distances() -> None:
+    a = np.zeros((4, 4, 4), dtype=bool)
+    b = a.copy()
+    a[:2], b[1:3] = True, True
+    assert (
+        iou(a, b) == pytest.approx(1 / 3) and iou(a, a) == 1.0 and iou(a & False, b & False) == 1.0
+    )
+    p = np.array([[0.0, 0, 0], [1, 0, 0]])
+    assert mesh_distances(p, p + [0, 0.5, 0]) == (0.5, 0.5)
+    assert mesh_distances(p, np.empty((0, 3))) == (None, None)
 
 
 def test_sweep_of_growing_spheres(capsys, tmp_path) -> None:
@@ -70,6 +68,7 @@ def test_sweep_of_growing_spheres(capsys, tmp_path) -> None:
     assert steps[0]["distance_prev"] is None and steps[0]["iou_first"] == 1.0
     for s in steps[1:]:
         assert s["distance_prev"] == pytest.approx(0.2, abs=0.02)
+        assert 0.2 <= s["hausdorff_prev"] < 0.3
     first = [s["distance_first"] for s in steps]
     assert all(a < b for a, b in zip(first[:-1], first[1:], strict=True))
     overlap = [s["iou_first"] for s in steps]
