@@ -191,7 +191,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
             return None
         if (request.content_length or 0) > MAX_BODY:
             raise ExploreError(f"the request body is over {MAX_BODY} bytes")
-        data = request.get_data(cache=False)
+        data = request.stream.read(MAX_BODY + 1)  # never more, whatever the headers say
         if len(data) > MAX_BODY:
             raise ExploreError(f"the request body is over {MAX_BODY} bytes")
         try:
