@@ -319,22 +319,22 @@
     try {
       const res = await api("explore", body);
       const buf = await fetch("../" + res.mesh).then((r) => { if (!r.ok) throw new Error("mesh " + r.status); return r.arrayBuffer(); });
-      if (!explore.pending) {
-        await parseGlb(buf, res.box);
-        showStats(res.stats, null);
-        $("formula").textContent = res.formula;
-        specLine({ box: res.box, grid: res.grid, level: res.level, params: res.params });
-        if (status) {
-          status.textContent = fmt(res.faces) + " faces · grid " + res.grid.join("×") + " · server " +
-            Math.round(res.seconds * 1000) + " ms (evaluate " + Math.round(res.timings.evaluate * 1000) + ", mesh " +
-            Math.round(res.timings.mesh * 1000) + ", glb " + Math.round(res.timings.glb * 1000) + ") · round trip " +
-            Math.round(performance.now() - started) + " ms" + (res.empty ? " · " + res.empty : "");
-          status.className = "hint";
-        }
-        explore.last = res;
-        // Topology (components, genus) costs as much as the GLB: ask once the sliders rest.
-        fetchTopology(res);
+      // Shown even if the slider has moved on (it is newer than what is on screen); the
+      // newest position is asked for next, so a continuous drag keeps the view moving.
+      await parseGlb(buf, res.box);
+      showStats(res.stats, null);
+      $("formula").textContent = res.formula;
+      specLine({ box: res.box, grid: res.grid, level: res.level, params: res.params });
+      if (status) {
+        status.textContent = fmt(res.faces) + " faces · grid " + res.grid.join("×") + " · server " +
+          Math.round(res.seconds * 1000) + " ms (evaluate " + Math.round(res.timings.evaluate * 1000) + ", mesh " +
+          Math.round(res.timings.mesh * 1000) + ", glb " + Math.round(res.timings.glb * 1000) + ") · round trip " +
+          Math.round(performance.now() - started) + " ms" + (res.empty ? " · " + res.empty : "");
+        status.className = "hint";
       }
+      explore.last = res;
+      // Topology (components, genus) costs as much as the GLB: ask once the sliders rest.
+      fetchTopology(res);
       const save = $("save-variant");
       if (save) save.disabled = Object.keys(explore.changes).length === 0;
     } catch (err) {
