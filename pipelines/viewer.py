@@ -114,6 +114,23 @@ def render_shape_page(data: dict[str, Any], title: str) -> str:
     )
 
 
+def free_names(formula: str) -> list[str]:
+    """Names in a pasted formula that are neither x, y, z, pi nor functions: its parameters
+    (the explore page binds them to 1 and gives each a slider, as MathMod's ``Sliders``)."""
+    from surfgen.generator.expr import VARIABLES
+    from surfgen.generator.functions import FUNCTIONS, MACROS
+    from surfgen.generator.parser import tokenize
+
+    tokens = tokenize(formula)
+    out: list[str] = []
+    for t, after in zip(tokens, [*tokens[1:], None], strict=True):
+        called = after is not None and after.text == "("
+        known = t.text in VARIABLES or t.text == "pi" or t.text in FUNCTIONS or t.text in MACROS
+        if t.kind == "name" and not called and not known and t.text not in out:
+            out.append(t.text)
+    return out[:16]
+
+
 class StepCache:
     """The last :data:`GLB_CACHE` explore steps (:class:`Explored`: GLB and mesh), by token
     (thread-safe)."""
@@ -163,8 +180,14 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
         name = request.args.get("preset") or ("eqC" if not formula else None)
         try:
             if formula:
-                spec, cap, _ = spec_from_request({"formula": formula})
-                source: dict[str, Any] = {"formula": spec.formula}
+                params = {name: 1.0 for name in free_names(formula)}
+                spec, cap, _ = spec_from_request({"formula": formula, "params": params})
+                source: dict[str, Any] = {
+                    "formula": spec.formula,
+                    "params": dict(spec.params),
+                    "box": list(spec.box),
+                    "grid": list(spec.grid),
+                }
             else:
                 preset = get_preset(str(name))
                 spec, cap, source = preset.spec(), preset.cap, {"preset": preset.name}

@@ -5,7 +5,9 @@ pages live and static."""
 from __future__ import annotations
 
 import json
+import re
 import struct
+from urllib.parse import quote
 
 import numpy as np
 import pytest
@@ -167,6 +169,12 @@ def test_api_explore(cat_dir, keys, capsys) -> None:
     assert glb.status_code == 200 and glb.mimetype == "model/gltf-binary"
     mesh = trimesh.load(trimesh.util.wrap_as_stream(glb.data), file_type="glb", force="mesh")
     assert len(mesh.faces) == body["faces"]
+    bigger = client.post(
+        "/api/explore",
+        json={"formula": "x^2+y^2+z^2-r", "params": {"r": 1}, "box": 1.5, "grid": 32,
+              "changes": {"r": 2}},
+    ).get_json()  # fmt: skip
+    assert bigger["params"] == {"r": 2.0} and bigger["faces"] > body["faces"]
     # a catalogued shape with changes: a thinner torus has fewer faces
     torus = keys["torus"]
     base = client.post("/api/explore", json={"key": torus[:8], "changes": {}}).get_json()
@@ -269,6 +277,13 @@ def test_detail_pages(cat_dir, keys, capsys, tmp_path) -> None:
     assert client.get("/explore?preset=eqC").status_code == 200
     assert client.get("/explore?formula=x%2By%2Bz").status_code == 200
     assert client.get("/explore?formula=sin(").status_code == 400
+    # a pasted formula's free names become parameters at 1, each with a slider
+    page = client.get("/explore?formula=" + quote("x^2+y^2+z^2-r*cos(a*x)")).get_data(as_text=True)
+    data = json.loads(
+        re.search(r'id="shape-data" type="application/json">(.*?)</script>', page).group(1)
+    )
+    assert data["spec"]["params"] == {"a": 1.0, "r": 1.0}
+    assert {"a", "r"} <= {k["name"] for k in data["knobs"]}
     # the static gallery with meshes has a 3-D page per shape, readable from disk
     out = tmp_path / "site"
     assert main(["gallery", "-C", str(cat_dir), "-o", str(out), "--meshes"]) == 0
