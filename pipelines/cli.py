@@ -409,6 +409,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
+    "surfgen.pipelines.sweep",
     "surfgen.pipelines.reproduce",
     "surfgen.pipelines.mathmod",
 ]
