@@ -56,6 +56,7 @@ from numba import njit
 from numba.extending import overload
 
 _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
+_JIT_INNER = {"error_model": "numpy", "nogil": True}
 
 # ----------------------------------------------------------------------------- constants
 
@@ -95,7 +96,7 @@ _TWO_OVER_PI_HEX = (
     "06492EEA09D1921CFE1DEB1CB129A73EE88235F52EBB4484E99C7026B45F7E413991D639835339F4"
     "9C845F8BBDF9283B1FF897FFDE05980FEF2F118B5A0A6D1F6D367ECF27CB09B74F463F669E5FEA2D"
     "7527BAC7EBE5F17B3D0739F78A5292EA6BFB5FB11F8D5D0856033046FC7B6BABF0CFBC209AF4361D"
-    "A9E391615EE61000"
+    "A9E391615EE61B08"
 )
 _F = np.array(
     [float(int(_TWO_OVER_PI_HEX[6 * i : 6 * i + 6], 16)) for i in range(56)], dtype=np.float64
@@ -174,7 +175,7 @@ def _where(c, a, b):
     return np.where(c, a, b)
 
 
-@overload(_where)
+@overload(_where, jit_options=_JIT_INNER)
 def _ov_where(c, a, b):
     def impl(c, a, b):
         return a if c else b
@@ -187,7 +188,7 @@ def _floor(x):
     return np.floor(x)
 
 
-@overload(_floor)
+@overload(_floor, jit_options=_JIT_INNER)
 def _ov_floor(x):
     def impl(x):
         return np.floor(x)
@@ -200,10 +201,10 @@ def _sqrt(x):
     return np.sqrt(x)
 
 
-@overload(_sqrt)
+@overload(_sqrt, jit_options=_JIT_INNER)
 def _ov_sqrt(x):
     def impl(x):
-        return math.sqrt(x)
+        return np.sqrt(x)
 
     return impl
 
@@ -213,7 +214,7 @@ def _copysign(x, s):
     return np.copysign(x, s)
 
 
-@overload(_copysign)
+@overload(_copysign, jit_options=_JIT_INNER)
 def _ov_copysign(x, s):
     def impl(x, s):
         return math.copysign(x, s)
@@ -221,18 +222,23 @@ def _ov_copysign(x, s):
     return impl
 
 
-def _dual(func):
+def _dual(func=None, *, inline: bool = False):
     """Make a plain-Python helper callable from jitted code: numba compiles the same source.
 
     Called from Python the function runs on numpy arrays or floats; called from a jitted
     function, numba's ``@overload`` hands it the very same function to compile for scalars.
     """
 
+    if func is None:
+        return functools.partial(_dual, inline=inline)
+
     @functools.wraps(func)
     def typer(*args):
         return func
 
-    overload(func)(typer)
+    # Big helpers are inlined in numba's IR (LLVM's inliner would keep them as calls, and a
+    # call in a loop stops vectorisation); small ones are left to LLVM (faster to compile).
+    overload(func, jit_options=_JIT_INNER, inline="always" if inline else "never")(typer)
     return func
 
 
@@ -326,7 +332,7 @@ def _cos_k(yh, yl):
     return w + (((1.0 - w) - hz) + (z * z * p - yh * yl))
 
 
-@_dual
+@_dual(inline=True)
 def _sin_finish(q, yh, yl):
     """sin(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -336,7 +342,7 @@ def _sin_finish(q, yh, yl):
     return _where(q >= 2.0, -r, r)
 
 
-@_dual
+@_dual(inline=True)
 def _cos_finish(q, yh, yl):
     """cos(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -347,7 +353,7 @@ def _cos_finish(q, yh, yl):
     return _where(neg, -r, r)
 
 
-@_dual
+@_dual(inline=True)
 def _tan_finish(q, yh, yl):
     """tan(q*pi/4 + y) for q = n mod 4, |y| <= ~pi/8, via (a + b*T)/(c + d*T)."""
     z = yh * yh
@@ -381,7 +387,7 @@ def _tan_finish(q, yh, yl):
     return qh + r * inv
 
 
-@_dual
+@_dual(inline=True)
 def _sin_fast(x):
     n, yh, yl = _reduce_cw2(x)
     r = _sin_finish(_mod4(n), yh, yl)
@@ -389,13 +395,13 @@ def _sin_fast(x):
     return _nan_fix(r)
 
 
-@_dual
+@_dual(inline=True)
 def _cos_fast(x):
     n, yh, yl = _reduce_cw2(x)
     return _nan_fix(_cos_finish(_mod4(n), yh, yl))
 
 
-@_dual
+@_dual(inline=True)
 def _tan_fast(x):
     n, yh, yl = _reduce_cw4(x)
     r = _tan_finish(_mod4(n), yh, yl)
@@ -446,7 +452,7 @@ def _asin_poly(z):
     )
 
 
-@_dual
+@_dual(inline=True)
 def _asin_parts(ax):
     """For a = |x|: (big, b, btail) with asin(a) = H - 2*b - 2*btail when big, a + btail else.
 
@@ -464,7 +470,7 @@ def _asin_parts(ax):
     return big, b, btail
 
 
-@_dual
+@_dual(inline=True)
 def _asin_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -477,7 +483,7 @@ def _asin_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual
+@_dual(inline=True)
 def _acos_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -492,7 +498,7 @@ def _acos_fast(x):
     return _nan_fix(r)
 
 
-@_dual
+@_dual(inline=True)
 def _atan_core(ay, ax, u):
     """atan(ay/ax) for 0 <= ay, 0 < ax (or ay > 0 = ax), u ~ ay/ax, as (h, tail)."""
     i0 = u < 0.4375
@@ -534,7 +540,7 @@ def _atan_core(ay, ax, u):
     return h, (e + al) + corr
 
 
-@_dual
+@_dual(inline=True)
 def _atan_fast(x):
     ay = abs(x)
     ay = _where(ay > _ATAN_CLAMP, _ATAN_CLAMP, ay)  # also inf; NaN stays NaN
@@ -543,7 +549,7 @@ def _atan_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual
+@_dual(inline=True)
 def _atan2_fast(y, x):
     """atan2 for operands that are 0, inf, NaN or of magnitude in [2**-500, 2**500]."""
     ay = abs(y)
@@ -700,15 +706,8 @@ def _atan2_slow(y, x):
 
 
 @njit(**_OPTS)
-def sin_row(W, d, a, n):
-    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _sin_fast(W[a, k])
-        return
+def _gather1(W, a, n, cnt):
+    """Indices and values of the slow lanes of row a (saved before d == a is overwritten)."""
     idx = np.empty(cnt, np.int64)
     val = np.empty(cnt, np.float64)
     j = 0
@@ -717,58 +716,70 @@ def sin_row(W, d, a, n):
             idx[j] = k
             val[j] = W[a, k]
             j += 1
+    return idx, val
+
+
+@njit(**_OPTS)
+def _gather2(W, a, b, n, cnt, sa, sb):
+    """Indices and operands (y, x) of the slow lanes of atan2: row a or scalar sa (a < 0)."""
+    idx = np.empty(cnt, np.int64)
+    vy = np.empty(cnt, np.float64)
+    vx = np.empty(cnt, np.float64)
+    j = 0
+    for k in range(n):
+        y = W[a, k] if a >= 0 else sa
+        x = W[b, k] if b >= 0 else sb
+        if _atan2_slow_lane(y, x):
+            idx[j] = k
+            vy[j] = y
+            vx[j] = x
+            j += 1
+    return idx, vy, vx
+
+
+@njit(**_OPTS)
+def sin_row(W, d, a, n):
+    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _sin_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _sin_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _sin_slow(val[j])
 
 
 @njit(**_OPTS)
 def cos_row(W, d, a, n):
-    """W[d, k] = cos(W[a, k]) for k < n."""
+    """W[d, k] = cos(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _cos_fast(W[a, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    val = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _trig_slow_lane(W[a, k]):
-            idx[j] = k
-            val[j] = W[a, k]
-            j += 1
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _cos_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _cos_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _cos_slow(val[j])
 
 
 @njit(**_OPTS)
 def tan_row(W, d, a, n):
-    """W[d, k] = tan(W[a, k]) for k < n."""
+    """W[d, k] = tan(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _tan_fast(W[a, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    val = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _trig_slow_lane(W[a, k]):
-            idx[j] = k
-            val[j] = W[a, k]
-            j += 1
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _tan_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _tan_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _tan_slow(val[j])
 
 
 @njit(**_OPTS)
@@ -790,6 +801,51 @@ def atan_row(W, d, a, n):
     """W[d, k] = atan(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _atan_fast(W[a, k])
+
+
+@njit(**_OPTS)
+def atan2_row_vv(W, d, a, b, n):
+    """W[d, k] = atan2(W[a, k], W[b, k]) for k < n (d may equal a or b)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(W[a, k], W[b, k]) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, a, b, n, cnt, 0.0, 0.0)
+    for k in range(n):
+        W[d, k] = _atan2_fast(W[a, k], W[b, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
+
+
+@njit(**_OPTS)
+def atan2_row_vs(W, d, a, s, n):
+    """W[d, k] = atan2(W[a, k], s) for k < n (d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(W[a, k], s) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, a, -1, n, cnt, 0.0, s)
+    for k in range(n):
+        W[d, k] = _atan2_fast(W[a, k], s)
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
+
+
+@njit(**_OPTS)
+def atan2_row_sv(W, d, s, b, n):
+    """W[d, k] = atan2(s, W[b, k]) for k < n (d may equal b)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(s, W[b, k]) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, -1, b, n, cnt, s, 0.0)
+    for k in range(n):
+        W[d, k] = _atan2_fast(s, W[b, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
 @njit(**_OPTS)
@@ -840,80 +896,6 @@ def atan2_scalar(p, q):
     if _atan2_slow_lane(p, q):
         return _atan2_slow(p, q)
     return _atan2_fast(p, q)
-
-
-@njit(**_OPTS)
-def atan2_row_vv(W, d, a, b, n):
-    """W[d, k] = atan2(W[a, k], W[b, k]) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(W[a, k], W[b, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(W[a, k], W[b, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    vy = np.empty(cnt, np.float64)
-    vx = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(W[a, k], W[b, k]):
-            idx[j] = k
-            vy[j] = W[a, k]
-            vx[j] = W[b, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(W[a, k], W[b, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
-
-
-@njit(**_OPTS)
-def atan2_row_vs(W, d, a, s, n):
-    """W[d, k] = atan2(W[a, k], s) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(W[a, k], s) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(W[a, k], s)
-        return
-    idx = np.empty(cnt, np.int64)
-    vy = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(W[a, k], s):
-            idx[j] = k
-            vy[j] = W[a, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(W[a, k], s)
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(vy[j], s)
-
-
-@njit(**_OPTS)
-def atan2_row_sv(W, d, s, b, n):
-    """W[d, k] = atan2(s, W[b, k]) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(s, W[b, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(s, W[b, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    vx = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(s, W[b, k]):
-            idx[j] = k
-            vx[j] = W[b, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(s, W[b, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(s, vx[j])
 
 
 def _unary_array(x, fast, slow_lane, slow) -> np.ndarray:
