@@ -222,6 +222,45 @@ def _ov_copysign(x, s):
     return impl
 
 
+def _frexp(x):
+    """(m, e) with x = m * 2**e, 0.5 <= |m| < 1 (exact)."""
+    return np.frexp(x)
+
+
+@overload(_frexp, jit_options=_JIT_INNER)
+def _ov_frexp(x):
+    def impl(x):
+        return math.frexp(x)
+
+    return impl
+
+
+def _ldexp(x, e):
+    """x * 2**e (exact unless it overflows or underflows)."""
+    return np.ldexp(x, e)
+
+
+@overload(_ldexp, jit_options=_JIT_INNER)
+def _ov_ldexp(x, e):
+    def impl(x, e):
+        return math.ldexp(x, e)
+
+    return impl
+
+
+def _table(t, i):
+    """t[i] with out-of-range indices clamped (their products are then discarded)."""
+    return t[np.clip(i, 0, t.size - 1)]
+
+
+@overload(_table, jit_options=_JIT_INNER)
+def _ov_table(t, i):
+    def impl(t, i):
+        return t[min(max(i, 0), t.size - 1)]
+
+    return impl
+
+
 def _dual(func=None, *, inline: bool = False):
     """Make a plain-Python helper callable from jitted code: numba compiles the same source.
 
@@ -583,64 +622,57 @@ def _atan2_slow_lane(y, x):
 
 
 # ----------------------------------------------------------------------------- slow paths
-# Scalar Python, jitted as is for numba and run as plain Python for numpy (same bits).
+# Written like the fast paths (selects, no data-dependent branches), so numba runs them on
+# the few slow scalars of a row and numpy on all slow lanes of an array at once.
 
 
 @_dual
 def _rem_pio2_slow(x, shift):
     """Payne–Hanek: (q, yh, yl) with x = (4k + q)*(pi/2)/2**shift + yh + yl, |y| <= ~pi/4/2**shift.
 
-    x finite with |x| > 2**23 (any finite x works); shift 0 (sin, cos) or 1 (tan).
+    x finite with |x| > 2**23 (any finite |x| >= 1 works); shift 0 (sin, cos) or 1 (tan).
     Exact integer arithmetic in 24-bit digits held in doubles: x*2**shift = m*2**e,
     m < 2**53 is cut into four 24-bit digits aligned to multiples of 24 bits, 2/pi is the
     table _F; the digit products (< 2**48, sums < 2**50) are exact, and carries are
     propagated from the last of 9 fraction digits (216 bits) to the integer digit mod 4.
     """
     ax = abs(x)
-    mant, ex = math.frexp(ax)
-    m = math.ldexp(mant, 53)
+    mant, ex = _frexp(ax)
     e = ex - 53 + shift
     pp = (e - (e % 24)) // 24  # floor(e / 24)
-    rem = e - 24 * pp
-    big = math.ldexp(m, rem)  # < 2**77, exact
-    t2 = float(math.floor(big * 5.960464477539063e-08))  # floor(big / 2**24)
-    t1 = float(math.floor(big * 3.552713678800501e-15))  # floor(big / 2**48)
-    t0 = float(math.floor(big * 2.117582368135751e-22))  # floor(big / 2**72)
-    d0 = t0
-    d1 = t1 - t0 * 16777216.0
-    d2 = t2 - t1 * 16777216.0
-    d3 = big - t2 * 16777216.0
-    xd = (d0, d1, d2, d3)
-    s_int = pp + 2
-    carry = 0.0
-    g1 = 0.0
-    g2 = 0.0
-    g3 = 0.0
-    nint = 0.0
+    big = _ldexp(mant, 53 + e - 24 * pp)  # m * 2**rem < 2**77, exact
+    t2 = _floor(big * 5.960464477539063e-08)  # floor(big / 2**24)
+    t1 = _floor(big * 3.552713678800501e-15)  # floor(big / 2**48)
+    t0 = _floor(big * 2.117582368135751e-22)  # floor(big / 2**72)
+    xd = (t0, t1 - t0 * 16777216.0, t2 - t1 * 16777216.0, big - t2 * 16777216.0)
+    carry = 0.0 * big
+    g1 = 0.0 * big
+    g2 = 0.0 * big
+    g3 = 0.0 * big
+    nint = 0.0 * big
     for j in range(9, -1, -1):
-        s = s_int + j
-        q = 0.0
+        s = pp + (2 + j)
+        q = 0.0 * big
         for a in range(4):
             b = s - a
-            if b >= 0 and b < _NF:
-                q += xd[a] * _F[b]
+            q = q + _where((b >= 0) & (b < _NF), xd[a] * _table(_F, b), 0.0)
         v = q + carry
         if j == 0:
-            nint = v - 4.0 * float(math.floor(v * 0.25))
+            nint = v - 4.0 * _floor(v * 0.25)
         else:
-            c = float(math.floor(v * 5.960464477539063e-08))
+            c = _floor(v * 5.960464477539063e-08)
             dig = v - c * 16777216.0
             carry = c
-            w = math.ldexp(dig, -24 * j)
+            w = _ldexp(dig, -24 * j)
             if j <= 2:
-                g1 += w
+                g1 = g1 + w
             elif j <= 4:
-                g2 += w
+                g2 = g2 + w
             elif j <= 7:
-                g3 += w
-    if g1 >= 0.5:
-        nint += 1.0
-        g1 -= 1.0
+                g3 = g3 + w
+    up = g1 >= 0.5
+    nint = _where(up, nint + 1.0, nint)
+    g1 = _where(up, g1 - 1.0, g1)
     h, l0 = _fast_two_sum(g1, g2)
     h, l1 = _fast_two_sum(h, l0 + g3)
     # y = (h + l1) * pi/2 / 2**shift
@@ -648,56 +680,57 @@ def _rem_pio2_slow(x, shift):
     pl = pl + (h * _PIO2_LO + l1 * _PIO2_HI)
     yh, yl = _fast_two_sum(ph, pl)
     scale = 0.5 if shift == 1 else 1.0
-    yh *= scale
-    yl *= scale
-    nint = nint - 4.0 * float(math.floor(nint * 0.25))
-    if x < 0.0:
-        nint = 4.0 - nint
-        if nint == 4.0:
-            nint = 0.0
-        yh = -yh
-        yl = -yl
-    return nint, yh, yl
+    yh = yh * scale
+    yl = yl * scale
+    nint = nint - 4.0 * _floor(nint * 0.25)
+    neg = x < 0.0
+    nint = _where(neg, _where(nint == 0.0, 0.0, 4.0 - nint), nint)
+    return nint, _where(neg, -yh, yh), _where(neg, -yl, yl)
 
 
 @_dual
 def _sin_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 0)
-    return float(_nan_fix(_sin_finish(q, yh, yl)))
+    return _nan_fix(_sin_finish(q, yh, yl))
 
 
 @_dual
 def _cos_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 0)
-    return float(_nan_fix(_cos_finish(q, yh, yl)))
+    return _nan_fix(_cos_finish(q, yh, yl))
 
 
 @_dual
 def _tan_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 1)
-    return float(_nan_fix(_tan_finish(q, yh, yl)))
+    return _nan_fix(_tan_finish(q, yh, yl))
 
 
 @_dual
 def _atan2_slow(y, x):
-    """atan2 when an operand is finite, non-zero and outside [2**-500, 2**500]."""
-    if y != y or x != x:
-        return NAN
+    """atan2 when an operand is finite, non-zero and outside [2**-500, 2**500].
+
+    Its partner may be 0, inf or NaN: then only the finite operand's sign matters and it is
+    replaced by +-1. Otherwise both are scaled by the same power of two (exact) unless their
+    ratio is beyond 2**+-60, where the result is pi/2, or t resp. pi - t with t = |y/x|.
+    """
     ay = abs(y)
     ax = abs(x)
-    if ay == INF or ax == INF or ay == 0.0 or ax == 0.0:
-        return float(_atan2_fast(y, x))
-    ey = math.frexp(ay)[1]
-    ex = math.frexp(ax)[1]
-    xneg = math.copysign(1.0, x) < 0.0
-    if ey - ex > 60:  # |y/x| > 2**59: pi/2 (the ratio's inverse is below half an ulp)
-        return math.copysign(_PIO2_HI, y)
-    if ey - ex < -60:  # |y/x| < 2**-59: t or pi - t with t = |y/x| (correctly rounded)
-        t = ay / ax
-        r = _PI_HI - (t - _PI_LO) if xneg else t
-        return math.copysign(r, y)
-    # Common power-of-two scaling: exact, the smaller operand stays >= 2**-62 and normal.
-    return float(_atan2_fast(math.ldexp(y, -ex), math.ldexp(x, -ex)))
+    fy = (ay > 0.0) & (ay < INF)
+    fx = (ax > 0.0) & (ax < INF)
+    special = (fy & fx) == False  # noqa: E712 (arrays and numba scalars alike)
+    y1 = _where(special & fy, _copysign(1.0, y), y)
+    x1 = _where(special & fx, _copysign(1.0, x), x)
+    ey = _frexp(ay)[1]
+    ex = _frexp(ax)[1]
+    sc = _where(special, 0, -ex)
+    r = _atan2_fast(_ldexp(y1, sc), _ldexp(x1, sc))
+    d = ey - ex
+    t = ay / ax
+    xneg = _copysign(1.0, x) < 0.0
+    tiny = _where(xneg, _PI_HI - (t - _PI_LO), t)
+    r = _where(special, r, _where(d > 60, _PIO2_HI, _where(d < -60, tiny, r)))
+    return _nan_fix(_where(special, r, _copysign(r, y)))
 
 
 # ----------------------------------------------------------------------------- public API
@@ -905,8 +938,9 @@ def _unary_array(x, fast, slow_lane, slow) -> np.ndarray:
     with np.errstate(all="ignore"):
         out = np.asarray(fast(flat), dtype=np.float64).reshape(-1).copy()
         if slow_lane is not None:
-            for i in np.flatnonzero(slow_lane(flat)):
-                out[i] = slow(float(flat[i]))
+            mask = slow_lane(flat)
+            if mask.any():
+                out[mask] = slow(flat[mask])
     return out.reshape(xa.shape)
 
 
@@ -947,6 +981,7 @@ def atan2_array(p, q) -> np.ndarray:
     fx = np.ascontiguousarray(qa).reshape(-1)
     with np.errstate(all="ignore"):
         out = np.asarray(_atan2_fast(fy, fx), dtype=np.float64).reshape(-1).copy()
-        for i in np.flatnonzero(_atan2_slow_lane(fy, fx)):
-            out[i] = _atan2_slow(float(fy[i]), float(fx[i]))
+        mask = _atan2_slow_lane(fy, fx)
+        if mask.any():
+            out[mask] = _atan2_slow(fy[mask], fx[mask])
     return out.reshape(pa.shape)

@@ -143,7 +143,8 @@ def _atan2_arguments(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     m = max(n // 10, 50)  # extreme magnitudes take the (slow in numpy) scalar path
     wide_y = rng.choice([-1.0, 1.0], m) * 10 ** rng.uniform(-320, 308, m)
     wide_x = rng.choice([-1.0, 1.0], m) * 10 ** rng.uniform(-320, 308, m)
-    s = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1.0, -1.0, 5e-324, -1e-310, 1e300, -1e300])
+    s = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1.0, -1.0, 5e-324, -1e-310, 1e300, -1e300,
+                  1.7976931348623157e308, -1.7976931348623157e308, 2.0**-500, 2.0**500])  # fmt: skip
     sy, sx = (v.ravel() for v in np.meshgrid(s, s))
     # ratios at the interval switches, with both signs of x
     r = rng.choice([7 / 16, 11 / 16, 19 / 16, 39 / 16], n) * (1 + rng.normal(0, 1e-12, n))
@@ -265,6 +266,10 @@ ATAN2_CASES = [
     (0.0, np.nan, np.nan), (1.0, 1.0, PI / 4), (1.0, -1.0, 3 * PI / 4), (-1.0, -1.0, -3 * PI / 4),
     (1e-320, 1e300, 0.0), (-1e-320, -1e300, -PI), (1e300, 1e-320, PI / 2), (5e-324, 5e-324, PI / 4),
     (1e-320, 1.0, 1e-320), (1e-320, -1.0, PI), (1e308, 1e308, PI / 4), (-1e308, -1e308, -3 * PI / 4),
+    (1.7976931348623157e308, 0.0, PI / 2), (-1.7976931348623157e308, -0.0, -PI / 2),
+    (0.0, 1.7976931348623157e308, 0.0), (-0.0, -1.7976931348623157e308, -PI),
+    (1.7976931348623157e308, np.inf, 0.0), (np.inf, 1e-310, PI / 2), (np.nan, 1e300, np.nan),
+    (1e-310, 0.0, PI / 2), (0.0, -1e-310, PI), (5e-324, -1.7976931348623157e308, PI),
 ]  # fmt: skip
 
 CANONICAL_NAN = np.array(np.nan).view(np.int64)
