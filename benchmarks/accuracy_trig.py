@@ -210,25 +210,30 @@ def _libm_atan2_row(W, d, a, b, n):
         W[d, k] = math.atan2(W[a, k], W[b, k])
 
 
-def _rate(call, points: int, seconds: float = 0.4) -> float:
-    """Million evaluations per second (best of 3 timed runs of ~``seconds``)."""
-    call()
-    reps = 1
-    while True:
-        t = time.perf_counter()
-        for _ in range(reps):
+def _rates(calls: list, points: int, seconds: float = 0.01, rounds: int = 60) -> list[float]:
+    """Million evaluations per second of each call: best of ``rounds`` short interleaved timings
+    (interleaving keeps the ratios fair on a machine whose load changes)."""
+    reps = []
+    for call in calls:
+        for _ in range(3):
             call()
-        dt = time.perf_counter() - t
-        if dt > seconds / 4:
-            break
-        reps *= 4
-    best = dt
-    for _ in range(2):
-        t = time.perf_counter()
-        for _ in range(reps):
-            call()
-        best = min(best, time.perf_counter() - t)
-    return points * reps / best / 1e6
+        r = 1
+        while True:
+            t = time.perf_counter()
+            for _ in range(r):
+                call()
+            if time.perf_counter() - t > seconds / 4:
+                break
+            r *= 4
+        reps.append(r)
+    best = [math.inf] * len(calls)
+    for _ in range(rounds):
+        for i, call in enumerate(calls):
+            t = time.perf_counter()
+            for _ in range(reps[i]):
+                call()
+            best[i] = min(best[i], (time.perf_counter() - t) / reps[i])
+    return [points / b / 1e6 for b in best]
 
 
 def speeds(name: str) -> tuple[float, float, float]:
@@ -238,18 +243,28 @@ def speeds(name: str) -> tuple[float, float, float]:
     W = np.zeros((3, n))
     if name == "atan2":
         W[0], W[1] = rng.normal(0, 1, n), rng.normal(0, 1, n)
-        return (
-            _rate(lambda: T.atan2_row_vv(W, 2, 0, 1, n), n),
-            _rate(lambda: _libm_atan2_row(W, 2, 0, 1, n), n),
-            _rate(lambda: np.arctan2(W[0], W[1], out=W[2]), n),
+        return tuple(
+            _rates(
+                [
+                    lambda: T.atan2_row_vv(W, 2, 0, 1, n),
+                    lambda: _libm_atan2_row(W, 2, 0, 1, n),
+                    lambda: np.arctan2(W[0], W[1], out=W[2]),
+                ],
+                n,
+            )
         )
     W[0] = rng.uniform(-1, 1, n) if name in ("asin", "acos") else rng.uniform(-10, 10, n)
     row = getattr(T, f"{name}_row")
     which = UNARY.index(name)
-    return (
-        _rate(lambda: row(W, 1, 0, n), n),
-        _rate(lambda: _libm_row(W, 1, 0, n, which), n),
-        _rate(lambda: NUMPY[name](W[0], out=W[1]), n),
+    return tuple(
+        _rates(
+            [
+                lambda: row(W, 1, 0, n),
+                lambda: _libm_row(W, 1, 0, n, which),
+                lambda: NUMPY[name](W[0], out=W[1]),
+            ],
+            n,
+        )
     )
 
 
@@ -271,7 +286,18 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=10**6, help="arguments per function")
     ap.add_argument("--functions", default="sin,cos,tan,asin,acos,atan,atan2")
+    ap.add_argument("--speed-only", action="store_true", help="skip the accuracy measurement")
     args = ap.parse_args()
+    if args.speed_only:
+        print(f"CPU: {_cpu()}; numpy {np.__version__}; rows of 1024 points, one thread")
+        print(
+            "| function | `NAME_row` (M/s) | `math.NAME` loop in numba (M/s) | numpy ufunc (M/s) |"
+        )
+        print("|---|---|---|---|")
+        for name in args.functions.split(","):
+            fast, libm, npy = speeds(name)
+            print(f"| {name} | {fast:.0f} | {libm:.0f} | {npy:.0f} |")
+        return
     names = args.functions.split(",")
     rows = []
     with Pool(2) as pool:
