@@ -41,6 +41,7 @@ import types as _pytypes
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
+from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
 __all__ = [
@@ -234,6 +235,19 @@ def _ldexp2(v, k):
 
 
 @njit(**_INL)
+def _scale_dd(ph, pl, k):
+    """(ph + pl) * 2^k rounded once, also where the result is subnormal.
+
+    A subnormal result is formed as (1 + t) - 1 with t = (ph + pl) * 2^(k + 1022): 1 + t
+    (exact as a double-double, then one addition) rounds at the subnormal grid (2^-1074
+    scaled by 2^1022), so ph + pl is rounded once there instead of twice (ph, then ph*2^k)."""
+    t = _ldexp2(ph, k + 1022)
+    sh, sl = _fast_two_sum(1.0, t)
+    s = sh + (sl + _ldexp2(pl, k + 1022))
+    return _sel(t < 1.0, (s - 1.0) * TINY_NORMAL, _ldexp2(ph, k))
+
+
+@njit(**_INL)
 def _sign_of(x, r):
     """r with the sign bit of x (x's sign bit set: -r)."""
     return _sel(_f2i(x) < 0, -r, r)
@@ -345,7 +359,7 @@ def _exp_dd(zh, zl):
 @njit(**_INL)
 def _exp(x):
     ph, pl, k = _exp_dd(x, 0.0)
-    return _sel(x != x, NAN, _ldexp2(ph, k))
+    return _sel(x != x, NAN, _scale_dd(ph, pl, k))
 
 
 @njit(**_INL)
@@ -378,7 +392,7 @@ def _pow(x, y):
     p, pe = _two_prod(ysp, lh)
     zl = _sel(abs(zh) < 2048.0, pe + ysp * ll, 0.0)
     ph, pl, k = _exp_dd(zh, zl)
-    r = _ldexp2(ph, k)
+    r = _scale_dd(ph, pl, k)
     # Integer / odd-integer exponents (every |y| >= 2^52 is an even integer).
     yb = _sel(ay < TWO52, y, 0.0)
     nonint = (ay < TWO52) & (_rint52(yb) != y)
@@ -548,30 +562,11 @@ def _numpy_twin(fn):
     )
 
 
+# Every private numba kernel and helper gets a numpy twin under the same name.
 _KERNELS = [
-    "_sel",
-    "_two_sum",
-    "_fast_two_sum",
-    "_split",
-    "_two_prod",
-    "_trunc",
-    "_rint52",
-    "_ldexp2",
-    "_sign_of",
-    "_log_dd",
-    "_exp_dd",
-    "_exp",
-    "_log",
-    "_log10",
-    "_pow",
-    "_sinh",
-    "_cosh",
-    "_tanh",
-    "_sqrt_dd",
-    "_asinh",
-    "_acosh",
-    "_atanh",
-    "_cbrt",
+    name
+    for name, obj in globals().items()
+    if name.startswith("_") and isinstance(obj, Dispatcher) and name not in ("_f2i", "_i2f")
 ]
 
 _NP_GLOBALS.update({k: v for k, v in globals().items() if k.isupper()})
