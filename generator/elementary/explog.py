@@ -116,6 +116,13 @@ LH1 = 0.4285714285713001
 LH2 = 0.3333333339754841
 LH3 = 0.2727261493317481
 LH4 = 0.23157106960641805
+# (2/3) H for the plain log: 2 atanh(s) = 2s + s w (2/3 + w (2/3) H(w)).
+TWO_THIRDS = 2.0 / 3.0
+LK0 = TWO_THIRDS * LH0
+LK1 = TWO_THIRDS * LH1
+LK2 = TWO_THIRDS * LH2
+LK3 = TWO_THIRDS * LH3
+LK4 = TWO_THIRDS * LH4
 
 # S(w) = (sinh(sqrt w) - sqrt w)/w^1.5 on w <= 0.5^2, degree 6, |w^1.5 dS| < 2^-59.6.
 SS0 = 0.16666666666666666
@@ -257,8 +264,8 @@ def _sign_of(x, r):
 
 
 @njit(**_INL)
-def _log_dd(xh, xl, tail):
-    """log(xh + xl) as a double-double (hi, lo), relative error about 2^-68.
+def _log_reduce(xh, xl, tail):
+    """x = 2^ef * c * (1 + s)/(1 - s): returns ef, jf = 8c and s = sh + sl (sh: 26 bits).
 
     xh > 0 finite (subnormals included). ``tail`` is a constant at each call site (the dead
     branches fold away once inlined): with it, xl is a tail |xl| <= ulp(xh), used only
@@ -279,14 +286,38 @@ def _log_dd(xh, xl, tail):
         ml = xl * _i2f((1023 - ec) << 52)  # the tail scaled like m
         dl = dl + ml
     inv = 1.0 / dh
-    # s = (f + ml)/(m + c + ml) = sh + sl; sh has 26 bits, so sh*dht and sh*dhr are exact
-    # and f - sh*dht is exact (Sterbenz).
+    # s = (f + ml)/(m + c + ml) = sh + sl; sh has 26 bits, so sh*dht and sh*(dh - dht) are
+    # exact and f - sh*dht is exact (Sterbenz).
     sh = _trunc(f * inv, MASK26)
     dht = _trunc(dh, MASK27)
     rem = ((f - sh * dht) - sh * (dh - dht)) - sh * dl
     if tail:
         rem = rem + ml
-    sl = rem * inv
+    return ef, jf, sh, rem * inv
+
+
+@njit(**_INL)
+def _log_centre(jf):
+    """log(jf/8) = ch + cl, ch on the 2^-42 grid of e * LN2_H (their sum is exact)."""
+    is6 = jf == 6.0
+    is7 = jf == 7.0
+    is9 = jf == 9.0
+    is10 = jf == 10.0
+    is11 = jf == 11.0
+    ch = _sel(
+        is6, LC6H, _sel(is7, LC7H, _sel(is9, LC9H, _sel(is10, LC10H, _sel(is11, LC11H, 0.0))))
+    )
+    cl = _sel(
+        is6, LC6L, _sel(is7, LC7L, _sel(is9, LC9L, _sel(is10, LC10L, _sel(is11, LC11L, 0.0))))
+    )
+    return ch, cl
+
+
+@njit(**_INL)
+def _log_dd(xh, xl, tail):
+    """log(xh + xl) as a double-double (hi, lo), relative error about 2^-68 (see
+    _log_reduce for the arguments)."""
+    ef, jf, sh, sl = _log_reduce(xh, xl, tail)
     # 2 atanh(s) = (2/3) s G(s^2), G(w) = 3 + w + w^2 H(w); s^2 = q + dq with q = sh^2
     # exact (52 bits), so G(s^2) = 3 + q + r, r = dq + w^2 H(w), w = q + dq.
     q = sh * sh
@@ -302,22 +333,26 @@ def _log_dd(xh, xl, tail):
     yh = u * THIRD
     p, pe = _fast_two_sum(2.0 * yh, yh)
     yl = (((u - p) - pe) + v) * THIRD
-    # log c = ch + cl with ch on the 2^-42 grid of ef * LN2_H: their sum is exact.
-    is6 = jf == 6.0
-    is7 = jf == 7.0
-    is9 = jf == 9.0
-    is10 = jf == 10.0
-    is11 = jf == 11.0
-    ch = _sel(
-        is6, LC6H, _sel(is7, LC7H, _sel(is9, LC9H, _sel(is10, LC10H, _sel(is11, LC11H, 0.0))))
-    )
-    cl = _sel(
-        is6, LC6L, _sel(is7, LC7L, _sel(is9, LC9L, _sel(is10, LC10L, _sel(is11, LC11L, 0.0))))
-    )
-    s1 = ef * LN2_H + ch
-    s2, e2 = _two_sum(s1, 2.0 * yh)
+    ch, cl = _log_centre(jf)
+    s1 = ef * LN2_H + ch  # exact; 0 or |s1| > 0.117 > |2 yh|: Fast2Sum below is exact
+    s2, e2 = _fast_two_sum(s1, 2.0 * yh)
     lo = e2 + ((ef * LN2_L + cl) + 2.0 * yl)
     return _fast_two_sum(s2, lo)
+
+
+@njit(**_INL)
+def _log1(x):
+    """log(x) rounded (about 0.5 ulp) for x > 0 finite: _log_dd's reduction, the series
+    beyond 2s in plain double (it is below 2^-10 of the result)."""
+    ef, jf, sh, sl = _log_reduce(x, 0.0, False)
+    sf = sh + sl
+    w = sf * sf
+    w2 = w * w
+    t = (sf * w) * (TWO_THIRDS + w * ((LK0 + w * LK1) + w2 * ((LK2 + w * LK3) + w2 * LK4)))
+    ch, cl = _log_centre(jf)
+    s1 = ef * LN2_H + ch
+    s2, e2 = _fast_two_sum(s1, 2.0 * sh)
+    return s2 + (e2 + ((ef * LN2_L + cl) + (2.0 * sl + t)))
 
 
 @njit(**_INL)
@@ -365,8 +400,8 @@ def _exp(x):
 @njit(**_INL)
 def _log(x):
     ok = (x > 0.0) & (x < INF)
-    lh, ll = _log_dd(_sel(ok, x, 1.0), 0.0, False)
-    r = _sel(x == 0.0, -INF, _sel(x == INF, INF, lh))
+    r = _log1(_sel(ok, x, 1.0))
+    r = _sel(x == 0.0, -INF, _sel(x == INF, INF, r))
     return _sel((x < 0.0) | (x != x), NAN, r)
 
 
@@ -424,7 +459,7 @@ def _sinh(x):
     bl = _ldexp2(ql, -k - 1)
     s, e = _two_sum(ah, -bh)
     big = _sel(s < INF, s + ((e + al) - bl), INF)  # the tail of an overflow is NaN
-    r = _sign_of(x, _sel(ax < 0.5, small, big))
+    r = _sign_of(x, _sel(ax < 0.25, small, big))
     return _sel(x != x, NAN, r)
 
 

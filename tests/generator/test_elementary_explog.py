@@ -48,13 +48,13 @@ def _mixture(rng: np.random.Generator, n: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _scalar_loop(fn, x, out):
     for k in range(x.size):
         out[k] = fn(x[k])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _scalar_loop2(fn, x, y, out):
     for k in range(x.size):
         out[k] = fn(x[k], y[k])
@@ -121,7 +121,7 @@ def test_pow_rows_scalar_array_agree_bit_for_bit(args: np.ndarray) -> None:
     assert E.pow_array(x[:12].reshape(3, 4), 2.0).shape == (3, 4)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _tape(W, n):
     """A few instructions the way the interpreter runs them on its register file."""
     E.exp_row(W, 1, 0, n)
