@@ -297,12 +297,47 @@ def speed(name: str, seconds: float) -> tuple[float, float, float]:
     return best[0], best[1], best[2]
 
 
+@njit(error_model="numpy", nogil=True)
+def _ours_vs(W, d, a, s, n, reps):
+    for _ in range(reps):
+        E.pow_row_vs(W, d, a, s, n)
+
+
+@njit(error_model="numpy", nogil=True)
+def _libm_vs(W, d, a, s, n, reps):
+    for _ in range(reps):
+        for k in range(n):
+            W[d, k] = W[a, k] ** s
+
+
+def speed_pow_vs(seconds: float) -> tuple[float, float, float]:
+    """pow with a constant exponent, the common case in eq. (13) formulas."""
+    W = np.zeros((4, ROWS))
+    W[0] = np.random.default_rng(6).uniform(0.0, 10.0, ROWS)
+    fs = (
+        lambda reps: _ours_vs(W, 2, 0, 2.5, ROWS, reps),
+        lambda reps: _libm_vs(W, 3, 0, 2.5, ROWS, reps),
+        lambda reps: [np.power(W[0], 2.5, out=W[3]) for _ in range(reps)],
+    )
+    best = [0.0, 0.0, 0.0]
+    for f in fs:
+        f(2)
+    for _ in range(5):
+        for i, f in enumerate(fs):
+            reps = max(1, int(seconds * 2e7 / ROWS / 5))
+            t = time.thread_time()
+            f(reps)
+            best[i] = max(best[i], reps * ROWS / (time.thread_time() - t) / 1e6)
+    return best[0], best[1], best[2]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1_000_000, help="arguments per function")
     ap.add_argument("--quick", action="store_true", help="shorter speed runs")
     ap.add_argument("--only", nargs="*", default=None, help="a subset of the functions")
     args = ap.parse_args()
+    np.seterr(all="ignore")  # the hard ranges overflow on purpose
     names = args.only or ["exp", "log", "pow", *UNARY[2:]]
     rng = np.random.default_rng(20261201)
     rows = []
@@ -318,6 +353,12 @@ def main() -> None:
                 f"{acc['stage1_dev']:.4f} ulp, worst at {acc['worst']}, {time.time() - t:.0f} s",
                 flush=True,
             )
+    if "pow" in names:
+        vs = speed_pow_vs(0.05 if args.quick else 0.3)
+        print(
+            f"# pow with a scalar exponent (pow_row_vs, x^2.5): {vs[0]:.0f} M/s, "
+            f"numba x**2.5 loop {vs[1]:.0f} M/s, np.power(x, 2.5) {vs[2]:.0f} M/s"
+        )
     print()
     print(
         "| function | arguments | max ulp | share > 0.5 ulp | `NAME_row` (M/s) | `math.NAME` loop in numba (M/s) | numpy ufunc (M/s) |"
