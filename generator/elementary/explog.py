@@ -616,7 +616,7 @@ _NP_GLOBALS.update(
     }
 )
 
-_CHUNK = 4096  # elements per numpy pass: temporaries stay in cache
+_CHUNK = 16384  # elements per numpy pass: temporaries stay in cache (L2)
 
 
 def _apply1(kernel, x) -> np.ndarray:
