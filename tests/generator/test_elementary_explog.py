@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import re
 
 import mpmath as mp
 import numpy as np
@@ -409,3 +411,17 @@ def test_pow_special_cases_match_c() -> None:
 def test_pow_c99_table(x: float, y: float, want: float) -> None:
     for got in (E.pow_scalar(x, y), float(E.pow_array(x, y))):
         assert _same(got, want), f"pow({x!r}, {y!r}) = {got!r}, want {want!r}"
+
+
+def test_the_rows_vectorise() -> None:
+    """No call and no branch is left in the kernels: LLVM vectorises pow's row (which holds
+    log's and exp's kernels). Compiled afresh: numba cannot inspect cached code."""
+    if (
+        os.environ.get("SURFGEN_NO_VECTORIZE") == "1"
+        or os.environ.get("NUMBA_LOOP_VECTORIZE") == "0"
+    ):
+        pytest.skip("vectorisation switched off by the environment")
+    fresh = njit(error_model="numpy")(E.pow_row_vs.py_func)
+    fresh(np.ones((2, 8)), 1, 0, 2.5, 8)
+    llvm = fresh.inspect_llvm(fresh.signatures[0])
+    assert re.search(r"<(4|8) x double>", llvm)
