@@ -42,9 +42,10 @@ from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
+from surfgen.generator.mesh import Mesh, save_mesh
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.walls import extract_labelled
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
@@ -188,18 +189,24 @@ def _judge(
     if not verdict.accepted:
         return verdict, metrics, None
     try:
-        mesh = extract_mesh(field_, spec.level, cap=run.cap)
+        # Meshing classifies every crossing (root, pole, jump): wall_fraction is a metric.
+        mesh, crossings = extract_labelled(
+            field_, tree, {}, spec.level, cap=run.cap, walls=run.walls
+        )
     except EmptySurface:
         return Verdict.reject("empty"), metrics, None
     finally:
         watch.lap("mesh")
+    metrics["wall_fraction"] = crossings.wall_fraction
+    # Without its walls a capped solid is open on purpose: do not ask it to be watertight.
+    capped = run.cap and run.walls != "remove"
     # Lewiner marching cubes already gives an indexed manifold mesh; merging "close" vertices
     # would pinch it where several vertices land on one grid point. Cheap checks first...
     metrics.update(quick_metrics(mesh, spec.box))
-    verdict = judge(metrics, fcfg, capped=run.cap)
+    verdict = judge(metrics, fcfg, capped=capped)
     if verdict.accepted:  # ...then pymeshlab's topology and the curvature
         metrics.update(shape_metrics(mesh, spec.box))
-        verdict = judge(metrics, fcfg, capped=run.cap)
+        verdict = judge(metrics, fcfg, capped=capped)
     watch.lap("filters")
     return verdict, metrics, mesh
 

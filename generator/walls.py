@@ -1,0 +1,388 @@
+"""Walls: the parts of a marching-cubes mesh that are not the zero set F = level.
+
+Marching cubes puts a vertex on every grid edge whose samples lie on opposite sides of the
+level.  F may cross the level there (a *root*: the surface), pass through infinity (a *pole*:
+tan, cot, sec, csc, 1/u) or jump over the level without taking it (a *jump*: the resets of
+``atan(tan u)``, ``acot(cot u)``, the staircase and pulse functions, the edge of a domain where F
+becomes NaN).  Poles and jumps give *walls*: they bound the solid {F < level}, but they are not
+the zero set.
+
+:func:`classify_edges` tells them apart by refining each crossing on its edge with the formula
+itself: four rounds of 7 points (the bracket shrinks to 1/4096 of the edge), keeping the
+sub-interval where the side changes.  ``M`` is the largest ``|F - level|`` at the bracket's ends
+(leaving out an end that is still the original sample); with ``M64`` after two rounds (1/64)
+and ``M4096`` after four:
+
+- root: ``M4096 <= ROOT_SHRINK * M64`` (|F| keeps shrinking towards 0: by 64x for a simple
+  root, 64**0.2 = 2.3x for the paper's |u|^0.2 powers) or ``M4096`` below ``ROOT_FLOOR`` of the
+  edge's own |F| values (rounding noise at a root); a sample kept as an end must itself be
+  within ``ROOT_KEPT`` of the edge's |F| scale;
+- pole: F is infinite at the bracket, or ``M4096 >= POLE_GROWTH * M64`` (|F| grows), or an
+  end of the last bracket is ``POLE_SCALE`` times the edge's |F| scale (|fa| + |fb|: a pole
+  that an early round already hit, or one within 1/4096 of a sample; a simple pole gives about
+  2000 times);
+- jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN).
+
+Jumps smaller than about 1/8 of the change of F across one cell look like roots at this
+resolution and are counted as roots.  Refinement costs 28 formula evaluations per edge, so
+only *suspect* edges are refined: a crossing whose secant slope has the sign of both
+neighbouring secants along the same grid line and is at most ``SMOOTH_RATIO`` times the
+smaller of them is what a smooth root looks like on the samples, and is taken as a root
+without refinement; so is one whose neighbours are all finite and whose jump, seen on the
+samples, is below that resolution anyway.  Everything else (opposite slopes, steep steps,
+non-finite neighbours, edges at the grid's border with one neighbour) is refined.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from surfgen.generator.errors import EmptySurface
+from surfgen.generator.expr import Expr
+from surfgen.generator.functions import FUNCTIONS
+from surfgen.generator.grid import Field
+from surfgen.generator.mesh import (
+    CAP,
+    JUMP,
+    POLE,
+    ROOT,
+    WALL_KINDS,
+    Mesh,
+    compact_mesh,
+    extract_with_edges,
+    wall_fraction,
+)
+from surfgen.generator.reference import _BINARY, evaluate_points
+
+log = logging.getLogger(__name__)
+
+WALL_MODES = ("keep", "remove", "mark")
+
+ROUNDS = 2  # refinement rounds ...
+POINTS = 3  # ... of this many points each: the bracket shrinks 4x per round
+ROOT_SHRINK = 0.6
+ROOT_FLOOR = 1e-9
+ROOT_KEPT = 0.25
+POLE_GROWTH = 2.5
+POLE_SCALE = 4.0
+SMOOTH_RATIO = 2.0
+UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
+
+
+@dataclass(frozen=True)
+class WallReport:
+    """How the crossings of one mesh were classified.
+
+    ``edges``: crossing edges under vertices; ``refined``: how many of them were refined with
+    the formula; ``roots``, ``poles``, ``jumps``: the result; ``wall_fraction``: share of the
+    mesh's area on wall faces.
+    """
+
+    edges: int
+    refined: int
+    roots: int
+    poles: int
+    jumps: int
+    wall_fraction: float
+
+    def to_dict(self) -> dict[str, float | int]:
+        return {
+            "edges": self.edges,
+            "refined": self.refined,
+            "roots": self.roots,
+            "poles": self.poles,
+            "jumps": self.jumps,
+            "wall_fraction": self.wall_fraction,
+        }
+
+
+def check_walls_mode(walls: str) -> str:
+    """``walls`` if it is one of :data:`WALL_MODES`; else :class:`ValueError`-free one-line
+    :class:`~surfgen.generator.errors.SpecError`."""
+    from surfgen.generator.errors import SpecError
+
+    if walls not in WALL_MODES:
+        raise SpecError(f"unknown --walls mode '{walls}' (allowed: {', '.join(WALL_MODES)})")
+    return walls
+
+
+def extract_labelled(
+    field: Field,
+    tree: Expr,
+    params: Mapping[str, float] | None = None,
+    level: float = 0.0,
+    cap: bool = False,
+    walls: str = "mark",
+) -> tuple[Mesh, WallReport]:
+    """Mesh ``F = level`` and classify its faces (see the module's docstring).
+
+    ``walls``: ``keep`` and ``mark`` return the whole mesh (with ``face_kinds`` for ``mark``);
+    ``remove`` returns only the faces on roots, without caps (the zero set is open where the box
+    cuts it).  ``tree``/``params`` must be the formula ``field`` was sampled from.
+    The report's ``wall_fraction`` is measured on the whole (capped if asked) mesh.
+    Raises :class:`EmptySurface` when there is no crossing, or with ``remove`` when no
+    crossing is a root.
+    """
+    check_walls_mode(walls)
+    mesh, edges = extract_with_edges(field, level, cap and walls != "remove")
+    kinds, refined = classify_edges(field, tree, params, level, edges)
+    face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
+    labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
+    known = kinds[kinds != UNKNOWN]
+    report = WallReport(
+        edges=int(known.size),
+        refined=refined,
+        roots=int(np.count_nonzero(known == ROOT)),
+        poles=int(np.count_nonzero(known == POLE)),
+        jumps=int(np.count_nonzero(known == JUMP)),
+        wall_fraction=float(wall_fraction(labelled)),
+    )
+    log.debug("walls: %s", report)
+    if walls == "keep":
+        return mesh, report
+    if walls == "mark":
+        return labelled, report
+    keep = ~np.isin(face_kinds, WALL_KINDS)
+    if not keep.any():
+        raise EmptySurface(
+            f"no root: all {report.edges} crossings of F = {level:g} are poles or jumps "
+            "(walls), so --walls remove leaves nothing; use --walls keep or mark"
+        )
+    out = compact_mesh(mesh.vertices, mesh.faces[keep])
+    return Mesh(out.vertices, out.faces, face_kinds[keep]), report
+
+
+class PointsEvaluator:
+    """``tree`` sampled at arbitrary points, the reference's numpy functions node by node.
+
+    The tree is flattened once into a post-order list (shared nodes once), so a call costs one
+    numpy operation per node: :func:`~surfgen.generator.reference.evaluate_points` looks every
+    node up in a dict keyed by the (recursively hashed) tree, which costs more than the
+    arithmetic on the few thousand points a refinement round needs.  Values are the reference's.
+    """
+
+    def __init__(self, tree: Expr, params: Mapping[str, float] | None = None) -> None:
+        self._tree = tree
+        self._params = dict(params or {})
+        evaluate_points(tree, 0.0, 0.0, 0.0, self._params)  # raises FormulaError early
+        self._order: list[Expr] = []
+        self._slot: dict[int, int] = {}
+        self._flatten(tree)
+
+    def _flatten(self, node: Expr) -> int:
+        slot = self._slot.get(id(node))
+        if slot is None:
+            for arg in node.args:
+                self._flatten(arg)
+            slot = self._slot[id(node)] = len(self._order)
+            self._order.append(node)
+        return slot
+
+    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""
+        env = {"x": np.asarray(x, np.float64), "y": np.asarray(y, np.float64)}
+        env["z"] = np.asarray(z, np.float64)
+        values: list[np.ndarray] = []
+        with np.errstate(all="ignore"):
+            for node in self._order:
+                args = [values[self._slot[id(a)]] for a in node.args]
+                values.append(np.asarray(self._apply(node, args, env), dtype=np.float64))
+        return np.array(np.broadcast_to(values[-1], env["x"].shape), dtype=np.float64)
+
+    def _apply(self, node: Expr, args: list[np.ndarray], env: dict) -> np.ndarray:
+        """One node, exactly as :func:`surfgen.generator.reference._eval` computes it."""
+        op = node.op
+        if op == "num":
+            return np.float64(node.value)
+        if op == "var":
+            return env[node.value]
+        if op == "param":
+            return np.float64(self._params[node.value])
+        if op == "pi":
+            return np.float64(np.pi)
+        if op == "neg":
+            return np.negative(args[0])
+        if op in _BINARY:
+            return _BINARY[op](args[0], args[1])
+        fdef = FUNCTIONS[op]
+        if fdef.const_from is not None:
+            consts = [float(np.asarray(a).reshape(-1)[0]) for a in args[fdef.const_from :]]
+            args = args[: fdef.const_from] + consts
+        return fdef.reference(*args)
+
+
+def classify_edges(
+    field: Field,
+    tree: Expr,
+    params: Mapping[str, float] | None,
+    level: float,
+    edges: np.ndarray,
+) -> tuple[np.ndarray, int]:
+    """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each ``(axis, i, j, k)`` edge of ``edges`` (V, 4).
+
+    Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
+    ``(V,)`` kinds and the number of edges refined with the formula.
+    """
+    values = np.asarray(field.values, dtype=np.float64).reshape(-1)
+    shape = np.asarray(field.values.shape, dtype=np.int64)
+    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
+    kinds = np.full(len(edges), UNKNOWN, dtype=np.uint8)
+    idx = np.flatnonzero(edges[:, 0] >= 0)
+    axis = edges[idx, 0]
+    ijk = edges[idx, 1:]
+    pos = ijk[np.arange(idx.size), axis]  # index along the edge's axis
+    length = shape[axis]
+    ok = pos + 1 < length
+    idx, axis, ijk, pos, length = idx[ok], axis[ok], ijk[ok], pos[ok], length[ok]
+    step = strides[axis]
+    ia = ijk @ strides
+    ib = ia + step
+    with np.errstate(invalid="ignore"):
+        fa = values[ia] - level
+        fb = values[ib] - level
+        ina = np.isfinite(fa) & (fa < 0)
+        crossing = ina != (np.isfinite(fb) & (fb < 0))
+    sel = np.flatnonzero(crossing)
+    idx, axis, ijk, pos, length = idx[sel], axis[sel], ijk[sel], pos[sel], length[sel]
+    step, ia, ib, fa, fb, ina = step[sel], ia[sel], ib[sel], fa[sel], fb[sel], ina[sel]
+    kinds[idx] = ROOT
+    # Neighbours along the same grid line; a missing one (grid border) makes the edge suspect.
+    has_m, has_p = pos >= 1, pos + 2 < length
+    fm = values[np.where(has_m, ia - step, ia)] - level
+    fp = values[np.where(has_p, ib + step, ib)] - level
+    suspect = ~(has_m & has_p & _smooth(fm, fa, fb, fp))
+    s = np.flatnonzero(suspect)
+    if s.size == 0:
+        return kinds, 0
+    kinds[idx[s]] = _refine(tree, params, level, field, ijk[s], axis[s], ina[s], fa[s], fb[s])
+    return kinds, int(s.size)
+
+
+def _smooth(fm: np.ndarray, fa: np.ndarray, fb: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """Crossings that look like a smooth root on the samples (see the module's docstring)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = fb - fa
+        dm = fa - fm
+        dp = fp - fb
+        return (
+            np.isfinite(dm + d + dp)
+            & (np.sign(dm) == np.sign(d))
+            & (np.sign(dp) == np.sign(d))
+            & (np.abs(d) <= SMOOTH_RATIO * np.maximum(np.abs(dm), np.abs(dp)))
+        )
+
+
+def _refine(
+    tree: Expr,
+    params: Mapping[str, float] | None,
+    level: float,
+    field: Field,
+    a: np.ndarray,
+    axis: np.ndarray,
+    a_inside: np.ndarray,
+    fa: np.ndarray,
+    fb: np.ndarray,
+) -> np.ndarray:
+    """Refine each edge (sample ``a``, one step along ``axis``) and classify it."""
+    n = len(a)
+    points = PointsEvaluator(tree, params)
+    axes = field.grid.axes()
+    spacing = np.asarray(field.grid.spacing)
+    origin = np.stack([axes[k][a[:, k]] for k in range(3)], axis=1)  # (n, 3)
+    direction = np.eye(3)[axis] * spacing[axis][:, None]  # (n, 3)
+    lo = np.zeros(n)
+    hi = np.ones(n)
+    f_lo = fa.copy()
+    f_hi = fb.copy()
+    lo_inside = a_inside.copy()
+    frac = np.arange(1, POINTS + 1) / (POINTS + 1)
+    saved = None
+    for rnd in range(ROUNDS):
+        s = lo[:, None] + (hi - lo)[:, None] * frac[None, :]  # (n, POINTS)
+        pts = origin[:, None, :] + s[..., None] * direction[:, None, :]
+        flat = pts.reshape(-1, 3)
+        vals = points(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(n, POINTS) - level
+        # side of every point of the bracket: [lo, p1..p7, hi]
+        all_s = np.concatenate([lo[:, None], s, hi[:, None]], axis=1)
+        all_f = np.concatenate([f_lo[:, None], vals, f_hi[:, None]], axis=1)
+        with np.errstate(invalid="ignore"):
+            inside = np.isfinite(all_f) & (all_f < 0)
+        change = inside[:, 1:] != inside[:, :-1]
+        first = np.argmax(change, axis=1)  # there is one: the ends are on opposite sides
+        rows = np.arange(n)
+        lo, hi = all_s[rows, first], all_s[rows, first + 1]
+        f_lo, f_hi = all_f[rows, first], all_f[rows, first + 1]
+        lo_inside = inside[rows, first]
+        if rnd == 0:
+            saved = (lo.copy(), hi.copy(), f_lo.copy(), f_hi.copy())
+    assert saved is not None
+    return _decide(saved, (lo, hi, f_lo, f_hi), lo_inside, fa, fb)
+
+
+def _decide(
+    mid: tuple[np.ndarray, ...],
+    end: tuple[np.ndarray, ...],
+    lo_inside: np.ndarray,
+    fa: np.ndarray,
+    fb: np.ndarray,
+) -> np.ndarray:
+    """The kind of each refined edge from its brackets after two and after four rounds."""
+    lo2, hi2, f_lo2, f_hi2 = mid
+    lo4, hi4, f_lo4, f_hi4 = end
+    kept_lo = lo4 == 0.0  # the bracket still starts at sample a
+    kept_hi = hi4 == 1.0  # ... or still ends at sample b
+    outside_end = np.where(lo_inside, f_hi4, f_lo4)
+    scale = np.abs(np.where(np.isfinite(fa), fa, 0.0)) + np.abs(np.where(np.isfinite(fb), fb, 0.0))
+    with np.errstate(invalid="ignore", over="ignore"):
+        m2 = np.maximum(
+            np.where(kept_lo, 0.0, np.abs(f_lo2)), np.where(kept_hi, 0.0, np.abs(f_hi2))
+        )
+        m4 = np.maximum(
+            np.where(kept_lo, 0.0, np.abs(f_lo4)), np.where(kept_hi, 0.0, np.abs(f_hi4))
+        )
+        kept_value = np.where(kept_lo, np.abs(fa), np.where(kept_hi, np.abs(fb), 0.0))
+        kept_small = ~(kept_lo | kept_hi) | (kept_value <= ROOT_KEPT * scale)
+        root = kept_small & ((m4 <= ROOT_SHRINK * m2) | (m4 <= ROOT_FLOOR * scale))
+        ends = np.maximum(np.abs(f_lo4), np.where(np.isfinite(f_hi4), np.abs(f_hi4), 0.0))
+        pole = (
+            np.isinf(outside_end)
+            | ((m4 >= POLE_GROWTH * m2) & (m4 > 0))
+            | (ends >= POLE_SCALE * scale)
+        )
+    out = np.full(len(lo4), JUMP, dtype=np.uint8)
+    out[pole & ~np.isnan(outside_end)] = POLE  # F becoming NaN is the edge of a domain: a jump
+    out[root & np.isfinite(outside_end)] = ROOT
+    return out
+
+
+def face_kinds_of(
+    mesh: Mesh, edges: np.ndarray, kinds: np.ndarray, cap: bool, field: Field
+) -> np.ndarray:
+    """uint8 ``(F,)`` kind of each face from its vertices' edge kinds.
+
+    With ``cap``, faces lying on a box face are CAP.  Otherwise a face is a wall when most of
+    its labelled vertices are walls (a pole if any of those is a pole, else a jump), else ROOT.
+    """
+    vk = kinds[mesh.faces]  # (F, 3)
+    known = vk != UNKNOWN
+    wall = known & np.isin(vk, WALL_KINDS)
+    n_known = np.count_nonzero(known, axis=1)
+    n_wall = np.count_nonzero(wall, axis=1)
+    out = np.full(mesh.n_faces, ROOT, dtype=np.uint8)
+    is_wall = 2 * n_wall > n_known
+    any_pole = np.any(vk == POLE, axis=1)
+    out[is_wall] = np.where(any_pole[is_wall], POLE, JUMP)
+    if cap:
+        tri = mesh.vertices[mesh.faces]
+        lo = np.asarray(field.grid.box.lo)
+        hi = np.asarray(field.grid.box.hi)
+        on_box = np.zeros(mesh.n_faces, dtype=bool)
+        for k in range(3):
+            c = tri[:, :, k]
+            on_box |= np.all(c == lo[k], axis=1) | np.all(c == hi[k], axis=1)
+        out[on_box] = CAP
+    return out
