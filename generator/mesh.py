@@ -157,16 +157,21 @@ def extract_with_edges(
     index = verts.astype(np.float64) - (1.0 if cap else 0.0)
     vertices = lo + index * np.asarray(grid.spacing, dtype=np.float64)
     # Clamping puts the cap exactly on the box faces; without a cap it only removes rounding.
-    np.clip(vertices, lo, hi, out=vertices)
+    # lo + (N-1) * spacing may miss hi by an ulp: snap the last samples' coordinate onto hi, or
+    # a cap vertex clamped onto hi and one computed there would differ by an ulp (distinct
+    # here, one point in float32).
+    last = np.asarray(grid.shape, dtype=np.float64) - 1.0
+    vertices = np.where(index >= last, hi, np.where(index <= 0.0, lo, vertices))
     faces = faces.astype(np.int64)
     moved = np.any((index < 0.0) | (index > np.asarray(grid.shape) - 1.0), axis=1)
     edges = _vertex_edges(index, moved)
-    if cap:
-        # Crossings towards the pad sit half a cell outside the box; clamping put them on the
-        # box sample they came from.  A sample on a box edge (corner) has two (three) of them:
-        # merge those copies and drop the triangles that collapse.
-        vertices, faces, used = _merge_moved(vertices, faces, moved)
-        edges = edges[used]
+    # One point, one vertex: crossings towards the pad (cap) sit half a cell outside the box
+    # and clamping put them on the box sample they came from, so a sample on a box edge
+    # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
+    # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
+    # Give each such group one index and drop the triangles that collapse.
+    vertices, faces, used = _merge_same(vertices, faces, edges, moved, grid.shape)
+    edges = edges[used]
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),
@@ -281,27 +286,42 @@ def _pad_outside(work: np.ndarray) -> np.ndarray:
     return padded
 
 
-def _merge_moved(
-    vertices: np.ndarray, faces: np.ndarray, moved: np.ndarray
+def _merge_same(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    edges: np.ndarray,
+    moved: np.ndarray,
+    shape: tuple[int, int, int],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Give exactly coincident moved vertices one index.
+    """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
 
-    Other vertices keep theirs even where they coincide (a sample exactly on the level puts
-    several crossings on it): merging those can pinch the surface, keeping them keeps the
-    topology marching cubes chose.  Faces that lose a corner are dropped, then unreferenced
-    vertices.  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V,)`` bool moved;
-    also returns the ``(V,)`` bool mask of the vertices kept.
+    Other vertices keep theirs even where they are close (merging distinct crossings could
+    pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices.
+    Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V, 4)`` edges, ``(V,)``
+    bool moved; also returns the ``(V,)`` bool mask of the vertices kept.
     """
+    n = len(vertices)
+    nx, ny, nz = shape
+    on_edge = edges[:, 0] >= 0
+    key = np.arange(n, dtype=np.int64) + 4 * nx * ny * nz  # unique unless grouped below
+    e = edges[on_edge]
+    key[on_edge] = ((e[:, 0] * nx + e[:, 1]) * ny + e[:, 2]) * nz + e[:, 3]
     idx = np.flatnonzero(moved)
-    _, first, inverse = np.unique(vertices[idx], axis=0, return_index=True, return_inverse=True)
-    target = np.arange(len(vertices))
-    target[idx] = idx[first[inverse.reshape(-1)]]
+    if idx.size:
+        _, first, _inverse = np.unique(
+            vertices[idx], axis=0, return_index=True, return_inverse=True
+        )
+        key[idx] = key[idx[first[_inverse.reshape(-1)]]]
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    target = first[inverse.reshape(-1)]
+    if np.array_equal(target, np.arange(n)):
+        return vertices, faces, np.ones(n, dtype=bool)
     faces = target[faces]
     keep = (
         (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
     )
     faces = faces[keep]
-    used = np.zeros(len(vertices), dtype=bool)
+    used = np.zeros(n, dtype=bool)
     used[faces.reshape(-1)] = True
     renumber = np.cumsum(used) - 1
     return vertices[used], renumber[faces], used
