@@ -59,7 +59,7 @@ class FilterConfig:
     max_genus: int = 500
     blob_max_curvature: float = 1.25
     require_manifold: bool = True
-    max_wall_fraction: float = 1.0
+    max_wall_fraction: float = 0.25
 
     def __post_init__(self) -> None:
         if not 4 <= self.coarse_grid <= 256:

@@ -68,10 +68,13 @@ def wall_fraction(mesh: Mesh) -> float | None:
     """Share of the area on wall faces (poles and jumps); None when the mesh is not labelled."""
     if mesh.face_kinds is None:
         return None
+    kinds = mesh.face_kinds
+    wall = (kinds == POLE) | (kinds == JUMP)
+    if not wall.any():
+        return 0.0
     areas = face_areas(mesh)
     total = float(areas.sum())
-    walls = float(areas[np.isin(mesh.face_kinds, WALL_KINDS)].sum())
-    return walls / total if total > 0 else 0.0
+    return float(areas[wall].sum()) / total if total > 0 else 0.0
 
 
 # --- extraction -------------------------------------------------------------------------------
@@ -94,7 +97,14 @@ _MAX_ROUNDS = 200
 def face_areas(mesh: Mesh) -> np.ndarray:
     """Area of each face, shape ``(F,)``."""
     v, f = mesh.vertices, mesh.faces
-    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    a = v[f[:, 0]]
+    b = v[f[:, 1]] - a
+    c = v[f[:, 2]] - a
+    # The cross product by components: np.cross and np.linalg.norm are slow on (F, 3).
+    x = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
+    y = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
+    z = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
+    return 0.5 * np.sqrt(x * x + y * y + z * z)
 
 
 def bbox_diagonal(mesh: Mesh) -> float:
@@ -170,7 +180,7 @@ def extract_with_edges(
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
     # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
     # Give each such group one index and drop the triangles that collapse.
-    vertices, faces, used = _merge_same(vertices, faces, edges, moved, grid.shape)
+    vertices, faces, used = _merge_same(vertices, faces, index, edges, moved, grid.shape)
     edges = edges[used]
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
@@ -289,6 +299,7 @@ def _pad_outside(work: np.ndarray) -> np.ndarray:
 def _merge_same(
     vertices: np.ndarray,
     faces: np.ndarray,
+    index: np.ndarray,
     edges: np.ndarray,
     moved: np.ndarray,
     shape: tuple[int, int, int],
@@ -297,21 +308,19 @@ def _merge_same(
 
     Other vertices keep theirs even where they are close (merging distinct crossings could
     pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices.
-    Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V, 4)`` edges, ``(V,)``
-    bool moved; also returns the ``(V,)`` bool mask of the vertices kept.
+    Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V, 3)`` grid indices,
+    ``(V, 4)`` edges, ``(V,)`` bool moved; also returns the ``(V,)`` bool mask of the vertices kept.
     """
     n = len(vertices)
     nx, ny, nz = shape
     on_edge = edges[:, 0] >= 0
     key = np.arange(n, dtype=np.int64) + 4 * nx * ny * nz  # unique unless grouped below
+    # (keys: edges below 3 N, box samples below 4 N, the others above; N = nx * ny * nz)
     e = edges[on_edge]
     key[on_edge] = ((e[:, 0] * nx + e[:, 1]) * ny + e[:, 2]) * nz + e[:, 3]
-    idx = np.flatnonzero(moved)
-    if idx.size:
-        _, first, _inverse = np.unique(
-            vertices[idx], axis=0, return_index=True, return_inverse=True
-        )
-        key[idx] = key[idx[first[_inverse.reshape(-1)]]]
+    # A moved vertex was clamped onto a box sample: the sample's number is its key.
+    snapped = np.clip(np.rint(index[moved]).astype(np.int64), 0, np.asarray(shape) - 1)
+    key[moved] = 3 * nx * ny * nz + (snapped[:, 0] * ny + snapped[:, 1]) * nz + snapped[:, 2]
     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
     target = first[inverse.reshape(-1)]
     if np.array_equal(target, np.arange(n)):

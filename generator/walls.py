@@ -70,6 +70,8 @@ ROOT_KEPT = 0.25
 POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
+SECANT_ROOT = 0.05
+SEPARATION_T = 0.01
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
 
@@ -258,8 +260,42 @@ def classify_edges(
     s = np.flatnonzero(suspect)
     if s.size == 0:
         return kinds, 0
-    kinds[idx[s]] = _refine(tree, params, level, field, ijk[s], axis[s], ina[s], fa[s], fb[s])
-    return kinds, int(s.size)
+    points = PointsEvaluator(tree, params)
+    s = s[~_secant_root(points, level, field, ijk[s], axis[s], fa[s], fb[s])]
+    if s.size:
+        kinds[idx[s]] = _refine(points, level, field, ijk[s], axis[s], ina[s], fa[s], fb[s])
+    return kinds, int(suspect.sum())
+
+
+def _secant_root(
+    points: PointsEvaluator,
+    level: float,
+    field: Field,
+    ijk: np.ndarray,
+    axis: np.ndarray,
+    fa: np.ndarray,
+    fb: np.ndarray,
+) -> np.ndarray:
+    """Suspects that one secant step shows to be roots: ``|F(t*)| < SECANT_ROOT * min(|fa|,
+    |fb|)`` where F is linear enough over the edge (a jump or pole keeps |F| of the order of
+    its samples' there; a sample exactly at the level never certifies, min being 0)."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        t = np.clip(fa / (fa - fb), SEPARATION_T, 1.0 - SEPARATION_T)
+        finite = np.isfinite(t)
+        t = np.where(finite, t, 0.5)
+        xyz = _edge_points(field, ijk, axis, t[:, None])[:, 0, :]
+        f = points(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
+        return finite & (np.abs(f) < SECANT_ROOT * np.minimum(np.abs(fa), np.abs(fb)))
+
+
+def _edge_points(field: Field, ijk: np.ndarray, axis: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points ``(n, m, 3)`` at fractions ``s`` ``(n, m)`` along each edge (sample ``ijk``,
+    one step along ``axis``)."""
+    axes = field.grid.axes()
+    spacing = np.asarray(field.grid.spacing)
+    origin = np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1)  # (n, 3)
+    direction = np.eye(3)[axis] * spacing[axis][:, None]  # (n, 3)
+    return origin[:, None, :] + s[..., None] * direction[:, None, :]
 
 
 def _smooth(fm: np.ndarray, fa: np.ndarray, fb: np.ndarray, fp: np.ndarray) -> np.ndarray:
@@ -277,8 +313,7 @@ def _smooth(fm: np.ndarray, fa: np.ndarray, fb: np.ndarray, fp: np.ndarray) -> n
 
 
 def _refine(
-    tree: Expr,
-    params: Mapping[str, float] | None,
+    points: PointsEvaluator,
     level: float,
     field: Field,
     a: np.ndarray,
@@ -289,11 +324,6 @@ def _refine(
 ) -> np.ndarray:
     """Refine each edge (sample ``a``, one step along ``axis``) and classify it."""
     n = len(a)
-    points = PointsEvaluator(tree, params)
-    axes = field.grid.axes()
-    spacing = np.asarray(field.grid.spacing)
-    origin = np.stack([axes[k][a[:, k]] for k in range(3)], axis=1)  # (n, 3)
-    direction = np.eye(3)[axis] * spacing[axis][:, None]  # (n, 3)
     lo = np.zeros(n)
     hi = np.ones(n)
     f_lo = fa.copy()
@@ -303,7 +333,7 @@ def _refine(
     saved = None
     for rnd in range(ROUNDS):
         s = lo[:, None] + (hi - lo)[:, None] * frac[None, :]  # (n, POINTS)
-        pts = origin[:, None, :] + s[..., None] * direction[:, None, :]
+        pts = _edge_points(field, a, axis, s)
         flat = pts.reshape(-1, 3)
         vals = points(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(n, POINTS) - level
         # side of every point of the bracket: [lo, p1..p7, hi]
@@ -367,22 +397,26 @@ def face_kinds_of(
     With ``cap``, faces lying on a box face are CAP.  Otherwise a face is a wall when most of
     its labelled vertices are walls (a pole if any of those is a pole, else a jump), else ROOT.
     """
-    vk = kinds[mesh.faces]  # (F, 3)
-    known = vk != UNKNOWN
-    wall = known & np.isin(vk, WALL_KINDS)
-    n_known = np.count_nonzero(known, axis=1)
-    n_wall = np.count_nonzero(wall, axis=1)
     out = np.full(mesh.n_faces, ROOT, dtype=np.uint8)
-    is_wall = 2 * n_wall > n_known
-    any_pole = np.any(vk == POLE, axis=1)
-    out[is_wall] = np.where(any_pole[is_wall], POLE, JUMP)
+    wall_vertex = (kinds == POLE) | (kinds == JUMP)
+    if wall_vertex.any():
+        f = mesh.faces
+        known = (kinds != UNKNOWN).astype(np.int8)
+        wall = wall_vertex.astype(np.int8)
+        n_known = known[f[:, 0]] + known[f[:, 1]] + known[f[:, 2]]
+        n_wall = wall[f[:, 0]] + wall[f[:, 1]] + wall[f[:, 2]]
+        is_wall = 2 * n_wall > n_known
+        pole = (kinds == POLE)[f[is_wall]]
+        out[is_wall] = np.where(pole[:, 0] | pole[:, 1] | pole[:, 2], POLE, JUMP)
     if cap:
-        tri = mesh.vertices[mesh.faces]
+        # One bit per box face for each vertex on it; a cap face has a bit all three share.
+        v = mesh.vertices
         lo = np.asarray(field.grid.box.lo)
         hi = np.asarray(field.grid.box.hi)
-        on_box = np.zeros(mesh.n_faces, dtype=bool)
+        bits = np.zeros(mesh.n_vertices, dtype=np.uint8)
         for k in range(3):
-            c = tri[:, :, k]
-            on_box |= np.all(c == lo[k], axis=1) | np.all(c == hi[k], axis=1)
-        out[on_box] = CAP
+            bits |= (v[:, k] == lo[k]).astype(np.uint8) << np.uint8(2 * k)
+            bits |= (v[:, k] == hi[k]).astype(np.uint8) << np.uint8(2 * k + 1)
+        f = mesh.faces
+        out[(bits[f[:, 0]] & bits[f[:, 1]] & bits[f[:, 2]]) != 0] = CAP
     return out
