@@ -79,8 +79,8 @@ UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior 
 class WallReport:
     """How the crossings of one mesh were classified.
 
-    ``edges``: crossing edges under vertices; ``refined``: how many of them were refined with
-    the formula; ``roots``, ``poles``, ``jumps``: the result; ``wall_fraction``: share of the
+    ``edges``: crossing edges under vertices; ``refined``: how many of them were looked at
+    with the formula (a secant step, then the refinement if needed); ``roots``, ``poles``, ``jumps``: the result; ``wall_fraction``: share of the
     mesh's area on wall faces.
     """
 
@@ -125,12 +125,30 @@ def extract_labelled(
     ``walls``: ``keep`` and ``mark`` return the whole mesh (with ``face_kinds`` for ``mark``);
     ``remove`` returns only the faces on roots, without caps (the zero set is open where the box
     cuts it).  ``tree``/``params`` must be the formula ``field`` was sampled from.
-    The report's ``wall_fraction`` is measured on the whole (capped if asked) mesh.
+    The report's ``wall_fraction`` is measured on the mesh extracted (with its caps, except
+    for ``remove``, which extracts without them).
     Raises :class:`EmptySurface` when there is no crossing, or with ``remove`` when no
     crossing is a root.
     """
     check_walls_mode(walls)
     mesh, edges = extract_with_edges(field, level, cap and walls != "remove")
+    return label_walls(mesh, edges, field, tree, params, level, cap, walls)
+
+
+def label_walls(
+    mesh: Mesh,
+    edges: np.ndarray,
+    field: Field,
+    tree: Expr,
+    params: Mapping[str, float] | None = None,
+    level: float = 0.0,
+    cap: bool = False,
+    walls: str = "mark",
+) -> tuple[Mesh, WallReport]:
+    """The second half of :func:`extract_labelled`, for a mesh and edges that
+    :func:`~surfgen.generator.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
+    lets a caller look at the mesh before paying for the classification."""
+    check_walls_mode(walls)
     kinds, refined = classify_edges(field, tree, params, level, edges)
     face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
     labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
