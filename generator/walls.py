@@ -70,7 +70,7 @@ ROOT_KEPT = 0.25
 POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
-SECANT_ROOT = 0.05
+SECANT_ROOT = 0.25
 SEPARATION_T = 0.01
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
