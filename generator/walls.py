@@ -7,30 +7,30 @@ tan, cot, sec, csc, 1/u) or jump over the level without taking it (a *jump*: the
 becomes NaN).  Poles and jumps give *walls*: they bound the solid {F < level}, but they are not
 the zero set.
 
-:func:`classify_edges` tells them apart by refining each crossing on its edge with the formula
-itself: four rounds of 7 points (the bracket shrinks to 1/4096 of the edge), keeping the
-sub-interval where the side changes.  ``M`` is the largest ``|F - level|`` at the bracket's ends
-(leaving out an end that is still the original sample); with ``M64`` after two rounds (1/64)
-and ``M4096`` after four:
+:func:`classify_edges` tells them apart in three steps, cheapest first:
 
-- root: ``M4096 <= ROOT_SHRINK * M64`` (|F| keeps shrinking towards 0: by 64x for a simple
-  root, 64**0.2 = 2.3x for the paper's |u|^0.2 powers) or ``M4096`` below ``ROOT_FLOOR`` of the
-  edge's own |F| values (rounding noise at a root); a sample kept as an end must itself be
-  within ``ROOT_KEPT`` of the edge's |F| scale;
-- pole: F is infinite at the bracket, or ``M4096 >= POLE_GROWTH * M64`` (|F| grows), or an
-  end of the last bracket is ``POLE_SCALE`` times the edge's |F| scale (|fa| + |fb|: a pole
-  that an early round already hit, or one within 1/4096 of a sample; a simple pole gives about
-  2000 times);
-- jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN).
+1. *Samples.*  A crossing whose secant slope has the sign of both neighbouring secants along
+   the same grid line, and is at most ``SMOOTH_RATIO`` times the larger of them, looks like a
+   smooth root and is taken as one.  Everything else (opposite slopes: poles and downward
+   resets; steep steps; non-finite neighbours; edges at the grid's border) is *suspect*.
+2. *Secant.*  F at the secant point ``t* = fa / (fa - fb)``: a root when
+   ``|F(t*)| < SECANT_ROOT * min(|fa|, |fb|)`` (a pole or a jump keeps |F| of the order of its
+   samples' there; a sample exactly at the level never certifies, min being 0).
+3. *Refinement.*  Two rounds of three points shrink the bracket around the side change to 1/4,
+   then 1/16 of the edge.  ``M`` is the largest ``|F - level|`` at the bracket's ends, leaving
+   out an end that is still an original sample; ``M4``, ``M16`` after each round:
 
-Jumps smaller than about 1/8 of the change of F across one cell look like roots at this
-resolution and are counted as roots.  Refinement costs 28 formula evaluations per edge, so
-only *suspect* edges are refined: a crossing whose secant slope has the sign of both
-neighbouring secants along the same grid line and is at most ``SMOOTH_RATIO`` times the
-smaller of them is what a smooth root looks like on the samples, and is taken as a root
-without refinement; so is one whose neighbours are all finite and whose jump, seen on the
-samples, is below that resolution anyway.  Everything else (opposite slopes, steep steps,
-non-finite neighbours, edges at the grid's border with one neighbour) is refined.
+   - root: ``M16 <= ROOT_SHRINK * M4`` (|F| keeps shrinking towards 0: 4x for a simple root)
+     or ``M16`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
+     root); a sample kept as an end must itself be within ``ROOT_KEPT`` of that scale;
+   - pole: F is infinite at the bracket, ``M16 >= POLE_GROWTH * M4`` (|F| grows: 4x for 1/u),
+     or an end ``POLE_SCALE`` times the samples' scale (a pole a round hit early, or one next
+     to a sample);
+   - jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN: the edge
+     of a domain).
+
+Jumps smaller than about half the change of F across one cell look like roots at this
+resolution and are counted as roots.
 """
 
 from __future__ import annotations
