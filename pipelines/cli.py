@@ -99,6 +99,16 @@ def render(
         tuple[Path, str] | None,
         typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),
     ] = None,
+    walls: Annotated[
+        str,
+        typer.Option(
+            help="keep (the solid's whole boundary), remove (only the zero set: open sheets) "
+            "or mark (label poles and jumps: colours in PLY/GLB and the picture)."
+        ),
+    ] = "keep",
+    force: Annotated[
+        bool, typer.Option("--force", help="Write an STL even with --walls remove (open).")
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     mathmod: Annotated[
         Path | None, typer.Option(help="A MathMod script: render its Iso3D model.")
@@ -172,6 +182,8 @@ def render(
         mesh_path=output,
         field_path=save_field,
         png_path=png,
+        walls=walls,
+        force=force,
     )
     s = result.summary()
     if as_json:
@@ -183,6 +195,12 @@ def render(
         + (f"{s['vertices']} vertices, {s['faces']} faces" if s["faces"] is not None else "no mesh")
         + f", {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
     )
+    if s["wall_fraction"] is not None:
+        c = s["crossings"]
+        typer.echo(
+            f"walls ({s['walls']}): {100 * s['wall_fraction']:.1f}% of the area; crossings: "
+            f"{c['roots']} roots, {c['poles']} poles, {c['jumps']} jumps"
+        )
     for kind, path in s["files"].items():
         typer.echo(f"wrote {kind}: {path}")
 
@@ -197,9 +215,12 @@ def check(
 ) -> None:
     """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
     from surfgen.filters.metrics import measure_mesh
-    from surfgen.generator.mesh import load_mesh
+    from surfgen.generator.mesh import load_mesh, wall_fraction
 
-    m = measure_mesh(load_mesh(mesh)).to_dict()
+    loaded = load_mesh(mesh)
+    m = measure_mesh(loaded).to_dict()
+    # Known only for files written with --walls mark (their faces carry a kind).
+    m["wall_fraction"] = wall_fraction(loaded)
     if as_json:
         emit_json(m)
         return
