@@ -22,8 +22,23 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from surfgen.generator.errors import FormulaSyntaxError
-from surfgen.generator.expr import VARIABLES, Expr, add_all, mul_all, num, walk
+from surfgen.generator.expr import (
+    VARIABLES,
+    Expr,
+    add_all,
+    mul_all,
+    num,
+    postorder,
+    printed_nesting,
+    walk,
+)
 from surfgen.generator.functions import FUNCTIONS, MACROS
+from surfgen.generator.limits import (
+    MAX_FORMULA_LENGTH,
+    MAX_FORMULA_NESTING,
+    MAX_FORMULA_NODES,
+    MAX_FORMULA_TOKENS,
+)
 
 _TOKEN = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
@@ -39,21 +54,31 @@ class Token:
 
 
 def tokenize(text: str) -> list[Token]:
+    """The tokens of ``text`` (at most :data:`MAX_FORMULA_TOKENS`), then an ``end`` token."""
     tokens: list[Token] = []
     pos = 0
-    while pos < len(text):
-        if text[pos:].strip() == "":
-            break
+    stop = len(text.rstrip())  # trailing blanks end the formula (computed once: linear time)
+    while pos < stop:
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
-            col = pos + len(text[pos:]) - len(text[pos:].lstrip()) + 1
+            col = pos + len(text[pos:stop]) - len(text[pos:stop].lstrip()) + 1
             raise FormulaSyntaxError(f"unexpected character {text[col - 1]!r}", col)
         kind = m.lastgroup or "op"
         start = m.start(kind)
         tokens.append(Token(kind, m.group(kind), start + 1))
+        if len(tokens) > MAX_FORMULA_TOKENS:
+            raise FormulaSyntaxError(
+                f"formula too long: more than {MAX_FORMULA_TOKENS} numbers, names and operators",
+                start + 1,
+            )
         pos = m.end()
     tokens.append(Token("end", "", len(text) + 1))
     return tokens
+
+
+def _short(text: str, limit: int = 40) -> str:
+    """``text`` cut for an error message (a 50,000-letter name stays one readable line)."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class _Parser:
@@ -62,7 +87,7 @@ class _Parser:
         self.params = params
         self.tokens = tokenize(text)
         self.i = 0
-        self.open_parens: list[int] = []
+        self.open_parens: list[int] = []  # columns of the open '(': also the nesting depth
 
     # -- helpers
     @property
@@ -87,13 +112,26 @@ class _Parser:
             return FormulaSyntaxError("formula ends too early", t.column)
         if t.text == ")" and not self.open_parens:
             return FormulaSyntaxError("unbalanced parentheses: ')' has no matching '('", t.column)
-        return FormulaSyntaxError(f"unexpected {t.text!r}", t.column)
+        return FormulaSyntaxError(f"unexpected {_short(t.text)!r}", t.column)
+
+    def open_paren(self) -> None:
+        """Consume '(' and check the nesting limit before the recursion it leads to."""
+        column = self.advance().column
+        if len(self.open_parens) >= MAX_FORMULA_NESTING:
+            raise FormulaSyntaxError(
+                f"formula nested too deeply: more than {MAX_FORMULA_NESTING} levels of "
+                "parentheses and function calls",
+                column,
+            )
+        self.open_parens.append(column)
 
     def expect_close(self) -> None:
         if not self.is_op(")"):
             if self.tok.kind == "end":
                 raise self.unexpected()
-            raise FormulaSyntaxError(f"expected ')' but found {self.tok.text!r}", self.tok.column)
+            raise FormulaSyntaxError(
+                f"expected ')' but found {_short(self.tok.text)!r}", self.tok.column
+            )
         self.advance()
         self.open_parens.pop()
 
@@ -120,21 +158,31 @@ class _Parser:
             left = Expr(op, (left, self.unary()))
         return left
 
+    def signs(self) -> int:
+        """Consume a run of unary '+' and '-'; the number of '-' (a loop: 10,000 signs are
+        no deeper than one)."""
+        minus = 0
+        while self.is_op("-") or self.is_op("+"):
+            minus += self.advance().text == "-"
+        return minus
+
     def unary(self) -> Expr:
-        if self.is_op("-"):
-            self.advance()
-            return Expr("neg", (self.unary(),))
-        if self.is_op("+"):
-            self.advance()
-            return self.unary()
-        return self.power()
+        minus = self.signs()
+        return _negate(self.power(), minus)
 
     def power(self) -> Expr:
-        base = self.atom()
-        if self.is_op("^"):
+        """``atom ("^" signs atom)*`` folded from the right (``^`` is right-associative and
+        its exponent may carry signs: ``a^-b^c = a^(-(b^c))``); iterative for power towers."""
+        atoms = [self.atom()]
+        minus: list[int] = []
+        while self.is_op("^"):
             self.advance()
-            return Expr("^", (base, self.unary()))
-        return base
+            minus.append(self.signs())
+            atoms.append(self.atom())
+        out = atoms[-1]
+        for base, m in zip(reversed(atoms[:-1]), reversed(minus), strict=True):
+            out = Expr("^", (base, _negate(out, m)))
+        return out
 
     def atom(self) -> Expr:
         t = self.tok
@@ -150,7 +198,7 @@ class _Parser:
                 return self.call(t)
             return self.name(t)
         if self.is_op("("):
-            self.open_parens.append(self.advance().column)
+            self.open_paren()
             inner = self.sum()
             self.expect_close()
             return inner
@@ -170,15 +218,15 @@ class _Parser:
         allowed = ", ".join([*VARIABLES, "pi", *sorted(self.params)])
         hint = _did_you_mean(t.text, [*VARIABLES, "pi", *self.params])
         raise FormulaSyntaxError(
-            f"unknown variable '{t.text}'", t.column, hint or f" (allowed: {allowed})"
+            f"unknown variable '{_short(t.text)}'", t.column, hint or f" (allowed: {allowed})"
         )
 
     def call(self, t: Token) -> Expr:
         name = t.text
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
-            raise FormulaSyntaxError(f"unknown function '{name}'", t.column, hint)
-        self.open_parens.append(self.advance().column)
+            raise FormulaSyntaxError(f"unknown function '{_short(name)}'", t.column, hint)
+        self.open_paren()
         args = [] if self.is_op(")") else [self.sum()]
         while self.is_op(","):
             self.advance()
@@ -204,6 +252,12 @@ class _Parser:
         return Expr(name, tuple(args))
 
 
+def _negate(tree: Expr, times: int) -> Expr:
+    for _ in range(times):
+        tree = Expr("neg", (tree,))
+    return tree
+
+
 def is_constant(tree: Expr) -> bool:
     """True when the tree uses no variable x, y, z."""
     return all(n.op != "var" for n in walk(tree))
@@ -223,6 +277,8 @@ def _expand_powf(args: list[Expr], column: int) -> Expr:
 
 
 def _did_you_mean(word: str, choices: Iterable[str]) -> str:
+    if len(word) > 40:  # no function or variable name is that long
+        return ""
     close = difflib.get_close_matches(word.lower(), list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]}?)" if close else ""
 
@@ -230,11 +286,25 @@ def _did_you_mean(word: str, choices: Iterable[str]) -> str:
 def parse(text: str, params: Iterable[str] = ()) -> Expr:
     """Parse ``text`` into a tree; ``params`` are the names allowed as parameters.
 
-    Raises :class:`FormulaSyntaxError` naming the column of the problem.
+    Raises :class:`FormulaSyntaxError` naming the column of the problem, also for a formula
+    beyond the limits of :mod:`surfgen.generator.limits` (length, tokens, nesting).
     """
     if not isinstance(text, str):
         raise FormulaSyntaxError(f"formula must be text, got {type(text).__name__}")
+    if len(text) > MAX_FORMULA_LENGTH:
+        raise FormulaSyntaxError(
+            f"formula too long: {len(text)} characters (at most {MAX_FORMULA_LENGTH})"
+        )
     bad = [p for p in params if p in VARIABLES or p == "pi" or p in FUNCTIONS or p in MACROS]
     if bad:
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
-    return _Parser(text, frozenset(params)).parse()
+    tree = _Parser(text, frozenset(params)).parse()
+    nodes = len(postorder(tree))
+    if nodes > MAX_FORMULA_NODES:
+        raise FormulaSyntaxError(f"formula too large: {nodes} nodes (at most {MAX_FORMULA_NODES})")
+    if printed_nesting(tree) > MAX_FORMULA_NESTING:
+        raise FormulaSyntaxError(
+            f"formula nested too deeply: its canonical form needs more than "
+            f"{MAX_FORMULA_NESTING} levels of parentheses (e.g. '-(-(-x))', 'x^(-x^(-x))')"
+        )
+    return tree

@@ -13,6 +13,7 @@ import json
 import logging
 import os
 import shutil
+import sqlite3
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -38,11 +39,19 @@ from surfgen.filters.verdict import (
     shape_metrics,
 )
 from surfgen.generator import __version__
-from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.errors import EmptySurface, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
+from surfgen.generator.limits import (
+    MAX_COUNT,
+    check_count,
+    check_memory,
+    check_seed,
+    estimate_memory,
+)
+from surfgen.generator.mesh import Mesh, extract_mesh, mesh_bytes
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
@@ -68,6 +77,11 @@ class ShapeOutcome:
     mesh_file: Path | None = None
     thumb_file: Path | None = None
     turntable_file: Path | None = None
+    write_error: str | None = None  # the shape's files could not be written (disk full...)
+
+
+class SampleWriteError(SurfgenError):
+    """A sampling run stopped because a file could not be written; ``--resume`` continues it."""
 
 
 @dataclass
@@ -160,7 +174,11 @@ def make_shape(
     if verdict.accepted and mesh is not None:
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
         if staging is not None:
-            out = _with_files(out, mesh, staging, pictures)
+            try:
+                out = _with_files(out, mesh, staging, pictures)
+            except OSError as exc:  # not a verdict on the shape: the run must stop
+                where = exc.filename or staging
+                return ShapeOutcome(index, row, verdict, write_error=f"{where}: {exc.strerror}")
         watch.lap("io")
     row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
@@ -216,7 +234,7 @@ def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) ->
     """Write the accepted shape's files into the run's staging folder; the parent moves them
     into the catalogue when it commits the row (so a discarded index leaves nothing behind)."""
     key = out.row["key"]
-    mesh_file = save_mesh(mesh, staging / f"{key}.ply")
+    mesh_file = write_atomic(staging / f"{key}.ply", mesh_bytes(mesh, staging / f"{key}.ply"))
     thumb = turn = None
     if pictures:
         from surfgen.pipelines.pictures import render_thumbnail, render_turntable
@@ -238,6 +256,7 @@ def run_sample(
     max_draws: int | None = None,
     resume: bool = False,
     progress: Callable[[int, int, int], None] | None = None,
+    max_memory: int | None = None,
 ) -> RunSummary:
     """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
 
@@ -245,14 +264,19 @@ def run_sample(
     Raises :class:`SpecError` for bad options and :class:`CatalogueError` when a run with the
     same seed, grid and config exists and ``resume`` is false.
     """
-    if n <= 0:
-        raise SpecError(f"--n must be at least 1, got {n}")
+    check_count(n, "--n")
+    check_seed(seed)
     workers = os.cpu_count() or 1 if workers is None else workers
-    if workers < 1:
-        raise SpecError(f"--workers must be at least 1, got {workers}")
-    max_draws = max_draws if max_draws is not None else max(1000, 50 * n)
-    if max_draws < 1:
-        raise SpecError(f"--max-draws must be at least 1, got {max_draws}")
+    check_count(workers, "--workers", 1, 256)
+    max_draws = max_draws if max_draws is not None else min(max(1000, 50 * n), MAX_COUNT)
+    check_count(max_draws, "--max-draws")
+    grid = config.run.grid
+    check_memory(
+        estimate_memory(grid**3, mesh=True),
+        max_memory,
+        f"sampling on a {grid}^3 grid",
+        times=workers,
+    )
     start = time.perf_counter()
     with open_catalogue(catalogue) as cat:
         cat.make_dirs()
@@ -276,7 +300,10 @@ def run_sample(
         try:
             status, stage = _drive(cat, run.id, n, seed, config, workers, max_draws, progress)
         finally:
-            cat.set_run_status(run.id, status)
+            try:
+                cat.set_run_status(run.id, status)
+            except sqlite3.Error as exc:  # e.g. the disk is still full: keep the first error
+                log.error("could not record the run's status (%s)", exc)
         final = cat.get_run(run.id)
     return RunSummary(
         run_id=final.id,
@@ -309,6 +336,7 @@ def _drive(
     if accepted >= n:
         return "complete", {}
     staging = cat.root / ".staging"
+    shutil.rmtree(staging, ignore_errors=True)  # what an interrupted run left half-done
     staging.mkdir(exist_ok=True)
     fn = partial(
         make_shape, seed=seed, config=config, staging=staging, pictures=config.run.thumbnails
@@ -324,6 +352,14 @@ def _drive(
 
     with KillablePool(fn, workers, config.run.timeout) as pool:
         for result in pool.run(tasks()):
+            if result.status == "ok" and result.value.write_error is not None:
+                # Stop at the first write error: what is committed is a prefix of the run, and
+                # this shape (and any after it) is redone by --resume once there is space.
+                raise SampleWriteError(
+                    f"cannot write {result.value.write_error}; sampling stopped before shape "
+                    f"{result.task} ({accepted} accepted shapes are catalogued): free some "
+                    "space and run the same command with --resume"
+                )
             buffer[result.task] = result
             while next_index in buffer and accepted < n:
                 res = buffer.pop(next_index)
@@ -417,7 +453,13 @@ def _commit(cat: Catalogue, run_id: int, outcome: ShapeOutcome, counts: Counter)
         )
         for column, path, staged in files:
             if staged is not None:
-                os.replace(staged, path)
+                try:
+                    os.replace(staged, path)
+                except OSError as exc:
+                    raise SampleWriteError(
+                        f"cannot write {path}: {exc.strerror}; sampling stopped before shape "
+                        f"{outcome.index}: fix it and run the same command with --resume"
+                    ) from None
                 row[column] = str(path.relative_to(cat.root))
     else:
         for r in outcome.verdict.reasons:
