@@ -394,6 +394,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
     "surfgen.pipelines.catalogue_check",
+    "surfgen.pipelines.reproduce",
 ]
 
 for _module in _REGISTER:
