@@ -12,9 +12,9 @@ def _temp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
 
 
-def _reraise(exc: OSError, path: Path, verb: str = "write") -> OSError:
+def _reraise(exc: OSError, path: Path) -> OSError:
     """The same error naming the file the user asked for, not its temporary name."""
-    return type(exc)(exc.errno, f"cannot {verb} it: {exc.strerror or exc}", str(path))
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def write_atomic(path: str | os.PathLike, data: bytes) -> Path:
@@ -36,7 +36,7 @@ def write_all_atomic(items: Sequence[tuple[str | os.PathLike, bytes]]) -> list[P
     paths = [Path(p) for p, _ in items]
     for path in paths:
         if path.is_dir():
-            raise IsADirectoryError(21, "cannot write it: it is a folder", str(path))
+            raise IsADirectoryError(21, "it is a folder, not a file name", str(path))
     temps: list[Path] = []
     try:
         for path, (_, data) in zip(paths, items, strict=True):

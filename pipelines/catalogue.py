@@ -443,6 +443,23 @@ _OPEN_LOCK = threading.Lock()
 _WAL_DMS_BYTE = 128  # the -shm byte every connection to a WAL database holds a shared lock on
 
 
+def in_use(db: Path) -> bool:
+    """True when another process has the WAL database ``db`` open (it holds a lock on the
+    shared-memory file's DMS byte)."""
+    shm = Path(f"{db}-shm")
+    try:
+        fd = os.open(shm, os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, _WAL_DMS_BYTE, os.SEEK_SET)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
 def _tidy_after_reading(db: Path) -> None:
     """Remove the empty ``-wal`` and the ``-shm`` a read-only connection had to create, when no
     other process is attached (the exclusive lock on the DMS byte is free), as SQLite's last

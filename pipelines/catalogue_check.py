@@ -37,6 +37,7 @@ from surfgen.pipelines.catalogue import (
     CorruptCatalogue,
     connect_readonly,
     identify,
+    in_use,
     open_catalogue,
 )
 
@@ -96,6 +97,11 @@ def check_catalogue(
     if not db.is_file():
         raise CatalogueError(f"no catalogue at {root} (expected {db})")
     report = CheckReport(root)
+    if repair and in_use(db):
+        raise CatalogueError(
+            f"catalogue {root} is open in another process (a `sample` or `serve`?): stop it "
+            "before --repair"
+        )
     try:
         identify(db)  # a foreign file raises here, before anything is written
         conn = connect_readonly(db)

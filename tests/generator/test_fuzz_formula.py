@@ -76,7 +76,7 @@ def test_grammatical_formulas(text: str) -> None:
     check(text)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(
     st.sampled_from(["paren", "neg", "tower", "negtower", "sin", "flat"]),
     st.integers(min_value=0, max_value=400),
