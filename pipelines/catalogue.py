@@ -231,8 +231,9 @@ class Catalogue:
     def resolve(self, key_or_prefix: str) -> str:
         """The full key of a shape from its key or a unique prefix."""
         k = key_or_prefix.strip().lower()
-        if not k or any(c not in "0123456789abcdef" for c in k):
-            raise CatalogueError(f"'{key_or_prefix}' is not a shape key (hex digits)")
+        if not k or len(k) > 64 or any(c not in "0123456789abcdef" for c in k):
+            shown = key_or_prefix if len(key_or_prefix) <= 40 else key_or_prefix[:37] + "..."
+            raise CatalogueError(f"'{shown}' is not a shape key (hex digits)")
         rows = self.conn.execute(
             "SELECT key FROM shapes WHERE key LIKE ? ORDER BY key LIMIT 6", (k + "%",)
         ).fetchall()
@@ -428,6 +429,10 @@ def open_catalogue(
         yield cat
     except sqlite3.Error as exc:
         raise sqlite_error(exc, db) from None
+    except OverflowError:  # a number bound to a query beyond SQLite's INTEGER
+        raise CatalogueError(
+            "a number is out of range: the catalogue holds whole numbers up to 2^63-1"
+        ) from None
     finally:
         cat.close()
         with _OPEN_LOCK:

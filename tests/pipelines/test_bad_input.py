@@ -457,6 +457,8 @@ def test_huge_limits(template, tmp_path, capsys) -> None:
         ["catalogue", "list", "-C", root, "--sort", ",".join(["genus"] * 20)], capsys, "at most"
     )
     refused(["contact-sheet", "-C", root, "--limit", str(2**40)], capsys, "--limit must")
+    refused(["report", "-C", root, "--run", str(2**64)], capsys, "out of range", root)
+    refused(["catalogue", "show", "-C", root, "f" * 100_000], capsys, "is not a shape key", root)
 
 
 # ----------------------------------------------------------------------------- 7. time
