@@ -317,7 +317,10 @@ def sqlite_error(exc: sqlite3.Error, db: Path | str) -> CatalogueError:
     text = str(exc)
     root = Path(db).parent
     if "disk is full" in text or "disk I/O error" in text:
-        return CatalogueError(f"cannot write catalogue {db}: {text} (free some space)")
+        return CatalogueError(
+            f"cannot write catalogue {db}: {text} (free some space; a sampling run continues "
+            "with --resume)"
+        )
     if "readonly" in text or "read-only" in text:
         return CatalogueError(f"catalogue {db} is read-only: {text}")
     if "locked" in text or "busy" in text:
@@ -352,6 +355,17 @@ def identify(db: Path) -> int | None:
 
     Raises :class:`CatalogueError` for a foreign SQLite file or something else, and
     :class:`CorruptCatalogue` when SQLite cannot read it."""
+    had_wal = Path(f"{db}-wal").exists()
+    try:
+        return _identify(db)
+    except CatalogueError:
+        with _OPEN_LOCK:  # e.g. a foreign WAL database: leave no files of ours beside it
+            if not had_wal and _OPEN[str(Path(db).resolve())] == 0:
+                _tidy_after_reading(Path(db))
+        raise
+
+
+def _identify(db: Path) -> int | None:
     try:
         conn = connect_readonly(db)
     except sqlite3.Error as exc:

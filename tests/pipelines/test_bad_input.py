@@ -312,8 +312,10 @@ def test_output_paths_that_are_folders_or_read_only(
 # ----------------------------------------------------------------------------- 5. catalogues
 
 
-def foreign_database(path: Path) -> str:
+def foreign_database(path: Path, wal: bool = False) -> str:
     con = sqlite3.connect(path / "catalogue.sqlite")
+    if wal:
+        con.execute("PRAGMA journal_mode=WAL")
     con.execute("CREATE TABLE shapes (key TEXT, colour TEXT)")
     con.execute("INSERT INTO shapes VALUES ('abc', 'red')")
     con.commit()
@@ -332,10 +334,11 @@ def foreign_database(path: Path) -> str:
         ["sample", "--n", "1", "--grid", "8", "--out"],
     ],
 )
-def test_a_foreign_sqlite_file_is_never_modified(command, tmp_path: Path, capsys) -> None:
+@pytest.mark.parametrize("wal", [False, True], ids=["rollback", "wal"])
+def test_a_foreign_sqlite_file_is_never_modified(command, wal, tmp_path: Path, capsys) -> None:
     root = tmp_path / "foreign"
     root.mkdir()
-    foreign_database(root)
+    foreign_database(root, wal)
     args = [*command, root] if command[-1] == "--out" else [*command, "-C", root]
     refused(args, capsys, "is not a surfgen catalogue", root)
     assert sorted(p.name for p in root.iterdir()) == ["catalogue.sqlite"]  # no -wal, no -shm
