@@ -7,7 +7,9 @@ A tree is made of :class:`Expr` nodes. ``op`` is one of
 - ``"var"``: ``value`` is ``"x"``, ``"y"`` or ``"z"``;
 - ``"param"``: a named parameter, ``value`` is its name (bound to a number at evaluation);
 - ``"pi"``: the constant pi;
-- ``"neg"`` (one argument), ``"+" "-" "*" "/" "^"`` (two arguments);
+- ``"neg"`` and ``"not"`` (one argument; ``not`` prints as ``!``), ``"+" "-" "*" "/" "^"`` and
+  MathMod's ``"%" "<" "<=" ">" ">=" "=" "!=" "&" "|"`` (two arguments; meaning in
+  :mod:`surfgen.generator.logic`);
 - the name of a function of :mod:`surfgen.generator.functions` (``"sin"``, ``"saw1"``, ...).
 
 Nodes are frozen and hashable, so identical sub-trees compare equal and can be shared.
@@ -24,12 +26,24 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
 VARIABLES = ("x", "y", "z")
-BINARY_OPS = ("+", "-", "*", "/", "^")
+BINARY_OPS = ("+", "-", "*", "/", "^", "%", "<", "<=", ">", ">=", "=", "!=", "&", "|")
+UNARY_OPS = ("neg", "not")
 LEAF_OPS = ("num", "var", "param", "pi")
 
-# Binding strength used by the printer; the parser implements the same grammar.
-_PREC_ADD, _PREC_MUL, _PREC_NEG, _PREC_POW, _PREC_ATOM = 1, 2, 3, 4, 5
-_BINARY_PREC = {"+": _PREC_ADD, "-": _PREC_ADD, "*": _PREC_MUL, "/": _PREC_MUL, "^": _PREC_POW}
+# Binding strength used by the printer; the parser implements the same grammar (fparser's).
+_PREC_OR, _PREC_AND, _PREC_CMP, _PREC_ADD, _PREC_MUL, _PREC_NEG, _PREC_POW, _PREC_ATOM = range(1, 9)
+_BINARY_PREC = {
+    "|": _PREC_OR,
+    "&": _PREC_AND,
+    **dict.fromkeys(("<", "<=", ">", ">=", "=", "!="), _PREC_CMP),
+    "+": _PREC_ADD,
+    "-": _PREC_ADD,
+    "*": _PREC_MUL,
+    "/": _PREC_MUL,
+    "%": _PREC_MUL,
+    "^": _PREC_POW,
+}
+_UNARY_TEXT = {"neg": "-", "not": "!"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -246,7 +260,7 @@ def format_number(value: float) -> str:
 def _prec(node: Expr) -> int:
     if node.op in _BINARY_PREC:
         return _BINARY_PREC[node.op]
-    if node.op == "neg":
+    if node.op in _UNARY_TEXT:
         return _PREC_NEG
     return _PREC_ATOM
 
@@ -270,8 +284,8 @@ def to_string(tree: Expr) -> str:
             out.append(str(item.value))
         elif op == "pi":
             out.append("pi")
-        elif op == "neg":
-            out.append("-")
+        elif op in _UNARY_TEXT:
+            out.append(_UNARY_TEXT[op])
             _push(stack, item.args[0], _bare(item, 0))
         elif op in _BINARY_PREC:
             a, b = item.args
@@ -291,14 +305,16 @@ def to_string(tree: Expr) -> str:
 def _bare(parent: Expr, k: int) -> bool:
     """Whether the printer writes argument ``k`` of an operator node without parentheses."""
     child = parent.args[k]
-    if parent.op == "neg":  # '-' applies to a power or an atom bare; '-(-x)' keeps them
+    if parent.op in _UNARY_TEXT:  # '-' and '!' apply to a power or an atom bare; '-(-x)' keeps
         return _prec(child) >= _PREC_POW
-    if parent.op == "^":  # right-associative: base needs an atom, exponent a power or neg
+    if parent.op == "^":  # right-associative: base needs an atom, exponent a power or unary
         if k == 0:
             return _prec(child) >= _PREC_ATOM
-        return _prec(child) >= (_PREC_POW if child.op == "neg" else _PREC_NEG)
+        return _prec(child) >= (_PREC_POW if child.op in _UNARY_TEXT else _PREC_NEG)
     p = _BINARY_PREC[parent.op]  # left-associative: the right operand needs higher precedence
-    return _prec(child) >= p if k == 0 else child.op != "neg" and _prec(child) >= p + 1
+    if k == 0:
+        return _prec(child) >= p
+    return child.op not in _UNARY_TEXT and _prec(child) >= p + 1
 
 
 def printed_nesting(tree: Expr) -> int:
@@ -308,7 +324,7 @@ def printed_nesting(tree: Expr) -> int:
     for node in postorder(tree):
         best = 0
         for k, a in enumerate(node.args):
-            if node.op in _BINARY_PREC or node.op == "neg":
+            if node.op in _BINARY_PREC or node.op in _UNARY_TEXT:
                 extra = 0 if _bare(node, k) else 1
             else:  # a function call: its own parentheses
                 extra = 1

@@ -18,7 +18,7 @@ from surfgen.generator.errors import SurfgenError
 # tree does so without recursion. The text limits are cheap guards checked before parsing, set
 # so that the canonical form of any accepted tree is itself accepted (parse(print(t)) == t).
 MAX_FORMULA_NODES = 20_000
-MAX_FORMULA_NESTING = 100
+MAX_FORMULA_NESTING = 64
 MAX_FORMULA_TOKENS = 100_000
 MAX_FORMULA_LENGTH = 1_000_000
 

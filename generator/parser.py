@@ -1,12 +1,15 @@
 """Parse K3DSurf/MathMod-style formula text into an :class:`~surfgen.generator.expr.Expr` tree.
 
-Grammar (``^`` right-associative and tighter than unary minus, as in fparser)::
+Grammar (fparser's, as MathMod uses it: ``^`` right-associative and tighter than unary minus)::
 
+    or      := and ("|" and)*
+    and     := compare ("&" compare)*
+    compare := sum (("=" | "!=" | "<" | "<=" | ">" | ">=") sum)*
     sum     := product (("+" | "-") product)*
-    product := unary (("*" | "/") unary)*
-    unary   := ("-" | "+") unary | power
+    product := unary (("*" | "/" | "%") unary)*
+    unary   := ("-" | "+" | "!") unary | power
     power   := atom ("^" unary)?
-    atom    := NUMBER | NAME | NAME "(" sum ("," sum)* ")" | "(" sum ")"
+    atom    := NUMBER | NAME | NAME "(" or ("," or)* ")" | "(" or ")"
 
 Names are ``x y z``, ``pi``, declared parameters, and the functions of
 :mod:`surfgen.generator.functions`; ``powf(a,b,c,d, ...)`` (eq. 8) is expanded in place into
@@ -18,7 +21,8 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Iterable
+import sys
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from surfgen.generator.errors import FormulaSyntaxError
@@ -42,7 +46,7 @@ from surfgen.generator.limits import (
 
 _TOKEN = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
-    r"|(?P<op>[-+*/^(),]))"
+    r"|(?P<op><=|>=|!=|[-+*/^(),%<>=!&|]))"
 )
 
 
@@ -82,9 +86,12 @@ def _short(text: str, limit: int = 40) -> str:
 
 
 class _Parser:
-    def __init__(self, text: str, params: frozenset[str]) -> None:
+    def __init__(
+        self, text: str, params: frozenset[str], functions: Mapping[str, Expr] | None = None
+    ) -> None:
         self.text = text
         self.params = params
+        self.functions = dict(functions or {})
         self.tokens = tokenize(text)
         self.i = 0
         self.open_parens: list[int] = []  # columns of the open '(': also the nesting depth
@@ -139,10 +146,26 @@ class _Parser:
     def parse(self) -> Expr:
         if self.tok.kind == "end":
             raise FormulaSyntaxError("empty formula", 1)
-        tree = self.sum()
+        tree = self.disjunction()
         if self.tok.kind != "end":
             raise self.unexpected()
         return tree
+
+    def _left_assoc(self, ops: tuple[str, ...], operand) -> Expr:
+        left = operand()
+        while self.tok.kind == "op" and self.tok.text in ops:
+            op = self.advance().text
+            left = Expr(op, (left, operand()))
+        return left
+
+    def disjunction(self) -> Expr:
+        return self._left_assoc(("|",), self.conjunction)
+
+    def conjunction(self) -> Expr:
+        return self._left_assoc(("&",), self.comparison)
+
+    def comparison(self) -> Expr:
+        return self._left_assoc(("=", "!=", "<", "<=", ">", ">="), self.sum)
 
     def sum(self) -> Expr:
         left = self.product()
@@ -153,35 +176,37 @@ class _Parser:
 
     def product(self) -> Expr:
         left = self.unary()
-        while self.is_op("*") or self.is_op("/"):
+        while self.is_op("*") or self.is_op("/") or self.is_op("%"):
             op = self.advance().text
             left = Expr(op, (left, self.unary()))
         return left
 
-    def signs(self) -> int:
-        """Consume a run of unary '+' and '-'; the number of '-' (a loop: 10,000 signs are
-        no deeper than one)."""
-        minus = 0
-        while self.is_op("-") or self.is_op("+"):
-            minus += self.advance().text == "-"
-        return minus
+    def prefixes(self) -> list[str]:
+        """Consume a run of unary '+', '-' and '!': the ``neg``/``not`` nodes they make,
+        outermost first ('+' makes none). A loop: 10,000 signs are no deeper than one."""
+        ops: list[str] = []
+        while self.is_op("-") or self.is_op("+") or self.is_op("!"):
+            text = self.advance().text
+            if text != "+":
+                ops.append("neg" if text == "-" else "not")
+        return ops
 
     def unary(self) -> Expr:
-        minus = self.signs()
-        return _negate(self.power(), minus)
+        ops = self.prefixes()
+        return _apply_prefixes(self.power(), ops)
 
     def power(self) -> Expr:
-        """``atom ("^" signs atom)*`` folded from the right (``^`` is right-associative and
+        """``atom ("^" prefixes atom)*`` folded from the right (``^`` is right-associative and
         its exponent may carry signs: ``a^-b^c = a^(-(b^c))``); iterative for power towers."""
         atoms = [self.atom()]
-        minus: list[int] = []
+        prefixes: list[list[str]] = []
         while self.is_op("^"):
             self.advance()
-            minus.append(self.signs())
+            prefixes.append(self.prefixes())
             atoms.append(self.atom())
         out = atoms[-1]
-        for base, m in zip(reversed(atoms[:-1]), reversed(minus), strict=True):
-            out = Expr("^", (base, _negate(out, m)))
+        for base, ops in zip(reversed(atoms[:-1]), reversed(prefixes), strict=True):
+            out = Expr("^", (base, _apply_prefixes(out, ops)))
         return out
 
     def atom(self) -> Expr:
@@ -199,7 +224,7 @@ class _Parser:
             return self.name(t)
         if self.is_op("("):
             self.open_paren()
-            inner = self.sum()
+            inner = self.disjunction()
             self.expect_close()
             return inner
         raise self.unexpected()
@@ -223,15 +248,32 @@ class _Parser:
 
     def call(self, t: Token) -> Expr:
         name = t.text
+        if name in self.functions:
+            self.open_paren()
+            args = [] if self.is_op(")") else [self.disjunction()]
+            while self.is_op(","):
+                self.advance()
+                args.append(self.disjunction())
+            self.expect_close()
+            if len(args) > len(FORMALS):
+                raise FormulaSyntaxError(
+                    f"{name} takes at most {len(FORMALS)} arguments (x, y, z, t), got {len(args)}",
+                    t.column,
+                )
+            return inline_call(self.functions[name], args)
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
             raise FormulaSyntaxError(f"unknown function '{_short(name)}'", t.column, hint)
         self.open_paren()
-        args = [] if self.is_op(")") else [self.sum()]
+        args = [] if self.is_op(")") else [self.disjunction()]
         while self.is_op(","):
             self.advance()
-            args.append(self.sum())
+            args.append(self.disjunction())
         self.expect_close()
+        if name == "pow":
+            if len(args) != 2:
+                raise FormulaSyntaxError(f"pow takes 2 arguments, got {len(args)}", t.column)
+            return Expr("^", (args[0], args[1]))
         if name in MACROS:
             return _expand_powf(args, t.column)
         fdef = FUNCTIONS[name]
@@ -252,10 +294,49 @@ class _Parser:
         return Expr(name, tuple(args))
 
 
-def _negate(tree: Expr, times: int) -> Expr:
-    for _ in range(times):
-        tree = Expr("neg", (tree,))
+# Python frames one level of parentheses costs the recursive descent (disjunction ... atom).
+FRAMES_PER_NESTING = 12
+
+
+def _ensure_stack(frames: int) -> None:
+    """Make room for ``frames`` more Python frames than the caller already uses: the nesting
+    limit bounds the parser's recursion, this makes sure the interpreter allows that much
+    (Python 3.11+ recursion between Python functions does not grow the C stack)."""
+    depth, frame = 0, sys._getframe()
+    while frame is not None:
+        depth += 1
+        frame = frame.f_back
+    needed = depth + frames + 100
+    if sys.getrecursionlimit() < needed:
+        sys.setrecursionlimit(needed)
+
+
+def _apply_prefixes(tree: Expr, ops: list[str]) -> Expr:
+    """``ops`` (``neg``/``not``, outermost first) applied to ``tree``."""
+    for op in reversed(ops):
+        tree = Expr(op, (tree,))
     return tree
+
+
+# The formal parameters of a user function (MathMod's Funct): f(x, y, z, t).
+FORMALS = (Expr("var", (), "x"), Expr("var", (), "y"), Expr("var", (), "z"), Expr("param", (), "t"))
+
+
+def inline_call(body: Expr, args: list[Expr]) -> Expr:
+    """``body`` with its formals x, y, z, t replaced by ``args`` (missing ones stay as they are).
+    Iterative (children first), so a deep body inlines without recursion."""
+    mapping = dict(zip(FORMALS, args, strict=False))
+    memo: dict[int, Expr] = {}
+    for node in postorder(body):
+        hit = mapping.get(node)
+        if hit is None:
+            hit = (
+                Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
+                if node.args
+                else node
+            )
+        memo[id(node)] = hit
+    return memo[id(body)]
 
 
 def is_constant(tree: Expr) -> bool:
@@ -283,8 +364,11 @@ def _did_you_mean(word: str, choices: Iterable[str]) -> str:
     return f" (did you mean {close[0]}?)" if close else ""
 
 
-def parse(text: str, params: Iterable[str] = ()) -> Expr:
-    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters.
+def parse(
+    text: str, params: Iterable[str] = (), functions: Mapping[str, Expr] | None = None
+) -> Expr:
+    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters; ``functions``
+    are user functions (name -> body in x, y, z and the parameter t), inlined where called.
 
     Raises :class:`FormulaSyntaxError` naming the column of the problem, also for a formula
     beyond the limits of :mod:`surfgen.generator.limits` (length, tokens, nesting).
@@ -298,7 +382,8 @@ def parse(text: str, params: Iterable[str] = ()) -> Expr:
     bad = [p for p in params if p in VARIABLES or p == "pi" or p in FUNCTIONS or p in MACROS]
     if bad:
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
-    tree = _Parser(text, frozenset(params)).parse()
+    _ensure_stack(FRAMES_PER_NESTING * MAX_FORMULA_NESTING)
+    tree = _Parser(text, frozenset(params), functions).parse()
     nodes = len(postorder(tree))
     if nodes > MAX_FORMULA_NODES:
         raise FormulaSyntaxError(f"formula too large: {nodes} nodes (at most {MAX_FORMULA_NODES})")

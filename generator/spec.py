@@ -167,13 +167,13 @@ class SurfaceSpec:
                 f"spec: provenance must be an object {{name: value}}, got {_kind(provenance)}"
             )
         for name, value in provenance.items():
-            if not (value is None or isinstance(value, str | int | float | bool)) or (
-                isinstance(value, float) and not math.isfinite(value)
-            ):
+            try:  # any JSON value (a variant records its changes as an object), finite numbers
+                json.dumps(value, allow_nan=False)
+            except (TypeError, ValueError):
                 raise SpecError(
-                    f"spec: provenance.{_shown(name)} must be text, a finite number, true/false "
-                    f"or null, got {_kind(value)}"
-                )
+                    f"spec: provenance.{_shown(name)} must be a JSON value with finite numbers, "
+                    f"got {_kind(value)}"
+                ) from None
         if len(box) == 2:
             box = [box[0], box[1]] * 3
         if len(grid) == 1:
