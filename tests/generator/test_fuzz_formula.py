@@ -17,7 +17,8 @@ from surfgen.generator.reference import evaluate_reference
 TOKENS = [
     "x", "y", "z", "pi", "m", "2", "0.5", "1e-3", ".5", "1e400", "0", "+", "-", "*", "/", "^",
     "(", ")", ",", "sin", "cos", "atan2", "min", "max", "abs", "sqrt", "saw1", "fcc", "powf",
-    "rect1", " ", "  ", "é", "$", "sinn", "__import__", "'", "\\n", "1.2.3",
+    "rect1", " ", "  ", "é", "$", "sinn", "__import__", "'", "\\n", "1.2.3", "!", "%", "<",
+    "<=", "=", "!=", "&", "|", "if", "pow",
 ]  # fmt: skip
 GRID = Grid(Box.cube(1.0), (4, 4, 4))
 FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -58,7 +59,10 @@ def formulas() -> st.SearchStrategy[str]:
 
     def grow(inner: st.SearchStrategy[str]) -> st.SearchStrategy[str]:
         return st.one_of(
-            st.tuples(inner, st.sampled_from("+-*/^"), inner).map(lambda t: "".join(t)),
+            st.tuples(
+                inner, st.sampled_from(["+", "-", "*", "/", "^", "%", "<", "&", "|"]), inner
+            ).map(lambda t: "".join(t)),
+            inner.map(lambda s: f"!{s}"),
             inner.map(lambda s: f"-{s}"),
             inner.map(lambda s: f"({s})"),
             st.tuples(st.sampled_from(["sin", "cos", "abs", "sqrt", "exp"]), inner).map(
