@@ -24,14 +24,16 @@ from surfgen.generator.limits import (
     estimate_memory,
     read_bounded,
 )
-from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, mesh_bytes
+from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, mesh_bytes
 from surfgen.generator.presets import get_preset
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.walls import WallReport, check_walls_mode, extract_labelled
 
 log = logging.getLogger(__name__)
 
 DEFAULT_BOX = (-2.0, 2.0)
 DEFAULT_GRID = 64
+PRINTABLE_SUFFIXES = (".stl",)  # formats meant for printing: they must hold a closed solid
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,8 @@ class RenderResult:
     mesh: Mesh | None
     seconds: float
     files: Mapping[str, str]
+    walls: str = "keep"
+    crossings: WallReport | None = None
 
     def summary(self) -> dict[str, Any]:
         """The JSON object ``surfgen render --json`` prints."""
@@ -54,6 +58,9 @@ class RenderResult:
             "vertices": None if self.mesh is None else self.mesh.n_vertices,
             "faces": None if self.mesh is None else self.mesh.n_faces,
             "nonfinite": self.field.nonfinite,
+            "walls": self.walls,
+            "wall_fraction": None if self.crossings is None else self.crossings.wall_fraction,
+            "crossings": None if self.crossings is None else self.crossings.to_dict(),
             "seconds": round(self.seconds, 6),
             "files": dict(self.files),
         }
@@ -152,18 +159,30 @@ def render_spec(
     mesh_path: Path | None = None,
     field_path: Path | None = None,
     png_path: Path | None = None,
+    walls: str = "keep",
+    force: bool = False,
     max_memory: int | None = None,
 ) -> RenderResult:
     """Evaluate, mesh and write what was asked.
 
-    With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh is extracted.
-    ``max_memory`` (bytes; None: the machine's available memory) refuses a grid whose
-    estimated memory is larger, before anything is allocated.
-    Raises :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, ``LimitError``); on error
-    no file is written.
+    Every mesh's crossings are classified (:mod:`surfgen.generator.walls`): ``walls="keep"``
+    keeps the solid's whole boundary, ``"mark"`` labels walls (colours in PLY/GLB and in the
+    picture), ``"remove"`` keeps only the zero set (open, no caps): an STL of it is refused
+    unless ``force``.  With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh
+    is extracted.  ``max_memory`` (bytes; None: the machine's available memory) refuses a grid
+    whose estimated memory is larger, before anything is allocated.  Raises
+    :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, ``LimitError``); on error no file
+    is written.
     """
+    check_walls_mode(walls)
     if mesh_path is not None:
         check_output_path(Path(mesh_path), MESH_SUFFIXES, "mesh file")
+        if walls == "remove" and Path(mesh_path).suffix.lower() in PRINTABLE_SUFFIXES and not force:
+            raise SpecError(
+                f"mesh file {mesh_path}: --walls remove leaves open sheets, which a printable "
+                f"format ({', '.join(PRINTABLE_SUFFIXES)}) cannot hold as a solid; "
+                "write .ply/.obj/.off/.glb, or --force"
+            )
     if field_path is not None:
         check_output_path(Path(field_path), (".npy",), "field file")
     if png_path is not None:
@@ -176,8 +195,14 @@ def render_spec(
         f"render on a {'x'.join(map(str, grid.shape))} grid",
     )
     start = time.perf_counter()
-    field = evaluate(spec.tree(), grid, spec.params, evaluator=evaluator)
-    mesh = extract_mesh(field, spec.level, cap=cap) if want_mesh else None
+    tree = spec.tree()
+    field = evaluate(tree, grid, spec.params, evaluator=evaluator)
+    mesh: Mesh | None = None
+    crossings: WallReport | None = None
+    if want_mesh:
+        mesh, crossings = extract_labelled(
+            field, tree, spec.params, spec.level, cap=cap, walls=walls
+        )
     seconds = time.perf_counter() - start
     # Every file is made in memory first, then all are written together: a full disk or a
     # bad folder for one of them leaves none of them behind.
@@ -193,7 +218,7 @@ def render_spec(
     write_all_atomic(list(outputs.values()))
     files = {kind: str(path) for kind, (path, _) in outputs.items()}
     log.info("rendered %s in %.3f s", spec.key, seconds)
-    return RenderResult(spec, field, mesh, seconds, files)
+    return RenderResult(spec, field, mesh, seconds, files, walls, crossings)
 
 
 __all__ = ["RenderResult", "SurfgenError", "build_spec", "render_spec", "read_spec", "save_field"]
