@@ -48,7 +48,7 @@ import numpy as np
 from surfgen.generator import constituents as cf
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of, to_string
+from surfgen.generator.expr import Expr, params_of, postorder, to_string
 from surfgen.generator.functions import FUNCTIONS
 
 # ----------------------------------------------------------------------------- the opcode table
@@ -559,6 +559,8 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
             f"parameter '{missing[0]}' has no value (give it with --param {missing[0]}=...)"
         )
     low = _Lowerer(params)
+    for node in postorder(tree):  # children first, so lower() never recurses more than once
+        low.lower(node)
     root = low.lower(tree)
     return _schedule(low.dag, root, to_string(tree))
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of
+from surfgen.generator.expr import Expr, params_of, postorder
 from surfgen.generator.functions import FUNCTIONS
 from surfgen.generator.grid import Field, Grid
 
@@ -50,6 +50,8 @@ def evaluate_points(
     }
     memo: dict[Expr, np.ndarray] = {}
     with np.errstate(all="ignore"):
+        for node in postorder(tree):  # children first: _eval never recurses more than once
+            _eval(node, env, params, memo)
         out = _eval(tree, env, params, memo)
     shape = np.broadcast_shapes(env["x"].shape, env["y"].shape, env["z"].shape)
     return np.array(np.broadcast_to(np.asarray(out, np.float64), shape), dtype=np.float64)

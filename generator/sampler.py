@@ -35,7 +35,12 @@ from surfgen.generator.equation13 import (
 from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
+from surfgen.generator.settings import (
+    require_fractions,
+    require_range,
+    settings_from_mapping,
+    settings_to_dict,
+)
 
 SAMPLER_VERSION = 1
 # Transforms whose values stay in [-1, 1], and inverse functions defined on all of R.
@@ -125,6 +130,19 @@ class SamplerConfig:
             raise SpecError("config [sampler]: integer_exponent_max must be >= 1")
         if not 4 <= self.d_grid <= 128:
             raise SpecError("config [sampler]: d_grid must be from 4 to 128")
+        # Upper bounds: a formula grows with these, and a huge one only makes every shape crash.
+        for name, low, high in (
+            ("sum_terms", 1, 10),
+            ("factors", 1, 10),
+            ("power_terms_max", 1, 10),
+            ("integer_exponent_max", 1, 10),
+            ("constituent_p", 1, 64),
+            ("coefficient_max", 0, 1e6),
+            ("exponent_real", -100, 100),
+            ("constituent_r", 1e-6, 1e6),
+            ("box_half", 1e-6, 1e6),
+        ):
+            require_range(self, name, low, high, "sampler")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> SamplerConfig:

@@ -299,7 +299,7 @@ def write_report(root: Path, path: Path | None = None, run: int | None = None) -
     """Write the report of the catalogue at ``root`` (default ``root/report.html``)."""
     from surfgen.pipelines.gallery import write_page
 
-    with open_catalogue(root, must_exist=True) as cat:
+    with open_catalogue(root, readonly=True) as cat:
         stats = report_stats(cat, run)
     path = Path(path) if path is not None else Path(root) / "report.html"
     path.parent.mkdir(parents=True, exist_ok=True)

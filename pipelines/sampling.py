@@ -18,6 +18,7 @@ import json
 import logging
 import os
 import shutil
+import sqlite3
 import tempfile
 import time
 from collections import Counter
@@ -45,12 +46,19 @@ from surfgen.filters.verdict import (
     shape_metrics,
 )
 from surfgen.generator import __version__
-from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
 from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_with_edges, save_mesh
+from surfgen.generator.limits import (
+    MAX_COUNT,
+    check_count,
+    check_memory,
+    check_seed,
+    estimate_memory,
+)
+from surfgen.generator.mesh import Mesh, extract_with_edges, mesh_bytes
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import label_walls
@@ -87,6 +95,11 @@ class ShapeOutcome:
     thumb_file: Path | None = None
     turntable_file: Path | None = None
     data: tuple[tuple[str, bytes], ...] = ()
+    write_error: str | None = None  # the shape's files could not be written (disk full...)
+
+
+class SampleWriteError(SurfgenError):
+    """A sampling run stopped because a file could not be written; ``--resume`` continues it."""
 
 
 @dataclass
@@ -179,7 +192,10 @@ def make_shape(
     if verdict.accepted and mesh is not None:
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
         if staging is not None:
-            out = _with_files(out, mesh, staging, pictures)
+            try:
+                out = _with_files(out, mesh, staging, pictures)
+            except OSError as exc:  # not a verdict on the shape: the run must stop
+                return ShapeOutcome(index, row, verdict, write_error=_write_error(exc, staging))
         watch.lap("io")
     row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
@@ -247,7 +263,7 @@ def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) ->
     """Write the accepted shape's files into the run's staging folder; the parent moves them
     into the catalogue when it commits the row (so a discarded index leaves nothing behind)."""
     key = out.row["key"]
-    mesh_file = save_mesh(mesh, staging / f"{key}.ply")
+    mesh_file = write_atomic(staging / f"{key}.ply", mesh_bytes(mesh, staging / f"{key}.ply"))
     thumb = turn = None
     if pictures:
         from surfgen.pipelines.pictures import render_thumbnail, render_turntable
@@ -281,7 +297,14 @@ def _stage(outcome: ShapeOutcome, staging: Path) -> ShapeOutcome:
         return outcome
     key = outcome.row["key"]
     suffix = {"mesh_file": ".ply", "thumb_file": ".thumb.png", "turntable_file": ".turntable.png"}
-    files = {name: write_atomic(staging / f"{key}{suffix[name]}", b) for name, b in outcome.data}
+    try:
+        files = {
+            name: write_atomic(staging / f"{key}{suffix[name]}", b) for name, b in outcome.data
+        }
+    except OSError as exc:
+        return ShapeOutcome(
+            outcome.index, outcome.row, outcome.verdict, write_error=_write_error(exc, staging)
+        )
     return ShapeOutcome(outcome.index, outcome.row, outcome.verdict, **files)
 
 
@@ -323,6 +346,7 @@ def run_sample(
     progress: Callable[[int, int, int], None] | None = None,
     executor: str = "local",
     scheduler: str | None = None,
+    max_memory: int | None = None,
 ) -> RunSummary:
     """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
 
@@ -332,17 +356,23 @@ def run_sample(
     :class:`CatalogueError` when a run with the same seed, grid and config exists and ``resume``
     is false, and ``ExecutorError`` when the Dask cluster cannot be used.
     """
-    if n <= 0:
-        raise SpecError(f"--n must be at least 1, got {n}")
-    if workers is not None and workers < 1:
-        raise SpecError(f"--workers must be at least 1, got {workers}")
+    check_count(n, "--n")
+    check_seed(seed)
     if executor not in EXECUTORS:
         raise SpecError(f"unknown executor '{executor}' (allowed: {', '.join(EXECUTORS)})")
     if scheduler and executor != "dask":
         raise SpecError("--scheduler needs --executor dask")
-    max_draws = max_draws if max_draws is not None else max(1000, 50 * n)
-    if max_draws < 1:
-        raise SpecError(f"--max-draws must be at least 1, got {max_draws}")
+    if workers is not None:
+        check_count(workers, "--workers", 1, 256)
+    max_draws = max_draws if max_draws is not None else min(max(1000, 50 * n), MAX_COUNT)
+    check_count(max_draws, "--max-draws")
+    grid = config.run.grid
+    check_memory(
+        estimate_memory(grid**3, mesh=True),
+        max_memory,
+        f"sampling on a {grid}^3 grid",
+        times=workers or os.cpu_count() or 1,
+    )
     start = time.perf_counter()
     with open_catalogue(catalogue) as cat:
         cat.make_dirs()
@@ -390,11 +420,15 @@ def run_sample(
                 if done:
                     status = "complete"
                 else:
+                    shutil.rmtree(staging, ignore_errors=True)  # an interrupted run's leftovers
                     staging.mkdir(exist_ok=True)
                     status, stage = _drive(cat, run.id, n, seed, config, pool, max_draws, progress)
                     shutil.rmtree(staging, ignore_errors=True)
             finally:
-                cat.set_run_status(run.id, status)
+                try:
+                    cat.set_run_status(run.id, status)
+                except sqlite3.Error as exc:  # e.g. the disk is still full: keep the first error
+                    log.error("could not record the run's status (%s)", exc)
         final = cat.get_run(run.id)
     return RunSummary(
         run_id=final.id,
@@ -438,7 +472,14 @@ def _drive(
     for result in pool.run(tasks()):
         if result.task < next_index or result.task in buffer:
             continue  # already committed or buffered: never twice (an executor's retry)
-        buffer[result.task] = _stage(_outcome(result, seed, config), staging)
+        if result.status == "ok" and result.value.write_error is not None:
+            # Stop at the first write error: what is committed is a prefix of the run, and
+            # this shape (and any after it) is redone by --resume once there is space.
+            _stop_writing(result.value.write_error, result.task, accepted)
+        staged = _stage(_outcome(result, seed, config), staging)
+        if staged.write_error is not None:
+            _stop_writing(staged.write_error, result.task, accepted)
+        buffer[result.task] = staged
         while next_index in buffer and accepted < n:
             outcome = buffer.pop(next_index)
             if outcome.verdict.accepted:
@@ -461,6 +502,17 @@ def _drive(
             break
     status = "complete" if accepted >= n else "exhausted"
     return status, dict(stage)
+
+
+def _write_error(exc: OSError, staging: Path) -> str:
+    return f"{exc.filename or staging}: {exc.strerror}"
+
+
+def _stop_writing(error: str, index: int, accepted: int) -> None:
+    raise SampleWriteError(
+        f"cannot write {error}; sampling stopped before shape {index} ({accepted} accepted "
+        "shapes are catalogued): free some space and run the same command with --resume"
+    )
 
 
 def _near_duplicate(
@@ -529,7 +581,13 @@ def _commit(cat: Catalogue, run_id: int, outcome: ShapeOutcome, counts: Counter)
         )
         for column, path, staged in files:
             if staged is not None:
-                os.replace(staged, path)
+                try:
+                    os.replace(staged, path)
+                except OSError as exc:
+                    raise SampleWriteError(
+                        f"cannot write {path}: {exc.strerror}; sampling stopped before shape "
+                        f"{outcome.index}: fix it and run the same command with --resume"
+                    ) from None
                 row[column] = str(path.relative_to(cat.root))
     else:
         for r in outcome.verdict.reasons:
