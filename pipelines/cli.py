@@ -230,6 +230,10 @@ def sample(
     thumbnails: Annotated[
         bool, typer.Option(help="Render thumbnails and turntables (--no-thumbnails to skip).")
     ] = True,
+    family: Annotated[
+        str | None,
+        typer.Option(help="sculpture, lattice, free or mix (default from the config: mix)."),
+    ] = None,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""
     from rich.progress import (
@@ -249,6 +253,8 @@ def sample(
     if grid is not None and grid < 4:
         raise SpecError(f"--grid must be at least 4, got {grid}")
     cfg = load_config(config).with_grid(grid)
+    if family is not None:
+        cfg = cfg.with_family(family)
     if dedupe:
         cfg = cfg.with_run(dedupe=True)
     if not thumbnails:

@@ -99,6 +99,28 @@ FIELDS: dict[str, Field] = {
     ),
     "total_curvature": Field("number", _metric("total_curvature"), "total |Gauss curvature|"),
     "nonfinite": Field("number", _metric("nonfinite"), "non-finite samples of the field"),
+    "solidity": Field("number", _metric("solidity"), "volume / convex hull volume"),
+    "symmetry": Field(
+        "number", _metric("symmetry"), "signed axis permutations the mesh maps onto itself under"
+    ),
+    "symmetry_permutations": Field(
+        "number", _metric("symmetry_permutations"), "distinct axis permutations among them (1-6)"
+    ),
+    "symmetry_mirrors": Field(
+        "number", _metric("symmetry_mirrors"), "mirrors x->-x, y->-y, z->-z among them (0-3)"
+    ),
+    "symmetries": Field("text", _metric("symmetries"), "labels of the symmetries (~ contains)"),
+    "departure": Field(
+        "number", _metric("departure"), "volume between a sculpture and its envelope / its volume"
+    ),
+    "free_standing": Field(
+        "flag", f"COALESCE({_metric('free_standing')}, 0) = 1", "no area on the box's faces"
+    ),
+    "family": Field(
+        "text",
+        "COALESCE(json_extract(shapes.model, '$.family'), 'free')",
+        "sampler family: sculpture, lattice or free",
+    ),
     "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
     "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
     "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),
