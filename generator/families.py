@@ -191,7 +191,9 @@ def _draw_envelope(
     first = _superellipsoid(p, tuple(radii))
     c = round(float(rng.uniform(0.25, 0.7)) * (1 if rng.random() < 0.5 else -1), 2)
     axes = range(3) if permutes else (0,)
-    cubic = PowerFunction(tuple(PowerTerm(c, *(3.0 if j == k else 0.0 for j in range(3))) for k in axes))
+    cubic = PowerFunction(
+        tuple(PowerTerm(c, *(3.0 if j == k else 0.0 for j in range(3))) for k in axes)
+    )
     info.update(exponent=p, cubic=c, cubic_axes=len(axes))
     return [(only_a(first),), (only_a(cubic),)], info
 

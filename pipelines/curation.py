@@ -384,6 +384,12 @@ def _loads(text: str | None, default: Any) -> Any:
         return default
 
 
+def _family(model: str | None) -> str:
+    """The sampler family in a model's JSON (shapes from before families are ``free``)."""
+    data = _loads(model, None)
+    return str(data.get("family", "free")) if isinstance(data, dict) else "free"
+
+
 def shape_record(
     row: dict[str, Any], tags: Sequence[str] = (), full: bool = False
 ) -> dict[str, Any]:
@@ -410,6 +416,7 @@ def shape_record(
         "rejected": row.get("user_rejected"),
         "note": row.get("note"),
         "duplicate_of": row.get("duplicate_of"),
+        "family": _family(row.get("model")),
         "tags": list(tags),
         "mesh": row.get("mesh_path"),
         "thumb": row.get("thumb_path"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.shape import (
     envelope_departure,
     mesh_symmetries,
@@ -12,7 +13,6 @@ from surfgen.filters.shape import (
     solidity,
     symmetry_metrics,
 )
-from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.verdict import FilterConfig, judge
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.grid import Box, Grid

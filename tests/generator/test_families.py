@@ -126,7 +126,9 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
     ],
 )
 def test_bad_families_and_weights_are_one_line_errors(change: dict, message: str) -> None:
-    data = SamplerConfig().to_dict() | {k: list(v) if isinstance(v, tuple) else v for k, v in change.items()}
+    data = SamplerConfig().to_dict() | {
+        k: list(v) if isinstance(v, tuple) else v for k, v in change.items()
+    }
     if "sculpture_groups" in change:
         data["sculpture_group_weights"] = [1.0, 1.0]
     if "sculpture_powers" in change:
