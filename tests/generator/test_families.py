@@ -144,3 +144,27 @@ def test_structure_is_json_ready() -> None:
         text = json.dumps(draw.model_dict(), sort_keys=True)
         assert json.loads(text)["family"] == name
         assert np.isfinite(draw.box.hi[0])
+
+
+@pytest.mark.parametrize(
+    ("args", "toml", "message"),
+    [
+        (
+            ["--family", "statue"],
+            "",
+            "error: --family must be one of sculpture, lattice, free, mix",
+        ),
+        ([], "[sampler]\nfamily = 'x'\n", "error: config [sampler]: family must be one of"),
+        ([], "[sampler]\nmix_weights = [1, -1, 1]\n", "mix_weights must be non-negative"),
+        ([], "[sampler]\nmix = ['free', 'slab']\nmix_weights = [1, 1]\n", "mix has unknown 'slab'"),
+    ],
+)
+def test_cli_refuses_bad_families_in_one_line(args, toml, message, tmp_path, capsys) -> None:
+    from surfgen.pipelines.cli import main
+
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(toml)
+    code = main(["sample", "--n", "1", "--out", str(tmp_path / "cat"), "--config", str(cfg), *args])
+    err = capsys.readouterr().err.strip()
+    assert code != 0 and err.startswith("error:") and "\n" not in err and message in err
+    assert not (tmp_path / "cat").exists()  # nothing written
