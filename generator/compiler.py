@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfgen.generator import constituents as cf
+from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of, to_string
 from surfgen.generator.functions import FUNCTIONS
@@ -92,6 +93,18 @@ OPCODES: dict[str, tuple[int, int]] = {
     "max": (35, 2),
     "atan2": (36, 2),
     "ratio1": (37, 2),  # a/b with 0/0 read as 1 (rect3)
+    # MathMod's comparisons, logic, if and % (logic.py): results 1.0 or 0.0.
+    "lt": (38, 2),  # a < b - EPS
+    "le": (39, 2),  # a <= b + EPS
+    "eq": (40, 2),  # |a - b| <= EPS
+    "ne": (41, 2),  # |a - b| > EPS
+    "and": (42, 2),
+    "or": (43, 2),
+    "not": (44, 1),
+    "pick": (45, 2),  # b where a is true, else 0 (if's taken branch)
+    "pickn": (46, 2),  # 0 where a is true, else b (if's other branch)
+    "fmod": (47, 2),  # C fmod (exact)
+    "trunc": (48, 1),
 }
 OP = {name: num for name, (num, _) in OPCODES.items()}
 ARITY = {name: n for name, (_, n) in OPCODES.items()}
@@ -271,6 +284,8 @@ def _fold(name: str, vals: list[float], imm) -> float:
             out = cf.unit_sign(a[0])
         elif name == "ratio1":
             out = cf._ratio(a[0], a[1])
+        elif name in _LOGIC_FOLD:
+            out = _LOGIC_FOLD[name](*a)
         elif name == "powi":
             out = np.power(a[0], np.float64(imm))
         else:  # series, segsum never see constants: the function is folded whole
@@ -313,7 +328,32 @@ _NP_BINARY = {
     "max": np.maximum,
     "atan2": np.arctan2,
 }
+_LOGIC_FOLD = {
+    "lt": logic.lt,
+    "le": logic.le,
+    "eq": logic.eq,
+    "ne": logic.ne,
+    "and": logic.and_,
+    "or": logic.or_,
+    "not": logic.not_,
+    "pick": logic.pick,
+    "pickn": logic.pickn,
+    "fmod": logic.fmod,
+    "trunc": logic.trunc,
+}
 _TREE_BINARY = {"+": "add", "-": "sub", "*": "mul", "/": "div"}
+# MathMod operators: (opcode, operands swapped?)
+_TREE_LOGIC = {
+    "<": ("lt", False),
+    "<=": ("le", False),
+    ">": ("lt", True),
+    ">=": ("le", True),
+    "=": ("eq", False),
+    "!=": ("ne", False),
+    "&": ("and", False),
+    "|": ("or", False),
+    "%": ("fmod", False),
+}
 # Functions of the formula language that are one opcode.
 _DIRECT = frozenset(
     ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh")
@@ -353,6 +393,12 @@ class _Lowerer:
             return d.var(node.value)  # type: ignore[arg-type]
         if op == "neg":
             return d.op("neg", self.lower(node.args[0]))
+        if op == "not":
+            return d.op("not", self.lower(node.args[0]))
+        if op in _TREE_LOGIC:
+            name, swap = _TREE_LOGIC[op]
+            a, b = self.lower(node.args[0]), self.lower(node.args[1])
+            return d.op(name, b, a) if swap else d.op(name, a, b)
         if op in _TREE_BINARY:
             return d.op(_TREE_BINARY[op], self.lower(node.args[0]), self.lower(node.args[1]))
         if op == "^":
@@ -416,6 +462,13 @@ class _Lowerer:
             return d.op("recip", d.op("sin", args[0]))
         if op == "acot":
             return self._acot(args[0])
+        if op == "if":
+            c, a, b = args
+            return d.op("add", d.op("pick", c, a), d.op("pickn", c, b))
+        if op == "int":
+            return d.op("floor", d.op("add", args[0], d.const(0.5)))
+        if op == "trunc":
+            return d.op("trunc", args[0])
         raise AssertionError(f"no lowering for {op}")  # pragma: no cover
 
     # -- pieces of the constituent functions, written as constituents.py writes them

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of
 from surfgen.generator.functions import FUNCTIONS
@@ -21,6 +22,7 @@ _BINARY = {
     "*": np.multiply,
     "/": np.divide,
     "^": np.power,
+    **logic.BINARY,
 }
 
 
@@ -74,6 +76,8 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
         out = np.float64(np.pi)
     elif op == "neg":
         out = np.negative(_eval(node.args[0], env, params, memo))
+    elif op == "not":
+        out = logic.not_(np.asarray(_eval(node.args[0], env, params, memo), np.float64))
     elif op in _BINARY:
         a = _eval(node.args[0], env, params, memo)
         b = _eval(node.args[1], env, params, memo)
