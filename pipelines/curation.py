@@ -121,6 +121,9 @@ FIELDS: dict[str, Field] = {
         "COALESCE(json_extract(shapes.model, '$.family'), 'free')",
         "sampler family: sculpture, lattice or free",
     ),
+    "wall_fraction": Field(
+        "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"
+    ),
     "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
     "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
     "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),
