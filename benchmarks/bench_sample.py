@@ -1,6 +1,10 @@
 """Throughput of `surfgen sample`: accepted shapes per minute, time by stage, acceptance rate.
 
-    python benchmarks/bench_sample.py [--n 200] [--seed 7] [--workers 2] [--grid 64]
+    python benchmarks/bench_sample.py [--n 200] [--seed 7] [--workers 2] [--grid 64] [--compare-free]
+
+With ``--compare-free`` the same job is also run with ``--family free`` (the first sampler's
+draws) right after, and the wall times are printed as a ratio: the default mix of families
+against the free draw, measured in one run.
 
 The machine is shared and noisy, so the figure is also printed as a ratio against a baseline
 measured in the same run: the time to evaluate, mesh and measure the `gyroid` preset at the
@@ -62,16 +66,8 @@ def crossing_rates(seed: int, draws: int, config) -> dict[str, float]:
     return {k: v / draws for k, v in hits.items()}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    ap.add_argument("--grid", type=int, default=None)
-    args = ap.parse_args()
-    config = load_config().with_grid(args.grid)
-    grid = config.run.grid
-    base = baseline_per_minute(grid)
+def timed_run(args, config):
+    """One sampling job in a fresh catalogue: its summary and wall time in seconds."""
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         s = run_sample(
@@ -81,7 +77,32 @@ def main() -> None:
             catalogue=Path(tmp) / "cat",
             workers=args.workers,
         )
-        wall = time.perf_counter() - t
+        return s, time.perf_counter() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--grid", type=int, default=None)
+    ap.add_argument(
+        "--compare-free",
+        action="store_true",
+        help="also time the same job with --family free and print the ratio of wall times",
+    )
+    args = ap.parse_args()
+    config = load_config().with_grid(args.grid)
+    grid = config.run.grid
+    base = baseline_per_minute(grid)
+    s, wall = timed_run(args, config)
+    if args.compare_free:
+        free, free_wall = timed_run(args, config.with_family("free"))
+        print(
+            f"family {config.sampler.family}: {wall:.1f} s, {s.accepted} of {s.drawn} drawn; "
+            f"family free: {free_wall:.1f} s, {free.accepted} of {free.drawn} drawn"
+        )
+        print(f"  ratio of wall times {config.sampler.family} / free: {wall / free_wall:.3f}")
     rate = 60.0 * s.accepted / wall
     total_stage = sum(s.stage_seconds.values()) or 1.0
     print(f"sample --n {args.n} --seed {args.seed} --grid {grid} --workers {args.workers}")

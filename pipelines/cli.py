@@ -349,6 +349,10 @@ def sample(
         ),
     ] = None,
     max_memory: MaxMemoryOption = None,
+    family: Annotated[
+        str | None,
+        typer.Option(help="sculpture, lattice, free or mix (default from the config: mix)."),
+    ] = None,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""
     from rich.progress import (
@@ -378,6 +382,8 @@ def sample(
     if executor == "dask" and not scheduler:
         scheduler = os.environ.get("SURFGEN_SCHEDULER") or None
     cfg = load_config(config).with_grid(grid)
+    if family is not None:
+        cfg = cfg.with_family(family)
     if dedupe:
         cfg = cfg.with_run(dedupe=True)
     if not thumbnails:

@@ -109,6 +109,16 @@ class Config:
     def with_grid(self, grid: int | None) -> Config:
         return self if grid is None else self.with_run(grid=grid)
 
+    def with_family(self, family: str) -> Config:
+        """The config with ``[sampler] family`` replaced (validated: one-line error)."""
+        data = self.sampler.to_dict()
+        data["family"] = family
+        try:
+            sampler = SamplerConfig.from_mapping(data)
+        except SpecError as exc:
+            raise SpecError(str(exc).replace("config [sampler]: family", "--family")) from None
+        return Config(self.run, sampler, self.filters)
+
     def with_run(self, **changes: Any) -> Config:
         return Config(replace(self.run, **changes), self.sampler, self.filters)
 

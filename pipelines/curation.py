@@ -109,6 +109,28 @@ FIELDS: dict[str, Field] = {
     ),
     "total_curvature": Field("number", _metric("total_curvature"), "total |Gauss curvature|"),
     "nonfinite": Field("number", _metric("nonfinite"), "non-finite samples of the field"),
+    "solidity": Field("number", _metric("solidity"), "volume / convex hull volume"),
+    "symmetry": Field(
+        "number", _metric("symmetry"), "signed axis permutations the mesh maps onto itself under"
+    ),
+    "symmetry_permutations": Field(
+        "number", _metric("symmetry_permutations"), "distinct axis permutations among them (1-6)"
+    ),
+    "symmetry_mirrors": Field(
+        "number", _metric("symmetry_mirrors"), "mirrors x->-x, y->-y, z->-z among them (0-3)"
+    ),
+    "symmetries": Field("text", _metric("symmetries"), "labels of the symmetries (~ contains)"),
+    "departure": Field(
+        "number", _metric("departure"), "volume between a sculpture and its envelope / its volume"
+    ),
+    "free_standing": Field(
+        "flag", f"COALESCE({_metric('free_standing')}, 0) = 1", "no area on the box's faces"
+    ),
+    "family": Field(
+        "text",
+        "COALESCE(json_extract(shapes.model, '$.family'), 'free')",
+        "sampler family: sculpture, lattice or free",
+    ),
     "wall_fraction": Field(
         "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"
     ),
@@ -399,6 +421,12 @@ def _loads(text: str | None, default: Any) -> Any:
         return default
 
 
+def _family(model: str | None) -> str:
+    """The sampler family in a model's JSON (shapes from before families are ``free``)."""
+    data = _loads(model, None)
+    return str(data.get("family", "free")) if isinstance(data, dict) else "free"
+
+
 def shape_record(
     row: dict[str, Any], tags: Sequence[str] = (), full: bool = False
 ) -> dict[str, Any]:
@@ -425,6 +453,7 @@ def shape_record(
         "rejected": row.get("user_rejected"),
         "note": row.get("note"),
         "duplicate_of": row.get("duplicate_of"),
+        "family": _family(row.get("model")),
         "tags": list(tags),
         "mesh": row.get("mesh_path"),
         "thumb": row.get("thumb_path"),

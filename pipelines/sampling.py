@@ -37,10 +37,12 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
+from surfgen.filters.shape import envelope_departure, quality_metrics
 from surfgen.filters.verdict import (
     REASONS,
     Verdict,
     judge,
+    plain,
     quick_metrics,
     screen_field,
     shape_metrics,
@@ -59,7 +61,7 @@ from surfgen.generator.limits import (
     estimate_memory,
 )
 from surfgen.generator.mesh import Mesh, extract_with_edges, mesh_bytes
-from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
+from surfgen.generator.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import label_walls
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
@@ -176,14 +178,14 @@ def make_shape(
         tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
     )
     watch.lap("eval")
-    verdict, metrics, mesh = _judge(tree, spec, d, config, watch)
+    verdict, metrics, mesh = _judge(tree, spec, d, config, watch, draw)
     row: dict[str, Any] = {
         "key": spec.key,
         "spec": spec.to_json(),
         "formula": spec.formula,
         "identity": spec.identity,
         "d": d,
-        "model": json.dumps(equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        "model": _model_json(draw, equation),
         **_metric_columns(_round_metrics(metrics)),
         "verdict": "accepted" if verdict.accepted else "rejected",
         "reasons": json.dumps(list(verdict.reasons)),
@@ -201,11 +203,21 @@ def make_shape(
     return out
 
 
+def _model_json(draw: Draw, equation) -> str:
+    return json.dumps(draw.model_dict(equation), sort_keys=True, separators=(",", ":"))
+
+
 def _judge(
-    tree: Expr, spec: SurfaceSpec, d: float | None, config: Config, watch: _Stopwatch
+    tree: Expr,
+    spec: SurfaceSpec,
+    d: float | None,
+    config: Config,
+    watch: _Stopwatch,
+    draw: Draw | None = None,
 ) -> tuple[Verdict, dict[str, Any], Mesh | None]:
-    """The cascade: coarse field, full field, mesh, cheap mesh checks, full mesh checks.
-    Returns the verdict, the metrics measured so far and the mesh (if one was made)."""
+    """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
+    if any), mesh, cheap mesh checks, full mesh checks, then the shape-quality metrics of an
+    accepted mesh. Returns the verdict, the metrics measured so far and the mesh (if made)."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
     if d is None:
@@ -219,6 +231,11 @@ def _judge(
     field_ = evaluate(tree, spec.to_grid(), threads=1)
     metrics["nonfinite"] = field_.nonfinite
     verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
+    if verdict.accepted and draw is not None and draw.envelope is not None:
+        envelope = evaluate(draw.envelope, spec.to_grid(), threads=1).values
+        metrics["departure"] = envelope_departure(field_.values, envelope, spec.level)
+        if plain(metrics, fcfg):  # no need to mesh it
+            verdict = Verdict.reject("plain")
     watch.lap("eval")
     if not verdict.accepted:
         return verdict, metrics, None
@@ -247,6 +264,8 @@ def _judge(
     if verdict.accepted:  # ...then pymeshlab's topology and the curvature
         metrics.update(shape_metrics(mesh, spec.box))
         verdict = judge(metrics, fcfg, capped=capped)
+    if verdict.accepted:
+        metrics.update(quality_metrics(mesh, metrics))
     watch.lap("filters")
     return verdict, metrics, mesh
 
@@ -560,7 +579,7 @@ def _outcome(res, seed: int, config: Config) -> ShapeOutcome:
         "formula": spec.formula,
         "identity": spec.identity,
         "d": None,
-        "model": json.dumps(draw.equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        "model": _model_json(draw, draw.equation),
         "verdict": "rejected",
         "reasons": json.dumps([reason]),
         "metrics": "{}",
