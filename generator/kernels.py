@@ -229,7 +229,7 @@ def _series(x, r, p):
         if -p <= i <= p:
             a = r * (i - 1)
             if a <= x and x < r * i:
-                return 2.0 * (x - a)
+                return 0.0 + 2.0 * (x - a)  # +0 + ...: the sum's sign of zero (x = -0)
     return 0.0
 
 

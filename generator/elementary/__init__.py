@@ -189,10 +189,9 @@ def using_numpy_ufuncs() -> bool:
 
 def call(name: str, *args) -> np.ndarray:
     """``name(*args)`` on arrays (float64, broadcasting) with surfgen's function."""
-    e = REGISTRY[name]
     if _BACKEND.get() == "numpy":
-        return e.ufunc(*args)
-    return e.array(*(np.asarray(a, np.float64) for a in args))
+        return UFUNCS[name](*args)
+    return REGISTRY[name].array(*(np.asarray(a, np.float64) for a in args))
 
 
 # ``x^c`` convention (numpy's fast path of np.power, kept as a rule applied per element by both

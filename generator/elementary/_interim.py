@@ -1,35 +1,41 @@
 """TEMPORARY backing of the elementary-function registry until ``trig.py``/``explog.py`` land.
 
-The C library through numba (``math.sin`` -> libm ``sin``) for the rows and scalars, and the very
-same libm symbols through ctypes for the numpy twins, so the two agree bit for bit on any CPU
-(slowly: the twins make one foreign call per element). API: /work/wt/LIBM.md. Delete this module
+The C library through numba (``math.sin`` -> libm ``sin``) for the rows and scalars; the
+"numpy twins" run the rows on a copy, so everything agrees bit for bit on any CPU. API: /work/wt/LIBM.md. Delete this module
 once the registry points at surfgen's own functions.
 """
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
 
 import numpy as np
 from numba import njit
 
 _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
-_LIBM = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
 
 
-def _c(name: str, arity: int):
-    fn = getattr(_LIBM, name)
-    fn.restype = ctypes.c_double
-    fn.argtypes = [ctypes.c_double] * arity
-    uf = np.frompyfunc(fn, arity, 1)
+def _twin1(row):
+    """numpy-level twin through the row function itself: the same libm calls, same bits."""
 
-    def array(*args):
-        args = [np.asarray(a, np.float64) for a in args]
-        return np.asarray(uf(*args), np.float64).reshape(
-            np.broadcast_shapes(*(a.shape for a in args))
-        )
+    def array(x):
+        x = np.asarray(x, np.float64)
+        W = np.empty((2, x.size))
+        W[0] = x.ravel()
+        row(W, 1, 0, x.size)
+        return W[1].reshape(x.shape)
+
+    return array
+
+
+def _twin2(row_vv):
+    def array(p, q):
+        p, q = np.broadcast_arrays(np.asarray(p, np.float64), np.asarray(q, np.float64))
+        W = np.empty((3, p.size))
+        W[0] = p.ravel()
+        W[1] = q.ravel()
+        row_vv(W, 2, 0, 1, p.size)
+        return W[2].reshape(p.shape)
 
     return array
 
@@ -45,7 +51,7 @@ def sin_scalar(x):
     return math.sin(x)
 
 
-sin_array = _c("sin", 1)
+sin_array = _twin1(sin_row)
 
 
 @njit(**_OPTS)
@@ -59,7 +65,7 @@ def cos_scalar(x):
     return math.cos(x)
 
 
-cos_array = _c("cos", 1)
+cos_array = _twin1(cos_row)
 
 
 @njit(**_OPTS)
@@ -73,7 +79,7 @@ def tan_scalar(x):
     return math.tan(x)
 
 
-tan_array = _c("tan", 1)
+tan_array = _twin1(tan_row)
 
 
 @njit(**_OPTS)
@@ -87,7 +93,7 @@ def asin_scalar(x):
     return math.asin(x)
 
 
-asin_array = _c("asin", 1)
+asin_array = _twin1(asin_row)
 
 
 @njit(**_OPTS)
@@ -101,7 +107,7 @@ def acos_scalar(x):
     return math.acos(x)
 
 
-acos_array = _c("acos", 1)
+acos_array = _twin1(acos_row)
 
 
 @njit(**_OPTS)
@@ -115,7 +121,7 @@ def atan_scalar(x):
     return math.atan(x)
 
 
-atan_array = _c("atan", 1)
+atan_array = _twin1(atan_row)
 
 
 @njit(**_OPTS)
@@ -129,7 +135,7 @@ def sinh_scalar(x):
     return math.sinh(x)
 
 
-sinh_array = _c("sinh", 1)
+sinh_array = _twin1(sinh_row)
 
 
 @njit(**_OPTS)
@@ -143,7 +149,7 @@ def cosh_scalar(x):
     return math.cosh(x)
 
 
-cosh_array = _c("cosh", 1)
+cosh_array = _twin1(cosh_row)
 
 
 @njit(**_OPTS)
@@ -157,7 +163,7 @@ def tanh_scalar(x):
     return math.tanh(x)
 
 
-tanh_array = _c("tanh", 1)
+tanh_array = _twin1(tanh_row)
 
 
 @njit(**_OPTS)
@@ -171,7 +177,7 @@ def asinh_scalar(x):
     return math.asinh(x)
 
 
-asinh_array = _c("asinh", 1)
+asinh_array = _twin1(asinh_row)
 
 
 @njit(**_OPTS)
@@ -185,7 +191,7 @@ def acosh_scalar(x):
     return math.acosh(x)
 
 
-acosh_array = _c("acosh", 1)
+acosh_array = _twin1(acosh_row)
 
 
 @njit(**_OPTS)
@@ -199,7 +205,7 @@ def atanh_scalar(x):
     return math.atanh(x)
 
 
-atanh_array = _c("atanh", 1)
+atanh_array = _twin1(atanh_row)
 
 
 @njit(**_OPTS)
@@ -213,7 +219,7 @@ def exp_scalar(x):
     return math.exp(x)
 
 
-exp_array = _c("exp", 1)
+exp_array = _twin1(exp_row)
 
 
 @njit(**_OPTS)
@@ -227,7 +233,7 @@ def log_scalar(x):
     return math.log(x)
 
 
-log_array = _c("log", 1)
+log_array = _twin1(log_row)
 
 
 @njit(**_OPTS)
@@ -241,7 +247,7 @@ def log10_scalar(x):
     return math.log10(x)
 
 
-log10_array = _c("log10", 1)
+log10_array = _twin1(log10_row)
 
 
 @njit(**_OPTS)
@@ -255,7 +261,7 @@ def cbrt_scalar(x):
     return np.cbrt(x)
 
 
-cbrt_array = _c("cbrt", 1)
+cbrt_array = _twin1(cbrt_row)
 
 
 @njit(**_OPTS)
@@ -281,7 +287,7 @@ def atan2_scalar(p, q):
     return math.atan2(p, q)
 
 
-atan2_array = _c("atan2", 2)
+atan2_array = _twin2(atan2_row_vv)
 
 
 @njit(**_OPTS)
@@ -307,4 +313,4 @@ def pow_scalar(p, q):
     return p**q
 
 
-pow_array = _c("pow", 2)
+pow_array = _twin2(pow_row_vv)
