@@ -23,19 +23,27 @@ from surfgen.generator.spec import SurfaceSpec
 # ----------------------------------------------------------------------------- equation A
 
 
-def _eq_a() -> str:
+EQ_A_B = "(abs({v})^0.3/abs(cot(m*{v})))^0.3"  # B_x of equation A, with {v} for x, y or z
+
+
+def eq_a_formula(
+    b_form: str = EQ_A_B, sign: str = "-", shift_in: str = "-600", shift_out: str = "+100"
+) -> str:
+    """Equation A; the defaults give it as printed. The arguments exist for the readings of
+    Figure 2 that ``surfgen reproduce`` investigates (the B term, the sign before 0.51, the
+    constants)."""
     denom = "abs(abs(x)^1.3+abs(y)^1.3+abs(z)^1.3)"
 
     def a(v: str) -> str:
         return f"atan(tan(1-abs({v})^0.31+5.76*abs({v})^1.38/{denom}))^3"
 
     def b(v: str) -> str:
-        return f"(abs({v})^0.3/abs(cot(m*{v})))^0.3"
+        return b_form.format(v=v)
 
     return (
-        "(abs(x)^3.3+abs(y)^3.3+abs(z)^3.3-600)"
+        f"(abs(x)^3.3+abs(y)^3.3+abs(z)^3.3{shift_in})"
         f"+({a('x')}+{a('y')}+{a('z')})^3"
-        f"-0.51*({b('x')}+{b('y')}+{b('z')})^3+100"
+        f"{sign}0.51*({b('x')}+{b('y')}+{b('z')})^3{shift_out}"
     )
 
 
@@ -119,13 +127,32 @@ def _cube(n: int) -> tuple[int, int, int]:
     return (n, n, n)
 
 
-_EQ_A, _EQ_B = _eq_a(), _eq_b()
+_EQ_A, _EQ_B = eq_a_formula(), _eq_b()
+_EQ_A_B1 = eq_a_formula(b_form="abs({v})^0.3/abs(cot(m*{v}))")
 _A_BOX, _B_BOX = (-155.0, 155.0), (-7.0, 7.0)
 
 _PRESETS: list[Preset] = [
     Preset("eqA", _EQ_A, _A_BOX, _cube(82), {"m": 0.861}, "paper, equation A (section 4.a.1)"),
     Preset("I1", _EQ_A, _A_BOX, _cube(82), {"m": 0.851}, "paper, Figure 2, I1: eq. A, m=0.851"),
     Preset("I2", _EQ_A, _A_BOX, _cube(82), {"m": 0.861}, "paper, Figure 2, I2: eq. A, m=0.861"),
+    # Figure 2 read with B = |x|^0.3/|cot(m x)| (the outer ^0.3 dropped): the one reading that
+    # `surfgen reproduce` found to make I1 and I2 differ as the paper says (README, Figure 2).
+    Preset(
+        "I1-b1",
+        _EQ_A_B1,
+        _A_BOX,
+        _cube(82),
+        {"m": 0.851},
+        "Figure 2, I1 read as B=|x|^0.3/|cot(m x)|",
+    ),
+    Preset(
+        "I2-b1",
+        _EQ_A_B1,
+        _A_BOX,
+        _cube(82),
+        {"m": 0.861},
+        "Figure 2, I2 read as B=|x|^0.3/|cot(m x)|",
+    ),
     Preset("eqB", _EQ_B, _B_BOX, _cube(34), {}, "paper, equation B (section 4.a.2)"),
     Preset("I3", _EQ_B, _B_BOX, _cube(34), {}, "paper, Figure 3, I3: eq. B, box ±7, grid 34³"),
     Preset("I4", _EQ_B, (-7.05, 7.05), _cube(34), {}, "paper, Figure 3, I4: box ±7.05, grid 34³"),

@@ -332,6 +332,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
+    "surfgen.pipelines.reproduce",
 ]
 
 for _module in _REGISTER:

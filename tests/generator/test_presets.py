@@ -14,7 +14,7 @@ from surfgen.generator.reference import evaluate_reference
 # Independent transcriptions, written straight from the paper with numpy.
 
 
-def eq_a(x, y, z, m):
+def eq_a(x, y, z, m, outer=0.3):
     ax_, ay_, az_ = np.abs(x), np.abs(y), np.abs(z)
     den = np.abs(ax_**1.3 + ay_**1.3 + az_**1.3)
 
@@ -22,7 +22,7 @@ def eq_a(x, y, z, m):
         return np.arctan(np.tan(1 - u**0.31 + 5.76 * u**1.38 / den)) ** 3
 
     def b(u, v):
-        return (u**0.3 / np.abs(1 / np.tan(m * v))) ** 0.3
+        return (u**0.3 / np.abs(1 / np.tan(m * v))) ** outer
 
     return (
         (ax_**3.3 + ay_**3.3 + az_**3.3 - 600)
@@ -72,6 +72,8 @@ def independent(name: str):
     with np.errstate(all="ignore"):
         if p.formula == PRESETS["eqA"].formula:
             v = eq_a(x, y, z, spec.params["m"])
+        elif p.formula == PRESETS["I1-b1"].formula:
+            v = eq_a(x, y, z, spec.params["m"], outer=1.0)
         elif p.formula == PRESETS["eqB"].formula:
             v = eq_b(x, y, z)
         else:
@@ -79,7 +81,7 @@ def independent(name: str):
     return np.broadcast_to(v, spec.grid)
 
 
-PAPER = ["eqA", "I1", "I2", "eqB", "I3", "I4", "I5", "eqC", "C-m0.25", "C-m0.5", "C-m0.75", "C-m1"]
+PAPER = ["eqA", "I1", "I2", "I1-b1", "I2-b1", "eqB", "I3", "I4", "I5", "eqC", "C-m0.25", "C-m0.5", "C-m0.75", "C-m1"]
 
 
 def assert_same_field(got: np.ndarray, want: np.ndarray) -> None:
@@ -167,3 +169,19 @@ def test_classic_surfaces_have_a_surface() -> None:
         spec = PRESETS[name].spec()
         v = evaluate_reference(spec.tree(), spec.to_grid()).values
         assert (v < 0).any() and (v > 0).any(), name
+
+
+def test_figure_2_reading_b1_makes_i1_and_i2_differ() -> None:
+    """As printed, m = 0.851 and 0.861 give the same lump; with B = |x|^0.3/|cot(m x)| the
+    walls at the zeros of cot(m x) are sampled differently and the insides differ."""
+
+    def inside(name: str) -> np.ndarray:
+        spec = PRESETS[name].spec()
+        v = evaluate_reference(spec.tree(), spec.to_grid(), spec.params).values
+        return np.isfinite(v) & (v < 0)
+
+    lit1, lit2 = inside("I1"), inside("I2")
+    assert np.array_equal(lit1, lit2)
+    b1, b2 = inside("I1-b1"), inside("I2-b1")
+    iou = (b1 & b2).sum() / (b1 | b2).sum()
+    assert iou < 0.5 and min(b1.sum(), b2.sum()) > 10 * lit1.sum()
