@@ -96,14 +96,18 @@ _install_cache_stamp()
 
 # ----------------------------------------------------------------------------- the registry
 
-from surfgen.generator.elementary import _interim  # noqa: E402
+from surfgen.generator.elementary import explog, trig  # noqa: E402
 
 UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh")
 UNARY += ("acosh", "atanh", "exp", "log", "log10", "cbrt")
 BINARY = ("atan2", "pow")
 
 # Which module implements which function (API of LIBM.md).
-_PROVIDER: dict[str, ModuleType] = {name: _interim for name in UNARY + BINARY}
+_PROVIDER: dict[str, ModuleType] = {
+    **{name: trig for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2")},
+    **{name: explog for name in ("exp", "log", "log10", "pow", "sinh", "cosh", "tanh")},
+    **{name: explog for name in ("asinh", "acosh", "atanh", "cbrt")},
+}
 
 UFUNCS: dict[str, Callable[..., np.ndarray]] = {
     "sin": np.sin,
