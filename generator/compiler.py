@@ -46,6 +46,7 @@ import numpy as np
 
 from surfgen.generator import constituents as cf
 from surfgen.generator import elementary as E
+from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of, to_string
 from surfgen.generator.functions import FUNCTIONS, match_rewrite
@@ -92,10 +93,23 @@ OPCODES: dict[str, tuple[int, int]] = {
     "max": (35, 2),
     "atan2": (36, 2),
     "ratio1": (37, 2),  # a/b with 0/0 read as 1 (rect3)
-    "atantan": (38, 1),  # atan(tan u) in closed form (elementary.roundtrip)
-    "asinsin": (39, 1),  # asin(sin u)
-    "acoscos": (40, 1),  # acos(cos u)
-    "acotcot": (41, 1),  # acot(cot u) = pi/2 - atan(1/tan u)
+    # MathMod's comparisons, logic, if and % (logic.py): results 1.0 or 0.0.
+    "lt": (38, 2),  # a < b - EPS
+    "le": (39, 2),  # a <= b + EPS
+    "eq": (40, 2),  # |a - b| <= EPS
+    "ne": (41, 2),  # |a - b| > EPS
+    "and": (42, 2),
+    "or": (43, 2),
+    "not": (44, 1),
+    "pick": (45, 2),  # b where a is true, else 0 (if's taken branch)
+    "pickn": (46, 2),  # 0 where a is true, else b (if's other branch)
+    "fmod": (47, 2),  # C fmod (exact)
+    "trunc": (48, 1),
+    # The paper's round trips in closed form (elementary.roundtrip).
+    "atantan": (49, 1),  # atan(tan u)
+    "asinsin": (50, 1),  # asin(sin u)
+    "acoscos": (51, 1),  # acos(cos u)
+    "acotcot": (52, 1),  # acot(cot u) = pi/2 - atan(1/tan u)
 }
 OP = {name: num for name, (num, _) in OPCODES.items()}
 ARITY = {name: n for name, (_, n) in OPCODES.items()}
@@ -282,6 +296,8 @@ def _fold(name: str, vals: list[float], imm) -> float:
             out = cf.unit_sign(a[0])
         elif name == "ratio1":
             out = cf._ratio(a[0], a[1])
+        elif name in _LOGIC_FOLD:
+            out = _LOGIC_FOLD[name](*a)
         else:  # powi is not emitted; series, segsum never see constants (folded whole)
             raise AssertionError(f"cannot fold {name}")
     return float(np.asarray(out, np.float64))
@@ -305,7 +321,32 @@ _NP_BINARY = {
     "min": np.minimum,
     "max": np.maximum,
 }
+_LOGIC_FOLD = {
+    "lt": logic.lt,
+    "le": logic.le,
+    "eq": logic.eq,
+    "ne": logic.ne,
+    "and": logic.and_,
+    "or": logic.or_,
+    "not": logic.not_,
+    "pick": logic.pick,
+    "pickn": logic.pickn,
+    "fmod": logic.fmod,
+    "trunc": logic.trunc,
+}
 _TREE_BINARY = {"+": "add", "-": "sub", "*": "mul", "/": "div"}
+# MathMod operators: (opcode, operands swapped?)
+_TREE_LOGIC = {
+    "<": ("lt", False),
+    "<=": ("le", False),
+    ">": ("lt", True),
+    ">=": ("le", True),
+    "=": ("eq", False),
+    "!=": ("ne", False),
+    "&": ("and", False),
+    "|": ("or", False),
+    "%": ("fmod", False),
+}
 # Functions of the formula language that are one opcode.
 _DIRECT = frozenset(
     ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh")
@@ -348,6 +389,12 @@ class _Lowerer:
         rewrite = match_rewrite(node)
         if rewrite is not None:  # the same rewrite the reference applies
             return d.op(rewrite[0], self.lower(rewrite[1]))
+        if op == "not":
+            return d.op("not", self.lower(node.args[0]))
+        if op in _TREE_LOGIC:
+            name, swap = _TREE_LOGIC[op]
+            a, b = self.lower(node.args[0]), self.lower(node.args[1])
+            return d.op(name, b, a) if swap else d.op(name, a, b)
         if op in _TREE_BINARY:
             return d.op(_TREE_BINARY[op], self.lower(node.args[0]), self.lower(node.args[1]))
         if op == "^":
@@ -409,6 +456,13 @@ class _Lowerer:
             return d.op("recip", d.op("sin", args[0]))
         if op == "acot":
             return self._acot(args[0])
+        if op == "if":
+            c, a, b = args
+            return d.op("add", d.op("pick", c, a), d.op("pickn", c, b))
+        if op == "int":
+            return d.op("floor", d.op("add", args[0], d.const(0.5)))
+        if op == "trunc":
+            return d.op("trunc", args[0])
         raise AssertionError(f"no lowering for {op}")  # pragma: no cover
 
     # -- pieces of the constituent functions, written as constituents.py writes them

@@ -7,7 +7,9 @@ A tree is made of :class:`Expr` nodes. ``op`` is one of
 - ``"var"``: ``value`` is ``"x"``, ``"y"`` or ``"z"``;
 - ``"param"``: a named parameter, ``value`` is its name (bound to a number at evaluation);
 - ``"pi"``: the constant pi;
-- ``"neg"`` (one argument), ``"+" "-" "*" "/" "^"`` (two arguments);
+- ``"neg"`` and ``"not"`` (one argument; ``not`` prints as ``!``), ``"+" "-" "*" "/" "^"`` and
+  MathMod's ``"%" "<" "<=" ">" ">=" "=" "!=" "&" "|"`` (two arguments; meaning in
+  :mod:`surfgen.generator.logic`);
 - the name of a function of :mod:`surfgen.generator.functions` (``"sin"``, ``"saw1"``, ...).
 
 Nodes are frozen and hashable, so identical sub-trees compare equal and can be shared.
@@ -24,12 +26,24 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 VARIABLES = ("x", "y", "z")
-BINARY_OPS = ("+", "-", "*", "/", "^")
+BINARY_OPS = ("+", "-", "*", "/", "^", "%", "<", "<=", ">", ">=", "=", "!=", "&", "|")
+UNARY_OPS = ("neg", "not")
 LEAF_OPS = ("num", "var", "param", "pi")
 
-# Binding strength used by the printer; the parser implements the same grammar.
-_PREC_ADD, _PREC_MUL, _PREC_NEG, _PREC_POW, _PREC_ATOM = 1, 2, 3, 4, 5
-_BINARY_PREC = {"+": _PREC_ADD, "-": _PREC_ADD, "*": _PREC_MUL, "/": _PREC_MUL, "^": _PREC_POW}
+# Binding strength used by the printer; the parser implements the same grammar (fparser's).
+_PREC_OR, _PREC_AND, _PREC_CMP, _PREC_ADD, _PREC_MUL, _PREC_NEG, _PREC_POW, _PREC_ATOM = range(1, 9)
+_BINARY_PREC = {
+    "|": _PREC_OR,
+    "&": _PREC_AND,
+    **dict.fromkeys(("<", "<=", ">", ">=", "=", "!="), _PREC_CMP),
+    "+": _PREC_ADD,
+    "-": _PREC_ADD,
+    "*": _PREC_MUL,
+    "/": _PREC_MUL,
+    "%": _PREC_MUL,
+    "^": _PREC_POW,
+}
+_UNARY_TEXT = {"neg": "-", "not": "!"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,7 +205,7 @@ def format_number(value: float) -> str:
 def _prec(node: Expr) -> int:
     if node.op in _BINARY_PREC:
         return _BINARY_PREC[node.op]
-    if node.op == "neg":
+    if node.op in _UNARY_TEXT:
         return _PREC_NEG
     return _PREC_ATOM
 
@@ -205,20 +219,20 @@ def to_string(tree: Expr) -> str:
         return str(tree.value)
     if op == "pi":
         return "pi"
-    if op == "neg":
+    if op in _UNARY_TEXT:
         (a,) = tree.args
         # '-' applies to a power or an atom without parentheses; '-(-x)' keeps them for clarity.
         inner = to_string(a)
-        return "-" + (inner if _prec(a) >= _PREC_POW else f"({inner})")
+        return _UNARY_TEXT[op] + (inner if _prec(a) >= _PREC_POW else f"({inner})")
     if op in _BINARY_PREC:
         a, b = tree.args
         p = _BINARY_PREC[op]
         if op == "^":  # right-associative: base needs an atom, exponent may be a power or neg
             left = _wrap(a, _PREC_ATOM)
-            right = _wrap(b, _PREC_NEG) if b.op != "neg" else _wrap(b, _PREC_POW)
+            right = _wrap(b, _PREC_NEG) if b.op not in _UNARY_TEXT else _wrap(b, _PREC_POW)
         else:  # left-associative: the right operand needs strictly higher precedence
             left = _wrap(a, p)
-            right = f"({to_string(b)})" if b.op == "neg" else _wrap(b, p + 1)
+            right = f"({to_string(b)})" if b.op in _UNARY_TEXT else _wrap(b, p + 1)
         return f"{left}{op}{right}"
     return f"{op}({','.join(to_string(a) for a in tree.args)})"
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from surfgen.generator import constituents as cf
 from surfgen.generator import elementary as E
+from surfgen.generator import logic
 from surfgen.generator.expr import Expr
 
 
@@ -107,6 +108,10 @@ _TABLE: list[FunctionDef] = [
     _math("ceil", np.ceil),
     _math("min", np.minimum, 2),
     _math("max", np.maximum, 2),
+    # MathMod's (fparser's) conditional and rounding, see logic.py.
+    _math("if", logic.if_, 3, doc="if(c, a, b): a where |c| >= 0.5, else b"),
+    _math("int", logic.round_half_up, doc="floor(u + 0.5)"),
+    _math("trunc", logic.trunc, doc="rounds towards 0"),
     # Constituent functions, eqs (1)-(12).
     FunctionDef("fcc", 5, None, _fcc_reference, 1, "eq. (1): fcc(x, x1,y1, x2,y2, ...)"),
     FunctionDef("fcc8", 1, 1, cf.fcc8, None, "Figure 1.1: the eight-segment curve"),
@@ -125,7 +130,10 @@ _TABLE: list[FunctionDef] = [
 FUNCTIONS: dict[str, FunctionDef] = {f.name: f for f in _TABLE}
 
 # Names the parser expands in place rather than keeping as a node (see parser.py).
-MACROS = {"powf": "eq. (8): powf(a1,b1,c1,d1, a2,b2,c2,d2, ...) = sum a x^b y^c z^d"}
+MACROS = {
+    "powf": "eq. (8): powf(a1,b1,c1,d1, a2,b2,c2,d2, ...) = sum a x^b y^c z^d",
+    "pow": "pow(a, b) = a^b (fparser's name for ^)",
+}
 
 CONSTITUENT_NAMES = tuple(f.name for f in _TABLE if f.const_from is not None or f.name == "fcc8")
 

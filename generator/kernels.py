@@ -73,6 +73,18 @@ OP_ATANTAN = OP["atantan"]
 OP_ASINSIN = OP["asinsin"]
 OP_ACOSCOS = OP["acoscos"]
 OP_ACOTCOT = OP["acotcot"]
+OP_LT = OP["lt"]
+OP_LE = OP["le"]
+OP_EQ = OP["eq"]
+OP_NE = OP["ne"]
+OP_AND = OP["and"]
+OP_OR = OP["or"]
+OP_NOT = OP["not"]
+OP_PICK = OP["pick"]
+OP_PICKN = OP["pickn"]
+OP_FMOD = OP["fmod"]
+OP_TRUNC = OP["trunc"]
+EPS = 1e-12  # logic.EPS: fparser's comparison tolerance
 
 # The row functions (numba dispatchers as globals: compiled into the interpreter).
 _sin_row = _E["sin"].row
@@ -167,6 +179,43 @@ def _ratio1(a, b):
 
 
 @njit(inline="always", **_OPTS)
+def _truth(v):
+    """logic.truth: |v| >= 0.5, NaN false."""
+    return abs(v) >= 0.5
+
+
+@njit(inline="always", **_OPTS)
+def _is_logic2(op):
+    return (OP_LT <= op <= OP_OR) or op == OP_PICK or op == OP_PICKN or op == OP_FMOD  # noqa: SIM109 (numba)
+
+
+@njit(inline="always", **_OPTS)
+def _logic2(op, a, b):
+    """The two-operand operations of logic.py, value for value."""
+    if op == OP_LT:
+        return 1.0 if a < b - EPS else 0.0
+    if op == OP_LE:
+        return 1.0 if a <= b + EPS else 0.0
+    if op == OP_EQ:
+        return 1.0 if abs(a - b) <= EPS else 0.0
+    if op == OP_NE:
+        return 1.0 if abs(a - b) > EPS else 0.0
+    if op == OP_AND:
+        return 1.0 if _truth(a) and _truth(b) else 0.0
+    if op == OP_OR:
+        return 1.0 if _truth(a) or _truth(b) else 0.0
+    if op == OP_PICK:
+        return b if _truth(a) else 0.0
+    if op == OP_PICKN:
+        return 0.0 if _truth(a) else b
+    return np.fmod(a, b)  # OP_FMOD (C fmod: exact)
+
+
+@njit(inline="always", **_OPTS)
+def _trunc(u):
+    return np.floor(u) if u >= 0.0 else np.ceil(u)
+
+
 def _pow_rule(u, e, p):
     """The ``x^c`` convention (elementary.POW_SHORTCUTS) applied to ``p = pow(u, e)``:
     branch-free selects, so the loop that applies it vectorises."""
@@ -346,6 +395,12 @@ def _unary(op, W, d, a, n, consts, imm, T):
     elif op == OP_CEIL:
         for k in range(n):
             W[d, k] = np.ceil(W[a, k])
+    elif op == OP_NOT:
+        for k in range(n):
+            W[d, k] = 0.0 if _truth(W[a, k]) else 1.0
+    elif op == OP_TRUNC:
+        for k in range(n):
+            W[d, k] = _trunc(W[a, k])
     elif op == OP_SERIES:
         _series_row(W, d, a, n, consts, imm)
     elif op == OP_SEGSUM:
@@ -379,6 +434,9 @@ def _binary_vv(op, W, d, a, b, n):
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], W[b, k])
+    elif _is_logic2(op):
+        for k in range(n):
+            W[d, k] = _logic2(op, W[a, k], W[b, k])
 
 
 @njit(**_OPTS)
@@ -408,6 +466,9 @@ def _binary_vs(op, W, d, a, s, n):
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], s)
+    elif _is_logic2(op):
+        for k in range(n):
+            W[d, k] = _logic2(op, W[a, k], s)
 
 
 @njit(**_OPTS)
@@ -437,6 +498,9 @@ def _binary_sv(op, W, d, s, b, n):
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(s, W[b, k])
+    elif _is_logic2(op):
+        for k in range(n):
+            W[d, k] = _logic2(op, s, W[b, k])
 
 
 @njit(**_OPTS)

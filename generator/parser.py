@@ -1,12 +1,15 @@
 """Parse K3DSurf/MathMod-style formula text into an :class:`~surfgen.generator.expr.Expr` tree.
 
-Grammar (``^`` right-associative and tighter than unary minus, as in fparser)::
+Grammar (fparser's, as MathMod uses it: ``^`` right-associative and tighter than unary minus)::
 
+    or      := and ("|" and)*
+    and     := compare ("&" compare)*
+    compare := sum (("=" | "!=" | "<" | "<=" | ">" | ">=") sum)*
     sum     := product (("+" | "-") product)*
-    product := unary (("*" | "/") unary)*
-    unary   := ("-" | "+") unary | power
+    product := unary (("*" | "/" | "%") unary)*
+    unary   := ("-" | "+" | "!") unary | power
     power   := atom ("^" unary)?
-    atom    := NUMBER | NAME | NAME "(" sum ("," sum)* ")" | "(" sum ")"
+    atom    := NUMBER | NAME | NAME "(" or ("," or)* ")" | "(" or ")"
 
 Names are ``x y z``, ``pi``, declared parameters, and the functions of
 :mod:`surfgen.generator.functions`; ``powf(a,b,c,d, ...)`` (eq. 8) is expanded in place into
@@ -18,7 +21,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from surfgen.generator.errors import FormulaSyntaxError
@@ -27,7 +30,7 @@ from surfgen.generator.functions import FUNCTIONS, MACROS
 
 _TOKEN = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
-    r"|(?P<op>[-+*/^(),]))"
+    r"|(?P<op><=|>=|!=|[-+*/^(),%<>=!&|]))"
 )
 
 
@@ -57,9 +60,12 @@ def tokenize(text: str) -> list[Token]:
 
 
 class _Parser:
-    def __init__(self, text: str, params: frozenset[str]) -> None:
+    def __init__(
+        self, text: str, params: frozenset[str], functions: Mapping[str, Expr] | None = None
+    ) -> None:
         self.text = text
         self.params = params
+        self.functions = dict(functions or {})
         self.tokens = tokenize(text)
         self.i = 0
         self.open_parens: list[int] = []
@@ -101,10 +107,26 @@ class _Parser:
     def parse(self) -> Expr:
         if self.tok.kind == "end":
             raise FormulaSyntaxError("empty formula", 1)
-        tree = self.sum()
+        tree = self.disjunction()
         if self.tok.kind != "end":
             raise self.unexpected()
         return tree
+
+    def _left_assoc(self, ops: tuple[str, ...], operand) -> Expr:
+        left = operand()
+        while self.tok.kind == "op" and self.tok.text in ops:
+            op = self.advance().text
+            left = Expr(op, (left, operand()))
+        return left
+
+    def disjunction(self) -> Expr:
+        return self._left_assoc(("|",), self.conjunction)
+
+    def conjunction(self) -> Expr:
+        return self._left_assoc(("&",), self.comparison)
+
+    def comparison(self) -> Expr:
+        return self._left_assoc(("=", "!=", "<", "<=", ">", ">="), self.sum)
 
     def sum(self) -> Expr:
         left = self.product()
@@ -115,7 +137,7 @@ class _Parser:
 
     def product(self) -> Expr:
         left = self.unary()
-        while self.is_op("*") or self.is_op("/"):
+        while self.is_op("*") or self.is_op("/") or self.is_op("%"):
             op = self.advance().text
             left = Expr(op, (left, self.unary()))
         return left
@@ -127,6 +149,9 @@ class _Parser:
         if self.is_op("+"):
             self.advance()
             return self.unary()
+        if self.is_op("!"):
+            self.advance()
+            return Expr("not", (self.unary(),))
         return self.power()
 
     def power(self) -> Expr:
@@ -151,7 +176,7 @@ class _Parser:
             return self.name(t)
         if self.is_op("("):
             self.open_parens.append(self.advance().column)
-            inner = self.sum()
+            inner = self.disjunction()
             self.expect_close()
             return inner
         raise self.unexpected()
@@ -175,15 +200,32 @@ class _Parser:
 
     def call(self, t: Token) -> Expr:
         name = t.text
+        if name in self.functions:
+            self.open_parens.append(self.advance().column)
+            args = [] if self.is_op(")") else [self.disjunction()]
+            while self.is_op(","):
+                self.advance()
+                args.append(self.disjunction())
+            self.expect_close()
+            if len(args) > len(FORMALS):
+                raise FormulaSyntaxError(
+                    f"{name} takes at most {len(FORMALS)} arguments (x, y, z, t), got {len(args)}",
+                    t.column,
+                )
+            return inline_call(self.functions[name], args)
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
             raise FormulaSyntaxError(f"unknown function '{name}'", t.column, hint)
         self.open_parens.append(self.advance().column)
-        args = [] if self.is_op(")") else [self.sum()]
+        args = [] if self.is_op(")") else [self.disjunction()]
         while self.is_op(","):
             self.advance()
-            args.append(self.sum())
+            args.append(self.disjunction())
         self.expect_close()
+        if name == "pow":
+            if len(args) != 2:
+                raise FormulaSyntaxError(f"pow takes 2 arguments, got {len(args)}", t.column)
+            return Expr("^", (args[0], args[1]))
         if name in MACROS:
             return _expand_powf(args, t.column)
         fdef = FUNCTIONS[name]
@@ -202,6 +244,27 @@ class _Parser:
                         t.column,
                     )
         return Expr(name, tuple(args))
+
+
+# The formal parameters of a user function (MathMod's Funct): f(x, y, z, t).
+FORMALS = (Expr("var", (), "x"), Expr("var", (), "y"), Expr("var", (), "z"), Expr("param", (), "t"))
+
+
+def inline_call(body: Expr, args: list[Expr]) -> Expr:
+    """``body`` with its formals x, y, z, t replaced by ``args`` (missing ones stay as they are)."""
+    mapping = dict(zip(FORMALS, args, strict=False))
+    memo: dict[Expr, Expr] = {}
+
+    def sub(node: Expr) -> Expr:
+        hit = memo.get(node)
+        if hit is None:
+            hit = mapping.get(node) or (
+                Expr(node.op, tuple(sub(a) for a in node.args), node.value) if node.args else node
+            )
+            memo[node] = hit
+        return hit
+
+    return sub(body)
 
 
 def is_constant(tree: Expr) -> bool:
@@ -227,8 +290,11 @@ def _did_you_mean(word: str, choices: Iterable[str]) -> str:
     return f" (did you mean {close[0]}?)" if close else ""
 
 
-def parse(text: str, params: Iterable[str] = ()) -> Expr:
-    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters.
+def parse(
+    text: str, params: Iterable[str] = (), functions: Mapping[str, Expr] | None = None
+) -> Expr:
+    """Parse ``text`` into a tree; ``params`` are the names allowed as parameters; ``functions``
+    are user functions (name -> body in x, y, z and the parameter t), inlined where called.
 
     Raises :class:`FormulaSyntaxError` naming the column of the problem.
     """
@@ -237,4 +303,4 @@ def parse(text: str, params: Iterable[str] = ()) -> Expr:
     bad = [p for p in params if p in VARIABLES or p == "pi" or p in FUNCTIONS or p in MACROS]
     if bad:
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
-    return _Parser(text, frozenset(params)).parse()
+    return _Parser(text, frozenset(params), functions).parse()

@@ -18,6 +18,7 @@ import numpy as np
 
 from surfgen.generator import constituents as cf
 from surfgen.generator import elementary as E
+from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr, params_of
 from surfgen.generator.functions import FUNCTIONS, match_rewrite
@@ -29,6 +30,7 @@ _BINARY = {
     "*": np.multiply,
     "/": np.divide,
     "^": E.power,
+    **logic.BINARY,
 }
 MATHS = ("surfgen", "numpy")
 
@@ -95,6 +97,8 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
         name, inner = rewrite
         u = _eval(inner, env, params, memo)
         out = cf.unit_sign(u) if name == "usign" else E.round_trip(name, u)
+    elif op == "not":
+        out = logic.not_(np.asarray(_eval(node.args[0], env, params, memo), np.float64))
     elif op in _BINARY:
         a = _eval(node.args[0], env, params, memo)
         b = _eval(node.args[1], env, params, memo)

@@ -100,10 +100,39 @@ def render(
         typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    mathmod: Annotated[
+        Path | None, typer.Option(help="A MathMod script: render its Iso3D model.")
+    ] = None,
+    name: Annotated[str | None, typer.Option(help="With --mathmod: the model's Name.")] = None,
+    component: Annotated[
+        str | None, typer.Option(help="With --mathmod: only this component.")
+    ] = None,
+    slider: Annotated[int | None, typer.Option(help="With --mathmod: slider set K.")] = None,
 ) -> None:
     """Evaluate one shape on its grid, extract F = level and write what is asked."""
     from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
+
+    if mathmod is not None:
+        _render_mathmod(
+            mathmod,
+            name,
+            component,
+            slider,
+            param,
+            box,
+            grid,
+            level,
+            cap,
+            output,
+            png,
+            save_field,
+            evaluator,
+            as_json,
+        )
+        return
+    if name is not None or component is not None or slider is not None:
+        raise SpecError("--name, --component and --slider go with --mathmod")
 
     catalogued = None
     if from_catalogue is not None:
@@ -138,6 +167,54 @@ def render(
         f"grid {'x'.join(map(str, s['grid']))}, box {s['box']}: "
         + (f"{s['vertices']} vertices, {s['faces']} faces" if s["faces"] is not None else "no mesh")
         + f", {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
+    )
+    for kind, path in s["files"].items():
+        typer.echo(f"wrote {kind}: {path}")
+
+
+def _render_mathmod(
+    script,
+    name,
+    component,
+    slider,
+    param,
+    box,
+    grid,
+    level,
+    cap,
+    output,
+    png,
+    save_field,
+    evaluator,
+    as_json,
+) -> None:
+    from surfgen.pipelines.mathmod import read_model, render_model
+
+    if save_field is not None:
+        raise SpecError("--save-field does not go with --mathmod (a model may have several grids)")
+    sizes = parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None
+    model = read_model(script, name, slider=slider, params=parse_params(param))
+    for notice in model.notices:
+        typer.echo(f"notice: {notice}", err=True)
+    s = render_model(
+        model,
+        component=component,
+        box=parse_numbers(box, "--box", (2, 6)) if box else None,
+        grid=sizes,
+        level=level,
+        cap=bool(cap),
+        evaluator=evaluator,
+        mesh_path=output,
+        png_path=png,
+    )
+    if as_json:
+        emit_json(s)
+        return
+    for c in s["components"]:
+        typer.echo(f"{c['component']}: {c['formula']}")
+    typer.echo(
+        f"{s['model']}: {len(s['components'])} component(s), {s['vertices']} vertices, "
+        f"{s['faces']} faces, {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
     )
     for kind, path in s["files"].items():
         typer.echo(f"wrote {kind}: {path}")
@@ -332,7 +409,9 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
+    "surfgen.pipelines.sweep",
     "surfgen.pipelines.reproduce",
+    "surfgen.pipelines.mathmod",
 ]
 
 for _module in _REGISTER:

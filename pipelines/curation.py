@@ -465,7 +465,7 @@ def get_shape(cat: Catalogue, key_or_prefix: str, full: bool = True) -> dict[str
 
 # ----------------------------------------------------------------------------- writing
 
-ACTIONS = ("star", "reject", "unreject", "tag", "untag", "note")
+ACTIONS = ("star", "reject", "unreject", "tag", "untag", "note", "derive")
 
 
 def normalise_tags(tags: Iterable[str]) -> list[str]:
@@ -490,7 +490,8 @@ def apply_action(
     """Apply one curation ``action`` to a shape and commit at once; returns its new record.
 
     ``star``: value 0-5 (None: 1); ``reject``: value is the reason (required); ``unreject``;
-    ``tag``/``untag``: value is a list of tags; ``note``: value is the text ('' clears).
+    ``tag``/``untag``: value is a list of tags; ``note``: value is the text ('' clears);
+    ``derive``: value is the catalogue row of a variant of the shape, inserted as a new shape.
     Raises :class:`CatalogueError` for an unknown key and :class:`CurationError` for a bad value.
     """
     key = cat.resolve(key_or_prefix)
@@ -540,6 +541,10 @@ def _action_sql(key: str, action: str, value: Any) -> tuple[list[str], list[tupl
     if action == "note":
         text = str(value or "").strip()
         return ["UPDATE shapes SET note=? WHERE key=?"], [(text or None, key)], text
+    if action == "derive":  # value: the row of a variant of `key` (surfgen.pipelines.explore)
+        from surfgen.pipelines.explore import derive_sql
+
+        return derive_sql(value, now())
     raise CurationError(f"unknown action '{action}' (actions: {', '.join(ACTIONS)})")
 
 

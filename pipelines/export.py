@@ -491,7 +491,10 @@ def export_command(
     ],
     output: Annotated[Path, typer.Option("-o", "--output", help="Output folder.")],
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    fmt: Annotated[str, typer.Option("--format", help="stl, obj, ply, glb or 3mf.")] = "stl",
+    fmt: Annotated[
+        str,
+        typer.Option("--format", help="stl, obj, ply, glb, 3mf; or mathmod, k3dsurf (scripts)."),
+    ] = "stl",
     remesh: Annotated[
         bool, typer.Option("--remesh", help="Isotropic remeshing (same face count by default).")
     ] = False,
@@ -518,6 +521,12 @@ def export_command(
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,
 ) -> None:
     """Clean up (and optionally remesh and smooth) shapes and write print- or render-ready files."""
+    from surfgen.pipelines.mathmod import SCRIPT_FORMATS, export_scripts
+
+    if fmt.lower() in SCRIPT_FORMATS:  # the formula itself, for MathMod or K3DSurf
+        for path in export_scripts(inputs, output, fmt, catalogue):
+            typer.echo(f"wrote {path}")
+        return
     cleanup = CleanupOptions(
         min_component=min_component,
         remesh=remesh,

@@ -262,6 +262,10 @@ def export_gallery(
                     s[kind] = None
             if not meshes:
                 s["mesh"] = None
+        if meshes:  # 3-D detail pages need the meshes
+            from surfgen.pipelines.viewer import export_detail_pages
+
+            export_detail_pages(Path(root), out, data["shapes"])
         write_page(out / "index.html", render_page(data))
     except OSError as exc:
         raise GalleryError(f"cannot write the gallery to {out}: {exc}") from None
@@ -323,6 +327,10 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
             return send_from_directory(root / _folder, name, max_age=0)
 
         app.add_url_rule(f"/{folder}/<path:name>", f"file_{folder}", send)
+
+    from surfgen.pipelines.viewer import viewer_blueprint
+
+    app.register_blueprint(viewer_blueprint(root, cat))  # /shape/KEY, /api/explore, ...
 
     @app.get("/api/health")
     def health():
@@ -394,9 +402,14 @@ def _export_zip(cat: Catalogue, keys: list[str]) -> bytes:
 def make_server(root: Path, host: str = "127.0.0.1", port: int = 8000) -> BaseWSGIServer:
     """A threaded HTTP server of the live gallery (``port`` 0: any free port); call its
     ``serve_forever()``. Raises :class:`GalleryError` if the address cannot be bound."""
+    from threading import Thread
+
     from werkzeug.serving import make_server as werkzeug_server
 
+    from surfgen.pipelines.explore import warm_up
+
     app = create_app(root, host)
+    Thread(target=warm_up, name="explore-warm-up", daemon=True).start()  # first slider step
     try:
         return werkzeug_server(host, port, app, threaded=True)
     except (OSError, SystemExit) as exc:  # werkzeug exits when the port is taken

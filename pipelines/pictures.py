@@ -495,8 +495,9 @@ class _Scene:
     heights: np.ndarray  # (V,) z rescaled to [0, 1]
 
 
-def _prepare(mesh: Mesh) -> _Scene:
-    """Validate ``mesh`` and normalise it into the unit view.
+def _prepare(mesh: Mesh, bounds: Sequence[float] | None = None) -> _Scene:
+    """Validate ``mesh`` and normalise it into the unit view (its own bounding box, or
+    ``bounds`` = ``(xmin, xmax, ymin, ymax, zmin, zmax)`` so several meshes share one framing).
 
     Raises :class:`MeshError` for a mesh without faces, with indices out of range, with
     non-finite vertices or without any triangle of positive area.
@@ -512,6 +513,11 @@ def _prepare(mesh: Mesh) -> _Scene:
     lo, hi = np.empty(3), np.empty(3)
     if not _bounds(vertices, faces, lo, hi):
         raise MeshError("mesh has non-finite vertex coordinates: cannot draw it")
+    if bounds is not None:
+        lo, hi = (
+            np.asarray(bounds[0::2], dtype=np.float64),
+            np.asarray(bounds[1::2], dtype=np.float64),
+        )
     longest = float(np.max(hi - lo))
     if not longest > 0.0:
         raise MeshError("degenerate mesh: all vertices coincide, nothing to draw")
@@ -640,15 +646,17 @@ def render_image(
     azimuth: float = 30.0,
     elevation: float = 25.0,
     background: tuple[int, int, int] | None = _BACKGROUND,
+    bounds: Sequence[float] | None = None,
 ) -> np.ndarray:
-    """Render ``mesh`` shaded, as seen from ``azimuth``/``elevation`` degrees (z up).
+    """Render ``mesh`` shaded, as seen from ``azimuth``/``elevation`` degrees (z up), framed on
+    its bounding box or on ``bounds`` (6 numbers: pictures of several meshes framed alike).
 
     Returns uint8 ``(size, size, 3)`` sRGB over ``background``, or ``(size, size, 4)`` RGBA with
     a transparent background if ``background`` is None. The picture depends only on the mesh
     and the arguments (bit-for-bit). Raises :class:`MeshError` for an empty or degenerate mesh
     and :class:`SurfgenError` for a size outside [8, 8192].
     """
-    return _draw(_prepare(mesh), _check_size(size), azimuth, elevation, background)
+    return _draw(_prepare(mesh, bounds), _check_size(size), azimuth, elevation, background)
 
 
 def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:

@@ -24,7 +24,7 @@
 
   const state = {
     sort: "index", desc: false, tag: "", search: "", starred: false,
-    showRejected: false, showDuplicates: false, whereKeys: null, visible: [], current: null,
+    showRejected: false, showDuplicates: false, whereKeys: null, visible: [], current: null, focus: null,
   };
   const $ = (id) => document.getElementById(id);
 
@@ -52,6 +52,8 @@
     return String(v);
   }
   const short = (key) => key.slice(0, 8);
+  // The 3-D page of a shape: served by `surfgen serve`, or written by `surfgen gallery --meshes`.
+  const page3d = (s) => (!READONLY ? "shape/" + s.key : DATA.meshes && s.mesh ? "shapes/" + s.key + ".html" : null);
   const kfaces = (n) => (n >= 1000 ? (n / 1000).toFixed(n >= 10000 ? 0 : 1) + "k" : String(n));
 
   function value(s, field) {
@@ -156,6 +158,7 @@
       pic.addEventListener("mouseenter", () => startSpin(pic, s.turntable));
       pic.addEventListener("mouseleave", () => stopSpin(pic));
     }
+    pic.addEventListener("mouseenter", () => setFocus(s.key, false));
     const nums = [
       s.genus === null ? "open" : "genus " + s.genus,
       s.components + (s.components === 1 ? " part" : " parts"),
@@ -180,8 +183,11 @@
     });
     if (READONLY) { star.disabled = true; reject.hidden = true; }
     actions.append(star, reject);
+    const url = page3d(s);
+    if (url) actions.prepend(h("a", { class: "view3d", href: url, title: "3-D view (Enter)", "aria-label": "3-D view of " + short(s.key), text: "3D" }));
     return h("article", {
-      class: "card" + (s.rejected ? " is-rejected" : "") + (s.duplicate_of ? " is-duplicate" : ""),
+      class: "card" + (s.rejected ? " is-rejected" : "") + (s.duplicate_of ? " is-duplicate" : "") +
+        (state.focus === s.key ? " focus" : ""),
       "data-key": s.key,
     },
     pic,
@@ -283,6 +289,7 @@
     // downloads
     const dl = $("downloads");
     dl.replaceChildren();
+    if (page3d(s)) dl.append(h("a", { href: page3d(s), class: "view3d-link", text: "3-D view" }));
     if (s.mesh && DATA.meshes) dl.append(h("a", { href: s.mesh, download: s.key + ".ply", text: "Mesh (.ply)" }));
     dl.append(h("button", { type: "button", text: "Spec (.json)", onclick: () => download(s.key + ".json", JSON.stringify(s.spec, null, 2)) }));
     if (s.thumb) dl.append(h("a", { href: s.thumb, download: s.key + ".png", text: "Thumbnail" }));
@@ -409,6 +416,59 @@
     try { Object.assign(state, JSON.parse(sessionStorage.getItem("surfgen-gallery") || "{}")); } catch (e) { /* ignore */ }
   }
 
+  // ------------------------------------------------------------------ keyboard curation
+
+  function setFocus(key, scroll) {
+    if (state.focus === key) return;
+    for (const el of document.querySelectorAll(".card.focus")) el.classList.remove("focus");
+    state.focus = key;
+    const el = key && document.querySelector('.card[data-key="' + key + '"]');
+    if (el) {
+      el.classList.add("focus");
+      if (scroll) el.scrollIntoView({ block: "nearest" });
+    }
+  }
+  function moveFocus(d) {
+    const keys = state.visible.map((s) => s.key);
+    if (!keys.length) return;
+    const i = keys.indexOf(state.focus);
+    setFocus(keys[i < 0 ? (d > 0 ? 0 : keys.length - 1) : (i + d + keys.length) % keys.length], true);
+  }
+  // s star (or remove the stars), r reject (asks why; restores a rejected shape), t tag (asks).
+  function curateKey(key, k) {
+    const s = byKey.get(key);
+    if (!s || READONLY) return;
+    if (k === "s") act(key, "star", { stars: s.stars > 0 ? 0 : 1 });
+    else if (k === "r") {
+      if (s.rejected) { act(key, "unreject"); return; }
+      const why = window.prompt("Why reject " + short(key) + "?");
+      if (why && why.trim()) act(key, "reject", { why: why.trim() });
+    } else if (k === "t") {
+      const tags = (window.prompt("Tags for " + short(key) + " (separated by spaces)") || "").split(/[\s,]+/).filter(Boolean);
+      if (tags.length) act(key, "tag", { tags: tags });
+    }
+  }
+  function onKey(e) {
+    const typing = ["INPUT", "TEXTAREA", "SELECT"].includes(document.activeElement.tagName);
+    if (e.ctrlKey || e.metaKey || e.altKey) return;
+    if (!$("detail").hidden) {
+      if (e.key === "Escape") closeDetail();
+      else if (typing) return;
+      else if (e.key === "ArrowLeft") step(-1);
+      else if (e.key === "ArrowRight") step(1);
+      else if ("srt".includes(e.key) && e.key.length === 1) curateKey(state.current, e.key);
+      return;
+    }
+    if (typing) return;
+    if (e.key === "ArrowRight") { e.preventDefault(); moveFocus(1); }
+    else if (e.key === "ArrowLeft") { e.preventDefault(); moveFocus(-1); }
+    else if (e.key === "Enter" && state.focus) {
+      const url = page3d(byKey.get(state.focus));
+      if (url) location.href = url; else openDetail(state.focus);
+    } else if (e.key === " " && state.focus) { e.preventDefault(); openDetail(state.focus); }
+    else if (state.focus && e.key.length === 1 && "srt".includes(e.key)) curateKey(state.focus, e.key);
+  }
+
   function init() {
     loadState();
     const sort = $("sort");
@@ -473,13 +533,7 @@
     v.addEventListener("pointerdown", (e) => { drag = { x: e.clientX, f: viewer.frame }; play(false); v.classList.add("dragging"); v.setPointerCapture(e.pointerId); });
     v.addEventListener("pointermove", (e) => { if (drag) showFrame(drag.f - Math.round((e.clientX - drag.x) / 25)); });
     v.addEventListener("pointerup", () => { drag = null; v.classList.remove("dragging"); });
-    document.addEventListener("keydown", (e) => {
-      if ($("detail").hidden) return;
-      const typing = ["INPUT", "TEXTAREA", "SELECT"].includes(document.activeElement.tagName);
-      if (e.key === "Escape") closeDetail();
-      else if (!typing && e.key === "ArrowLeft") step(-1);
-      else if (!typing && e.key === "ArrowRight") step(1);
-    });
+    document.addEventListener("keydown", onKey);
     render();
     const hashKey = location.hash.slice(1);
     if (byKey.has(hashKey)) openDetail(hashKey);

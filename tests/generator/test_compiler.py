@@ -22,7 +22,8 @@ RELEASED = [
     "copy", "neg", "abs", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh",
     "asinh", "acosh", "atanh", "exp", "log", "log10", "sqrt", "cbrt", "sign", "floor", "ceil",
     "square", "recip", "usign", "powi", "series", "segsum", "add", "sub", "mul", "div", "pow",
-    "min", "max", "atan2", "ratio1", "atantan", "asinsin", "acoscos", "acotcot",
+    "min", "max", "atan2", "ratio1", "lt", "le", "eq", "ne", "and", "or", "not", "pick", "pickn",
+    "fmod", "trunc", "atantan", "asinsin", "acoscos", "acotcot",
 ]  # fmt: skip
 
 

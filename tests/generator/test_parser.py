@@ -212,7 +212,7 @@ ERROR_COLUMNS = [
     ("x + q", ("a", "b"), 5, "unknown variable 'q' at column 5 (allowed: x, y, z, pi, a, b)"),
     ("xx", (), 1, "unknown variable 'xx' at column 1 (did you mean x?)"),
     ("x # y", (), 3, "unexpected character '#'"),
-    ("x = 1", (), 3, "unexpected character '='"),
+    ("x ? 1", (), 3, "unexpected character '?'"),
     ("x  ;", (), 4, "unexpected character ';'"),
     ("2x", (), 2, "unexpected 'x'"),
     ("x y", (), 3, "unexpected 'y'"),

@@ -81,7 +81,22 @@ def independent(name: str):
     return np.broadcast_to(v, spec.grid)
 
 
-PAPER = ["eqA", "I1", "I2", "I1-b1", "I2-b1", "eqB", "I3", "I4", "I5", "eqC", "C-m0.25", "C-m0.5", "C-m0.75", "C-m1"]
+PAPER = [
+    "eqA",
+    "I1",
+    "I2",
+    "I1-b1",
+    "I2-b1",
+    "eqB",
+    "I3",
+    "I4",
+    "I5",
+    "eqC",
+    "C-m0.25",
+    "C-m0.5",
+    "C-m0.75",
+    "C-m1",
+]
 
 
 def assert_same_field(got: np.ndarray, want: np.ndarray) -> None:
