@@ -216,6 +216,7 @@ def _trunc(u):
     return np.floor(u) if u >= 0.0 else np.ceil(u)
 
 
+@njit(inline="always", **_OPTS)
 def _pow_rule(u, e, p):
     """The ``x^c`` convention (elementary.POW_SHORTCUTS) applied to ``p = pow(u, e)``:
     branch-free selects, so the loop that applies it vectorises."""
