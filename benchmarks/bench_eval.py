@@ -364,6 +364,7 @@ def main() -> int:
         "--quick", action="store_true", help="small grids, 10 formulas, no cold compile"
     )
     ap.add_argument("--formulas", type=int, default=None, help="random eq. (13) formulas")
+    ap.add_argument("--random-n", type=int, default=None, help="grid of the random formulas")
     ap.add_argument(
         "--seed", type=int, default=None, help="draw the formulas with the sampler (this seed)"
     )
@@ -373,6 +374,7 @@ def main() -> int:
     quick = args.quick
     n_formulas = args.formulas or (10 if quick else 50)
     big, rand_n, mem_n = (128, 64, 256) if quick else (256, 128, 512)
+    rand_n = args.random_n or rand_n
 
     print(f"numba interpreter warm-up (compiles on first use): {warm_up():.2f} s", flush=True)
     speedup, load = thread_calibration()
