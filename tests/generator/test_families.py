@@ -120,7 +120,7 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
         ({"mix_weights": (1.0, 2.0)}, "mix and mix_weights must be non-empty lists of the same"),
         ({"mix_weights": (1.0, -1.0, 1.0)}, "mix_weights must be non-negative"),
         ({"mix_weights": (0, 0, 0)}, "mix_weights must be non-negative and not all zero"),
-        ({"mix_weights": ("a", 1, 1)}, "mix_weights must be numbers"),
+        ({"mix_weights": ("a", 1, 1)}, "mix_weights must be a list of finite numbers"),
         ({"sculpture_groups": ("none", "tetra")}, "sculpture_groups has unknown 'tetra'"),
         ({"sculpture_powers": (1, 4)}, "sculpture_powers must be whole numbers 1..3"),
     ],
