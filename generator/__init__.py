@@ -21,3 +21,15 @@ if NO_VECTORIZE:
     _os.environ.setdefault(
         "NUMBA_CACHE_DIR", _os.path.join(_tempfile.gettempdir(), "surfgen-numba-novectorize")
     )
+
+# numba caches compiled kernels next to their sources, or in the user's cache folder when the
+# package is read-only (a system-wide install). When neither is writable (a service account
+# without a home), give it a private temporary folder rather than failing at import.
+if "NUMBA_CACHE_DIR" not in _os.environ and not _os.access(
+    _os.path.dirname(_os.path.abspath(__file__)), _os.W_OK
+):
+    _home_cache = _os.path.join(_os.path.expanduser("~"), ".cache")
+    if not (_os.path.isdir(_home_cache) and _os.access(_home_cache, _os.W_OK)):
+        _os.environ["NUMBA_CACHE_DIR"] = _os.path.join(
+            _tempfile.gettempdir(), f"surfgen-numba-{_os.getuid()}"
+        )

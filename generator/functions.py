@@ -160,4 +160,12 @@ def match_rewrite(node: Expr) -> tuple[str, Expr] | None:
             return name, node.args[0].args[0]
     if node.op == "/" and node.args[1].op == "abs" and node.args[1].args[0] == node.args[0]:
         return "usign", node.args[0]
+    # acot written out as fparser has to (pi/2 - atan(v), its definition here): acot(cot(u)).
+    if node.op == "-" and node.args[0] == _HALF_PI and node.args[1].op == "atan":
+        inner = node.args[1].args[0]
+        if inner.op == "cot":
+            return "acotcot", inner.args[0]
     return None
+
+
+_HALF_PI = Expr("/", (Expr("pi"), Expr("num", (), 2.0)))

@@ -12,7 +12,7 @@ accuracy cross-check and the benchmark's baseline; CPU-dependent).
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -84,6 +84,19 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
     hit = memo.get(node)
     if hit is not None:
         return hit
+    out = apply_node(node, lambda n: _eval(n, env, params, memo), env, params)
+    memo[node] = out
+    return out
+
+
+def apply_node(
+    node: Expr,
+    value_of: Callable[[Expr], np.ndarray],
+    env: Mapping[str, np.ndarray],
+    params: Mapping[str, float],
+) -> np.ndarray:
+    """The value of one node, its sub-trees' values given by ``value_of`` (the one place that
+    decides what each node means; other node-by-node evaluators call it too)."""
     op = node.op
     if op == "num":
         out = np.float64(node.value)
@@ -94,22 +107,22 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
     elif op == "pi":
         out = np.float64(np.pi)
     elif op == "neg":
-        out = np.negative(_eval(node.args[0], env, params, memo))
+        out = np.negative(value_of(node.args[0]))
     elif (rewrite := match_rewrite(node)) is not None:  # the same rewrite the compiler applies
         name, inner = rewrite
-        u = _eval(inner, env, params, memo)
+        u = value_of(inner)
         out = cf.unit_sign(u) if name == "usign" else E.round_trip(name, u)
     elif op == "not":
-        out = logic.not_(np.asarray(_eval(node.args[0], env, params, memo), np.float64))
+        out = logic.not_(np.asarray(value_of(node.args[0]), np.float64))
     elif op in _BINARY:
-        a = _eval(node.args[0], env, params, memo)
-        b = _eval(node.args[1], env, params, memo)
+        a = value_of(node.args[0])
+        b = value_of(node.args[1])
         out = _BINARY[op](np.asarray(a, np.float64), np.asarray(b, np.float64))
     else:
         fdef = FUNCTIONS.get(op)
         if fdef is None:
             raise FormulaError(f"unknown function '{op}'")
-        args = [_eval(a, env, params, memo) for a in node.args]
+        args = [value_of(a) for a in node.args]
         if fdef.const_from is not None:
             consts = [
                 float(np.asarray(a).reshape(-1)[0]) if np.ndim(a) == 0 or np.size(a) == 1 else None
@@ -119,6 +132,4 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
                 raise FormulaError(f"{op}: parameters must be constant")
             args = args[: fdef.const_from] + consts
         out = fdef.reference(*args)
-    out = np.asarray(out, dtype=np.float64)
-    memo[node] = out
-    return out
+    return np.asarray(out, dtype=np.float64)

@@ -43,7 +43,6 @@ import numpy as np
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr, postorder
-from surfgen.generator.functions import FUNCTIONS
 from surfgen.generator.grid import Field
 from surfgen.generator.mesh import (
     CAP,
@@ -56,7 +55,7 @@ from surfgen.generator.mesh import (
     extract_with_edges,
     wall_fraction,
 )
-from surfgen.generator.reference import _BINARY, evaluate_points
+from surfgen.generator.reference import apply_node, evaluate_points
 
 log = logging.getLogger(__name__)
 
@@ -198,32 +197,14 @@ class PointsEvaluator:
         env = {"x": np.asarray(x, np.float64), "y": np.asarray(y, np.float64)}
         env["z"] = np.asarray(z, np.float64)
         values: list[np.ndarray] = []
+
+        def value_of(node: Expr) -> np.ndarray:
+            return values[self._slot[id(node)]]
+
         with np.errstate(all="ignore"):
             for node in self._order:
-                args = [values[self._slot[id(a)]] for a in node.args]
-                values.append(np.asarray(self._apply(node, args, env), dtype=np.float64))
+                values.append(apply_node(node, value_of, env, self._params))
         return np.array(np.broadcast_to(values[-1], env["x"].shape), dtype=np.float64)
-
-    def _apply(self, node: Expr, args: list[np.ndarray], env: dict) -> np.ndarray:
-        """One node, exactly as :func:`surfgen.generator.reference._eval` computes it."""
-        op = node.op
-        if op == "num":
-            return np.float64(node.value)
-        if op == "var":
-            return env[node.value]
-        if op == "param":
-            return np.float64(self._params[node.value])
-        if op == "pi":
-            return np.float64(np.pi)
-        if op == "neg":
-            return np.negative(args[0])
-        if op in _BINARY:
-            return _BINARY[op](args[0], args[1])
-        fdef = FUNCTIONS[op]
-        if fdef.const_from is not None:
-            consts = [float(np.asarray(a).reshape(-1)[0]) for a in args[fdef.const_from :]]
-            args = args[: fdef.const_from] + consts
-        return fdef.reference(*args)
 
 
 def classify_edges(

@@ -140,8 +140,11 @@ class _Worker:
         # there these numbers mean something else).
         forked = ctx.get_start_method() == "fork"
         inherited = tuple(fd for w in others for fd in w.parent_fds()) if forked else ()
+        # A forkserver's or spawn's child has another parent than this process (the server):
+        # only a forked child can watch this pid.
+        parent = os.getpid() if forked else None
         self.proc = ctx.Process(
-            target=_worker_main, args=(child, fn, os.getpid(), inherited), daemon=True
+            target=_worker_main, args=(child, fn, parent, inherited), daemon=True
         )
         self.proc.start()
         child.close()

@@ -129,6 +129,8 @@ def test_a_read_only_catalogue_can_be_read_not_written() -> None:
             p.chmod(0o555 if p.is_dir() else 0o444)
         names = sorted(p.name for p in root.iterdir())
         as_nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+        (base / "numba").mkdir()
+        (base / "numba").chmod(0o777)  # numba compiles at import: nobody needs a cache folder
         env = {**os.environ, "HOME": str(base), "NUMBA_CACHE_DIR": str(base / "numba")}
         listing = subprocess.run(
             [*as_nobody, *CLI, "catalogue", "list", "-C", str(root), "--json"],
