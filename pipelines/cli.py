@@ -305,7 +305,10 @@ def sample(
         bool, typer.Option(help="Reject near duplicates of accepted shapes on the fly.")
     ] = False,
     thumbnails: Annotated[
-        bool, typer.Option(help="Render thumbnails and turntables (--no-thumbnails to skip).")
+        bool,
+        typer.Option(
+            help="Render thumbnails (--no-thumbnails to skip); turntables are rendered when first shown."
+        ),
     ] = True,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""

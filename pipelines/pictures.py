@@ -56,6 +56,12 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+# The catalogue's pictures: every path that makes them (sample, thumbnails, serve, gallery)
+# uses these, so a cached picture looks the same whoever rendered it.
+THUMBNAIL_SIZE = 256
+TURNTABLE_SIZE = 256  # one frame: the gallery's cards are 256 px
+TURNTABLE_VIEWS = 12
+
 # -- camera and look ---------------------------------------------------------------------------
 
 _CAMERA_DISTANCE = 4.0  # from the origin, in unit-cube lengths: ~22 degree field of view

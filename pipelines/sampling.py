@@ -53,9 +53,6 @@ from surfgen.pipelines.executor import KillablePool
 log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
-# Turntable frames are smaller than thumbnails: 12 views at 256 px cost more than the rest of
-# a shape's pipeline together; 160 px is plenty for the gallery's hover spin.
-TURNTABLE_SIZE = 160
 
 
 @dataclass(frozen=True)
@@ -214,18 +211,19 @@ def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
 
 def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) -> ShapeOutcome:
     """Write the accepted shape's files into the run's staging folder; the parent moves them
-    into the catalogue when it commits the row (so a discarded index leaves nothing behind)."""
+    into the catalogue when it commits the row (so a discarded index leaves nothing behind).
+
+    Only the thumbnail is rendered here (contact sheets and the gallery grid show every one);
+    the 12-view turntable, which most shapes never get hovered for, is rendered the first
+    time it is asked for (:func:`surfgen.pipelines.gallery.ensure_turntable`)."""
     key = out.row["key"]
     mesh_file = save_mesh(mesh, staging / f"{key}.ply")
-    thumb = turn = None
+    thumb = None
     if pictures:
-        from surfgen.pipelines.pictures import render_thumbnail, render_turntable
+        from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
-        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=256)
-        turn = render_turntable(
-            mesh, staging / f"{key}.turntable.png", views=12, size=TURNTABLE_SIZE
-        )
-    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb, turn)
+        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
+    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb)
 
 
 def run_sample(
