@@ -114,7 +114,8 @@ def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
 
 
 class _Stopwatch:
-    """Seconds spent per stage (``eval``, ``mesh``, ``filters``, ``io``)."""
+    """Seconds spent per stage (``eval``, ``mesh``, ``filters``, ``describe``, ``io``,
+    ``pictures``)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
@@ -156,9 +157,9 @@ def make_shape(
     out = ShapeOutcome(index, row, verdict)
     if verdict.accepted and mesh is not None:
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
+        watch.lap("describe")
         if staging is not None:
-            out = _with_files(out, mesh, staging, pictures)
-        watch.lap("io")
+            out = _with_files(out, mesh, staging, pictures, watch)
     row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
 
@@ -192,10 +193,11 @@ def _judge(
         watch.lap("mesh")
     # Lewiner marching cubes already gives an indexed manifold mesh; merging "close" vertices
     # would pinch it where several vertices land on one grid point. Cheap checks first...
-    metrics.update(quick_metrics(mesh, spec.box))
+    quick = quick_metrics(mesh, spec.box)
+    metrics.update(quick)
     verdict = judge(metrics, fcfg, capped=run.cap)
     if verdict.accepted:  # ...then pymeshlab's topology and the curvature
-        metrics.update(shape_metrics(mesh, spec.box))
+        metrics.update(shape_metrics(mesh, spec.box, quick=quick))
         verdict = judge(metrics, fcfg, capped=run.cap)
     watch.lap("filters")
     return verdict, metrics, mesh
@@ -209,7 +211,9 @@ def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
     return cols
 
 
-def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) -> ShapeOutcome:
+def _with_files(
+    out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool, watch: _Stopwatch
+) -> ShapeOutcome:
     """Write the accepted shape's files into the run's staging folder; the parent moves them
     into the catalogue when it commits the row (so a discarded index leaves nothing behind).
 
@@ -218,11 +222,13 @@ def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) ->
     time it is asked for (:func:`surfgen.pipelines.gallery.ensure_turntable`)."""
     key = out.row["key"]
     mesh_file = save_mesh(mesh, staging / f"{key}.ply")
+    watch.lap("io")
     thumb = None
     if pictures:
         from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
         thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
+        watch.lap("pictures")
     return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb)
 
 
