@@ -37,6 +37,7 @@ REASONS = (
     "box_dominated",  # mostly the caps on the box faces
     "blob",  # only convex lumps (plates, slabs, smooth blobs)
     "too_complex",  # genus beyond the limit
+    "walls",  # too much of the area is walls (poles and jumps), not the zero set
     "duplicate",  # the same formula and grid is already in the catalogue
     "timeout",  # took longer than the run's timeout
     "crashed",  # its worker process died or raised an unexpected error
@@ -59,6 +60,7 @@ class FilterConfig:
     max_genus: int = 500
     blob_max_curvature: float = 1.25
     require_manifold: bool = True
+    max_wall_fraction: float = 0.25
 
     def __post_init__(self) -> None:
         if not 4 <= self.coarse_grid <= 256:
@@ -70,6 +72,7 @@ class FilterConfig:
             "max_inside_fraction",
             "min_largest_component_fraction",
             "max_box_fraction",
+            "max_wall_fraction",
         )
         require_fractions(self, fractions, "filters")
         for name in ("min_faces", "max_components", "max_genus"):
@@ -237,6 +240,8 @@ def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdic
         reasons.append("speckle")
     if m["box_fraction"] > cfg.max_box_fraction:
         reasons.append("box_dominated")
+    if m.get("wall_fraction", 0.0) > cfg.max_wall_fraction:
+        reasons.append("walls")
     genus = m.get("genus")
     if genus == 0 and m.get("total_curvature", math.inf) < cfg.blob_max_curvature * m["components"]:
         # Closed genus-0 components have integral |K| >= 4 pi each, with equality exactly when

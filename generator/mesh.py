@@ -24,11 +24,15 @@ class Mesh:
     """A triangle mesh in box coordinates.
 
     ``vertices``: float64 ``(V, 3)``; ``faces``: int64 ``(F, 3)``, counter-clockwise seen from
-    outside (normals point outward, towards F > level). Both arrays are read-only.
+    outside (normals point outward, towards F > level).  ``face_kinds``: optional uint8 ``(F,)``
+    labels, what each face is (:data:`FACE_KINDS`: root, pole, jump, cap); set by
+    :func:`surfgen.generator.walls.label_walls` and written by :func:`save_mesh` (``--walls
+    mark``); operations that make new meshes drop them.  All arrays are read-only.
     """
 
     vertices: np.ndarray
     faces: np.ndarray
+    face_kinds: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = np.ascontiguousarray(self.vertices, dtype=np.float64).reshape(-1, 3)
@@ -37,6 +41,12 @@ class Mesh:
         f.flags.writeable = False
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
+        if self.face_kinds is not None:
+            k = np.ascontiguousarray(self.face_kinds, dtype=np.uint8).reshape(-1)
+            if k.shape[0] != f.shape[0]:
+                raise MeshError(f"{k.shape[0]} face kinds for {f.shape[0]} faces")
+            k.flags.writeable = False
+            object.__setattr__(self, "face_kinds", k)
 
     @property
     def n_vertices(self) -> int:
@@ -47,6 +57,26 @@ class Mesh:
         return int(self.faces.shape[0])
 
 
+# What a face of an extracted mesh is (``Mesh.face_kinds``): a piece of the zero set (root), a
+# wall where F passes through infinity (pole) or jumps over the level (jump), or a box cap.
+ROOT, POLE, JUMP, CAP = 0, 1, 2, 3
+FACE_KINDS = ("root", "pole", "jump", "cap")
+WALL_KINDS = (POLE, JUMP)
+
+
+def wall_fraction(mesh: Mesh) -> float | None:
+    """Share of the area on wall faces (poles and jumps); None when the mesh is not labelled."""
+    if mesh.face_kinds is None:
+        return None
+    kinds = mesh.face_kinds
+    wall = (kinds == POLE) | (kinds == JUMP)
+    if not wall.any():
+        return 0.0
+    areas = face_areas(mesh)
+    total = float(areas.sum())
+    return float(areas[wall].sum()) / total if total > 0 else 0.0
+
+
 # --- extraction -------------------------------------------------------------------------------
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
@@ -54,11 +84,27 @@ class Mesh:
 _CLIP = np.float32(1e30)
 _TINY = np.float32(np.finfo(np.float32).smallest_normal)
 
+# Every crossing stays at least this fraction of its edge away from both samples (see
+# _separate).  At 1 % of a cell, vertices are >= 0.014 cells apart: far above float32's
+# resolution (2.4e-4 cells at index 2048) and the usual "merge close vertices" thresholds
+# (1e-6 of the bbox diagonal is 1.7e-6 * (N - 1) cells: 3.5e-3 cells at N = 2048), while the
+# geometric error it allows is at most 1 % of a cell.
+SEPARATION = 0.01
+_RATIO = SEPARATION / (1.0 - SEPARATION) * 1.001  # |a| >= _RATIO |b| gives t >= SEPARATION
+_MAX_ROUNDS = 200
+
 
 def face_areas(mesh: Mesh) -> np.ndarray:
     """Area of each face, shape ``(F,)``."""
     v, f = mesh.vertices, mesh.faces
-    return 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    a = v[f[:, 0]]
+    b = v[f[:, 1]] - a
+    c = v[f[:, 2]] - a
+    # The cross product by components: np.cross and np.linalg.norm are slow on (F, 3).
+    x = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
+    y = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
+    z = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
+    return 0.5 * np.sqrt(x * x + y * y + z * z)
 
 
 def bbox_diagonal(mesh: Mesh) -> float:
@@ -84,8 +130,26 @@ def extract_mesh(field: Field, level: float = 0.0, cap: bool = False) -> Mesh:
     towards ``F > level``.  With ``cap=True`` the box counts as outside too, so surfaces cut by
     the box are closed by flat caps lying exactly on its faces.  Every vertex lies in the box.
 
+    Vertices are placed robustly: each lies on one crossing edge at least :data:`SEPARATION`
+    of the edge away from both samples, so no two vertices come within float32 resolution of
+    each other and merging coincident or close vertices (trimesh's default load, MeshLab,
+    Blender, slicers) cannot pinch the surface.
+
     Returns a :class:`Mesh` with ``(V, 3)`` vertices and ``(F, 3)`` faces.
     Raises :class:`EmptySurface` when every sample is inside or every sample is outside.
+    """
+    return extract_with_edges(field, level, cap)[0]
+
+
+def extract_with_edges(
+    field: Field, level: float = 0.0, cap: bool = False
+) -> tuple[Mesh, np.ndarray]:
+    """:func:`extract_mesh`, and the grid edge each vertex lies on.
+
+    Returns the mesh and an int64 ``(V, 4)`` array ``(axis, i, j, k)``: the vertex lies on the
+    edge from sample ``(i, j, k)`` to its neighbour one step along ``axis`` (0, 1, 2 for x, y,
+    z); ``axis`` is -1 for vertices on no edge of the grid (cap vertices on box samples, and
+    the few vertices marching cubes puts inside a cell to resolve ambiguous cases).
     """
     work, inside = _offsets(field.values, level)
     n_inside = int(np.count_nonzero(inside))
@@ -103,14 +167,21 @@ def extract_mesh(field: Field, level: float = 0.0, cap: bool = False) -> Mesh:
     index = verts.astype(np.float64) - (1.0 if cap else 0.0)
     vertices = lo + index * np.asarray(grid.spacing, dtype=np.float64)
     # Clamping puts the cap exactly on the box faces; without a cap it only removes rounding.
-    np.clip(vertices, lo, hi, out=vertices)
+    # lo + (N-1) * spacing may miss hi by an ulp: snap the last samples' coordinate onto hi, or
+    # a cap vertex clamped onto hi and one computed there would differ by an ulp (distinct
+    # here, one point in float32).
+    last = np.asarray(grid.shape, dtype=np.float64) - 1.0
+    vertices = np.where(index >= last, hi, np.where(index <= 0.0, lo, vertices))
     faces = faces.astype(np.int64)
-    if cap:
-        # Crossings towards the pad sit half a cell outside the box; clamping put them on the
-        # box sample they came from.  A sample on a box edge (corner) has two (three) of them:
-        # merge those copies and drop the triangles that collapse.
-        moved = np.any((index < 0.0) | (index > np.asarray(grid.shape) - 1.0), axis=1)
-        vertices, faces = _merge_moved(vertices, faces, moved)
+    moved = np.any((index < 0.0) | (index > np.asarray(grid.shape) - 1.0), axis=1)
+    edges = _vertex_edges(index, moved)
+    # One point, one vertex: crossings towards the pad (cap) sit half a cell outside the box
+    # and clamping put them on the box sample they came from, so a sample on a box edge
+    # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
+    # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
+    # Give each such group one index and drop the triangles that collapse.
+    vertices, faces, used = _merge_same(vertices, faces, index, edges, moved, grid.shape)
+    edges = edges[used]
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),
@@ -118,7 +189,25 @@ def extract_mesh(field: Field, level: float = 0.0, cap: bool = False) -> Mesh:
         level,
         cap,
     )
-    return Mesh(vertices, faces)
+    return Mesh(vertices, faces), edges
+
+
+def _vertex_edges(index: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """``(axis, i, j, k)`` of the grid edge under each vertex (see :func:`extract_with_edges`).
+
+    A vertex on an edge has exactly one fractional index coordinate, at least SEPARATION from
+    a whole number (float32 keeps ~1e-4 of it at index 2048); other vertices get axis -1.
+    """
+    base = np.floor(index)
+    frac = index - base
+    fractional = (frac > 0.25 * SEPARATION) & (frac < 1.0 - 0.25 * SEPARATION)
+    on_edge = (np.count_nonzero(fractional, axis=1) == 1) & ~moved
+    out = np.full((len(index), 4), -1, dtype=np.int64)
+    axis = np.argmax(fractional, axis=1)
+    ijk = np.rint(np.where(fractional, base, index)).astype(np.int64)
+    out[on_edge, 0] = axis[on_edge]
+    out[on_edge, 1:] = ijk[on_edge]
+    return out
 
 
 def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +215,9 @@ def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
 
     Inside samples get a strictly negative offset, all others a strictly positive one, so
     marching cubes never sees a sample on the level (where ``<`` vs ``<=`` would decide the
-    topology).  A non-finite sample gets a positive value mirroring the deepest inside sample
+    topology).  Magnitudes are then raised where needed so every crossing lies at least
+    SEPARATION of its edge from both samples (:func:`_separate`).  A non-finite sample gets a
+    positive value mirroring the deepest inside sample
     in its 3x3x3 neighbourhood, so a crossing on an edge to it falls at mid-edge or nearer the
     inside sample (a huge value would pile the crossings onto the inside samples, +inf exactly).
     """
@@ -143,7 +234,47 @@ def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
         depth = np.where(inside, -offset, np.float32(0))
         mirror = maximum_filter(depth, size=3, mode="constant", cval=0.0)
         offset[~finite] = np.maximum(mirror[~finite], _TINY)
-    return offset, inside
+    return _separate(offset), inside
+
+
+def _separate(offset: np.ndarray) -> np.ndarray:
+    """Raise ``|offset|`` until ``|a| >= _RATIO |b|`` for both samples of every crossing edge.
+
+    Marching cubes puts the crossing of edge (a, b) at ``t = a / (a - b)``; a sample at or near
+    the level next to a large opposite value (staircase plateaus at the level, exact zeros,
+    samples beside a pole) would put it on the sample itself, and several crossings would
+    coincide there once stored in float32.  Raising a magnitude never changes a sign, so the
+    same edges cross; it moves a crossing at most SEPARATION of the edge (in a locally linear
+    field the distance to the true surface grows by at most _RATIO of a cell).  A raise can
+    require a raise of the sample's own opposite neighbours, each _RATIO smaller, so the loop
+    ends after a few rounds (float32's range bounds it by ~40).
+    """
+    neg = offset < 0
+    shape = offset.shape
+    ends_a, ends_b = [], []
+    for axis in range(offset.ndim):
+        a = [slice(None)] * offset.ndim
+        b = [slice(None)] * offset.ndim
+        a[axis], b[axis] = slice(None, -1), slice(1, None)
+        crossing = np.nonzero(neg[tuple(a)] != neg[tuple(b)])
+        ends_a.append(np.ravel_multi_index(crossing, shape))
+        moved = list(crossing)
+        moved[axis] = moved[axis] + 1
+        ends_b.append(np.ravel_multi_index(tuple(moved), shape))
+    ia, ib = np.concatenate(ends_a), np.concatenate(ends_b)
+    mag = np.abs(offset).astype(np.float64).reshape(-1)
+    # Only samples on crossing edges matter: work on the (few) edges, not the whole grid.
+    for _ in range(_MAX_ROUNDS):
+        need_a, need_b = _RATIO * mag[ib], _RATIO * mag[ia]
+        grow_a, grow_b = need_a > mag[ia], need_b > mag[ib]
+        if not (grow_a.any() or grow_b.any()):
+            break
+        np.maximum.at(mag, ia[grow_a], need_a[grow_a])
+        np.maximum.at(mag, ib[grow_b], need_b[grow_b])
+    mag = mag.reshape(shape)
+    out = mag.astype(np.float32)
+    np.negative(out, out=out, where=neg)
+    return out
 
 
 def _empty_message(where: str, level: float, field: Field) -> str:
@@ -165,29 +296,44 @@ def _pad_outside(work: np.ndarray) -> np.ndarray:
     return padded
 
 
-def _merge_moved(
-    vertices: np.ndarray, faces: np.ndarray, moved: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Give exactly coincident moved vertices one index.
+def _merge_same(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    index: np.ndarray,
+    edges: np.ndarray,
+    moved: np.ndarray,
+    shape: tuple[int, int, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
 
-    Other vertices keep theirs even where they coincide (a sample exactly on the level puts
-    several crossings on it): merging those can pinch the surface, keeping them keeps the
-    topology marching cubes chose.  Faces that lose a corner are dropped, then unreferenced
-    vertices.  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V,)`` bool moved.
+    Other vertices keep theirs even where they are close (merging distinct crossings could
+    pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices.
+    Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V, 3)`` grid indices,
+    ``(V, 4)`` edges, ``(V,)`` bool moved; also returns the ``(V,)`` bool mask of the vertices kept.
     """
-    idx = np.flatnonzero(moved)
-    _, first, inverse = np.unique(vertices[idx], axis=0, return_index=True, return_inverse=True)
-    target = np.arange(len(vertices))
-    target[idx] = idx[first[inverse.reshape(-1)]]
+    n = len(vertices)
+    nx, ny, nz = shape
+    on_edge = edges[:, 0] >= 0
+    key = np.arange(n, dtype=np.int64) + 4 * nx * ny * nz  # unique unless grouped below
+    # (keys: edges below 3 N, box samples below 4 N, the others above; N = nx * ny * nz)
+    e = edges[on_edge]
+    key[on_edge] = ((e[:, 0] * nx + e[:, 1]) * ny + e[:, 2]) * nz + e[:, 3]
+    # A moved vertex was clamped onto a box sample: the sample's number is its key.
+    snapped = np.clip(np.rint(index[moved]).astype(np.int64), 0, np.asarray(shape) - 1)
+    key[moved] = 3 * nx * ny * nz + (snapped[:, 0] * ny + snapped[:, 1]) * nz + snapped[:, 2]
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    target = first[inverse.reshape(-1)]
+    if np.array_equal(target, np.arange(n)):
+        return vertices, faces, np.ones(n, dtype=bool)
     faces = target[faces]
     keep = (
         (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
     )
     faces = faces[keep]
-    used = np.zeros(len(vertices), dtype=bool)
+    used = np.zeros(n, dtype=bool)
     used[faces.reshape(-1)] = True
     renumber = np.cumsum(used) - 1
-    return vertices[used], renumber[faces]
+    return vertices[used], renumber[faces], used
 
 
 # --- files ------------------------------------------------------------------------------------
@@ -216,13 +362,18 @@ def _file_type(path: Path) -> str:
 def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     """Write ``mesh`` to ``path`` in the format its suffix names (.ply .obj .stl .off .glb).
 
-    The file appears complete or not at all (temporary file + ``os.replace``).  Returns the path.
+    The file appears complete or not at all (temporary file + ``os.replace``).  A mesh with
+    ``face_kinds`` is written marked: PLY gets a uchar face property ``kind`` (0 root, 1 pole,
+    2 jump, 3 cap) and face colours, GLB vertex colours (:data:`KIND_COLOURS`; a vertex takes the
+    colour of a wall if any face around it is one).  Returns the path.
     Raises :class:`MeshError` for an unknown suffix or a file that cannot be written.
     """
     path = Path(path)
     suffix = _file_type(path)
     file_type, options = _FORMATS[suffix]
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    if mesh.face_kinds is not None and suffix in (".ply", ".glb"):
+        _add_kinds(tm, mesh)
     data = tm.export(file_type=file_type, **options)
     if isinstance(data, str):
         data = data.encode("utf-8")
@@ -232,6 +383,29 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
         raise MeshError(f"cannot write '{path}': {exc.strerror}") from None
     logger.debug("save_mesh: %s (%d faces)", path, mesh.n_faces)
     return path
+
+
+# sRGBA of each face kind in marked files: roots and caps neutral, poles red, jumps orange.
+KIND_COLOURS = np.array(
+    [[200, 200, 200, 255], [214, 39, 40, 255], [255, 127, 14, 255], [160, 160, 160, 255]],
+    dtype=np.uint8,
+)
+
+
+def _add_kinds(tm: trimesh.Trimesh, mesh: Mesh) -> None:
+    """Attach ``mesh.face_kinds`` to ``tm`` as the ``kind`` face attribute and colours."""
+    kinds = np.asarray(mesh.face_kinds)
+    tm.face_attributes["kind"] = kinds.astype(np.uint8)
+    if mesh.n_faces == 0:
+        return
+    # A vertex is painted as its most wall-like face: pole over jump over root/cap.
+    rank = np.array([0, 2, 1, 0], dtype=np.int64)[kinds]
+    best = np.zeros(mesh.n_vertices, dtype=np.int64)
+    np.maximum.at(best, mesh.faces.reshape(-1), np.repeat(rank, 3))
+    vertex_kind = np.array([ROOT, JUMP, POLE])[best]
+    tm.visual = trimesh.visual.ColorVisuals(
+        tm, face_colors=KIND_COLOURS[kinds], vertex_colors=KIND_COLOURS[vertex_kind]
+    )
 
 
 def load_mesh(path: str | os.PathLike) -> Mesh:
@@ -258,7 +432,19 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     faces = np.asarray(faces, dtype=np.int64)
     if suffix == ".stl":
         vertices, faces = _merge_exact(vertices, faces)
-    return Mesh(vertices, faces)
+    return Mesh(vertices, faces, _read_kinds(loaded, len(faces)))
+
+
+def _read_kinds(loaded: trimesh.Trimesh, n_faces: int) -> np.ndarray | None:
+    """The ``kind`` face property of a marked PLY (see :func:`save_mesh`), else None."""
+    raw = (getattr(loaded, "metadata", None) or {}).get("_ply_raw", {})
+    try:
+        kinds = np.asarray(raw["face"]["data"]["kind"]).reshape(-1)
+    except (KeyError, ValueError, TypeError, IndexError):
+        return None
+    if kinds.shape[0] != n_faces or kinds.size == 0 or kinds.max() >= len(FACE_KINDS):
+        return None
+    return kinds.astype(np.uint8)
 
 
 def _merge_exact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -99,6 +99,16 @@ def render(
         tuple[Path, str] | None,
         typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),
     ] = None,
+    walls: Annotated[
+        str,
+        typer.Option(
+            help="keep (the solid's whole boundary), remove (only the zero set: open sheets) "
+            "or mark (label poles and jumps: colours in PLY/GLB and the picture)."
+        ),
+    ] = "keep",
+    force: Annotated[
+        bool, typer.Option("--force", help="Write an STL even with --walls remove (open).")
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     mathmod: Annotated[
         Path | None, typer.Option(help="A MathMod script: render its Iso3D model.")
@@ -114,22 +124,37 @@ def render(
     from surfgen.pipelines.render import build_spec, render_spec
 
     if mathmod is not None:
-        _render_mathmod(
-            mathmod,
-            name,
-            component,
-            slider,
-            param,
-            box,
-            grid,
-            level,
-            cap,
-            output,
-            png,
-            save_field,
-            evaluator,
-            as_json,
+        from surfgen.pipelines.mathmod import read_model, render_model
+
+        if save_field is not None:
+            raise SpecError(
+                "--save-field does not go with --mathmod (a model may have several grids)"
+            )
+        model = read_model(mathmod, name, slider=slider, params=parse_params(param))
+        for notice in model.notices:
+            typer.echo(f"notice: {notice}", err=True)
+        s = render_model(
+            model,
+            component=component,
+            box=parse_numbers(box, "--box", (2, 6)) if box else None,
+            grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None,
+            level=level,
+            cap=bool(cap),
+            evaluator=evaluator,
+            mesh_path=output,
+            png_path=png,
         )
+        if as_json:
+            emit_json(s)
+            return
+        for c in s["components"]:
+            typer.echo(f"{c['component']}: {c['formula']}")
+        typer.echo(
+            f"{s['model']}: {len(s['components'])} component(s), {s['vertices']} vertices, "
+            f"{s['faces']} faces, {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
+        )
+        for kind, path in s["files"].items():
+            typer.echo(f"wrote {kind}: {path}")
         return
     if name is not None or component is not None or slider is not None:
         raise SpecError("--name, --component and --slider go with --mathmod")
@@ -157,6 +182,8 @@ def render(
         mesh_path=output,
         field_path=save_field,
         png_path=png,
+        walls=walls,
+        force=force,
     )
     s = result.summary()
     if as_json:
@@ -168,54 +195,12 @@ def render(
         + (f"{s['vertices']} vertices, {s['faces']} faces" if s["faces"] is not None else "no mesh")
         + f", {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
     )
-    for kind, path in s["files"].items():
-        typer.echo(f"wrote {kind}: {path}")
-
-
-def _render_mathmod(
-    script,
-    name,
-    component,
-    slider,
-    param,
-    box,
-    grid,
-    level,
-    cap,
-    output,
-    png,
-    save_field,
-    evaluator,
-    as_json,
-) -> None:
-    from surfgen.pipelines.mathmod import read_model, render_model
-
-    if save_field is not None:
-        raise SpecError("--save-field does not go with --mathmod (a model may have several grids)")
-    sizes = parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None
-    model = read_model(script, name, slider=slider, params=parse_params(param))
-    for notice in model.notices:
-        typer.echo(f"notice: {notice}", err=True)
-    s = render_model(
-        model,
-        component=component,
-        box=parse_numbers(box, "--box", (2, 6)) if box else None,
-        grid=sizes,
-        level=level,
-        cap=bool(cap),
-        evaluator=evaluator,
-        mesh_path=output,
-        png_path=png,
-    )
-    if as_json:
-        emit_json(s)
-        return
-    for c in s["components"]:
-        typer.echo(f"{c['component']}: {c['formula']}")
-    typer.echo(
-        f"{s['model']}: {len(s['components'])} component(s), {s['vertices']} vertices, "
-        f"{s['faces']} faces, {s['nonfinite']} non-finite samples, {s['seconds']:.3f} s"
-    )
+    if s["wall_fraction"] is not None:
+        c = s["crossings"]
+        typer.echo(
+            f"walls ({s['walls']}): {100 * s['wall_fraction']:.1f}% of the area; crossings: "
+            f"{c['roots']} roots, {c['poles']} poles, {c['jumps']} jumps"
+        )
     for kind, path in s["files"].items():
         typer.echo(f"wrote {kind}: {path}")
 
@@ -230,9 +215,12 @@ def check(
 ) -> None:
     """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
     from surfgen.filters.metrics import measure_mesh
-    from surfgen.generator.mesh import load_mesh
+    from surfgen.generator.mesh import load_mesh, wall_fraction
 
-    m = measure_mesh(load_mesh(mesh)).to_dict()
+    loaded = load_mesh(mesh)
+    m = measure_mesh(loaded).to_dict()
+    # Known only for files written with --walls mark (their faces carry a kind).
+    m["wall_fraction"] = wall_fraction(loaded)
     if as_json:
         emit_json(m)
         return

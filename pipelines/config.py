@@ -19,6 +19,7 @@ from surfgen.filters.verdict import FilterConfig
 from surfgen.generator.errors import SpecError
 from surfgen.generator.grid import MAX_POINTS, MIN_POINTS
 from surfgen.generator.sampler import SAMPLER_VERSION, SamplerConfig
+from surfgen.generator.walls import WALL_MODES
 
 
 @dataclass(frozen=True)
@@ -31,8 +32,13 @@ class RunSettings:
     thumbnails: bool = True
     dedupe: bool = False
     dedupe_threshold: float = 0.012
+    walls: str = "keep"
 
     def __post_init__(self) -> None:
+        if self.walls not in WALL_MODES:
+            raise SpecError(
+                f"config [run]: walls must be one of {', '.join(WALL_MODES)}, got {self.walls!r}"
+            )
         if not self.dedupe_threshold >= 0:
             raise SpecError(
                 f"config [run]: dedupe_threshold must be >= 0, got {self.dedupe_threshold}"
@@ -60,6 +66,7 @@ class Config:
                 "thumbnails": self.run.thumbnails,
                 "dedupe": self.run.dedupe,
                 "dedupe_threshold": self.run.dedupe_threshold,
+                "walls": self.run.walls,
             },
             "sampler": self.sampler.to_dict(),
             "filters": self.filters.to_dict(),
@@ -69,6 +76,8 @@ class Config:
         """What decides the shapes and their verdicts (not timeouts or pictures)."""
         d = self.to_dict()
         d["run"] = {"grid": self.run.grid, "cap": self.run.cap}
+        if self.run.walls != "keep":  # removing walls changes meshes and verdicts
+            d["run"]["walls"] = self.run.walls
         if self.run.dedupe:  # near-duplicate rejection changes which shapes are accepted
             d["run"]["dedupe_threshold"] = self.run.dedupe_threshold
         d["sampler_version"] = SAMPLER_VERSION

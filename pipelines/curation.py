@@ -99,6 +99,9 @@ FIELDS: dict[str, Field] = {
     ),
     "total_curvature": Field("number", _metric("total_curvature"), "total |Gauss curvature|"),
     "nonfinite": Field("number", _metric("nonfinite"), "non-finite samples of the field"),
+    "wall_fraction": Field(
+        "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"
+    ),
     "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
     "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
     "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),

@@ -40,8 +40,9 @@ from surfgen.generator.errors import SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, load_mesh, save_mesh
+from surfgen.generator.mesh import CAP, WALL_KINDS, Mesh, load_mesh, save_mesh, wall_fraction
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.walls import WALL_MODES, extract_labelled
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, now, open_catalogue
 from surfgen.pipelines.curation import CatalogueOption
 
@@ -49,6 +50,7 @@ log = logging.getLogger(__name__)
 
 FORMATS = ("stl", "obj", "ply", "glb", "3mf")
 PRINTABLE = ("stl", "3mf")  # must be watertight and manifold; coordinates are millimetres
+MARKABLE = ("ply", "glb")  # formats that carry the labels of --walls mark
 GRID_WARNING = (
     "shapes whose look depends on the grid (the paper's Figure 3: one formula and box give "
     "different shapes on 34^3 and 33^3) will change"
@@ -63,19 +65,33 @@ class ExportError(SurfgenError):
 class ExportOptions:
     """How to export.  ``cleanup.target_edge`` is in output units: millimetres with ``size``,
     box units without.  ``size`` is the longest bbox side wanted; ``regrid`` re-evaluates the
-    formula on ``regrid``³ points; ``force`` writes printable formats that fail the checks."""
+    formula on ``regrid``³ points; ``force`` writes printable formats that fail the checks.
+    ``walls``: keep (the solid), remove (only the zero set: open sheets, no caps, holes left
+    open) or mark (walls labelled; PLY and GLB only)."""
 
     format: str = "stl"
     cleanup: CleanupOptions = field(default_factory=CleanupOptions)
     size: float | None = None
     regrid: int | None = None
     force: bool = False
+    walls: str = "keep"
 
     def __post_init__(self) -> None:
         fmt = self.format.lower().lstrip(".")
         if fmt not in FORMATS:
             raise ExportError(f"unknown format '{self.format}' (allowed: {', '.join(FORMATS)})")
         object.__setattr__(self, "format", fmt)
+        if self.walls not in WALL_MODES:
+            raise ExportError(
+                f"unknown --walls mode '{self.walls}' (allowed: {', '.join(WALL_MODES)})"
+            )
+        if self.walls == "mark" and fmt not in MARKABLE:
+            raise ExportError(
+                f"--walls mark labels faces, which {fmt} cannot store: use --format "
+                f"{' or '.join(MARKABLE)}"
+            )
+        if self.walls == "remove":  # the zero set is open on purpose: do not fill its holes
+            object.__setattr__(self, "cleanup", replace(self.cleanup, max_hole_edges=0))
         if self.size is not None and not (math.isfinite(self.size) and self.size > 0):
             raise ExportError(f"--size must be a positive number of millimetres, got {self.size}")
         if self.regrid is not None:
@@ -87,6 +103,7 @@ class ExportOptions:
             "size": self.size,
             "regrid": self.regrid,
             "force": self.force,
+            "walls": self.walls,
             "cleanup": self.cleanup.to_dict(),
         }
 
@@ -125,6 +142,7 @@ class Prepared:
     problems: tuple[str, ...]
     warnings: tuple[str, ...]
     seconds: float
+    walls: str = "keep"
 
 
 @dataclass(frozen=True)
@@ -149,6 +167,8 @@ class ExportResult:
             "components": p.after.components,
             "bbox": list(p.after.bbox),
             "scale": p.scale,
+            "walls": p.walls,
+            "wall_fraction": wall_fraction(p.mesh),
             "problems": list(p.problems),
             "warnings": list(p.warnings),
             "steps": p.cleanup.to_dict(),
@@ -250,13 +270,30 @@ def read_spec_or_sidecar(path: Path) -> SurfaceSpec:
     return SurfaceSpec.from_dict(data)
 
 
-def load_source(source: Source, regrid: int | None = None) -> tuple[Mesh, list[str]]:
-    """The mesh to clean and any warnings: the stored mesh, or the spec meshed with caps."""
+def load_source(
+    source: Source, regrid: int | None = None, walls: str = "keep"
+) -> tuple[Mesh, list[str]]:
+    """The mesh to clean and any warnings: the stored mesh, or the spec meshed with caps.
+
+    With ``walls`` other than keep a formula is meshed again with its crossings classified
+    (:func:`surfgen.generator.walls.extract_labelled`); a mesh file must then carry the labels
+    of ``--walls mark``.
+    """
     warnings: list[str] = []
     if source.spec is None:
         if regrid is not None:
             raise ExportError(f"--regrid needs a formula: '{source.argument}' is a mesh file")
-        return load_mesh(source.mesh_file), warnings  # type: ignore[arg-type]
+        mesh = load_mesh(source.mesh_file)  # type: ignore[arg-type]
+        if walls == "keep":
+            return mesh, warnings
+        if mesh.face_kinds is None:
+            raise ExportError(
+                f"--walls {walls} needs a formula, or a mesh written with --walls mark: "
+                f"'{source.argument}' has no wall labels"
+            )
+        if walls == "mark":
+            return mesh, warnings
+        return _without_walls(mesh, source.argument), warnings
     spec = source.spec
     grid = spec.to_grid()
     if regrid is not None:
@@ -266,20 +303,50 @@ def load_source(source: Source, regrid: int | None = None) -> tuple[Mesh, list[s
         warnings.append(
             f"{source.name}: re-evaluated on {regrid}^3 instead of {old}{coarser}; {GRID_WARNING}"
         )
-    elif source.kind == "catalogue" and source.mesh_file is not None:
+    elif source.kind == "catalogue" and source.mesh_file is not None and walls == "keep":
         if source.mesh_file.is_file():
             return load_mesh(source.mesh_file), warnings
         warnings.append(f"{source.name}: mesh file {source.mesh_file} is missing, regenerated")
     for w in warnings:
         log.info("%s", w)  # the CLI prints the warnings it gets back
-    field_ = evaluate(spec.tree(), grid, spec.params)
-    return extract_mesh(field_, spec.level, cap=True), warnings
+    tree = spec.tree()
+    field_ = evaluate(tree, grid, spec.params)
+    mesh, _report = extract_labelled(field_, tree, spec.params, spec.level, cap=True, walls=walls)
+    return mesh, warnings
+
+
+def _without_walls(mesh: Mesh, name: str) -> Mesh:
+    """A marked mesh without its wall and cap faces (what ``--walls remove`` makes)."""
+    keep = ~np.isin(mesh.face_kinds, (*WALL_KINDS, CAP))
+    if not keep.any():
+        raise ExportError(f"{name}: every face is a wall or a cap: --walls remove leaves nothing")
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    faces = mesh.faces[keep]
+    used[faces.reshape(-1)] = True
+    renumber = np.cumsum(used) - 1
+    return Mesh(mesh.vertices[used], renumber[faces], mesh.face_kinds[keep])
+
+
+def _transfer_kinds(labelled: Mesh, target: Mesh) -> Mesh:
+    """``target`` with the face kinds of the nearest face (by centroid) of ``labelled``.
+
+    Cleanup and remeshing make new faces; each takes the kind of the labelled face closest to
+    its centroid, which keeps walls and roots apart (they meet only along their common rims).
+    """
+    from scipy.spatial import cKDTree
+
+    if labelled.face_kinds is None or target.n_faces == 0:
+        return target
+    source = labelled.vertices[labelled.faces].mean(axis=1)
+    centres = target.vertices[target.faces].mean(axis=1)
+    _, nearest = cKDTree(source).query(centres)
+    return Mesh(target.vertices, target.faces, labelled.face_kinds[nearest])
 
 
 def prepare_export(source: Source, options: ExportOptions) -> Prepared:
     """Load, clean, remesh, smooth and scale one input; measure before and after."""
     start = time.perf_counter()
-    mesh, warnings = load_source(source, options.regrid)
+    mesh, warnings = load_source(source, options.regrid, options.walls)
     before = measure_mesh(mesh)
     result = repair_mesh(mesh, options.cleanup)
     cleanup = options.cleanup
@@ -293,6 +360,8 @@ def prepare_export(source: Source, options: ExportOptions) -> Prepared:
         final, step = _scale_to(final, options.size)
         scale = step.details["factor"]
         result = CleanupResult(final, (*result.steps, step))
+    if options.walls == "mark":
+        final = _transfer_kinds(Mesh(mesh.vertices * scale, mesh.faces, mesh.face_kinds), final)
     after = measure_mesh(final)
     problems = printability_problems(after) if options.format in PRINTABLE else []
     log.info("%s: %d -> %d faces", source.name, before.faces, after.faces)
@@ -306,6 +375,7 @@ def prepare_export(source: Source, options: ExportOptions) -> Prepared:
         tuple(problems),
         tuple(warnings),
         time.perf_counter() - start,
+        options.walls,
     )
 
 
@@ -378,7 +448,7 @@ def _scale_to(mesh: Mesh, size: float) -> tuple[Mesh, StepReport]:
     if longest <= 0:
         raise ExportError("cannot scale a flat mesh (its bounding box has no extent)")
     factor = size / longest
-    out = Mesh(mesh.vertices * factor, mesh.faces)
+    out = Mesh(mesh.vertices * factor, mesh.faces, mesh.face_kinds)
     report = StepReport(
         "scale",
         mesh.n_vertices,
@@ -423,6 +493,7 @@ def _sidecar(p: Prepared, path: Path, options: ExportOptions, out_dir: Path) -> 
         "scale": p.scale,
         "steps": p.cleanup.to_dict(),
         "metrics": {"before": p.before.to_dict(), "after": p.after.to_dict()},
+        "wall_fraction": wall_fraction(p.mesh),
         "problems": list(p.problems),
         "warnings": list(p.warnings),
         "versions": _versions(options.format),
@@ -461,6 +532,8 @@ def _command(source: Source, options: ExportOptions, out_dir: Path) -> str:
         args += ["--size", repr(options.size)]
     if options.regrid is not None:
         args += ["--regrid", str(options.regrid)]
+    if options.walls != "keep":
+        args += ["--walls", options.walls]
     if options.force:
         args.append("--force")
     args += ["-o", str(out_dir)]
@@ -518,6 +591,13 @@ def export_command(
     force: Annotated[
         bool, typer.Option("--force", help="Write STL/3MF even if not watertight and manifold.")
     ] = False,
+    walls: Annotated[
+        str,
+        typer.Option(
+            help="keep (the solid), remove (only the zero set: open) or mark (label poles and "
+            "jumps; ply/glb)."
+        ),
+    ] = "keep",
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,
 ) -> None:
     """Clean up (and optionally remesh and smooth) shapes and write print- or render-ready files."""
@@ -534,7 +614,9 @@ def export_command(
         target_faces=target_faces,
         smooth=smooth,
     )
-    options = ExportOptions(format=fmt, cleanup=cleanup, size=size, regrid=regrid, force=force)
+    options = ExportOptions(
+        format=fmt, cleanup=cleanup, size=size, regrid=regrid, force=force, walls=walls
+    )
     results = export_shapes(inputs, output, options, catalogue)
     for r in results:
         for w in r.prepared.warnings:

@@ -167,17 +167,21 @@ def import_script(
             if target in written:
                 raise SpecError(f"two models would both be written to {target.name}")
             written[target] = (comp.spec.to_json() + "\n").encode()
-    out_dir = Path(out_dir)
+    return write_all(Path(out_dir), written)
+
+
+def write_all(out_dir: Path, files: Mapping[Path, bytes]) -> list[Path]:
+    """Write every file (atomically) or, if one fails, remove those already written."""
     out_dir.mkdir(parents=True, exist_ok=True)
     done: list[Path] = []
-    try:
-        for target, data in written.items():
+    for target, data in files.items():
+        try:
             write_atomic(target, data)
-            done.append(target)
-    except OSError as exc:
-        for p in done:
-            p.unlink(missing_ok=True)
-        raise SpecError(f"cannot write {target}: {exc.strerror}") from None
+        except OSError as exc:
+            for p in done:
+                p.unlink(missing_ok=True)
+            raise SpecError(f"cannot write {target}: {exc.strerror}") from None
+        done.append(target)
     return done
 
 
@@ -241,17 +245,7 @@ def export_scripts(inputs: Sequence[str], out_dir: Path, fmt: str, catalogue: Pa
         files[out_dir / f"{source.name}{SCRIPT_SUFFIX[fmt]}"] = script_bytes(
             fmt, source.name, [(source.name, source.spec)]
         )
-    out_dir.mkdir(parents=True, exist_ok=True)
-    done: list[Path] = []
-    try:
-        for target, data in files.items():
-            write_atomic(target, data)
-            done.append(target)
-    except OSError as exc:
-        for p in done:
-            p.unlink(missing_ok=True)
-        raise SpecError(f"cannot write {target}: {exc.strerror}") from None
-    return done
+    return write_all(out_dir, files)
 
 
 # ----------------------------------------------------------------------------- CLI

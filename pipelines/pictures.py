@@ -88,6 +88,8 @@ _HEIGHT_STOPS = (
     (0.72, (236, 214, 150)),
     (1.00, (226, 112, 84)),
 )
+# Walls under --walls mark (pole, jump), sRGB: the same red and orange as marked mesh files.
+_WALL_TINTS = ((214, 39, 40), (255, 127, 14))
 _BACK_TINT = (156, 146, 178)  # sRGB muted lavender for the inside of open surfaces
 _BACK_HEIGHT_MIX = 0.15  # how much of the height colour still shows on back faces
 _LUT_SIZE = 256
@@ -123,6 +125,13 @@ def _height_lut() -> tuple[np.ndarray, np.ndarray]:
     front = np.ascontiguousarray(_srgb_to_linear(front_srgb))
     back = np.ascontiguousarray(_srgb_to_linear(back_srgb))
     return front, back
+
+
+@functools.cache
+def _wall_colours() -> np.ndarray:
+    """Linear RGB ``(3, 3)``: row 0 unused, then the pole and jump tints."""
+    rows = np.array([(0, 0, 0), *_WALL_TINTS], dtype=np.float64) / 255.0
+    return np.ascontiguousarray(_srgb_to_linear(rows))
 
 
 def _unit(v: Sequence[float]) -> np.ndarray:
@@ -258,6 +267,8 @@ def _shade(
     front_lut: np.ndarray,
     back_lut: np.ndarray,
     frame: np.ndarray,
+    wall: np.ndarray,
+    wall_colours: np.ndarray,
     out: np.ndarray,
 ) -> None:
     """Linear RGB of every covered pixel into ``out`` (H, W, 3).
@@ -266,7 +277,8 @@ def _shade(
     ``face_normals`` (F, 3); ``frame`` (4, 3) holds the key light direction, the fill light direction, the
     camera's up axis and the eye position. ``heights`` (V,) in [0, 1] index the colour tables.
     A face whose geometric normal points away from the eye is a back face: its normal is
-    flipped and it takes the back colour table.
+    flipped and it takes the back colour table.  A face with ``wall[t] = w > 0`` takes the flat
+    linear colour ``wall_colours[w]`` instead (``--walls mark``: poles and jumps).
     """
     n_lut = front_lut.shape[0]
     kx, ky, kz = frame[0, 0], frame[0, 1], frame[0, 2]
@@ -327,8 +339,12 @@ def _shade(
             if hn > 1e-12 and key > 0.0:
                 ndh = max((nx * hx + ny * hy + nz * hz) / hn, 0.0)
                 spec = _SPECULAR_STRENGTH * ndh**_SPECULAR_EXPONENT
+            w = wall[t]
             for ch in range(3):
-                base = front_lut[k, ch] if front else back_lut[k, ch]
+                if w > 0:
+                    base = wall_colours[w, ch]
+                else:
+                    base = front_lut[k, ch] if front else back_lut[k, ch]
                 out[r, c, ch] = base * diffuse + spec
 
 
@@ -499,6 +515,7 @@ class _Scene:
     normals: np.ndarray  # (F, 3, 3) unit normal at each face corner, creases kept
     face_normals: np.ndarray  # (F, 3) unit face normals
     heights: np.ndarray  # (V,) z rescaled to [0, 1]
+    wall: np.ndarray  # (F,) uint8: 0 surface, 1 pole wall, 2 jump wall
 
 
 def _prepare(mesh: Mesh, bounds: Sequence[float] | None = None) -> _Scene:
@@ -534,8 +551,13 @@ def _prepare(mesh: Mesh, bounds: Sequence[float] | None = None) -> _Scene:
     keep = _face_normals(unit, faces, weighted, face_normals)
     if not keep.any():
         raise MeshError("degenerate mesh: every triangle has zero area, nothing to draw")
+    wall = np.zeros(faces.shape[0], dtype=np.uint8)
+    if mesh.face_kinds is not None:  # poles (1) and jumps (2) are drawn in their own colours
+        kinds = np.asarray(mesh.face_kinds)
+        wall = np.where((kinds == 1) | (kinds == 2), kinds, 0).astype(np.uint8)
     if not keep.all():
         faces, weighted, face_normals = faces[keep], weighted[keep], face_normals[keep]
+        wall = wall[keep]
     faces = np.ascontiguousarray(faces)
     normals = np.zeros((faces.shape[0], 3, 3), dtype=np.float64)
     cos_crease = math.cos(math.radians(_CREASE_ANGLE))
@@ -549,6 +571,7 @@ def _prepare(mesh: Mesh, bounds: Sequence[float] | None = None) -> _Scene:
         normals=normals,
         face_normals=face_normals,
         heights=np.clip(heights, 0.0, 1.0),
+        wall=np.ascontiguousarray(wall),
     )
 
 
@@ -601,6 +624,8 @@ def _draw(
         front_lut,
         back_lut,
         frame,
+        scene.wall,
+        _wall_colours(),
         colour,
     )
     covered = face_buffer >= 0

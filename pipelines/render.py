@@ -17,14 +17,16 @@ from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, save_mesh
+from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, save_mesh
 from surfgen.generator.presets import get_preset
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.walls import WallReport, check_walls_mode, extract_labelled
 
 log = logging.getLogger(__name__)
 
 DEFAULT_BOX = (-2.0, 2.0)
 DEFAULT_GRID = 64
+PRINTABLE_SUFFIXES = (".stl",)  # formats meant for printing: they must hold a closed solid
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,8 @@ class RenderResult:
     mesh: Mesh | None
     seconds: float
     files: Mapping[str, str]
+    walls: str = "keep"
+    crossings: WallReport | None = None
 
     def summary(self) -> dict[str, Any]:
         """The JSON object ``surfgen render --json`` prints."""
@@ -47,6 +51,9 @@ class RenderResult:
             "vertices": None if self.mesh is None else self.mesh.n_vertices,
             "faces": None if self.mesh is None else self.mesh.n_faces,
             "nonfinite": self.field.nonfinite,
+            "walls": self.walls,
+            "wall_fraction": None if self.crossings is None else self.crossings.wall_fraction,
+            "crossings": None if self.crossings is None else self.crossings.to_dict(),
             "seconds": round(self.seconds, 6),
             "files": dict(self.files),
         }
@@ -131,22 +138,41 @@ def render_spec(
     mesh_path: Path | None = None,
     field_path: Path | None = None,
     png_path: Path | None = None,
+    walls: str = "keep",
+    force: bool = False,
 ) -> RenderResult:
     """Evaluate, mesh and write what was asked.
 
-    With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh is extracted.
-    Raises :class:`SurfgenError` subclasses (e.g. ``EmptySurface``); on error no file is written.
+    Every mesh's crossings are classified (:mod:`surfgen.generator.walls`): ``walls="keep"``
+    keeps the solid's whole boundary, ``"mark"`` labels walls (colours in PLY/GLB and in the
+    picture), ``"remove"`` keeps only the zero set (open, no caps): an STL of it is refused
+    unless ``force``.  With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh
+    is extracted.  Raises :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, also for
+    ``remove`` when no crossing is a root); on error no file is written.
     """
+    check_walls_mode(walls)
     if mesh_path is not None:
         check_output_path(Path(mesh_path), MESH_SUFFIXES, "mesh file")
+        if walls == "remove" and Path(mesh_path).suffix.lower() in PRINTABLE_SUFFIXES and not force:
+            raise SpecError(
+                f"mesh file {mesh_path}: --walls remove leaves open sheets, which a printable "
+                f"format ({', '.join(PRINTABLE_SUFFIXES)}) cannot hold as a solid; "
+                "write .ply/.obj/.off/.glb, or --force"
+            )
     if field_path is not None:
         check_output_path(Path(field_path), (".npy",), "field file")
     if png_path is not None:
         check_output_path(Path(png_path), (".png",), "picture")
     start = time.perf_counter()
-    field = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator=evaluator)
+    tree = spec.tree()
+    field = evaluate(tree, spec.to_grid(), spec.params, evaluator=evaluator)
     want_mesh = mesh_path is not None or png_path is not None or field_path is None
-    mesh = extract_mesh(field, spec.level, cap=cap) if want_mesh else None
+    mesh: Mesh | None = None
+    crossings: WallReport | None = None
+    if want_mesh:
+        mesh, crossings = extract_labelled(
+            field, tree, spec.params, spec.level, cap=cap, walls=walls
+        )
     seconds = time.perf_counter() - start
     files: dict[str, str] = {}
     if field_path is not None:
@@ -161,7 +187,7 @@ def render_spec(
         render_thumbnail(mesh, Path(png_path), size=512)
         files["png"] = str(png_path)
     log.info("rendered %s in %.3f s", spec.key, seconds)
-    return RenderResult(spec, field, mesh, seconds, files)
+    return RenderResult(spec, field, mesh, seconds, files, walls, crossings)
 
 
 __all__ = ["RenderResult", "SurfgenError", "build_spec", "render_spec", "read_spec", "save_field"]

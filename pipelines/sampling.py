@@ -42,9 +42,10 @@ from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
+from surfgen.generator.mesh import Mesh, extract_with_edges, save_mesh
 from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.walls import label_walls
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
@@ -114,8 +115,8 @@ def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
 
 
 class _Stopwatch:
-    """Seconds spent per stage (``eval``, ``mesh``, ``filters``, ``describe``, ``io``,
-    ``pictures``)."""
+    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``filters``, ``describe``,
+    ``io``, ``pictures``)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
@@ -185,20 +186,32 @@ def _judge(
     watch.lap("eval")
     if not verdict.accepted:
         return verdict, metrics, None
+    # Without its walls a capped solid is open on purpose: do not ask it to be watertight.
+    capped = run.cap and run.walls != "remove"
     try:
-        mesh = extract_mesh(field_, spec.level, cap=run.cap)
+        mesh, edges = extract_with_edges(field_, spec.level, cap=capped)
+        if run.walls != "keep":  # the mesh itself depends on the classification
+            mesh, crossings = label_walls(
+                mesh, edges, field_, tree, {}, spec.level, run.cap, run.walls
+            )
+            metrics["wall_fraction"] = crossings.wall_fraction
     except EmptySurface:
         return Verdict.reject("empty"), metrics, None
     finally:
         watch.lap("mesh")
-    # Lewiner marching cubes already gives an indexed manifold mesh; merging "close" vertices
-    # would pinch it where several vertices land on one grid point. Cheap checks first...
+    # Cheap checks first (most draws fail them)...
     quick = quick_metrics(mesh, spec.box)
     metrics.update(quick)
-    verdict = judge(metrics, fcfg, capped=run.cap)
-    if verdict.accepted:  # ...then pymeshlab's topology and the curvature
+    verdict = judge(metrics, fcfg, capped=capped)
+    if verdict.accepted and "wall_fraction" not in metrics:
+        # ...then the walls (root, pole or jump for every crossing: refines with the formula)
+        _, crossings = label_walls(mesh, edges, field_, tree, {}, spec.level, run.cap, "keep")
+        metrics["wall_fraction"] = crossings.wall_fraction
+        watch.lap("walls")
+        verdict = judge(metrics, fcfg, capped=capped)
+    if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick ones reused)
         metrics.update(shape_metrics(mesh, spec.box, quick=quick))
-        verdict = judge(metrics, fcfg, capped=run.cap)
+        verdict = judge(metrics, fcfg, capped=capped)
     watch.lap("filters")
     return verdict, metrics, mesh
 

@@ -41,6 +41,7 @@ import types as _pytypes
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
+from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
 __all__ = [
@@ -88,14 +89,14 @@ TINY_NORMAL = 2.2250738585072014e-308
 TWO54 = 18014398509481984.0
 TWO28 = 268435456.0
 TWO_M28 = 3.725290298461914e-09
-TWO996 = 2.0**996
 
-# log(j/8), j = 6..11, as double-doubles.
-LC6H, LC6L = -0.2876820724517809, -2.607160616442564e-17
-LC7H, LC7L = -0.13353139262452263, 3.664457663660085e-18
-LC9H, LC9L = 0.11778303565638346, -1.1971685747593677e-18
-LC10H, LC10L = 0.22314355131420976, -9.091270597324799e-18
-LC11H, LC11L = 0.3184537311185346, 2.7114779367326236e-17
+# log(j/8), j = 6..11, as LCjH + LCjL with LCjH a multiple of 2^-42 (so that e*LN2_H + LCjH
+# is exact) and LCjL the rest rounded to double.
+LC6H, LC6L = -0.28768207245184385, 6.292357389008195e-14
+LC7H, LC7L = -0.13353139262449076, -3.1859736349078334e-14
+LC9H, LC9L = 0.11778303565643, -4.654729747598445e-14
+LC10H, LC10L = 0.22314355131425145, -4.169796584527195e-14
+LC11H, LC11L = 0.31845373111855224, -1.7625431312172662e-14
 
 # Q(r) = (e^r - 1 - r - r^2/2)/r^3 on |r| <= 0.3467, degree 9, |r^3 dQ| < 2^-60.3.
 EQ0 = 0.16666666666666669
@@ -115,6 +116,13 @@ LH1 = 0.4285714285713001
 LH2 = 0.3333333339754841
 LH3 = 0.2727261493317481
 LH4 = 0.23157106960641805
+# (2/3) H for the plain log: 2 atanh(s) = 2s + s w (2/3 + w (2/3) H(w)).
+TWO_THIRDS = 2.0 / 3.0
+LK0 = TWO_THIRDS * LH0
+LK1 = TWO_THIRDS * LH1
+LK2 = TWO_THIRDS * LH2
+LK3 = TWO_THIRDS * LH3
+LK4 = TWO_THIRDS * LH4
 
 # S(w) = (sinh(sqrt w) - sqrt w)/w^1.5 on w <= 0.5^2, degree 6, |w^1.5 dS| < 2^-59.6.
 SS0 = 0.16666666666666666
@@ -234,6 +242,19 @@ def _ldexp2(v, k):
 
 
 @njit(**_INL)
+def _scale_dd(ph, pl, k):
+    """(ph + pl) * 2^k rounded once, also where the result is subnormal.
+
+    A subnormal result is formed as (1 + t) - 1 with t = (ph + pl) * 2^(k + 1022): 1 + t
+    (exact as a double-double, then one addition) rounds at the subnormal grid (2^-1074
+    scaled by 2^1022), so ph + pl is rounded once there instead of twice (ph, then ph*2^k)."""
+    t = _ldexp2(ph, k + 1022)
+    sh, sl = _fast_two_sum(1.0, t)
+    s = sh + (sl + _ldexp2(pl, k + 1022))
+    return _sel(t < 1.0, (s - 1.0) * TINY_NORMAL, _ldexp2(ph, k))
+
+
+@njit(**_INL)
 def _sign_of(x, r):
     """r with the sign bit of x (x's sign bit set: -r)."""
     return _sel(_f2i(x) < 0, -r, r)
@@ -243,40 +264,67 @@ def _sign_of(x, r):
 
 
 @njit(**_INL)
-def _log_dd(xh, xl):
-    """log(xh + xl) as a double-double (hi, lo), relative error about 2^-68.
+def _log_reduce(xh, xl, tail):
+    """x = 2^ef * c * (1 + s)/(1 - s): returns ef, jf = 8c and s = sh + sl (sh: 26 bits).
 
-    xh > 0 finite (subnormals included); xl is a tail |xl| <= ulp(xh), used only when
-    2^-1000 < xh < 2^1000."""
+    xh > 0 finite (subnormals included). ``tail`` is a constant at each call site (the dead
+    branches fold away once inlined): with it, xl is a tail |xl| <= ulp(xh), used only
+    when 2^-1000 < xh < 2^1000; without it xl is ignored."""
     sub = xh < TINY_NORMAL
-    sc = _sel(sub, TWO54, 1.0)
-    xh = xh * sc
-    xl = xl * sc
+    xh = xh * _sel(sub, TWO54, 1.0)
     ix = _f2i(xh)
     e = (ix - SQRT_HALF_BITS) >> 52
     m = _i2f(ix - (e << 52))  # m in [sqrt(1/2), sqrt 2)
-    ec = _sel(e > 1000, 1000, _sel(e < -1000, -1000, e))
-    ml = xl * _i2f((1023 - ec) << 52)  # the tail scaled like m
     ef = (_i2f(e + SHIFT_BITS) - SHIFT) - _sel(sub, 54.0, 0.0)  # float(e), no conversion
     jf = (m * 8.0 + TWO52) - TWO52  # rint(8m) in 6..11
     c = jf * 0.125
     f = m - c  # exact: |f| <= 1/16, a multiple of ulp(m)
-    dh, dl = _two_sum(m, c)
-    dl = dl + ml
+    dh, dl = _fast_two_sum(c, m)  # exact: exponent(c) >= exponent(m) for every centre
+    ml = 0.0
+    if tail:
+        ec = _sel(e > 1000, 1000, _sel(e < -1000, -1000, e))
+        ml = xl * _i2f((1023 - ec) << 52)  # the tail scaled like m
+        dl = dl + ml
     inv = 1.0 / dh
-    # s = (f + ml)/(m + c + ml) = sh + sl; sh has 26 bits, so sh*dht and sh*dhr are exact
-    # and f - sh*dht is exact (Sterbenz).
+    # s = (f + ml)/(m + c + ml) = sh + sl; sh has 26 bits, so sh*dht and sh*(dh - dht) are
+    # exact and f - sh*dht is exact (Sterbenz).
     sh = _trunc(f * inv, MASK26)
     dht = _trunc(dh, MASK27)
-    dhr = dh - dht
-    rem = ((f - sh * dht) - sh * dhr) + (ml - sh * dl)
-    sl = rem * inv
+    rem = ((f - sh * dht) - sh * (dh - dht)) - sh * dl
+    if tail:
+        rem = rem + ml
+    return ef, jf, sh, rem * inv
+
+
+@njit(**_INL)
+def _log_centre(jf):
+    """log(jf/8) = ch + cl, ch on the 2^-42 grid of e * LN2_H (their sum is exact)."""
+    is6 = jf == 6.0
+    is7 = jf == 7.0
+    is9 = jf == 9.0
+    is10 = jf == 10.0
+    is11 = jf == 11.0
+    ch = _sel(
+        is6, LC6H, _sel(is7, LC7H, _sel(is9, LC9H, _sel(is10, LC10H, _sel(is11, LC11H, 0.0))))
+    )
+    cl = _sel(
+        is6, LC6L, _sel(is7, LC7L, _sel(is9, LC9L, _sel(is10, LC10L, _sel(is11, LC11L, 0.0))))
+    )
+    return ch, cl
+
+
+@njit(**_INL)
+def _log_dd(xh, xl, tail):
+    """log(xh + xl) as a double-double (hi, lo), relative error about 2^-68 (see
+    _log_reduce for the arguments)."""
+    ef, jf, sh, sl = _log_reduce(xh, xl, tail)
     # 2 atanh(s) = (2/3) s G(s^2), G(w) = 3 + w + w^2 H(w); s^2 = q + dq with q = sh^2
     # exact (52 bits), so G(s^2) = 3 + q + r, r = dq + w^2 H(w), w = q + dq.
     q = sh * sh
     dq = (2.0 * sh + sl) * sl
     w = q + dq
-    r = dq + w * w * (LH0 + w * (LH1 + w * (LH2 + w * (LH3 + w * LH4))))
+    w2 = w * w
+    r = dq + w2 * ((LH0 + w * LH1) + w2 * ((LH2 + w * LH3) + w2 * LH4))
     gh = _trunc((3.0 + q) + r, MASK27)
     gl = ((3.0 - gh) + q) + r  # (3 - gh) + q is exact
     u = sh * gh  # exact: 26 + 27 bits
@@ -285,35 +333,33 @@ def _log_dd(xh, xl):
     yh = u * THIRD
     p, pe = _fast_two_sum(2.0 * yh, yh)
     yl = (((u - p) - pe) + v) * THIRD
-    ch = _sel(
-        jf == 6.0,
-        LC6H,
-        _sel(
-            jf == 7.0,
-            LC7H,
-            _sel(jf == 9.0, LC9H, _sel(jf == 10.0, LC10H, _sel(jf == 11.0, LC11H, 0.0))),
-        ),
-    )
-    cl = _sel(
-        jf == 6.0,
-        LC6L,
-        _sel(
-            jf == 7.0,
-            LC7L,
-            _sel(jf == 9.0, LC9L, _sel(jf == 10.0, LC10L, _sel(jf == 11.0, LC11L, 0.0))),
-        ),
-    )
-    s1, e1 = _two_sum(ef * LN2_H, ch)  # ef * LN2_H is exact
-    s2, e2 = _two_sum(s1, 2.0 * yh)
-    lo = (e1 + e2) + ((ef * LN2_L + cl) + 2.0 * yl)
+    ch, cl = _log_centre(jf)
+    s1 = ef * LN2_H + ch  # exact; 0 or |s1| > 0.117 > |2 yh|: Fast2Sum below is exact
+    s2, e2 = _fast_two_sum(s1, 2.0 * yh)
+    lo = e2 + ((ef * LN2_L + cl) + 2.0 * yl)
     return _fast_two_sum(s2, lo)
+
+
+@njit(**_INL)
+def _log1(x):
+    """log(x) rounded (about 0.5 ulp) for x > 0 finite: _log_dd's reduction, the series
+    beyond 2s in plain double (it is below 2^-10 of the result)."""
+    ef, jf, sh, sl = _log_reduce(x, 0.0, False)
+    sf = sh + sl
+    w = sf * sf
+    w2 = w * w
+    t = (sf * w) * (TWO_THIRDS + w * ((LK0 + w * LK1) + w2 * ((LK2 + w * LK3) + w2 * LK4)))
+    ch, cl = _log_centre(jf)
+    s1 = ef * LN2_H + ch
+    s2, e2 = _fast_two_sum(s1, 2.0 * sh)
+    return s2 + (e2 + ((ef * LN2_L + cl) + (2.0 * sl + t)))
 
 
 @njit(**_INL)
 def _exp_dd(zh, zl):
     """exp(zh + zl) = (ph + pl) * 2^k with ph + pl in [0.7, 1.42] to about 2^-59.
 
-    |zl| <= ulp(zh). zh is clamped to [-746, 711] (the result then overflows or underflows
+    |zl| <= 2^-24 |zh| (the reduced argument then stays within the fit interval). zh is clamped to [-746, 711] (the result then overflows or underflows
     the same way); NaN gives NaN ph."""
     zc = _sel(zh > 711.0, 711.0, zh)
     zc = _sel(zc < -746.0, -746.0, zc)
@@ -323,18 +369,21 @@ def _exp_dd(zh, zl):
     k = _f2i(t) - SHIFT_BITS
     r0 = zc - kf * LN2_H  # exact: kf has <= 11 bits, LN2_H 42, and r0 is a multiple of ulp
     rh, rl = _two_sum(r0, zl - kf * LN2_L)
-    r2h, r2l = _two_prod(rh, rh)
-    qr = EQ0 + rh * (
-        EQ1
-        + rh
-        * (
-            EQ2
-            + rh * (EQ3 + rh * (EQ4 + rh * (EQ5 + rh * (EQ6 + rh * (EQ7 + rh * (EQ8 + rh * EQ9))))))
-        )
-    )
+    rt = _trunc(rh, MASK26)
+    r2h = rt * rt  # exact; r2h + r2l = rh^2 to about 2^-80
+    r2l = (rh - rt) * (rh + rt)
+    # Q(rh) by Estrin's scheme: a shorter dependency chain than Horner's.
+    r2 = rh * rh
+    r4 = r2 * r2
+    q01 = EQ0 + rh * EQ1
+    q23 = EQ2 + rh * EQ3
+    q45 = EQ4 + rh * EQ5
+    q67 = EQ6 + rh * EQ7
+    q89 = EQ8 + rh * EQ9
+    qr = (q01 + r2 * q23) + r4 * ((q45 + r2 * q67) + r4 * q89)
     a1, a2 = _fast_two_sum(1.0, rh)
     b1, b2 = _fast_two_sum(a1, 0.5 * r2h)
-    lo = (a2 + b2) + ((0.5 * r2l + (rh * r2h) * qr) + (rl + rl * rh))
+    lo = (a2 + b2) + ((0.5 * r2l + (rh * r2) * qr) + (rl + rl * rh))
     ph, pl = _fast_two_sum(b1, lo)
     return ph, pl, k
 
@@ -345,21 +394,21 @@ def _exp_dd(zh, zl):
 @njit(**_INL)
 def _exp(x):
     ph, pl, k = _exp_dd(x, 0.0)
-    return _sel(x != x, NAN, _ldexp2(ph, k))
+    return _sel(x != x, NAN, _scale_dd(ph, pl, k))
 
 
 @njit(**_INL)
 def _log(x):
     ok = (x > 0.0) & (x < INF)
-    lh, ll = _log_dd(_sel(ok, x, 1.0), 0.0)
-    r = _sel(x == 0.0, -INF, _sel(x == INF, INF, lh))
+    r = _log1(_sel(ok, x, 1.0))
+    r = _sel(x == 0.0, -INF, _sel(x == INF, INF, r))
     return _sel((x < 0.0) | (x != x), NAN, r)
 
 
 @njit(**_INL)
 def _log10(x):
     ok = (x > 0.0) & (x < INF)
-    lh, ll = _log_dd(_sel(ok, x, 1.0), 0.0)
+    lh, ll = _log_dd(_sel(ok, x, 1.0), 0.0, False)
     p, pe = _two_prod(lh, INV_LN10_H)
     r = p + (pe + (lh * INV_LN10_L + ll * INV_LN10_H))
     r = _sel(x == 0.0, -INF, _sel(x == INF, INF, r))
@@ -370,15 +419,16 @@ def _log10(x):
 def _pow(x, y):
     ax = abs(x)
     ay = abs(y)
-    lh, ll = _log_dd(_sel((ax > 0.0) & (ax < INF), ax, 1.0), 0.0)
+    lh, ll = _log_dd(_sel((ax > 0.0) & (ax < INF), ax, 1.0), 0.0, False)
     lh = _sel(ax == 0.0, -INF, _sel(ax == INF, INF, lh))
-    # z = y * log|x| = zh + zl with an exact product (y split only where that cannot overflow).
-    ysp = _sel(ay < TWO996, y, 0.0)
-    zh = y * lh
-    p, pe = _two_prod(ysp, lh)
-    zl = _sel(abs(zh) < 2048.0, pe + ysp * ll, 0.0)
+    # z = y * log|x| = zh + zl: with yh and lt of 26 bits, yh*lt and (y - yh)*lt are exact;
+    # the tails (about 2^-25 |z|) go to zl, which exp reduces with the rest of its argument.
+    yh = _trunc(y, MASK26)
+    lt = _trunc(lh, MASK26)
+    zh = _sel(abs(lh) < INF, yh * lt, y * lh)  # yh may be 0 (subnormal y): 0 * inf is NaN
+    zl = _sel(abs(zh) < 2048.0, ((y - yh) * lt + y * (lh - lt)) + y * ll, 0.0)
     ph, pl, k = _exp_dd(zh, zl)
-    r = _ldexp2(ph, k)
+    r = _scale_dd(ph, pl, k)
     # Integer / odd-integer exponents (every |y| >= 2^52 is an even integer).
     yb = _sel(ay < TWO52, y, 0.0)
     nonint = (ay < TWO52) & (_rint52(yb) != y)
@@ -409,7 +459,7 @@ def _sinh(x):
     bl = _ldexp2(ql, -k - 1)
     s, e = _two_sum(ah, -bh)
     big = _sel(s < INF, s + ((e + al) - bl), INF)  # the tail of an overflow is NaN
-    r = _sign_of(x, _sel(ax < 0.5, small, big))
+    r = _sign_of(x, _sel(ax < 0.25, small, big))
     return _sel(x != x, NAN, r)
 
 
@@ -473,7 +523,7 @@ def _asinh(x):
     # Large |x|: log(2|x|) = log|x| + ln 2.
     xh = _sel(big & (ax < INF), ax, xh)
     xl = _sel(big, 0.0, xl)
-    lh, ll = _log_dd(xh, xl)
+    lh, ll = _log_dd(xh, xl, True)
     s, e = _two_sum(lh, _sel(big, LN2_FULL_H, 0.0))
     r = s + ((e + ll) + _sel(big, LN2_FULL_L, 0.0))
     r = _sel(ax < TWO_M28, ax, _sel(ax == INF, INF, r))
@@ -496,7 +546,7 @@ def _acosh(x):
     xh, xl = _fast_two_sum(xh, xl + rl)
     xh = _sel(big & (x < INF), x, xh)
     xl = _sel(big, 0.0, xl)
-    lh, ll = _log_dd(xh, xl)
+    lh, ll = _log_dd(xh, xl, True)
     s, e = _two_sum(lh, _sel(big, LN2_FULL_H, 0.0))
     r = s + ((e + ll) + _sel(big, LN2_FULL_L, 0.0))
     r = _sel(x == INF, INF, r)
@@ -514,7 +564,7 @@ def _atanh(x):
     p, pe = _two_prod(qh, dh)
     ql = (((nh - p) - pe) + (nl - qh * dl)) / dh
     xh, xl = _fast_two_sum(qh, ql)
-    lh, ll = _log_dd(xh, xl)
+    lh, ll = _log_dd(xh, xl, True)
     r = 0.5 * lh
     r = _sel(ax < TWO_M28, ax, _sel(ax == 1.0, INF, r))
     r = _sign_of(x, r)
@@ -525,7 +575,7 @@ def _atanh(x):
 def _cbrt(x):
     ax = abs(x)
     ok = (ax > 0.0) & (ax < INF)
-    lh, ll = _log_dd(_sel(ok, ax, 1.0), 0.0)
+    lh, ll = _log_dd(_sel(ok, ax, 1.0), 0.0, False)
     # (lh + ll)/3 with an exact remainder, then exp.
     zh = lh * THIRD
     p, pe = _fast_two_sum(2.0 * zh, zh)
@@ -548,30 +598,11 @@ def _numpy_twin(fn):
     )
 
 
+# Every private numba kernel and helper gets a numpy twin under the same name.
 _KERNELS = [
-    "_sel",
-    "_two_sum",
-    "_fast_two_sum",
-    "_split",
-    "_two_prod",
-    "_trunc",
-    "_rint52",
-    "_ldexp2",
-    "_sign_of",
-    "_log_dd",
-    "_exp_dd",
-    "_exp",
-    "_log",
-    "_log10",
-    "_pow",
-    "_sinh",
-    "_cosh",
-    "_tanh",
-    "_sqrt_dd",
-    "_asinh",
-    "_acosh",
-    "_atanh",
-    "_cbrt",
+    name
+    for name, obj in globals().items()
+    if name.startswith("_") and isinstance(obj, Dispatcher) and name not in ("_f2i", "_i2f")
 ]
 
 _NP_GLOBALS.update({k: v for k, v in globals().items() if k.isupper()})
@@ -585,7 +616,7 @@ _NP_GLOBALS.update(
     }
 )
 
-_CHUNK = 4096  # elements per numpy pass: temporaries stay in cache
+_CHUNK = 16384  # elements per numpy pass: temporaries stay in cache (L2)
 
 
 def _apply1(kernel, x) -> np.ndarray:

@@ -56,6 +56,7 @@ from numba import njit
 from numba.extending import overload
 
 _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
+_JIT_INNER = {"error_model": "numpy", "nogil": True}
 
 # ----------------------------------------------------------------------------- constants
 
@@ -95,7 +96,7 @@ _TWO_OVER_PI_HEX = (
     "06492EEA09D1921CFE1DEB1CB129A73EE88235F52EBB4484E99C7026B45F7E413991D639835339F4"
     "9C845F8BBDF9283B1FF897FFDE05980FEF2F118B5A0A6D1F6D367ECF27CB09B74F463F669E5FEA2D"
     "7527BAC7EBE5F17B3D0739F78A5292EA6BFB5FB11F8D5D0856033046FC7B6BABF0CFBC209AF4361D"
-    "A9E391615EE61000"
+    "A9E391615EE61B08"
 )
 _F = np.array(
     [float(int(_TWO_OVER_PI_HEX[6 * i : 6 * i + 6], 16)) for i in range(56)], dtype=np.float64
@@ -174,7 +175,7 @@ def _where(c, a, b):
     return np.where(c, a, b)
 
 
-@overload(_where)
+@overload(_where, jit_options=_JIT_INNER)
 def _ov_where(c, a, b):
     def impl(c, a, b):
         return a if c else b
@@ -187,7 +188,7 @@ def _floor(x):
     return np.floor(x)
 
 
-@overload(_floor)
+@overload(_floor, jit_options=_JIT_INNER)
 def _ov_floor(x):
     def impl(x):
         return np.floor(x)
@@ -200,10 +201,10 @@ def _sqrt(x):
     return np.sqrt(x)
 
 
-@overload(_sqrt)
+@overload(_sqrt, jit_options=_JIT_INNER)
 def _ov_sqrt(x):
     def impl(x):
-        return math.sqrt(x)
+        return np.sqrt(x)
 
     return impl
 
@@ -213,7 +214,7 @@ def _copysign(x, s):
     return np.copysign(x, s)
 
 
-@overload(_copysign)
+@overload(_copysign, jit_options=_JIT_INNER)
 def _ov_copysign(x, s):
     def impl(x, s):
         return math.copysign(x, s)
@@ -221,18 +222,62 @@ def _ov_copysign(x, s):
     return impl
 
 
-def _dual(func):
+def _frexp(x):
+    """(m, e) with x = m * 2**e, 0.5 <= |m| < 1 (exact)."""
+    return np.frexp(x)
+
+
+@overload(_frexp, jit_options=_JIT_INNER)
+def _ov_frexp(x):
+    def impl(x):
+        return math.frexp(x)
+
+    return impl
+
+
+def _ldexp(x, e):
+    """x * 2**e (exact unless it overflows or underflows)."""
+    return np.ldexp(x, e)
+
+
+@overload(_ldexp, jit_options=_JIT_INNER)
+def _ov_ldexp(x, e):
+    def impl(x, e):
+        return math.ldexp(x, e)
+
+    return impl
+
+
+def _table(t, i):
+    """t[i] with out-of-range indices clamped (their products are then discarded)."""
+    return t[np.clip(i, 0, t.size - 1)]
+
+
+@overload(_table, jit_options=_JIT_INNER)
+def _ov_table(t, i):
+    def impl(t, i):
+        return t[min(max(i, 0), t.size - 1)]
+
+    return impl
+
+
+def _dual(func=None, *, inline: bool = False):
     """Make a plain-Python helper callable from jitted code: numba compiles the same source.
 
     Called from Python the function runs on numpy arrays or floats; called from a jitted
     function, numba's ``@overload`` hands it the very same function to compile for scalars.
     """
 
+    if func is None:
+        return functools.partial(_dual, inline=inline)
+
     @functools.wraps(func)
     def typer(*args):
         return func
 
-    overload(func)(typer)
+    # Big helpers are inlined in numba's IR (LLVM's inliner would keep them as calls, and a
+    # call in a loop stops vectorisation); small ones are left to LLVM (faster to compile).
+    overload(func, jit_options=_JIT_INNER, inline="always" if inline else "never")(typer)
     return func
 
 
@@ -326,7 +371,7 @@ def _cos_k(yh, yl):
     return w + (((1.0 - w) - hz) + (z * z * p - yh * yl))
 
 
-@_dual
+@_dual(inline=True)
 def _sin_finish(q, yh, yl):
     """sin(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -336,7 +381,7 @@ def _sin_finish(q, yh, yl):
     return _where(q >= 2.0, -r, r)
 
 
-@_dual
+@_dual(inline=True)
 def _cos_finish(q, yh, yl):
     """cos(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -347,7 +392,7 @@ def _cos_finish(q, yh, yl):
     return _where(neg, -r, r)
 
 
-@_dual
+@_dual(inline=True)
 def _tan_finish(q, yh, yl):
     """tan(q*pi/4 + y) for q = n mod 4, |y| <= ~pi/8, via (a + b*T)/(c + d*T)."""
     z = yh * yh
@@ -381,7 +426,7 @@ def _tan_finish(q, yh, yl):
     return qh + r * inv
 
 
-@_dual
+@_dual(inline=True)
 def _sin_fast(x):
     n, yh, yl = _reduce_cw2(x)
     r = _sin_finish(_mod4(n), yh, yl)
@@ -389,13 +434,13 @@ def _sin_fast(x):
     return _nan_fix(r)
 
 
-@_dual
+@_dual(inline=True)
 def _cos_fast(x):
     n, yh, yl = _reduce_cw2(x)
     return _nan_fix(_cos_finish(_mod4(n), yh, yl))
 
 
-@_dual
+@_dual(inline=True)
 def _tan_fast(x):
     n, yh, yl = _reduce_cw4(x)
     r = _tan_finish(_mod4(n), yh, yl)
@@ -446,7 +491,7 @@ def _asin_poly(z):
     )
 
 
-@_dual
+@_dual(inline=True)
 def _asin_parts(ax):
     """For a = |x|: (big, b, btail) with asin(a) = H - 2*b - 2*btail when big, a + btail else.
 
@@ -464,7 +509,7 @@ def _asin_parts(ax):
     return big, b, btail
 
 
-@_dual
+@_dual(inline=True)
 def _asin_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -477,7 +522,7 @@ def _asin_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual
+@_dual(inline=True)
 def _acos_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -492,7 +537,7 @@ def _acos_fast(x):
     return _nan_fix(r)
 
 
-@_dual
+@_dual(inline=True)
 def _atan_core(ay, ax, u):
     """atan(ay/ax) for 0 <= ay, 0 < ax (or ay > 0 = ax), u ~ ay/ax, as (h, tail)."""
     i0 = u < 0.4375
@@ -534,7 +579,7 @@ def _atan_core(ay, ax, u):
     return h, (e + al) + corr
 
 
-@_dual
+@_dual(inline=True)
 def _atan_fast(x):
     ay = abs(x)
     ay = _where(ay > _ATAN_CLAMP, _ATAN_CLAMP, ay)  # also inf; NaN stays NaN
@@ -543,7 +588,7 @@ def _atan_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual
+@_dual(inline=True)
 def _atan2_fast(y, x):
     """atan2 for operands that are 0, inf, NaN or of magnitude in [2**-500, 2**500]."""
     ay = abs(y)
@@ -577,64 +622,57 @@ def _atan2_slow_lane(y, x):
 
 
 # ----------------------------------------------------------------------------- slow paths
-# Scalar Python, jitted as is for numba and run as plain Python for numpy (same bits).
+# Written like the fast paths (selects, no data-dependent branches), so numba runs them on
+# the few slow scalars of a row and numpy on all slow lanes of an array at once.
 
 
 @_dual
 def _rem_pio2_slow(x, shift):
     """Payne–Hanek: (q, yh, yl) with x = (4k + q)*(pi/2)/2**shift + yh + yl, |y| <= ~pi/4/2**shift.
 
-    x finite with |x| > 2**23 (any finite x works); shift 0 (sin, cos) or 1 (tan).
+    x finite with |x| > 2**23 (any finite |x| >= 1 works); shift 0 (sin, cos) or 1 (tan).
     Exact integer arithmetic in 24-bit digits held in doubles: x*2**shift = m*2**e,
     m < 2**53 is cut into four 24-bit digits aligned to multiples of 24 bits, 2/pi is the
     table _F; the digit products (< 2**48, sums < 2**50) are exact, and carries are
     propagated from the last of 9 fraction digits (216 bits) to the integer digit mod 4.
     """
     ax = abs(x)
-    mant, ex = math.frexp(ax)
-    m = math.ldexp(mant, 53)
+    mant, ex = _frexp(ax)
     e = ex - 53 + shift
     pp = (e - (e % 24)) // 24  # floor(e / 24)
-    rem = e - 24 * pp
-    big = math.ldexp(m, rem)  # < 2**77, exact
-    t2 = float(math.floor(big * 5.960464477539063e-08))  # floor(big / 2**24)
-    t1 = float(math.floor(big * 3.552713678800501e-15))  # floor(big / 2**48)
-    t0 = float(math.floor(big * 2.117582368135751e-22))  # floor(big / 2**72)
-    d0 = t0
-    d1 = t1 - t0 * 16777216.0
-    d2 = t2 - t1 * 16777216.0
-    d3 = big - t2 * 16777216.0
-    xd = (d0, d1, d2, d3)
-    s_int = pp + 2
-    carry = 0.0
-    g1 = 0.0
-    g2 = 0.0
-    g3 = 0.0
-    nint = 0.0
+    big = _ldexp(mant, 53 + e - 24 * pp)  # m * 2**rem < 2**77, exact
+    t2 = _floor(big * 5.960464477539063e-08)  # floor(big / 2**24)
+    t1 = _floor(big * 3.552713678800501e-15)  # floor(big / 2**48)
+    t0 = _floor(big * 2.117582368135751e-22)  # floor(big / 2**72)
+    xd = (t0, t1 - t0 * 16777216.0, t2 - t1 * 16777216.0, big - t2 * 16777216.0)
+    carry = 0.0 * big
+    g1 = 0.0 * big
+    g2 = 0.0 * big
+    g3 = 0.0 * big
+    nint = 0.0 * big
     for j in range(9, -1, -1):
-        s = s_int + j
-        q = 0.0
+        s = pp + (2 + j)
+        q = 0.0 * big
         for a in range(4):
             b = s - a
-            if b >= 0 and b < _NF:
-                q += xd[a] * _F[b]
+            q = q + _where((b >= 0) & (b < _NF), xd[a] * _table(_F, b), 0.0)
         v = q + carry
         if j == 0:
-            nint = v - 4.0 * float(math.floor(v * 0.25))
+            nint = v - 4.0 * _floor(v * 0.25)
         else:
-            c = float(math.floor(v * 5.960464477539063e-08))
+            c = _floor(v * 5.960464477539063e-08)
             dig = v - c * 16777216.0
             carry = c
-            w = math.ldexp(dig, -24 * j)
+            w = _ldexp(dig, -24 * j)
             if j <= 2:
-                g1 += w
+                g1 = g1 + w
             elif j <= 4:
-                g2 += w
+                g2 = g2 + w
             elif j <= 7:
-                g3 += w
-    if g1 >= 0.5:
-        nint += 1.0
-        g1 -= 1.0
+                g3 = g3 + w
+    up = g1 >= 0.5
+    nint = _where(up, nint + 1.0, nint)
+    g1 = _where(up, g1 - 1.0, g1)
     h, l0 = _fast_two_sum(g1, g2)
     h, l1 = _fast_two_sum(h, l0 + g3)
     # y = (h + l1) * pi/2 / 2**shift
@@ -642,56 +680,57 @@ def _rem_pio2_slow(x, shift):
     pl = pl + (h * _PIO2_LO + l1 * _PIO2_HI)
     yh, yl = _fast_two_sum(ph, pl)
     scale = 0.5 if shift == 1 else 1.0
-    yh *= scale
-    yl *= scale
-    nint = nint - 4.0 * float(math.floor(nint * 0.25))
-    if x < 0.0:
-        nint = 4.0 - nint
-        if nint == 4.0:
-            nint = 0.0
-        yh = -yh
-        yl = -yl
-    return nint, yh, yl
+    yh = yh * scale
+    yl = yl * scale
+    nint = nint - 4.0 * _floor(nint * 0.25)
+    neg = x < 0.0
+    nint = _where(neg, _where(nint == 0.0, 0.0, 4.0 - nint), nint)
+    return nint, _where(neg, -yh, yh), _where(neg, -yl, yl)
 
 
 @_dual
 def _sin_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 0)
-    return float(_nan_fix(_sin_finish(q, yh, yl)))
+    return _nan_fix(_sin_finish(q, yh, yl))
 
 
 @_dual
 def _cos_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 0)
-    return float(_nan_fix(_cos_finish(q, yh, yl)))
+    return _nan_fix(_cos_finish(q, yh, yl))
 
 
 @_dual
 def _tan_slow(x):
     q, yh, yl = _rem_pio2_slow(x, 1)
-    return float(_nan_fix(_tan_finish(q, yh, yl)))
+    return _nan_fix(_tan_finish(q, yh, yl))
 
 
 @_dual
 def _atan2_slow(y, x):
-    """atan2 when an operand is finite, non-zero and outside [2**-500, 2**500]."""
-    if y != y or x != x:
-        return NAN
+    """atan2 when an operand is finite, non-zero and outside [2**-500, 2**500].
+
+    Its partner may be 0, inf or NaN: then only the finite operand's sign matters and it is
+    replaced by +-1. Otherwise both are scaled by the same power of two (exact) unless their
+    ratio is beyond 2**+-60, where the result is pi/2, or t resp. pi - t with t = |y/x|.
+    """
     ay = abs(y)
     ax = abs(x)
-    if ay == INF or ax == INF or ay == 0.0 or ax == 0.0:
-        return float(_atan2_fast(y, x))
-    ey = math.frexp(ay)[1]
-    ex = math.frexp(ax)[1]
-    xneg = math.copysign(1.0, x) < 0.0
-    if ey - ex > 60:  # |y/x| > 2**59: pi/2 (the ratio's inverse is below half an ulp)
-        return math.copysign(_PIO2_HI, y)
-    if ey - ex < -60:  # |y/x| < 2**-59: t or pi - t with t = |y/x| (correctly rounded)
-        t = ay / ax
-        r = _PI_HI - (t - _PI_LO) if xneg else t
-        return math.copysign(r, y)
-    # Common power-of-two scaling: exact, the smaller operand stays >= 2**-62 and normal.
-    return float(_atan2_fast(math.ldexp(y, -ex), math.ldexp(x, -ex)))
+    fy = (ay > 0.0) & (ay < INF)
+    fx = (ax > 0.0) & (ax < INF)
+    special = (fy & fx) == False  # noqa: E712 (arrays and numba scalars alike)
+    y1 = _where(special & fy, _copysign(1.0, y), y)
+    x1 = _where(special & fx, _copysign(1.0, x), x)
+    ey = _frexp(ay)[1]
+    ex = _frexp(ax)[1]
+    sc = _where(special, 0, -ex)
+    r = _atan2_fast(_ldexp(y1, sc), _ldexp(x1, sc))
+    d = ey - ex
+    t = ay / ax
+    xneg = _copysign(1.0, x) < 0.0
+    tiny = _where(xneg, _PI_HI - (t - _PI_LO), t)
+    r = _where(special, r, _where(d > 60, _PIO2_HI, _where(d < -60, tiny, r)))
+    return _nan_fix(_where(special, r, _copysign(r, y)))
 
 
 # ----------------------------------------------------------------------------- public API
@@ -700,15 +739,8 @@ def _atan2_slow(y, x):
 
 
 @njit(**_OPTS)
-def sin_row(W, d, a, n):
-    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _sin_fast(W[a, k])
-        return
+def _gather1(W, a, n, cnt):
+    """Indices and values of the slow lanes of row a (saved before d == a is overwritten)."""
     idx = np.empty(cnt, np.int64)
     val = np.empty(cnt, np.float64)
     j = 0
@@ -717,58 +749,70 @@ def sin_row(W, d, a, n):
             idx[j] = k
             val[j] = W[a, k]
             j += 1
+    return idx, val
+
+
+@njit(**_OPTS)
+def _gather2(W, a, b, n, cnt, sa, sb):
+    """Indices and operands (y, x) of the slow lanes of atan2: row a or scalar sa (a < 0)."""
+    idx = np.empty(cnt, np.int64)
+    vy = np.empty(cnt, np.float64)
+    vx = np.empty(cnt, np.float64)
+    j = 0
+    for k in range(n):
+        y = W[a, k] if a >= 0 else sa
+        x = W[b, k] if b >= 0 else sb
+        if _atan2_slow_lane(y, x):
+            idx[j] = k
+            vy[j] = y
+            vx[j] = x
+            j += 1
+    return idx, vy, vx
+
+
+@njit(**_OPTS)
+def sin_row(W, d, a, n):
+    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _sin_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _sin_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _sin_slow(val[j])
 
 
 @njit(**_OPTS)
 def cos_row(W, d, a, n):
-    """W[d, k] = cos(W[a, k]) for k < n."""
+    """W[d, k] = cos(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _cos_fast(W[a, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    val = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _trig_slow_lane(W[a, k]):
-            idx[j] = k
-            val[j] = W[a, k]
-            j += 1
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _cos_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _cos_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _cos_slow(val[j])
 
 
 @njit(**_OPTS)
 def tan_row(W, d, a, n):
-    """W[d, k] = tan(W[a, k]) for k < n."""
+    """W[d, k] = tan(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _tan_fast(W[a, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    val = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _trig_slow_lane(W[a, k]):
-            idx[j] = k
-            val[j] = W[a, k]
-            j += 1
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
         W[d, k] = _tan_fast(W[a, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _tan_slow(val[j])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _tan_slow(val[j])
 
 
 @njit(**_OPTS)
@@ -790,6 +834,51 @@ def atan_row(W, d, a, n):
     """W[d, k] = atan(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _atan_fast(W[a, k])
+
+
+@njit(**_OPTS)
+def atan2_row_vv(W, d, a, b, n):
+    """W[d, k] = atan2(W[a, k], W[b, k]) for k < n (d may equal a or b)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(W[a, k], W[b, k]) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, a, b, n, cnt, 0.0, 0.0)
+    for k in range(n):
+        W[d, k] = _atan2_fast(W[a, k], W[b, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
+
+
+@njit(**_OPTS)
+def atan2_row_vs(W, d, a, s, n):
+    """W[d, k] = atan2(W[a, k], s) for k < n (d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(W[a, k], s) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, a, -1, n, cnt, 0.0, s)
+    for k in range(n):
+        W[d, k] = _atan2_fast(W[a, k], s)
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
+
+
+@njit(**_OPTS)
+def atan2_row_sv(W, d, s, b, n):
+    """W[d, k] = atan2(s, W[b, k]) for k < n (d may equal b)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _atan2_slow_lane(s, W[b, k]) else 0
+    if cnt > 0:
+        idx, vy, vx = _gather2(W, -1, b, n, cnt, s, 0.0)
+    for k in range(n):
+        W[d, k] = _atan2_fast(s, W[b, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
 @njit(**_OPTS)
@@ -842,89 +931,26 @@ def atan2_scalar(p, q):
     return _atan2_fast(p, q)
 
 
-@njit(**_OPTS)
-def atan2_row_vv(W, d, a, b, n):
-    """W[d, k] = atan2(W[a, k], W[b, k]) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(W[a, k], W[b, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(W[a, k], W[b, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    vy = np.empty(cnt, np.float64)
-    vx = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(W[a, k], W[b, k]):
-            idx[j] = k
-            vy[j] = W[a, k]
-            vx[j] = W[b, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(W[a, k], W[b, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
-
-
-@njit(**_OPTS)
-def atan2_row_vs(W, d, a, s, n):
-    """W[d, k] = atan2(W[a, k], s) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(W[a, k], s) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(W[a, k], s)
-        return
-    idx = np.empty(cnt, np.int64)
-    vy = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(W[a, k], s):
-            idx[j] = k
-            vy[j] = W[a, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(W[a, k], s)
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(vy[j], s)
-
-
-@njit(**_OPTS)
-def atan2_row_sv(W, d, s, b, n):
-    """W[d, k] = atan2(s, W[b, k]) for k < n."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _atan2_slow_lane(s, W[b, k]) else 0
-    if cnt == 0:
-        for k in range(n):
-            W[d, k] = _atan2_fast(s, W[b, k])
-        return
-    idx = np.empty(cnt, np.int64)
-    vx = np.empty(cnt, np.float64)
-    j = 0
-    for k in range(n):
-        if _atan2_slow_lane(s, W[b, k]):
-            idx[j] = k
-            vx[j] = W[b, k]
-            j += 1
-    for k in range(n):
-        W[d, k] = _atan2_fast(s, W[b, k])
-    for j in range(cnt):
-        W[d, idx[j]] = _atan2_slow(s, vx[j])
+# The numpy twins work in blocks: each function makes ~50 temporaries, which should stay in
+# cache (and not cost 50 full-size arrays of memory on a 128^3 field).
+_BLOCK = 16384
 
 
 def _unary_array(x, fast, slow_lane, slow) -> np.ndarray:
     """Apply the numpy twin of a unary function: fast path everywhere, slow lanes patched."""
     xa = np.asarray(x, dtype=np.float64)
     flat = np.ascontiguousarray(xa).reshape(-1)
+    out = np.empty(flat.size, dtype=np.float64)
     with np.errstate(all="ignore"):
-        out = np.asarray(fast(flat), dtype=np.float64).reshape(-1).copy()
-        if slow_lane is not None:
-            for i in np.flatnonzero(slow_lane(flat)):
-                out[i] = slow(float(flat[i]))
+        for i in range(0, flat.size, _BLOCK):
+            v = flat[i : i + _BLOCK]
+            r = np.asarray(fast(v), dtype=np.float64)
+            if slow_lane is not None:
+                mask = slow_lane(v)
+                if mask.any():
+                    r = r.copy()
+                    r[mask] = slow(v[mask])
+            out[i : i + _BLOCK] = r
     return out.reshape(xa.shape)
 
 
@@ -963,8 +989,15 @@ def atan2_array(p, q) -> np.ndarray:
     pa, qa = np.broadcast_arrays(np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64))
     fy = np.ascontiguousarray(pa).reshape(-1)
     fx = np.ascontiguousarray(qa).reshape(-1)
+    out = np.empty(fy.size, dtype=np.float64)
     with np.errstate(all="ignore"):
-        out = np.asarray(_atan2_fast(fy, fx), dtype=np.float64).reshape(-1).copy()
-        for i in np.flatnonzero(_atan2_slow_lane(fy, fx)):
-            out[i] = _atan2_slow(float(fy[i]), float(fx[i]))
+        for i in range(0, fy.size, _BLOCK):
+            vy = fy[i : i + _BLOCK]
+            vx = fx[i : i + _BLOCK]
+            r = np.asarray(_atan2_fast(vy, vx), dtype=np.float64)
+            mask = _atan2_slow_lane(vy, vx)
+            if mask.any():
+                r = r.copy()
+                r[mask] = _atan2_slow(vy[mask], vx[mask])
+            out[i : i + _BLOCK] = r
     return out.reshape(pa.shape)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import re
 
 import mpmath as mp
 import numpy as np
@@ -48,13 +50,13 @@ def _mixture(rng: np.random.Generator, n: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _scalar_loop(fn, x, out):
     for k in range(x.size):
         out[k] = fn(x[k])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _scalar_loop2(fn, x, y, out):
     for k in range(x.size):
         out[k] = fn(x[k], y[k])
@@ -121,7 +123,7 @@ def test_pow_rows_scalar_array_agree_bit_for_bit(args: np.ndarray) -> None:
     assert E.pow_array(x[:12].reshape(3, 4), 2.0).shape == (3, 4)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")  # not cached: numba would not see changes in explog.py
 def _tape(W, n):
     """A few instructions the way the interpreter runs them on its register file."""
     E.exp_row(W, 1, 0, n)
@@ -409,3 +411,17 @@ def test_pow_special_cases_match_c() -> None:
 def test_pow_c99_table(x: float, y: float, want: float) -> None:
     for got in (E.pow_scalar(x, y), float(E.pow_array(x, y))):
         assert _same(got, want), f"pow({x!r}, {y!r}) = {got!r}, want {want!r}"
+
+
+def test_the_rows_vectorise() -> None:
+    """No call and no branch is left in the kernels: LLVM vectorises pow's row (which holds
+    log's and exp's kernels). Compiled afresh: numba cannot inspect cached code."""
+    if (
+        os.environ.get("SURFGEN_NO_VECTORIZE") == "1"
+        or os.environ.get("NUMBA_LOOP_VECTORIZE") == "0"
+    ):
+        pytest.skip("vectorisation switched off by the environment")
+    fresh = njit(error_model="numpy")(E.pow_row_vs.py_func)
+    fresh(np.ones((2, 8)), 1, 0, 2.5, 8)
+    llvm = fresh.inspect_llvm(fresh.signatures[0])
+    assert re.search(r"<(4|8) x double>", llvm)

@@ -129,9 +129,12 @@ def test_samples_on_the_level_are_outside():
 def test_a_plane_through_samples_is_decided_strictly():
     # z = 0 is a grid plane: its samples are on the level, hence outside, so inside is z < 0.
     box = Box.cube(1)
+    # The crossings stay 1 % of an edge away from the samples on the level (merge robustness):
+    # the plane is at z = -0.01 h, h = 0.25.
     mesh = extract_mesh(field_of("z", box, 9), cap=True)
-    assert as_trimesh(mesh).volume == pytest.approx(4.0, abs=1e-5)
-    assert np.abs(mesh.vertices[:, 2]).max() == 1.0 and mesh.vertices[:, 2].max() <= 0.0
+    assert as_trimesh(mesh).volume == pytest.approx(4.0 * (1 - 0.01 * 0.25), abs=1e-4)
+    assert np.abs(mesh.vertices[:, 2]).max() == 1.0 and mesh.vertices[:, 2].max() < 0.0
+    assert mesh.vertices[:, 2].max() >= -0.0101 * 0.25
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
@@ -222,3 +225,106 @@ def test_load_missing_or_unreadable(tmp_path):
 def test_save_into_missing_directory(tmp_path, sphere_mesh):
     with pytest.raises(MeshError, match="cannot write"):
         save_mesh(sphere_mesh, tmp_path / "nowhere" / "m.obj")
+
+
+# ----------------------------------------------------------------------------- merge robustness
+# Downstream tools merge vertices (trimesh's default load, MeshLab, Blender, slicers; float32
+# files): a mesh must keep its topology through that (issue 11).  merge_problems runs the three
+# merges and lists what changed.
+
+
+def assert_merge_robust(mesh: Mesh) -> None:
+    from surfgen.filters.robust import merge_problems
+
+    assert merge_problems(mesh) == []
+
+
+def assert_vertices_apart(mesh: Mesh, grid: Grid) -> None:
+    """No two vertices closer than ~1 % of a cell: far above float32 and merge tolerances."""
+    from scipy.spatial import cKDTree
+
+    h = min(grid.spacing)
+    pairs = cKDTree(mesh.vertices).query_pairs(0.009 * h)
+    assert not pairs, f"{len(pairs)} vertex pairs closer than 0.009 cells"
+
+
+@pytest.mark.parametrize(
+    "formula",
+    [
+        "floor(2*x)+floor(2*y)",  # plateaus exactly at the level, risers through grid planes
+        "floor(x*3)*0.5+z^2-1",
+        "stair1(x,0.5,1,4)+stair1(y,0.5,1,4)",
+        "floor(2*x)*floor(2*y)-floor(2*z)",
+        "x*y*z",  # exact zeros on three grid planes
+        "sign(x)*sign(y)+sign(z)",
+        "max(abs(x),abs(y))-1",  # a crease through grid points
+    ],
+)
+@pytest.mark.parametrize("cap", [False, True])
+def test_meshes_survive_merges(formula, cap):
+    grid = Grid(Box.cube(1.5), (25, 25, 25))
+    mesh = extract_mesh(evaluate_reference(parse(formula), grid), cap=cap)
+    assert_merge_robust(mesh)
+    assert_vertices_apart(mesh, grid)
+
+
+def test_random_fields_with_exact_zeros_survive_merges():
+    rng = np.random.default_rng(11)
+    for _ in range(12):
+        grid = Grid(Box.cube(1), tuple(int(n) for n in rng.integers(5, 12, size=3)))
+        values = rng.integers(-2, 3, size=grid.shape).astype(np.float64)  # many exact zeros
+        values[rng.random(grid.shape) < 0.05] = np.inf
+        values[rng.random(grid.shape) < 0.05] = 1e-300  # tiny next to large: t ~ 1e-300
+        try:
+            mesh = extract_mesh(Field(grid, values), cap=True)
+        except EmptySurface:
+            continue
+        assert_merge_robust(mesh)
+        assert_vertices_apart(mesh, grid)
+
+
+def test_crossings_stay_a_percent_of_an_edge_from_the_samples():
+    # A sample exactly on the level between a steep and a flat neighbour: the old placement put
+    # the crossing within 1e-38 of the sample; now it is >= 1 % of the edge away.
+    grid = Grid(Box.cube(1), (5, 5, 5))
+    values = np.ones(grid.shape)
+    values[2, 2, 2] = 0.0
+    values[1, 2, 2] = -1e6
+    values[2, 1, 2] = -1e-3
+    mesh = extract_mesh(Field(grid, values))
+    h = grid.spacing[0]
+    d = np.linalg.norm(mesh.vertices, axis=1)  # the sample is at the origin
+    assert d.min() >= 0.0099 * h
+    assert_merge_robust(mesh)
+
+
+ISSUE_SHAPES = {
+    # Seed 7 at 64^3 in the main job (issue 11): all four gained non-manifold edges under
+    # trimesh's default load (10d816d0: 3753); formulas with d as the sampler drew them.
+    "10d816d0": (
+        "1/abs(stair2(tan(0.42*abs(y)*abs(z)^1.72-0.87*abs(x)^0.28*abs(z)^0.47),2.78,0.55))+"
+        "1/(0.05*abs(y)^1.02*abs(z)^2+0.62*abs(y)*abs(z)^1.49+1.01*abs(x)^0.97*abs(y)^1.68)^0.5*"
+        "atan(tan(1.07*abs(x)^2-0.78*abs(y)^0.72*abs(z)))-1.36144"
+    ),
+    "20d0c322": (
+        "1/(-0.8*x*y+0.37*x^2*z)*tri2(stair2((0.42*abs(y)^2*abs(z)^1.26-1.41*abs(z)-"
+        "0.03*abs(x)*abs(y)^1.11)^2,0.94,1.91),2.76)"
+    ),
+    "08af9540": (
+        "cot((-0.86*x^2*y)^2)^2*((0.24*y*z)^2*(1/cos((1.43*abs(z)^1.52+0.92*abs(y))^1.5))*"
+        "(1/rect3(cos((1.45*abs(z)+1.47*abs(x)^2)^0.5),0.68)^2))+32430.5"
+    ),
+    "039701a8": "1/abs(rect2((1.46*z^2+1.18*x*z^2)^2,2.67,0.88))-3002400000000000.0",
+}
+ISSUE_BOXES = {"10d816d0": 1.5, "20d0c322": 1.9, "08af9540": 1.1, "039701a8": 1.8}
+
+
+@pytest.mark.parametrize("key", sorted(ISSUE_SHAPES))
+def test_issue_catalogue_shapes_survive_merges(key):
+    # At their own 64^3 grid (above the suite's usual 48^3: that is where they failed).
+    grid = Grid(Box.cube(ISSUE_BOXES[key]), (64, 64, 64))
+    from surfgen.generator.evaluate import evaluate  # the sampler's evaluator, as in the run
+
+    mesh = extract_mesh(evaluate(parse(ISSUE_SHAPES[key]), grid, threads=1), cap=True)
+    assert_merge_robust(mesh)
+    assert_vertices_apart(mesh, grid)

@@ -1,0 +1,132 @@
+"""Walls: crossings classified as roots, poles and jumps; --walls keep/remove/mark.
+
+The analytic cases of issue 11: tan(x) (a root at x = 0, poles at +-pi/2), 1/x (only a pole),
+atan(tan(2x)) + 0.5 (roots and saw-tooth resets), a staircase (risers are jumps), and smooth
+closed shapes (no walls at all).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.mesh import CAP, JUMP, POLE, ROOT, load_mesh, save_mesh, wall_fraction
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import evaluate_points, evaluate_reference
+from surfgen.generator.walls import PointsEvaluator, extract_labelled
+
+
+def labelled(formula: str, half: float, n: int, walls: str = "mark", cap: bool = False):
+    tree = parse(formula)
+    field = evaluate_reference(tree, Grid(Box.cube(half), (n, n, n)))
+    return extract_labelled(field, tree, None, 0.0, cap=cap, walls=walls)
+
+
+def sheet_positions(mesh, kinds) -> np.ndarray:
+    """x of the planes x = const the faces of the given kinds lie on (rounded to 0.05)."""
+    faces = mesh.faces[np.isin(mesh.face_kinds, kinds)]
+    x = mesh.vertices[faces][:, :, 0].mean(axis=1)
+    return np.unique(np.round(x / 0.05) * 0.05)
+
+
+@pytest.mark.parametrize("n", [32, 33])  # x = 0 between samples, and on a grid plane
+def test_tan_keep_has_three_sheets_remove_keeps_the_root(n):
+    keep, report = labelled("tan(x)", 3.0, n, walls="keep")
+    assert keep.face_kinds is None
+    xs = np.round(keep.vertices[:, 0] / 0.05) * 0.05
+    assert set(np.unique(xs)) == {-1.55, 0.0, 1.55} or set(np.unique(xs)) == {-1.6, 0.0, 1.6}
+    marked, _ = labelled("tan(x)", 3.0, n)
+    assert set(sheet_positions(marked, [POLE])) <= {-1.6, -1.55, 1.55, 1.6}
+    assert len(sheet_positions(marked, [POLE])) == 2
+    assert sheet_positions(marked, [ROOT]) == pytest.approx([0.0])
+    assert report.poles == 2 * report.roots and report.jumps == 0
+    assert report.wall_fraction == pytest.approx(2 / 3)
+    removed, _ = labelled("tan(x)", 3.0, n, walls="remove")
+    assert np.abs(removed.vertices[:, 0]).max() < 0.02 * 6 / (n - 1)  # only the plane x = 0
+    assert removed.n_faces == marked.face_kinds.tolist().count(ROOT)
+
+
+def test_the_pole_of_one_over_x_is_not_a_surface():
+    marked, report = labelled("1/x", 3.0, 32)
+    assert report.roots == 0 and report.poles == report.edges > 0
+    assert wall_fraction(marked) == 1.0
+    with pytest.raises(EmptySurface, match="no root") as err:
+        labelled("1/x", 3.0, 32, walls="remove")
+    assert "\n" not in str(err.value)
+
+
+def test_sawtooth_resets_are_jumps_and_remove_keeps_the_roots():
+    # atan(tan(2x)) + 0.5 = 0 at 2x = -0.5 + k pi; it jumps by -pi at 2x = pi/2 + k pi.
+    marked, report = labelled("atan(tan(2*x))+0.5", 3.0, 32)
+    roots = [(-0.5 + k * math.pi) / 2 for k in range(-2, 3) if abs(-0.5 + k * math.pi) < 6]
+    resets = [(math.pi / 2 + k * math.pi) / 2 for k in range(-3, 3)]
+    resets = [r for r in resets if abs(r) < 3]
+    h = 6 / 31
+    for x in sheet_positions(marked, [ROOT]):
+        assert min(abs(x - r) for r in roots) < h
+    for x in sheet_positions(marked, [JUMP]):
+        assert min(abs(x - r) for r in resets) < h
+    assert report.poles == 0 and report.jumps > 0 and report.roots > 0
+    removed, _ = labelled("atan(tan(2*x))+0.5", 3.0, 32, walls="remove")
+    for x in np.unique(np.round(removed.vertices[:, 0], 6)):
+        assert min(abs(x - r) for r in roots) < h  # every vertex left is on a root sheet
+
+
+@pytest.mark.parametrize("name", ["sphere", "torus"])
+def test_smooth_shapes_have_no_walls(name, shapes, shape_field):
+    shape = shapes[name]
+    tree = parse(shape.formula)
+    mesh, report = extract_labelled(shape_field(name), tree, None, 0.0, cap=True, walls="mark")
+    assert report.wall_fraction == 0.0 and report.poles == report.jumps == 0
+    removed, _ = extract_labelled(shape_field(name), tree, None, 0.0, walls="remove")
+    assert removed.n_faces == mesh.n_faces  # nothing removed
+
+
+@pytest.mark.parametrize(
+    "formula",
+    ["stair1(x,0.5,1,4)-0.5", "floor(2*x)+floor(2*y)", "floor(3*z)"],  # plateaus at the level
+)
+def test_staircase_risers_are_jumps(formula):
+    mesh, report = labelled(formula, 1.5, 25, cap=True)
+    assert report.roots == 0 and report.poles == 0 and report.jumps == report.edges > 0
+    kinds = set(mesh.face_kinds.tolist())
+    assert kinds <= {JUMP, CAP} and JUMP in kinds
+
+
+def test_domain_edges_are_jumps_and_their_roots_stay():
+    # sqrt(1 - x^2) - 0.5: roots at |x| = sqrt(3)/2; F is -0.5 at |x| = 1, then NaN.
+    mesh, report = labelled("sqrt(1-x^2)-0.5", 1.5, 32)
+    assert sheet_positions(mesh, [ROOT]) == pytest.approx([-0.85, 0.85])
+    assert report.poles == 0 and report.jumps == report.roots
+
+
+def test_marked_files_keep_their_labels(tmp_path):
+    mesh, report = labelled("tan(x)", 3.0, 24, cap=True)
+    for suffix in (".ply", ".glb"):
+        path = save_mesh(mesh, tmp_path / f"m{suffix}")
+        assert path.stat().st_size > 0
+    back = load_mesh(tmp_path / "m.ply")
+    assert np.array_equal(back.face_kinds, mesh.face_kinds)
+    assert wall_fraction(back) == pytest.approx(report.wall_fraction, rel=1e-6)
+    import trimesh
+
+    glb = trimesh.load(tmp_path / "m.glb", force="mesh")
+    colours = {tuple(c) for c in np.asarray(glb.visual.vertex_colors)[:, :3]}
+    assert (214, 39, 40) in colours  # poles are red
+
+
+def test_bad_walls_mode_is_a_one_line_error():
+    with pytest.raises(SpecError, match="allowed: keep, remove, mark"):
+        labelled("x", 1.0, 8, walls="drop")
+
+
+def test_points_evaluator_is_the_reference():
+    tree = parse("atan(tan(2*x))*stair1(y,0.5,1,4)+abs(z)^0.3/sec(x*y)-rect2(z,1,0.4)")
+    rng = np.random.default_rng(3)
+    x, y, z = rng.uniform(-3, 3, size=(3, 500))
+    got = PointsEvaluator(tree)(x, y, z)
+    assert np.array_equal(got, evaluate_points(tree, x, y, z), equal_nan=True)
