@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import connected_components
 from surfgen.filters import verdict
 from surfgen.filters.meshlab import face_components
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
+from surfgen.generator.mesh import Mesh, extract_mesh, face_areas
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.pipelines import pictures
@@ -93,7 +93,7 @@ def test_components_match_scipy_label_for_label(meshes) -> None:
     assert counts[0] == 3 and counts[3] == 3  # three balls, junk vertices or not
 
 
-def test_box_faces_and_curvature_are_bit_identical(meshes) -> None:
+def test_box_faces_areas_and_curvature_are_bit_identical(meshes) -> None:
     boxed = 0
     for mesh, box in meshes:
         lo, hi = np.array(box[0::2]), np.array(box[1::2])
@@ -101,6 +101,7 @@ def test_box_faces_and_curvature_are_bit_identical(meshes) -> None:
         fast = verdict._on_box_faces(mesh.vertices, mesh.faces, lo, hi, tol)
         assert np.array_equal(fast, numpy_on_box_faces(mesh, box))
         boxed += int(fast.sum())
+        assert np.array_equal(verdict._face_areas(mesh.vertices, mesh.faces), face_areas(mesh))
         assert verdict._total_abs_curvature(mesh.vertices, mesh.faces) == numpy_curvature(
             mesh.vertices, mesh.faces
         )
