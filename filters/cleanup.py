@@ -55,6 +55,11 @@ class CleanupError(MeshError):
     """Cleanup options that make no sense, or a cleanup that leaves nothing."""
 
 
+MAX_SMOOTH = 1000  # Taubin steps
+MAX_REMESH_ITERATIONS = 100
+MAX_TARGET_FACES = 50_000_000
+
+
 @dataclass(frozen=True)
 class CleanupOptions:
     """What :func:`clean_mesh` does.
@@ -92,6 +97,18 @@ class CleanupOptions:
             raise CleanupError("the merge tolerance and hole size cannot be negative")
         if self.smooth < 0 or self.remesh_iterations < 1:
             raise CleanupError("smoothing steps cannot be negative, remesh iterations at least 1")
+        # User-controlled iteration counts are bounded: each step costs a pass over the mesh.
+        if self.smooth > MAX_SMOOTH:
+            raise CleanupError(f"--smooth takes at most {MAX_SMOOTH} steps, got {self.smooth}")
+        if self.remesh_iterations > MAX_REMESH_ITERATIONS:
+            raise CleanupError(
+                f"remesh iterations must be at most {MAX_REMESH_ITERATIONS}, "
+                f"got {self.remesh_iterations}"
+            )
+        if self.target_faces is not None and self.target_faces > MAX_TARGET_FACES:
+            raise CleanupError(
+                f"--target-faces must be at most {MAX_TARGET_FACES}, got {self.target_faces}"
+            )
 
     @property
     def remeshing(self) -> bool:

@@ -36,6 +36,7 @@ REASONS = (
     "speckle",  # too many components, or no dominant one
     "box_dominated",  # mostly the caps on the box faces
     "blob",  # only convex lumps (plates, slabs, smooth blobs)
+    "plain",  # its envelope with barely a mark on it (sculptures)
     "too_complex",  # genus beyond the limit
     "walls",  # too much of the area is walls (poles and jumps), not the zero set
     "duplicate",  # the same formula and grid is already in the catalogue
@@ -59,6 +60,7 @@ class FilterConfig:
     max_box_fraction: float = 0.35
     max_genus: int = 500
     blob_max_curvature: float = 1.25
+    plain_max_departure: float = 0.12
     require_manifold: bool = True
     max_wall_fraction: float = 0.25
 
@@ -72,6 +74,7 @@ class FilterConfig:
             "max_inside_fraction",
             "min_largest_component_fraction",
             "max_box_fraction",
+            "plain_max_departure",
             "max_wall_fraction",
         )
         require_fractions(self, fractions, "filters")
@@ -242,6 +245,13 @@ def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
     return float(np.abs(2 * math.pi - angle_sum[used]).sum())
 
 
+def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
+    """A shape with an envelope (a sculpture) that departs from it by less than
+    ``plain_max_departure`` of its volume: the envelope with barely a mark on it."""
+    departure = metrics.get("departure")
+    return departure is not None and departure < cfg.plain_max_departure
+
+
 def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:
     """The verdict on :func:`shape_metrics` (or only :func:`quick_metrics`: the checks whose
     metrics are missing are skipped). Every failing reason is listed."""
@@ -267,6 +277,8 @@ def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdic
         # Closed genus-0 components have integral |K| >= 4 pi each, with equality exactly when
         # convex: these are lumps, plates or stacks of slabs, capped or not.
         reasons.append("blob")
+    if plain(m, cfg):
+        reasons.append("plain")
     if genus is not None and genus > cfg.max_genus:
         reasons.append("too_complex")
     return Verdict(not reasons, tuple(reasons))

@@ -19,16 +19,15 @@ A level block reads values of lower levels: those that vary along its run axis a
 vectors, the others are scalars for the row. Power functions ``sum a x^b y^c z^d`` (eq. 8) thus
 cost one multiply-add per term and point; ``x^b`` is computed Nx times, ``a x^b y^c`` Nx*Ny times.
 
-Numeric semantics are those of :mod:`surfgen.generator.reference` on numpy 2.x, operation for
-operation in the same order, with the C library's transcendental functions (which numpy calls
-too on x86-64 without AVX-512), so results are bit-identical, with two notes: "powi" (an integer
-exponent 3..32 or -2..-32) computes the power in double-double and returns it when it is more
-than 0.03 ulp away from a rounding boundary, where C ``pow`` (error <= 0.52 ulp) rounds the same
-way, and calls C ``pow`` otherwise (about 6% of inputs); "tanh" is C ``tanh``, while numpy
-uses its own SIMD tanh (both within 1 ulp, so they may differ by 1 ulp).
-``x^c`` with a constant ``c`` follows numpy's scalar-exponent fast path of ``np.power``:
-``c = 2, 0.5, -1, 1, 0`` give ``x*x``, ``sqrt(x)``, ``1/x``, ``x`` and ``1`` (the kernel applies
-the same rule when the exponent is a row scalar at run time).
+Numeric semantics are those of :mod:`surfgen.generator.reference`, operation for operation in
+the same order: every transcendental is surfgen's own (:mod:`surfgen.generator.elementary`),
+whose numba rows the kernels call and whose numpy twins the reference and the constant folding
+call, so results are bit-identical on every CPU. Both evaluators apply the same tree-level
+rewrites (:func:`surfgen.generator.functions.match_rewrite`): the round trips ``atan(tan u)``,
+``asin(sin u)``, ``acos(cos u)``, ``acot(cot u)`` are one closed-form operation each and
+``u/|u|`` is ``usign``. ``x^c`` with ``c = 2, 0.5, -1, 1, 0`` gives ``x*x``, ``sqrt(x)``, ``1/x``,
+``x`` and ``1`` (numpy's fast path of ``np.power``, kept as a convention that both evaluators
+apply per element, also when the exponent varies); every other power is surfgen's ``pow``.
 
 Tape format (all int64, see :class:`Program`): ``code`` rows ``(op, mode, dst, a, b, imm)``;
 ``mode`` says which operands are vectors (W rows) or row scalars (S slots); ``imm`` is an
@@ -46,10 +45,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfgen.generator import constituents as cf
+from surfgen.generator import elementary as E
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of, to_string
-from surfgen.generator.functions import FUNCTIONS
+from surfgen.generator.expr import Expr, params_of, postorder, to_string
+from surfgen.generator.functions import FUNCTIONS, match_rewrite
 
 # ----------------------------------------------------------------------------- the opcode table
 
@@ -81,14 +81,14 @@ OPCODES: dict[str, tuple[int, int]] = {
     "square": (23, 1),  # u*u (numpy's pow fast path for exponent 2)
     "recip": (24, 1),  # 1/u (exponent -1, cot = 1/tan, sec, csc)
     "usign": (25, 1),  # constituents.unit_sign: u/|u| with +1 at u = 0
-    "powi": (26, 1),  # u^imm for an integer |imm| >= 2, see the module docstring
+    "powi": (26, 1),  # u^imm (no longer emitted: integer powers are pow with a constant)
     "series": (27, 1),  # the sum of eqs (2)-(4); consts[imm:imm+3] = r, p, exact_loop
     "segsum": (28, 1),  # 0.5 * sum of selector*line (fcc, fcc8); consts[imm] = kind, nseg, rows
     "add": (29, 2),
     "sub": (30, 2),
     "mul": (31, 2),
     "div": (32, 2),
-    "pow": (33, 2),  # C pow; with a row-scalar exponent numpy's fast path applies
+    "pow": (33, 2),  # surfgen's pow with the x^c convention (elementary.power)
     "min": (34, 2),  # np.minimum: NaN propagates, equal operands give the second
     "max": (35, 2),
     "atan2": (36, 2),
@@ -105,6 +105,11 @@ OPCODES: dict[str, tuple[int, int]] = {
     "pickn": (46, 2),  # 0 where a is true, else b (if's other branch)
     "fmod": (47, 2),  # C fmod (exact)
     "trunc": (48, 1),
+    # The paper's round trips in closed form (elementary.roundtrip).
+    "atantan": (49, 1),  # atan(tan u)
+    "asinsin": (50, 1),  # asin(sin u)
+    "acoscos": (51, 1),  # acos(cos u)
+    "acotcot": (52, 1),  # acot(cot u) = pi/2 - atan(1/tan u)
 }
 OP = {name: num for name, (num, _) in OPCODES.items()}
 ARITY = {name: n for name, (_, n) in OPCODES.items()}
@@ -122,7 +127,6 @@ LEVEL_ORDER = (1, 2, 4, 6, 3, 5, 7)
 OUT = 7  # store kind of the xyz block: the output field
 
 SEGSUM_FCC, SEGSUM_FCC8 = 0.0, 1.0
-POWI_MAX = 32  # larger integer exponents use pow
 SERIES_SAFE = 1e300  # r*(p+1) above this: the series op loops over i like the reference
 
 
@@ -269,11 +273,19 @@ class _Dag:
 
 
 def _fold(name: str, vals: list[float], imm) -> float:
-    """Evaluate a primitive on constants with numpy, as the reference would."""
+    """Evaluate a primitive on constants with the reference's numpy functions."""
     a = [np.asarray(v, np.float64) for v in vals]
     with np.errstate(all="ignore"):
         if name in _NP_UNARY:
             out = _NP_UNARY[name](a[0])
+        elif name in E.UNARY:
+            out = E.call(name, a[0])
+        elif name in E.ROUND_TRIPS:
+            out = E.round_trip(name, a[0])
+        elif name == "pow":
+            out = E.power(a[0], a[1])
+        elif name == "atan2":
+            out = E.call("atan2", a[0], a[1])
         elif name in _NP_BINARY:
             out = _NP_BINARY[name](a[0], a[1])
         elif name == "square":
@@ -286,34 +298,17 @@ def _fold(name: str, vals: list[float], imm) -> float:
             out = cf._ratio(a[0], a[1])
         elif name in _LOGIC_FOLD:
             out = _LOGIC_FOLD[name](*a)
-        elif name == "powi":
-            out = np.power(a[0], np.float64(imm))
-        else:  # series, segsum never see constants: the function is folded whole
+        else:  # powi is not emitted; series, segsum never see constants (folded whole)
             raise AssertionError(f"cannot fold {name}")
     return float(np.asarray(out, np.float64))
 
 
+# Exact operations (no rounding choices): numpy's own functions are the reference's too.
 _NP_UNARY = {
     "copy": lambda u: u,
     "neg": np.negative,
     "abs": np.abs,
-    "sin": np.sin,
-    "cos": np.cos,
-    "tan": np.tan,
-    "asin": np.arcsin,
-    "acos": np.arccos,
-    "atan": np.arctan,
-    "sinh": np.sinh,
-    "cosh": np.cosh,
-    "tanh": np.tanh,
-    "asinh": np.arcsinh,
-    "acosh": np.arccosh,
-    "atanh": np.arctanh,
-    "exp": np.exp,
-    "log": np.log,
-    "log10": np.log10,
     "sqrt": np.sqrt,
-    "cbrt": np.cbrt,
     "sign": np.sign,
     "floor": np.floor,
     "ceil": np.ceil,
@@ -323,10 +318,8 @@ _NP_BINARY = {
     "sub": np.subtract,
     "mul": np.multiply,
     "div": np.divide,
-    "pow": np.power,
     "min": np.minimum,
     "max": np.maximum,
-    "atan2": np.arctan2,
 }
 _LOGIC_FOLD = {
     "lt": logic.lt,
@@ -393,6 +386,9 @@ class _Lowerer:
             return d.var(node.value)  # type: ignore[arg-type]
         if op == "neg":
             return d.op("neg", self.lower(node.args[0]))
+        rewrite = match_rewrite(node)
+        if rewrite is not None:  # the same rewrite the reference applies
+            return d.op(rewrite[0], self.lower(rewrite[1]))
         if op == "not":
             return d.op("not", self.lower(node.args[0]))
         if op in _TREE_LOGIC:
@@ -433,7 +429,7 @@ class _Lowerer:
         d = self.dag
         if d.is_const(expo) and not d.is_const(base):
             e = d.value(expo)
-            # numpy's DOUBLE_power fast path for a stride-0 exponent.
+            # The x^c convention (elementary.POW_SHORTCUTS), as one cheap operation.
             if e == 2.0:
                 return d.op("square", base)
             if e == 0.5:
@@ -444,8 +440,6 @@ class _Lowerer:
                 return base
             if e == 0.0:
                 return d.const(1.0)
-            if e.is_integer() and 2 <= abs(e) <= POWI_MAX:
-                return d.op("powi", base, imm=int(e))
         return d.op("pow", base, expo)
 
     def _function(self, op: str, args: list[int]) -> int:
@@ -476,7 +470,7 @@ class _Lowerer:
         return self.dag.op("sub", self.dag.const(np.pi / 2), self.dag.op("atan", u))
 
     def _acot_cot(self, u: int) -> int:
-        return self._acot(self.dag.op("recip", self.dag.op("tan", u)))
+        return self.dag.op("acotcot", u)
 
     def _pi_x_over_r(self, x: int, r: float) -> int:
         d = self.dag
@@ -501,8 +495,8 @@ class _Lowerer:
             (t,) = c
             u = d.op("mul", pi, x)
             v = d.op("mul", pi, d.op("add", x, k(t)))
-            first = d.op("ratio1", d.op("asin", d.op("sin", u)), d.op("atan", d.op("tan", u)))
-            second = d.op("ratio1", d.op("atan", d.op("tan", v)), d.op("asin", d.op("sin", v)))
+            first = d.op("ratio1", d.op("asinsin", u), d.op("atantan", u))
+            second = d.op("ratio1", d.op("atantan", v), d.op("asinsin", v))
             return d.op("mul", k(0.5), d.op("sub", d.op("mul", first, second), k(1.0)))
         if op == "saw2":
             (r,) = c
@@ -510,7 +504,7 @@ class _Lowerer:
         if op == "tri2":
             (r,) = c
             w = d.op("div", d.op("mul", k(2.0 * np.pi), x), k(r))
-            return d.op("div", d.op("acos", d.op("cos", w)), pi)
+            return d.op("div", d.op("acoscos", w), pi)
         if op == "tri3":
             (r,) = c
             a = self._acot_cot(self._pi_x_over_r(x, r))
@@ -559,6 +553,8 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
             f"parameter '{missing[0]}' has no value (give it with --param {missing[0]}=...)"
         )
     low = _Lowerer(params)
+    for node in postorder(tree):  # children first, so lower() never recurses more than once
+        low.lower(node)
     root = low.lower(tree)
     return _schedule(low.dag, root, to_string(tree))
 
@@ -733,8 +729,9 @@ class _Block:
             else:
                 mode, a, b = M_SV, self._scalar(nd.args[0]), self.slot[nd.args[1]]
             # The result never shares a row with an operand: in place, the compiler's runtime
-            # alias check fails and the loop runs scalar (and powi reads its input after
-            # writing). Operands that die here are freed for the next instructions.
+            # alias check fails and the loop runs scalar (and pow and the round trips read
+            # their operands again in a second loop, after writing the result).
+            # Operands that die here are freed for the next instructions.
             dying = [
                 x
                 for x in dict.fromkeys(nd.args)

@@ -20,9 +20,11 @@ The quotients of ``rect3`` (``asin(sin u) / atan(tan u)`` and its inverse) are 0
 
 The trigonometric forms use ``cot(u) = 1/tan(u)`` and Maple's ``arccot(u) = pi/2 - atan(u)``
 (range (0, pi)), so ``arccot(cot(u)) = u mod pi`` and ``saw2`` is ``frac(x/r)`` on all of R.
-At the jumps (x/r an integer) that form depends on the rounding of ``tan`` and gives 0 or 1
-(so ``saw2``/``stair2``/``rect2`` take one of their two one-sided limits there, never NaN;
-``tri3`` is 1 and ``tri2`` is 0 at x = k r either way).
+The round trips ``arccot(cot u)``, ``arccos(cos u)``, ``arcsin(sin u)``, ``arctan(tan u)`` are
+computed in closed form (:mod:`surfgen.generator.elementary.roundtrip`): ``arccot(cot u)`` is
+``u mod pi`` in ``[0, pi)``, exact for the double ``u`` (0 at u = 0), so at a jump the value
+only depends on how ``pi x / r`` rounds: at x = k r ``saw2``/``stair2``/``rect2`` take one of
+their two one-sided limits, never NaN (``tri3`` is 1 and ``tri2`` is 0 at x = k r either way).
 
 Where the alternative forms agree and differ (tested in ``tests/generator/test_constituents.py``):
 
@@ -48,6 +50,7 @@ import math
 
 import numpy as np
 
+from surfgen.generator import elementary as E
 from surfgen.generator.errors import FormulaError
 
 ArrayLike = np.ndarray | float
@@ -85,12 +88,27 @@ def segment_selector(x: ArrayLike, a: float, b: float) -> np.ndarray:
 
 def cot(u: ArrayLike) -> np.ndarray:
     with np.errstate(divide="ignore", over="ignore"):  # 1/0 and 1/subnormal are +-inf
-        return 1.0 / np.tan(u)
+        return 1.0 / E.call("tan", u)
+
+
+def sec(u: ArrayLike) -> np.ndarray:
+    with np.errstate(divide="ignore", over="ignore"):
+        return 1.0 / E.call("cos", u)
+
+
+def csc(u: ArrayLike) -> np.ndarray:
+    with np.errstate(divide="ignore", over="ignore"):
+        return 1.0 / E.call("sin", u)
 
 
 def acot(u: ArrayLike) -> np.ndarray:
     """Maple's principal arccot, range (0, pi): ``pi/2 - atan(u)``."""
-    return np.pi / 2 - np.arctan(u)
+    return np.pi / 2 - E.call("atan", u)
+
+
+def acot_cot(u: ArrayLike) -> np.ndarray:
+    """``acot(cot(u)) = u mod pi`` in ``[0, pi)``, in closed form."""
+    return E.round_trip("acotcot", u)
 
 
 def _check(cond: bool, message: str) -> None:
@@ -180,7 +198,7 @@ def stair1(x: ArrayLike, r: float, h: float, p: float) -> np.ndarray:
 def rect1(x: ArrayLike, t: float) -> np.ndarray:
     """Eq. (5): ``1/2 - 1/2 (sin(pi x) + t)/|sin(pi x) + t|``, |t| < 1."""
     _check(abs(t) < 1, f"rect1: t must satisfy |t| < 1, got {t}")
-    return 0.5 - 0.5 * unit_sign(np.sin(np.pi * np.asarray(x, dtype=np.float64)) + t)
+    return 0.5 - 0.5 * unit_sign(E.call("sin", np.pi * np.asarray(x, dtype=np.float64)) + t)
 
 
 def rect2(x: ArrayLike, r: float, t: float) -> np.ndarray:
@@ -189,7 +207,7 @@ def rect2(x: ArrayLike, r: float, t: float) -> np.ndarray:
     _check(math.isfinite(t), f"rect2: t must be a finite number, got {t}")
     _check(not float(t / r).is_integer(), f"rect2: t/r must not be a whole number, got {t / r}")
     x = np.asarray(x, dtype=np.float64)
-    return t / r - acot(cot(np.pi * (x + t) / r)) / np.pi + acot(cot(np.pi * x / r)) / np.pi
+    return t / r - acot_cot(np.pi * (x + t) / r) / np.pi + acot_cot(np.pi * x / r) / np.pi
 
 
 def _ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -205,8 +223,8 @@ def rect3(x: ArrayLike, t: float) -> np.ndarray:
     _check(not float(t).is_integer(), f"rect3: t must not be a whole number, got {t}")
     u = np.pi * np.asarray(x, dtype=np.float64)
     v = np.pi * (np.asarray(x, dtype=np.float64) + t)
-    first = _ratio(np.arcsin(np.sin(u)), np.arctan(np.tan(u)))
-    second = _ratio(np.arctan(np.tan(v)), np.arcsin(np.sin(v)))
+    first = _ratio(E.round_trip("asinsin", u), E.round_trip("atantan", u))
+    second = _ratio(E.round_trip("atantan", v), E.round_trip("asinsin", v))
     return 0.5 * (first * second - 1.0)
 
 
@@ -220,19 +238,19 @@ def _check_r(name: str, r: float) -> None:
 def saw2(x: ArrayLike, r: float) -> np.ndarray:
     """Eq. (9): ``arccot(cot(pi x/r))/pi``."""
     _check_r("saw2", r)
-    return acot(cot(np.pi * np.asarray(x, dtype=np.float64) / r)) / np.pi
+    return acot_cot(np.pi * np.asarray(x, dtype=np.float64) / r) / np.pi
 
 
 def tri2(x: ArrayLike, r: float) -> np.ndarray:
     """Eq. (10): ``arccos(cos(2 pi x/r))/pi``."""
     _check_r("tri2", r)
-    return np.arccos(np.cos(2.0 * np.pi * np.asarray(x, dtype=np.float64) / r)) / np.pi
+    return E.round_trip("acoscos", 2.0 * np.pi * np.asarray(x, dtype=np.float64) / r) / np.pi
 
 
 def tri3(x: ArrayLike, r: float) -> np.ndarray:
     """Eq. (11): ``|2/pi arccot(cot(pi x/r)) - 1|``."""
     _check_r("tri3", r)
-    return np.abs(2.0 / np.pi * acot(cot(np.pi * np.asarray(x, dtype=np.float64) / r)) - 1.0)
+    return np.abs(2.0 / np.pi * acot_cot(np.pi * np.asarray(x, dtype=np.float64) / r) - 1.0)
 
 
 def stair2(x: ArrayLike, r: float, h: float) -> np.ndarray:
@@ -240,7 +258,7 @@ def stair2(x: ArrayLike, r: float, h: float) -> np.ndarray:
     _check_r("stair2", r)
     _check(math.isfinite(h), f"stair2: h must be a finite number, got {h}")
     x = np.asarray(x, dtype=np.float64)
-    return h * (x / r - acot(cot(np.pi * x / r)) / np.pi)
+    return h * (x / r - acot_cot(np.pi * x / r) / np.pi)
 
 
 # ----------------------------------------------------------------------------- eq. (8)
@@ -253,4 +271,6 @@ def power_function(
     _check(len(terms) >= 1, "power function needs at least one term")
     x, y, z = (np.asarray(v, dtype=np.float64) for v in (x, y, z))
     with np.errstate(all="ignore"):
-        return sum(a * x**b * y**c * z**d for a, b, c, d in terms)  # type: ignore[return-value]
+        return sum(  # type: ignore[return-value]
+            a * E.power(x, b) * E.power(y, c) * E.power(z, d) for a, b, c, d in terms
+        )

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 VARIABLES = ("x", "y", "z")
 BINARY_OPS = ("+", "-", "*", "/", "^", "%", "<", "<=", ">", ">=", "=", "!=", "&", "|")
@@ -53,6 +53,9 @@ class Expr:
     op: str
     args: tuple[Expr, ...] = ()
     value: float | str | None = None
+    # The hash, computed once from the children's: hashing and comparing a tree never recurse,
+    # so a 20,000-term flat sum (a left-deep tree) is as safe as a short formula.
+    _hash: int = field(default=0, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.op == "num":
@@ -61,6 +64,33 @@ class Expr:
                 raise ValueError(f"num node needs a finite float >= 0, got {v!r}")
             if v == 0.0:  # fold -0.0 so equal trees print equally
                 object.__setattr__(self, "value", 0.0)
+        object.__setattr__(
+            self, "_hash", hash((self.op, self.value, *(a._hash for a in self.args)))
+        )
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other: object) -> bool:
+        if self is other:
+            return True
+        if not isinstance(other, Expr):
+            return NotImplemented
+        stack, seen = [(self, other)], set()
+        while stack:  # iterative: deep trees compare without recursion
+            a, b = stack.pop()
+            if a is b or (id(a), id(b)) in seen:
+                continue
+            seen.add((id(a), id(b)))
+            if a._hash != b._hash or a.op != b.op or a.value != b.value:
+                return False
+            if len(a.args) != len(b.args):
+                return False
+            stack.extend(zip(a.args, b.args, strict=True))
+        return True
+
+    def __reduce__(self):  # rebuild through __init__: the cached hash is per process
+        return (Expr, (self.op, self.args, self.value))
 
     def __str__(self) -> str:
         return to_string(self)
@@ -165,6 +195,36 @@ def walk(tree: Expr) -> Iterator[Expr]:
         stack.extend(reversed(node.args))
 
 
+def postorder(tree: Expr) -> list[Expr]:
+    """Each distinct node (by identity) once, children before parents, without recursion.
+
+    Consumers that memoise per node (the compiler, the reference evaluator) visit this list
+    first, so their own recursion never goes deeper than one level.
+    """
+    out: list[Expr] = []
+    seen: set[int] = set()
+    stack: list[tuple[Expr, bool]] = [(tree, False)]
+    while stack:
+        node, done = stack.pop()
+        if done:
+            out.append(node)
+            continue
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        stack.append((node, True))
+        stack.extend((a, False) for a in reversed(node.args) if id(a) not in seen)
+    return out
+
+
+def depth_of(tree: Expr) -> int:
+    """Nodes on the longest path from the root to a leaf (1 for a leaf)."""
+    depth: dict[int, int] = {}
+    for node in postorder(tree):
+        depth[id(node)] = 1 + max((depth[id(a)] for a in node.args), default=0)
+    return depth[id(tree)]
+
+
 def variables_of(tree: Expr) -> frozenset[str]:
     return frozenset(n.value for n in walk(tree) if n.op == "var")  # type: ignore[misc]
 
@@ -175,21 +235,16 @@ def params_of(tree: Expr) -> frozenset[str]:
 
 def substitute_params(tree: Expr, values: Mapping[str, float]) -> Expr:
     """Replace every ``param`` node named in ``values`` by its number."""
-    memo: dict[Expr, Expr] = {}
-
-    def sub(node: Expr) -> Expr:
-        if node in memo:
-            return memo[node]
+    memo: dict[int, Expr] = {}
+    for node in postorder(tree):  # children first: no recursion
         if node.op == "param" and node.value in values:
             out = num(values[node.value])  # type: ignore[index]
         elif node.args:
-            out = Expr(node.op, tuple(sub(a) for a in node.args), node.value)
+            out = Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
         else:
             out = node
-        memo[node] = out
-        return out
-
-    return sub(tree)
+        memo[id(node)] = out
+    return memo[id(tree)]
 
 
 # ----------------------------------------------------------------------------- printing
@@ -211,32 +266,76 @@ def _prec(node: Expr) -> int:
 
 
 def to_string(tree: Expr) -> str:
-    """Canonical K3DSurf/MathMod text of ``tree``; ``parse(to_string(t)) == t``."""
-    op = tree.op
-    if op == "num":
-        return format_number(tree.value)  # type: ignore[arg-type]
-    if op in ("var", "param"):
-        return str(tree.value)
-    if op == "pi":
-        return "pi"
-    if op in _UNARY_TEXT:
-        (a,) = tree.args
-        # '-' applies to a power or an atom without parentheses; '-(-x)' keeps them for clarity.
-        inner = to_string(a)
-        return _UNARY_TEXT[op] + (inner if _prec(a) >= _PREC_POW else f"({inner})")
-    if op in _BINARY_PREC:
-        a, b = tree.args
-        p = _BINARY_PREC[op]
-        if op == "^":  # right-associative: base needs an atom, exponent may be a power or neg
-            left = _wrap(a, _PREC_ATOM)
-            right = _wrap(b, _PREC_NEG) if b.op not in _UNARY_TEXT else _wrap(b, _PREC_POW)
-        else:  # left-associative: the right operand needs strictly higher precedence
-            left = _wrap(a, p)
-            right = f"({to_string(b)})" if b.op in _UNARY_TEXT else _wrap(b, p + 1)
-        return f"{left}{op}{right}"
-    return f"{op}({','.join(to_string(a) for a in tree.args)})"
+    """Canonical K3DSurf/MathMod text of ``tree``; ``parse(to_string(t)) == t``.
+
+    Iterative (an explicit stack of nodes and text pieces), so any depth prints.
+    """
+    out: list[str] = []
+    stack: list[Expr | str] = [tree]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, str):
+            out.append(item)
+            continue
+        op = item.op
+        if op == "num":
+            out.append(format_number(item.value))  # type: ignore[arg-type]
+        elif op in ("var", "param"):
+            out.append(str(item.value))
+        elif op == "pi":
+            out.append("pi")
+        elif op in _UNARY_TEXT:
+            out.append(_UNARY_TEXT[op])
+            _push(stack, item.args[0], _bare(item, 0))
+        elif op in _BINARY_PREC:
+            a, b = item.args
+            _push(stack, b, _bare(item, 1))  # pushed first, printed last
+            stack.append(op)
+            _push(stack, a, _bare(item, 0))
+        else:
+            out.append(f"{op}(")
+            stack.append(")")
+            for k, a in enumerate(reversed(item.args)):
+                if k:
+                    stack.append(",")
+                stack.append(a)
+    return "".join(out)
 
 
-def _wrap(node: Expr, min_prec: int) -> str:
-    text = to_string(node)
-    return text if _prec(node) >= min_prec else f"({text})"
+def _bare(parent: Expr, k: int) -> bool:
+    """Whether the printer writes argument ``k`` of an operator node without parentheses."""
+    child = parent.args[k]
+    if parent.op in _UNARY_TEXT:  # '-' and '!' apply to a power or an atom bare; '-(-x)' keeps
+        return _prec(child) >= _PREC_POW
+    if parent.op == "^":  # right-associative: base needs an atom, exponent a power or unary
+        if k == 0:
+            return _prec(child) >= _PREC_ATOM
+        return _prec(child) >= (_PREC_POW if child.op in _UNARY_TEXT else _PREC_NEG)
+    p = _BINARY_PREC[parent.op]  # left-associative: the right operand needs higher precedence
+    if k == 0:
+        return _prec(child) >= p
+    return child.op not in _UNARY_TEXT and _prec(child) >= p + 1
+
+
+def printed_nesting(tree: Expr) -> int:
+    """The deepest nesting of parentheses (grouping and function calls) in ``to_string(tree)``,
+    computed without printing: the parser's nesting limit applies to it."""
+    depth: dict[int, int] = {}
+    for node in postorder(tree):
+        best = 0
+        for k, a in enumerate(node.args):
+            if node.op in _BINARY_PREC or node.op in _UNARY_TEXT:
+                extra = 0 if _bare(node, k) else 1
+            else:  # a function call: its own parentheses
+                extra = 1
+            best = max(best, depth[id(a)] + extra)
+        depth[id(node)] = best
+    return depth[id(tree)]
+
+
+def _push(stack: list[Expr | str], node: Expr, bare: bool) -> None:
+    """Schedule ``node`` for printing, in parentheses unless ``bare``."""
+    if bare:
+        stack.append(node)
+    else:
+        stack.extend((")", node, "("))

@@ -3,8 +3,14 @@
 Numeric semantics, decided once (see README, "Numeric semantics"):
 
 - float64 everywhere, IEEE rules: ``1/0 = inf``, ``0/0 = NaN``; no error is raised for them.
-- ``u^l`` is C's ``pow``: a negative ``u`` with a non-integer ``l`` gives NaN (the paper writes
-  ``|x|^0.31`` to avoid this; eq. (13)'s sampler wraps such bases in ``abs``).
+- every transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`), the same
+  bits on every CPU;
+- ``u^l`` follows C's ``pow``: a negative ``u`` with a non-integer ``l`` gives NaN (the paper
+  writes ``|x|^0.31`` to avoid this; eq. (13)'s sampler wraps such bases in ``abs``); exponents
+  2, 0.5, -1, 1, 0 give ``u*u``, ``sqrt(u)``, ``1/u``, ``u``, ``1`` (numpy's fast path, kept);
+- the round trips ``atan(tan u)``, ``asin(sin u)``, ``acos(cos u)``, ``acot(cot u)`` are computed
+  in closed form (:mod:`surfgen.generator.elementary.roundtrip`) and ``u/|u|`` as
+  ``constituents.unit_sign`` (+1 at u = 0): :func:`match_rewrite`, applied by both evaluators.
 - ``cot = 1/tan``, ``sec = 1/cos``, ``csc = 1/sin`` (so ``cot(0) = inf``), ``acot(u) = pi/2 - atan(u)``
   (Maple's branch, range (0, pi)); ``sign(0) = 0``; ``min``/``max`` propagate NaN.
 - Inverse functions outside their domain (``asin(2)``, ``log(-1)``) give NaN.
@@ -16,13 +22,16 @@ other arguments are parameters that must be constant (numbers, ``pi`` and named 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from surfgen.generator import constituents as cf
+from surfgen.generator import elementary as E
 from surfgen.generator import logic
+from surfgen.generator.expr import Expr
 
 
 @dataclass(frozen=True)
@@ -54,6 +63,11 @@ def _math(name: str, fn: Callable[..., np.ndarray], n: int = 1, doc: str = "") -
     return FunctionDef(name, n, n, fn, None, doc)
 
 
+def _own(name: str, n: int = 1) -> FunctionDef:
+    """A transcendental function: surfgen's own (elementary)."""
+    return _math(name, functools.partial(E.call, name), n)
+
+
 def _fcc_reference(x: np.ndarray, *coords: float) -> np.ndarray:
     if len(coords) % 2:
         from surfgen.generator.errors import FormulaError
@@ -66,28 +80,28 @@ def _fcc_reference(x: np.ndarray, *coords: float) -> np.ndarray:
 
 
 _TABLE: list[FunctionDef] = [
-    _math("sin", np.sin),
-    _math("cos", np.cos),
-    _math("tan", np.tan),
+    _own("sin"),
+    _own("cos"),
+    _own("tan"),
     _math("cot", cf.cot, doc="1/tan(u)"),
-    _math("sec", lambda u: 1.0 / np.cos(u), doc="1/cos(u)"),
-    _math("csc", lambda u: 1.0 / np.sin(u), doc="1/sin(u)"),
-    _math("asin", np.arcsin),
-    _math("acos", np.arccos),
-    _math("atan", np.arctan),
+    _math("sec", cf.sec, doc="1/cos(u)"),
+    _math("csc", cf.csc, doc="1/sin(u)"),
+    _own("asin"),
+    _own("acos"),
+    _own("atan"),
     _math("acot", cf.acot, doc="pi/2 - atan(u), range (0, pi)"),
-    _math("atan2", np.arctan2, 2),
-    _math("sinh", np.sinh),
-    _math("cosh", np.cosh),
-    _math("tanh", np.tanh),
-    _math("asinh", np.arcsinh),
-    _math("acosh", np.arccosh),
-    _math("atanh", np.arctanh),
-    _math("exp", np.exp),
-    _math("log", np.log),
-    _math("log10", np.log10),
+    _own("atan2", 2),
+    _own("sinh"),
+    _own("cosh"),
+    _own("tanh"),
+    _own("asinh"),
+    _own("acosh"),
+    _own("atanh"),
+    _own("exp"),
+    _own("log"),
+    _own("log10"),
     _math("sqrt", np.sqrt),
-    _math("cbrt", np.cbrt),
+    _own("cbrt"),
     _math("abs", np.abs),
     _math("sign", np.sign),
     _math("floor", np.floor),
@@ -122,3 +136,28 @@ MACROS = {
 }
 
 CONSTITUENT_NAMES = tuple(f.name for f in _TABLE if f.const_from is not None or f.name == "fcc8")
+
+# ----------------------------------------------------------------------------- rewrites
+
+# f(g(u)) computed in closed form (elementary.roundtrip), the name of the one operation.
+ROUND_TRIPS: dict[tuple[str, str], str] = {
+    ("atan", "tan"): "atantan",
+    ("asin", "sin"): "asinsin",
+    ("acos", "cos"): "acoscos",
+    ("acot", "cot"): "acotcot",
+}
+
+
+def match_rewrite(node: Expr) -> tuple[str, Expr] | None:
+    """The tree-level rewrite that both evaluators apply to ``node``, or ``None``.
+
+    Returns ``(name, u)``: ``name`` is a round trip of :data:`ROUND_TRIPS` (``atan(tan(u))``
+    -> ``"atantan"``) or ``"usign"`` for ``u/abs(u)`` (the paper's sign, +1 at u = 0 as in the
+    constituent functions, +-1 at +-inf instead of NaN)."""
+    if len(node.args) == 1 and len(node.args[0].args) == 1:
+        name = ROUND_TRIPS.get((node.op, node.args[0].op))
+        if name is not None:
+            return name, node.args[0].args[0]
+    if node.op == "/" and node.args[1].op == "abs" and node.args[1].args[0] == node.args[0]:
+        return "usign", node.args[0]
+    return None

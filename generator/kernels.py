@@ -2,9 +2,10 @@
 
 Kernels are dumb: arrays and scalars in, arrays out; :mod:`surfgen.generator.fast` validates
 before calling. ``error_model='numpy'`` so that 0/0 and 1/0 give NaN and inf instead of raising;
-no fastmath (NaN and inf are normal values here). Transcendental functions are the C library's
-(``math.sin`` -> libm ``sin``), the same calls numpy makes on x86-64 without AVX-512, so results
-are bit-identical to the numpy reference.
+no fastmath (NaN and inf are normal values here), hence no FMA contraction either. Every
+transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`): a row function
+that runs a whole W row, whose numpy twin the reference evaluator calls, so results are
+bit-identical to the reference on every CPU. No C library maths is called here.
 
 Layout of a run: the caller allocates the output; the x, y, z and yz stores are computed once
 (:func:`_prologue`, :func:`_yz_rows`), then each slab of x indices (:func:`_slab`, one per
@@ -24,6 +25,8 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
+from surfgen.generator.elementary import REGISTRY as _E
+from surfgen.generator.elementary import roundtrip as _rt
 
 _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
 
@@ -66,6 +69,10 @@ OP_MIN = OP["min"]
 OP_MAX = OP["max"]
 OP_ATAN2 = OP["atan2"]
 OP_RATIO1 = OP["ratio1"]
+OP_ATANTAN = OP["atantan"]
+OP_ASINSIN = OP["asinsin"]
+OP_ACOSCOS = OP["acoscos"]
+OP_ACOTCOT = OP["acotcot"]
 OP_LT = OP["lt"]
 OP_LE = OP["le"]
 OP_EQ = OP["eq"]
@@ -79,25 +86,33 @@ OP_FMOD = OP["fmod"]
 OP_TRUNC = OP["trunc"]
 EPS = 1e-12  # logic.EPS: fparser's comparison tolerance
 
-# powi: the double-double power is returned when it stays correctly rounded after moving it
-# 1/0.94 of its way to the rounding boundary, i.e. when it is not within 0.03 ulp of a
-# midpoint; glibc's pow is within 0.52 ulp, so both then round to the same double.
-_POWI_MARGIN = 1.0 / 0.94
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """Fused multiply-add (one rounding): exact products for double-double arithmetic."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        d = ir.DoubleType()
-        fn = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64"
-        )
-        return builder.call(fn, args)
-
-    return sig, codegen
+# The row functions (numba dispatchers as globals: compiled into the interpreter).
+_sin_row = _E["sin"].row
+_cos_row = _E["cos"].row
+_tan_row = _E["tan"].row
+_asin_row = _E["asin"].row
+_acos_row = _E["acos"].row
+_atan_row = _E["atan"].row
+_sinh_row = _E["sinh"].row
+_cosh_row = _E["cosh"].row
+_tanh_row = _E["tanh"].row
+_asinh_row = _E["asinh"].row
+_acosh_row = _E["acosh"].row
+_atanh_row = _E["atanh"].row
+_exp_row = _E["exp"].row
+_log_row = _E["log"].row
+_log10_row = _E["log10"].row
+_cbrt_row = _E["cbrt"].row
+_atan2_vv = _E["atan2"].row_vv
+_atan2_vs = _E["atan2"].row_vs
+_atan2_sv = _E["atan2"].row_sv
+_pow_vv = _E["pow"].row_vv
+_pow_vs = _E["pow"].row_vs
+_pow_sv = _E["pow"].row_sv
+_atantan_row = _rt.atantan_row
+_asinsin_row = _rt.asinsin_row
+_acoscos_row = _rt.acoscos_row
+_acotcot_row = _rt.acotcot_row
 
 
 @intrinsic
@@ -202,19 +217,41 @@ def _trunc(u):
 
 
 @njit(inline="always", **_OPTS)
-def _pow_scalar_exponent(u, e):
-    """np.power with a stride-0 exponent: numpy's fast path, else C pow."""
-    if e == 2.0:
-        return u * u
-    if e == 0.5:
-        return math.sqrt(u)
-    if e == -1.0:
-        return 1.0 / u
-    if e == 1.0:
-        return u
-    if e == 0.0:
-        return 1.0
-    return u**e
+def _pow_rule(u, e, p):
+    """The ``x^c`` convention (elementary.POW_SHORTCUTS) applied to ``p = pow(u, e)``:
+    branch-free selects, so the loop that applies it vectorises."""
+    r = p
+    r = u * u if e == 2.0 else r
+    r = math.sqrt(u) if e == 0.5 else r
+    r = 1.0 / u if e == -1.0 else r
+    r = u if e == 1.0 else r
+    return 1.0 if e == 0.0 else r
+
+
+@njit(**_OPTS)
+def _power_vs(W, d, a, s, n):
+    """W[d] = W[a]^s: the shortcut loop for s in POW_SHORTCUTS, else surfgen's pow."""
+    if s == 2.0 or s == 0.5 or s == -1.0 or s == 1.0 or s == 0.0:
+        for k in range(n):
+            u = W[a, k]
+            W[d, k] = _pow_rule(u, s, u)
+    else:
+        _pow_vs(W, d, a, s, n)
+
+
+@njit(**_OPTS)
+def _power_vv(W, d, a, b, n):
+    """W[d] = W[a]^W[b] (d differs from a and b: the compiler never writes in place)."""
+    _pow_vv(W, d, a, b, n)
+    for k in range(n):
+        W[d, k] = _pow_rule(W[a, k], W[b, k], W[d, k])
+
+
+@njit(**_OPTS)
+def _power_sv(W, d, s, b, n):
+    _pow_sv(W, d, s, b, n)
+    for k in range(n):
+        W[d, k] = _pow_rule(s, W[b, k], W[d, k])
 
 
 @njit(**_OPTS)
@@ -242,7 +279,7 @@ def _series(x, r, p):
         if -p <= i <= p:
             a = r * (i - 1)
             if a <= x and x < r * i:
-                return 2.0 * (x - a)
+                return 0.0 + 2.0 * (x - a)  # +0 + ...: the sum's sign of zero (x = -0)
     return 0.0
 
 
@@ -251,46 +288,6 @@ def _series(x, r, p):
 # Every operation reads and writes rows of the register file W (n_vector, tile) by index:
 # creating array views per instruction costs reference counting that, per row of a few
 # hundred points, is as expensive as the arithmetic.
-
-
-@njit(**_OPTS)
-def _powi(W, d, a, n, m, T):
-    """W[d] = W[a]^m for an integer |m| >= 2 (d != a). Double-double power, C pow where the
-    rounding could differ (about 6% of inputs, and every non-finite or extreme one)."""
-    e = abs(m)
-    for k in range(n):
-        T[0, k] = W[a, k]
-        T[1, k] = 0.0
-    for _ in range(e - 1):
-        for k in range(n):
-            u = W[a, k]
-            h = T[0, k]
-            p = h * u
-            s = _fma(h, u, -p) + T[1, k] * u
-            hh = p + s
-            T[1, k] = s - (hh - p)
-            T[0, k] = hh
-    if m < 0:
-        for k in range(n):
-            h = T[0, k]
-            q = 1.0 / h
-            c = q * (_fma(-q, h, 1.0) - q * T[1, k])
-            hh = q + c
-            T[1, k] = c - (hh - q)
-            T[0, k] = hh
-    bad = 0
-    for k in range(n):  # branch-free so that it vectorizes; T[1] becomes the fallback flag
-        h = T[0, k]
-        ah = abs(h)
-        ok = (h + T[1, k] * _POWI_MARGIN == h) & (ah > 1e-300) & (ah < 1e300)
-        W[d, k] = h
-        T[1, k] = 0.0 if ok else 1.0
-        bad += 0 if ok else 1
-    if bad:
-        fm = float(m)
-        for k in range(n):
-            if T[1, k] != 0.0:
-                W[d, k] = W[a, k] ** fm
 
 
 @njit(**_OPTS)
@@ -346,58 +343,50 @@ def _unary(op, W, d, a, n, consts, imm, T):
         for k in range(n):
             W[d, k] = math.sqrt(W[a, k])
     elif op == OP_SIN:
-        for k in range(n):
-            W[d, k] = math.sin(W[a, k])
+        _sin_row(W, d, a, n)
     elif op == OP_COS:
-        for k in range(n):
-            W[d, k] = math.cos(W[a, k])
+        _cos_row(W, d, a, n)
     elif op == OP_TAN:
-        for k in range(n):
-            W[d, k] = math.tan(W[a, k])
+        _tan_row(W, d, a, n)
     elif op == OP_ATAN:
-        for k in range(n):
-            W[d, k] = math.atan(W[a, k])
+        _atan_row(W, d, a, n)
     elif op == OP_ASIN:
-        for k in range(n):
-            W[d, k] = math.asin(W[a, k])
+        _asin_row(W, d, a, n)
     elif op == OP_ACOS:
-        for k in range(n):
-            W[d, k] = math.acos(W[a, k])
-    elif op == OP_POWI:
-        _powi(W, d, a, n, imm, T)
+        _acos_row(W, d, a, n)
+    elif op == OP_ATANTAN:
+        _atantan_row(W, d, a, n)
+    elif op == OP_ACOTCOT:
+        _acotcot_row(W, d, a, n)
+    elif op == OP_ASINSIN:
+        _asinsin_row(W, d, a, n)
+    elif op == OP_ACOSCOS:
+        _acoscos_row(W, d, a, n)
     elif op == OP_USIGN:
         for k in range(n):
             W[d, k] = _usign(W[a, k])
     elif op == OP_EXP:
-        for k in range(n):
-            W[d, k] = math.exp(W[a, k])
+        _exp_row(W, d, a, n)
     elif op == OP_LOG:
-        for k in range(n):
-            W[d, k] = math.log(W[a, k])
+        _log_row(W, d, a, n)
     elif op == OP_LOG10:
-        for k in range(n):
-            W[d, k] = math.log10(W[a, k])
+        _log10_row(W, d, a, n)
     elif op == OP_SINH:
-        for k in range(n):
-            W[d, k] = math.sinh(W[a, k])
+        _sinh_row(W, d, a, n)
     elif op == OP_COSH:
-        for k in range(n):
-            W[d, k] = math.cosh(W[a, k])
+        _cosh_row(W, d, a, n)
     elif op == OP_TANH:
-        for k in range(n):
-            W[d, k] = math.tanh(W[a, k])
+        _tanh_row(W, d, a, n)
     elif op == OP_ASINH:
-        for k in range(n):
-            W[d, k] = math.asinh(W[a, k])
+        _asinh_row(W, d, a, n)
     elif op == OP_ACOSH:
-        for k in range(n):
-            W[d, k] = math.acosh(W[a, k])
+        _acosh_row(W, d, a, n)
     elif op == OP_ATANH:
-        for k in range(n):
-            W[d, k] = math.atanh(W[a, k])
+        _atanh_row(W, d, a, n)
     elif op == OP_CBRT:
-        for k in range(n):
-            W[d, k] = np.cbrt(W[a, k])
+        _cbrt_row(W, d, a, n)
+    elif op == OP_POWI:  # programs of earlier versions: u^imm, now surfgen's pow
+        _power_vs(W, d, a, float(imm), n)
     elif op == OP_SIGN:
         for k in range(n):
             W[d, k] = _sign(W[a, k])
@@ -434,8 +423,7 @@ def _binary_vv(op, W, d, a, b, n):
         for k in range(n):
             W[d, k] = W[a, k] / W[b, k]
     elif op == OP_POW:
-        for k in range(n):
-            W[d, k] = W[a, k] ** W[b, k]
+        _power_vv(W, d, a, b, n)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(W[a, k], W[b, k])
@@ -443,8 +431,7 @@ def _binary_vv(op, W, d, a, b, n):
         for k in range(n):
             W[d, k] = _maximum(W[a, k], W[b, k])
     elif op == OP_ATAN2:
-        for k in range(n):
-            W[d, k] = math.atan2(W[a, k], W[b, k])
+        _atan2_vv(W, d, a, b, n)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], W[b, k])
@@ -468,12 +455,7 @@ def _binary_vs(op, W, d, a, s, n):
         for k in range(n):
             W[d, k] = W[a, k] / s
     elif op == OP_POW:
-        if s == 2.0 or s == 0.5 or s == -1.0 or s == 1.0 or s == 0.0:
-            for k in range(n):
-                W[d, k] = _pow_scalar_exponent(W[a, k], s)
-        else:
-            for k in range(n):
-                W[d, k] = W[a, k] ** s
+        _power_vs(W, d, a, s, n)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(W[a, k], s)
@@ -481,8 +463,7 @@ def _binary_vs(op, W, d, a, s, n):
         for k in range(n):
             W[d, k] = _maximum(W[a, k], s)
     elif op == OP_ATAN2:
-        for k in range(n):
-            W[d, k] = math.atan2(W[a, k], s)
+        _atan2_vs(W, d, a, s, n)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], s)
@@ -505,9 +486,8 @@ def _binary_sv(op, W, d, s, b, n):
     elif op == OP_DIV:
         for k in range(n):
             W[d, k] = s / W[b, k]
-    elif op == OP_POW:  # numpy has no fast path for a varying exponent
-        for k in range(n):
-            W[d, k] = s ** W[b, k]
+    elif op == OP_POW:
+        _power_sv(W, d, s, b, n)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(s, W[b, k])
@@ -515,8 +495,7 @@ def _binary_sv(op, W, d, s, b, n):
         for k in range(n):
             W[d, k] = _maximum(s, W[b, k])
     elif op == OP_ATAN2:
-        for k in range(n):
-            W[d, k] = math.atan2(s, W[b, k])
+        _atan2_sv(W, d, s, b, n)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(s, W[b, k])

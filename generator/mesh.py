@@ -369,14 +369,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     Raises :class:`MeshError` for an unknown suffix or a file that cannot be written.
     """
     path = Path(path)
-    suffix = _file_type(path)
-    file_type, options = _FORMATS[suffix]
-    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    if mesh.face_kinds is not None and suffix in (".ply", ".glb"):
-        _add_kinds(tm, mesh)
-    data = tm.export(file_type=file_type, **options)
-    if isinstance(data, str):
-        data = data.encode("utf-8")
+    data = mesh_bytes(mesh, path)
     try:
         write_atomic(path, data)
     except OSError as exc:
@@ -408,6 +401,18 @@ def _add_kinds(tm: trimesh.Trimesh, mesh: Mesh) -> None:
     )
 
 
+def mesh_bytes(mesh: Mesh, path: str | os.PathLike) -> bytes:
+    """The file :func:`save_mesh` would write to ``path``, in memory (its suffix names the
+    format). Raises :class:`MeshError` for an unknown suffix."""
+    suffix = _file_type(Path(path))
+    file_type, options = _FORMATS[suffix]
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    if mesh.face_kinds is not None and suffix in (".ply", ".glb"):
+        _add_kinds(tm, mesh)
+    data = tm.export(file_type=file_type, **options)
+    return data.encode("utf-8") if isinstance(data, str) else data
+
+
 def load_mesh(path: str | os.PathLike) -> Mesh:
     """Read a mesh written by :func:`save_mesh` (or any triangle mesh in those formats).
 
@@ -420,6 +425,14 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     suffix = _file_type(path)
     if not path.is_file():
         raise MeshError(f"no mesh file '{path}'")
+    size = path.stat().st_size
+    if size > MAX_MESH_FILE_BYTES:
+        raise MeshError(
+            f"'{path}' is {size / 2**30:.1f} GiB: larger than the {MAX_MESH_FILE_BYTES >> 30} GiB "
+            "a mesh file may have"
+        )
+    if suffix == ".obj":
+        _check_obj_indices(path)
     try:
         loaded = trimesh.load(path, file_type=_FORMATS[suffix][0], force="mesh", process=False)
     # trimesh's readers fail on corrupt files with assorted exception types; all mean "unreadable".
@@ -430,6 +443,10 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
         raise MeshError(f"'{path}' holds no triangles")
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise MeshError(f"'{path}': a face refers to a vertex that does not exist")
+    if not np.isfinite(vertices).all():
+        raise MeshError(f"'{path}' holds non-finite vertex coordinates")
     if suffix == ".stl":
         vertices, faces = _merge_exact(vertices, faces)
     return Mesh(vertices, faces, _read_kinds(loaded, len(faces)))
@@ -445,6 +462,24 @@ def _read_kinds(loaded: trimesh.Trimesh, n_faces: int) -> np.ndarray | None:
     if kinds.shape[0] != n_faces or kinds.size == 0 or kinds.max() >= len(FACE_KINDS):
         return None
     return kinds.astype(np.uint8)
+
+
+MAX_MESH_FILE_BYTES = 4 << 30  # 4 GiB: ~100 M faces of binary PLY
+
+
+def _check_obj_indices(path: Path) -> None:
+    """OBJ counts vertices from 1 (negative: from the end); 0 is no vertex, and trimesh would
+    silently read it as the last one."""
+    with open(path, "rb") as f:
+        for number, line in enumerate(f, start=1):
+            if not line.startswith(b"f ") and not line.startswith(b"f\t"):
+                continue
+            for item in line.split()[1:]:
+                head = item.split(b"/", 1)[0]
+                if head in (b"0", b"-0", b"+0"):
+                    raise MeshError(
+                        f"'{path}' line {number}: face index 0 (OBJ vertex indices start at 1)"
+                    )
 
 
 def _merge_exact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

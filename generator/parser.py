@@ -21,12 +21,28 @@ from __future__ import annotations
 import difflib
 import math
 import re
+import sys
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from surfgen.generator.errors import FormulaSyntaxError
-from surfgen.generator.expr import VARIABLES, Expr, add_all, mul_all, num, walk
+from surfgen.generator.expr import (
+    VARIABLES,
+    Expr,
+    add_all,
+    mul_all,
+    num,
+    postorder,
+    printed_nesting,
+    walk,
+)
 from surfgen.generator.functions import FUNCTIONS, MACROS
+from surfgen.generator.limits import (
+    MAX_FORMULA_LENGTH,
+    MAX_FORMULA_NESTING,
+    MAX_FORMULA_NODES,
+    MAX_FORMULA_TOKENS,
+)
 
 _TOKEN = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
@@ -42,21 +58,31 @@ class Token:
 
 
 def tokenize(text: str) -> list[Token]:
+    """The tokens of ``text`` (at most :data:`MAX_FORMULA_TOKENS`), then an ``end`` token."""
     tokens: list[Token] = []
     pos = 0
-    while pos < len(text):
-        if text[pos:].strip() == "":
-            break
+    stop = len(text.rstrip())  # trailing blanks end the formula (computed once: linear time)
+    while pos < stop:
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
-            col = pos + len(text[pos:]) - len(text[pos:].lstrip()) + 1
+            col = pos + len(text[pos:stop]) - len(text[pos:stop].lstrip()) + 1
             raise FormulaSyntaxError(f"unexpected character {text[col - 1]!r}", col)
         kind = m.lastgroup or "op"
         start = m.start(kind)
         tokens.append(Token(kind, m.group(kind), start + 1))
+        if len(tokens) > MAX_FORMULA_TOKENS:
+            raise FormulaSyntaxError(
+                f"formula too long: more than {MAX_FORMULA_TOKENS} numbers, names and operators",
+                start + 1,
+            )
         pos = m.end()
     tokens.append(Token("end", "", len(text) + 1))
     return tokens
+
+
+def _short(text: str, limit: int = 40) -> str:
+    """``text`` cut for an error message (a 50,000-letter name stays one readable line)."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class _Parser:
@@ -68,7 +94,7 @@ class _Parser:
         self.functions = dict(functions or {})
         self.tokens = tokenize(text)
         self.i = 0
-        self.open_parens: list[int] = []
+        self.open_parens: list[int] = []  # columns of the open '(': also the nesting depth
 
     # -- helpers
     @property
@@ -93,13 +119,26 @@ class _Parser:
             return FormulaSyntaxError("formula ends too early", t.column)
         if t.text == ")" and not self.open_parens:
             return FormulaSyntaxError("unbalanced parentheses: ')' has no matching '('", t.column)
-        return FormulaSyntaxError(f"unexpected {t.text!r}", t.column)
+        return FormulaSyntaxError(f"unexpected {_short(t.text)!r}", t.column)
+
+    def open_paren(self) -> None:
+        """Consume '(' and check the nesting limit before the recursion it leads to."""
+        column = self.advance().column
+        if len(self.open_parens) >= MAX_FORMULA_NESTING:
+            raise FormulaSyntaxError(
+                f"formula nested too deeply: more than {MAX_FORMULA_NESTING} levels of "
+                "parentheses and function calls",
+                column,
+            )
+        self.open_parens.append(column)
 
     def expect_close(self) -> None:
         if not self.is_op(")"):
             if self.tok.kind == "end":
                 raise self.unexpected()
-            raise FormulaSyntaxError(f"expected ')' but found {self.tok.text!r}", self.tok.column)
+            raise FormulaSyntaxError(
+                f"expected ')' but found {_short(self.tok.text)!r}", self.tok.column
+            )
         self.advance()
         self.open_parens.pop()
 
@@ -142,24 +181,33 @@ class _Parser:
             left = Expr(op, (left, self.unary()))
         return left
 
+    def prefixes(self) -> list[str]:
+        """Consume a run of unary '+', '-' and '!': the ``neg``/``not`` nodes they make,
+        outermost first ('+' makes none). A loop: 10,000 signs are no deeper than one."""
+        ops: list[str] = []
+        while self.is_op("-") or self.is_op("+") or self.is_op("!"):
+            text = self.advance().text
+            if text != "+":
+                ops.append("neg" if text == "-" else "not")
+        return ops
+
     def unary(self) -> Expr:
-        if self.is_op("-"):
-            self.advance()
-            return Expr("neg", (self.unary(),))
-        if self.is_op("+"):
-            self.advance()
-            return self.unary()
-        if self.is_op("!"):
-            self.advance()
-            return Expr("not", (self.unary(),))
-        return self.power()
+        ops = self.prefixes()
+        return _apply_prefixes(self.power(), ops)
 
     def power(self) -> Expr:
-        base = self.atom()
-        if self.is_op("^"):
+        """``atom ("^" prefixes atom)*`` folded from the right (``^`` is right-associative and
+        its exponent may carry signs: ``a^-b^c = a^(-(b^c))``); iterative for power towers."""
+        atoms = [self.atom()]
+        prefixes: list[list[str]] = []
+        while self.is_op("^"):
             self.advance()
-            return Expr("^", (base, self.unary()))
-        return base
+            prefixes.append(self.prefixes())
+            atoms.append(self.atom())
+        out = atoms[-1]
+        for base, ops in zip(reversed(atoms[:-1]), reversed(prefixes), strict=True):
+            out = Expr("^", (base, _apply_prefixes(out, ops)))
+        return out
 
     def atom(self) -> Expr:
         t = self.tok
@@ -175,7 +223,7 @@ class _Parser:
                 return self.call(t)
             return self.name(t)
         if self.is_op("("):
-            self.open_parens.append(self.advance().column)
+            self.open_paren()
             inner = self.disjunction()
             self.expect_close()
             return inner
@@ -195,13 +243,13 @@ class _Parser:
         allowed = ", ".join([*VARIABLES, "pi", *sorted(self.params)])
         hint = _did_you_mean(t.text, [*VARIABLES, "pi", *self.params])
         raise FormulaSyntaxError(
-            f"unknown variable '{t.text}'", t.column, hint or f" (allowed: {allowed})"
+            f"unknown variable '{_short(t.text)}'", t.column, hint or f" (allowed: {allowed})"
         )
 
     def call(self, t: Token) -> Expr:
         name = t.text
         if name in self.functions:
-            self.open_parens.append(self.advance().column)
+            self.open_paren()
             args = [] if self.is_op(")") else [self.disjunction()]
             while self.is_op(","):
                 self.advance()
@@ -215,8 +263,8 @@ class _Parser:
             return inline_call(self.functions[name], args)
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
-            raise FormulaSyntaxError(f"unknown function '{name}'", t.column, hint)
-        self.open_parens.append(self.advance().column)
+            raise FormulaSyntaxError(f"unknown function '{_short(name)}'", t.column, hint)
+        self.open_paren()
         args = [] if self.is_op(")") else [self.disjunction()]
         while self.is_op(","):
             self.advance()
@@ -246,25 +294,49 @@ class _Parser:
         return Expr(name, tuple(args))
 
 
+# Python frames one level of parentheses costs the recursive descent (disjunction ... atom).
+FRAMES_PER_NESTING = 12
+
+
+def _ensure_stack(frames: int) -> None:
+    """Make room for ``frames`` more Python frames than the caller already uses: the nesting
+    limit bounds the parser's recursion, this makes sure the interpreter allows that much
+    (Python 3.11+ recursion between Python functions does not grow the C stack)."""
+    depth, frame = 0, sys._getframe()
+    while frame is not None:
+        depth += 1
+        frame = frame.f_back
+    needed = depth + frames + 100
+    if sys.getrecursionlimit() < needed:
+        sys.setrecursionlimit(needed)
+
+
+def _apply_prefixes(tree: Expr, ops: list[str]) -> Expr:
+    """``ops`` (``neg``/``not``, outermost first) applied to ``tree``."""
+    for op in reversed(ops):
+        tree = Expr(op, (tree,))
+    return tree
+
+
 # The formal parameters of a user function (MathMod's Funct): f(x, y, z, t).
 FORMALS = (Expr("var", (), "x"), Expr("var", (), "y"), Expr("var", (), "z"), Expr("param", (), "t"))
 
 
 def inline_call(body: Expr, args: list[Expr]) -> Expr:
-    """``body`` with its formals x, y, z, t replaced by ``args`` (missing ones stay as they are)."""
+    """``body`` with its formals x, y, z, t replaced by ``args`` (missing ones stay as they are).
+    Iterative (children first), so a deep body inlines without recursion."""
     mapping = dict(zip(FORMALS, args, strict=False))
-    memo: dict[Expr, Expr] = {}
-
-    def sub(node: Expr) -> Expr:
-        hit = memo.get(node)
+    memo: dict[int, Expr] = {}
+    for node in postorder(body):
+        hit = mapping.get(node)
         if hit is None:
-            hit = mapping.get(node) or (
-                Expr(node.op, tuple(sub(a) for a in node.args), node.value) if node.args else node
+            hit = (
+                Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
+                if node.args
+                else node
             )
-            memo[node] = hit
-        return hit
-
-    return sub(body)
+        memo[id(node)] = hit
+    return memo[id(body)]
 
 
 def is_constant(tree: Expr) -> bool:
@@ -286,6 +358,8 @@ def _expand_powf(args: list[Expr], column: int) -> Expr:
 
 
 def _did_you_mean(word: str, choices: Iterable[str]) -> str:
+    if len(word) > 40:  # no function or variable name is that long
+        return ""
     close = difflib.get_close_matches(word.lower(), list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]}?)" if close else ""
 
@@ -296,11 +370,26 @@ def parse(
     """Parse ``text`` into a tree; ``params`` are the names allowed as parameters; ``functions``
     are user functions (name -> body in x, y, z and the parameter t), inlined where called.
 
-    Raises :class:`FormulaSyntaxError` naming the column of the problem.
+    Raises :class:`FormulaSyntaxError` naming the column of the problem, also for a formula
+    beyond the limits of :mod:`surfgen.generator.limits` (length, tokens, nesting).
     """
     if not isinstance(text, str):
         raise FormulaSyntaxError(f"formula must be text, got {type(text).__name__}")
+    if len(text) > MAX_FORMULA_LENGTH:
+        raise FormulaSyntaxError(
+            f"formula too long: {len(text)} characters (at most {MAX_FORMULA_LENGTH})"
+        )
     bad = [p for p in params if p in VARIABLES or p == "pi" or p in FUNCTIONS or p in MACROS]
     if bad:
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
-    return _Parser(text, frozenset(params), functions).parse()
+    _ensure_stack(FRAMES_PER_NESTING * MAX_FORMULA_NESTING)
+    tree = _Parser(text, frozenset(params), functions).parse()
+    nodes = len(postorder(tree))
+    if nodes > MAX_FORMULA_NODES:
+        raise FormulaSyntaxError(f"formula too large: {nodes} nodes (at most {MAX_FORMULA_NODES})")
+    if printed_nesting(tree) > MAX_FORMULA_NESTING:
+        raise FormulaSyntaxError(
+            f"formula nested too deeply: its canonical form needs more than "
+            f"{MAX_FORMULA_NESTING} levels of parentheses (e.g. '-(-(-x))', 'x^(-x^(-x))')"
+        )
+    return tree

@@ -1,19 +1,27 @@
 """The plain-numpy reference evaluator: slow, obvious, and the truth the fast path is tested against.
 
 It evaluates the tree recursively on an open (broadcast) grid, so a sub-expression of x alone
-costs Nx operations, and sub-trees shared by identity are computed once.
+costs Nx operations, and sub-trees shared by identity are computed once. Transcendental
+functions are surfgen's own numpy twins (:mod:`surfgen.generator.elementary`), so the result is
+the same on every CPU and equals the fast evaluator's bit for bit; the rewrites of
+:func:`surfgen.generator.functions.match_rewrite` (closed-form round trips, ``u/|u|``) apply
+here as in the compiler. ``maths="numpy"`` evaluates with numpy's own ufuncs instead (the
+accuracy cross-check and the benchmark's baseline; CPU-dependent).
 """
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping
 
 import numpy as np
 
+from surfgen.generator import constituents as cf
+from surfgen.generator import elementary as E
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of
-from surfgen.generator.functions import FUNCTIONS
+from surfgen.generator.expr import Expr, params_of, postorder
+from surfgen.generator.functions import FUNCTIONS, match_rewrite
 from surfgen.generator.grid import Field, Grid
 
 _BINARY = {
@@ -21,9 +29,10 @@ _BINARY = {
     "-": np.subtract,
     "*": np.multiply,
     "/": np.divide,
-    "^": np.power,
+    "^": E.power,
     **logic.BINARY,
 }
+MATHS = ("surfgen", "numpy")
 
 
 def evaluate_points(
@@ -32,11 +41,16 @@ def evaluate_points(
     y: np.ndarray | float,
     z: np.ndarray | float,
     params: Mapping[str, float] | None = None,
+    maths: str = "surfgen",
 ) -> np.ndarray:
     """Evaluate ``tree`` at points ``(x, y, z)`` (broadcast together); float64 result.
 
-    Raises :class:`FormulaError` for an unbound parameter or a bad constituent parameter.
+    ``maths="numpy"``: numpy's own ufuncs for the transcendental functions (see the module
+    docstring). Raises :class:`FormulaError` for an unbound parameter or a bad constituent
+    parameter, :class:`ValueError` for an unknown ``maths``.
     """
+    if maths not in MATHS:
+        raise ValueError(f"maths must be one of {MATHS}, got {maths!r}")
     params = dict(params or {})
     missing = sorted(params_of(tree) - params.keys())
     if missing:
@@ -49,16 +63,21 @@ def evaluate_points(
         "z": np.asarray(z, np.float64),
     }
     memo: dict[Expr, np.ndarray] = {}
-    with np.errstate(all="ignore"):
+    backend = E.numpy_ufuncs() if maths == "numpy" else contextlib.nullcontext()
+    with np.errstate(all="ignore"), backend:
+        for node in postorder(tree):  # children first: _eval never recurses more than once
+            _eval(node, env, params, memo)
         out = _eval(tree, env, params, memo)
     shape = np.broadcast_shapes(env["x"].shape, env["y"].shape, env["z"].shape)
     return np.array(np.broadcast_to(np.asarray(out, np.float64), shape), dtype=np.float64)
 
 
-def evaluate_reference(tree: Expr, grid: Grid, params: Mapping[str, float] | None = None) -> Field:
+def evaluate_reference(
+    tree: Expr, grid: Grid, params: Mapping[str, float] | None = None, maths: str = "surfgen"
+) -> Field:
     """Sample ``tree`` on ``grid``; returns a :class:`Field` of shape ``grid.shape``."""
     x, y, z = grid.open_axes()
-    return Field(grid, evaluate_points(tree, x, y, z, params))
+    return Field(grid, evaluate_points(tree, x, y, z, params, maths))
 
 
 def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.ndarray:
@@ -76,6 +95,10 @@ def _eval(node: Expr, env: dict, params: Mapping[str, float], memo: dict) -> np.
         out = np.float64(np.pi)
     elif op == "neg":
         out = np.negative(_eval(node.args[0], env, params, memo))
+    elif (rewrite := match_rewrite(node)) is not None:  # the same rewrite the compiler applies
+        name, inner = rewrite
+        u = _eval(inner, env, params, memo)
+        out = cf.unit_sign(u) if name == "usign" else E.round_trip(name, u)
     elif op == "not":
         out = logic.not_(np.asarray(_eval(node.args[0], env, params, memo), np.float64))
     elif op in _BINARY:

@@ -34,10 +34,23 @@ from surfgen.generator.equation13 import (
 )
 from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
+from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
+from surfgen.generator.settings import (
+    require_fractions,
+    require_range,
+    settings_from_mapping,
+    settings_to_dict,
+)
 
-SAMPLER_VERSION = 1
+SAMPLER_VERSION = 2  # 2: families (sculpture, lattice, free) and their mix
+FAMILIES = ("sculpture", "lattice", "free")
+FAMILY_CHOICES = (*FAMILIES, "mix")
+SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
+# Symmetry groups of a sculpture's ornament: how many axis permutations it is summed over, and
+# whether it uses |x|, |y|, |z| (the mirrors).
+SCULPTURE_GROUPS = ("none", "mirror", "cyclic", "cyclic_mirror", "full", "full_mirror")
+LATTICE_PATTERNS = ("schwarz", "gyroid", "product")
 # Transforms whose values stay in [-1, 1], and inverse functions defined on all of R.
 BOUNDED_TRANSFORMS = (
     "sin",
@@ -82,13 +95,42 @@ class SamplerConfig:
     box_half: tuple[float, float] = (0.8, 2.0)
     d_quantile: tuple[float, float] = (0.05, 0.45)
     d_grid: int = 20  # coarse grid used to choose d
+    # -- families (generator/families.py): which distribution over eq. (13) instances
+    family: str = "mix"  # sculpture, lattice, free (the draw above), or mix
+    mix: tuple[str, ...] = ("sculpture", "lattice", "free")
+    mix_weights: tuple[float, ...] = (0.8, 0.08, 0.12)
+    sculpture_envelopes: tuple[str, ...] = SCULPTURE_ENVELOPES
+    sculpture_envelope_weights: tuple[float, ...] = (0.6, 0.2, 0.2)
+    sculpture_exponent: tuple[float, float] = (1.6, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
+    sculpture_stretch_prob: float = 0.15  # one axis of the envelope stretched (breaks symmetry)
+    sculpture_groups: tuple[str, ...] = SCULPTURE_GROUPS
+    sculpture_group_weights: tuple[float, ...] = (0.1, 0.15, 0.25, 0.2, 0.15, 0.15)
+    sculpture_powers: tuple[int, ...] = (1, 2, 3)  # outer power k of the ornament sum
+    sculpture_power_weights: tuple[float, ...] = (0.6, 0.25, 0.15)
+    sculpture_depth: tuple[float, float] = (0.1, 0.4)  # carving depth / envelope radius
+    sculpture_margin: tuple[float, float] = (0.15, 0.3)  # box beyond envelope + depth
+    sculpture_frequency: tuple[float, float] = (1.0, 4.0)  # scales the ornament's H arguments
+    sculpture_constituent_prob: float = 0.3  # the ornament's H or G is a constituent function
+    sculpture_omit_element_prob: float = 0.55
+    sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
+    lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
+    lattice_pattern_weights: tuple[float, ...] = (0.35, 0.4, 0.25)
+    lattice_periods: tuple[float, float] = (1.0, 2.5)  # periods across the box
+    lattice_constituent_prob: float = 0.3  # a constituent function instead of sin/cos
+    lattice_d_quantile: tuple[float, float] = (0.25, 0.6)
 
     def __post_init__(self) -> None:
+        self._check_families()
         pairs = (
             ("sum_terms", "sum_terms_weights"),
             ("factors", "factors_weights"),
             ("lambda_choices", "lambda_weights"),
             ("mu_choices", "mu_weights"),
+            ("mix", "mix_weights"),
+            ("sculpture_envelopes", "sculpture_envelope_weights"),
+            ("sculpture_groups", "sculpture_group_weights"),
+            ("sculpture_powers", "sculpture_power_weights"),
+            ("lattice_patterns", "lattice_pattern_weights"),
         )
         for a, b in pairs:
             if len(getattr(self, a)) != len(getattr(self, b)) or not getattr(self, a):
@@ -107,9 +149,29 @@ class SamplerConfig:
             "omit_element_prob",
             "constituent_prob",
             "abs_prob",
+            "sculpture_stretch_prob",
+            "sculpture_constituent_prob",
+            "sculpture_omit_element_prob",
+            "sculpture_bounded_prob",
+            "lattice_constituent_prob",
         )
         require_fractions(self, probabilities, "sampler", "a probability")
-        for name in ("exponent_real", "constituent_r", "box_half", "d_quantile", "constituent_p"):
+        ranges = (
+            "exponent_real",
+            "constituent_r",
+            "box_half",
+            "d_quantile",
+            "constituent_p",
+            "sculpture_exponent",
+            "sculpture_depth",
+            "sculpture_margin",
+            "sculpture_frequency",
+            "lattice_periods",
+            "lattice_d_quantile",
+        )
+        for name in ranges:
+            if len(getattr(self, name)) != 2:
+                raise SpecError(f"config [sampler]: {name} must be [low, high]")
             lo, hi = getattr(self, name)
             if not lo <= hi:
                 raise SpecError(f"config [sampler]: {name} must be [low, high] with low <= high")
@@ -125,6 +187,62 @@ class SamplerConfig:
             raise SpecError("config [sampler]: integer_exponent_max must be >= 1")
         if not 4 <= self.d_grid <= 128:
             raise SpecError("config [sampler]: d_grid must be from 4 to 128")
+        # Upper bounds: a formula grows with these, and a huge one only makes every shape crash.
+        for name, low, high in (
+            ("sum_terms", 1, 10),
+            ("factors", 1, 10),
+            ("power_terms_max", 1, 10),
+            ("integer_exponent_max", 1, 10),
+            ("constituent_p", 1, 64),
+            ("coefficient_max", 0, 1e6),
+            ("exponent_real", -100, 100),
+            ("constituent_r", 1e-6, 1e6),
+            ("box_half", 1e-6, 1e6),
+        ):
+            require_range(self, name, low, high, "sampler")
+        if not self.sculpture_exponent[0] >= 1:
+            raise SpecError("config [sampler]: sculpture_exponent must be >= 1 (convex envelopes)")
+        if not (self.sculpture_depth[0] > 0 and self.sculpture_margin[0] >= 0):
+            raise SpecError("config [sampler]: sculpture_depth must be > 0, sculpture_margin >= 0")
+        if not (self.lattice_periods[0] > 0 and self.sculpture_frequency[0] > 0):
+            raise SpecError("config [sampler]: lattice_periods, sculpture_frequency must be > 0")
+        if not 0 <= self.lattice_d_quantile[0] <= self.lattice_d_quantile[1] <= 1:
+            raise SpecError("config [sampler]: lattice_d_quantile must lie in [0, 1]")
+        if any(int(k) != k or not 1 <= k <= 3 for k in self.sculpture_powers):
+            raise SpecError("config [sampler]: sculpture_powers must be whole numbers 1..3")
+
+    def _check_families(self) -> None:
+        """One-line errors naming what is allowed for the family names."""
+        if not isinstance(self.family, str) or self.family not in FAMILY_CHOICES:
+            raise SpecError(
+                f"config [sampler]: family must be one of {', '.join(FAMILY_CHOICES)}, "
+                f"got {self.family!r}"
+            )
+        for name, allowed in (
+            ("mix", FAMILIES),
+            ("sculpture_envelopes", SCULPTURE_ENVELOPES),
+            ("sculpture_groups", SCULPTURE_GROUPS),
+            ("lattice_patterns", LATTICE_PATTERNS),
+        ):
+            values = getattr(self, name)
+            bad = [v for v in values if v not in allowed]
+            if bad:
+                raise SpecError(
+                    f"config [sampler]: {name} has unknown {bad[0]!r} "
+                    f"(allowed: {', '.join(allowed)})"
+                )
+            if len(set(values)) != len(values):
+                raise SpecError(f"config [sampler]: {name} lists a name twice")
+        for name in (
+            "mix_weights",
+            "sculpture_envelope_weights",
+            "sculpture_group_weights",
+            "sculpture_power_weights",
+            "lattice_pattern_weights",
+        ):
+            for w in getattr(self, name):
+                if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w):
+                    raise SpecError(f"config [sampler]: {name} must be numbers, got {w!r}")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> SamplerConfig:
@@ -229,15 +347,46 @@ def draw_factor(rng: np.random.Generator, cfg: SamplerConfig) -> Factor:
 
 @dataclass(frozen=True)
 class Draw:
-    """One random instance before d is chosen: the model, its box and the d quantile."""
+    """One random instance before d is chosen: the model, its box and the d quantile.
+
+    ``family`` names the distribution it came from and ``structure`` says how it was built
+    (JSON-ready; stored with the model). A family that chooses d itself sets ``d_quantile`` to
+    None and gives ``d`` (None: no d makes a surface). ``envelope`` is the sculpture's envelope
+    (without its ornament), used to measure how far the shape departs from it.
+    """
 
     equation: Equation13
     box: Box
-    d_quantile: float
+    d_quantile: float | None
+    family: str = "free"
+    structure: Mapping[str, Any] | None = None
+    d: float | None = None
+    envelope: Expr | None = None
+
+    def model_dict(self, equation: Equation13 | None = None) -> dict[str, Any]:
+        """The model JSON: eq. (13) (``terms``, ``d``) plus ``family`` and ``structure``."""
+        out = (equation or self.equation).to_dict()
+        out["family"] = self.family
+        if self.structure is not None:
+            out["structure"] = dict(self.structure)
+        return out
 
 
 def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
-    """Shape ``index`` of the run ``seed``: a pure function of its arguments."""
+    """Shape ``index`` of the run ``seed``: a pure function of its arguments.
+
+    ``cfg.family`` picks the distribution; ``mix`` picks one family per index from a stream of
+    its own, so a ``free`` shape of the mix is the very shape ``family = "free"`` draws there.
+    """
+    if cfg.family == "free":
+        return draw_free(seed, index, cfg)
+    from surfgen.generator.families import draw_family  # families build on this module
+
+    return draw_family(seed, index, cfg)
+
+
+def draw_free(seed: int, index: int, cfg: SamplerConfig) -> Draw:
+    """The ``free`` family: the first sampler's draw, unchanged (tests pin its models)."""
     rng = rng_for(seed, index)
     n_sum = int(_choice(rng, cfg.sum_terms, cfg.sum_terms_weights))
     terms = []
@@ -246,7 +395,7 @@ def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
         terms.append(tuple(draw_factor(rng, cfg) for _ in range(n_fac)))
     half = _round(rng.uniform(*cfg.box_half), 1)
     q = float(rng.uniform(*cfg.d_quantile))
-    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q)
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q, "free")
 
 
 def choose_d(
@@ -255,8 +404,10 @@ def choose_d(
     """``d`` at the draw's quantile of the body's finite values on a coarse grid.
 
     Returns ``None`` when the body has fewer than two distinct finite values there
-    (no ``d`` can make a surface).
+    (no ``d`` can make a surface). A family that chose d itself (``d_quantile`` None) gives it.
     """
+    if draw.d_quantile is None:
+        return draw.d
     grid = Grid(draw.box, (cfg.d_grid,) * 3)
     values = evaluate(draw.equation.body(), grid, evaluator=evaluator, threads=threads).values
     finite = values[np.isfinite(values)]

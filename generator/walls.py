@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfgen.generator.errors import EmptySurface
-from surfgen.generator.expr import Expr
+from surfgen.generator.expr import Expr, postorder
 from surfgen.generator.functions import FUNCTIONS
 from surfgen.generator.grid import Field
 from surfgen.generator.mesh import (
@@ -189,18 +189,9 @@ class PointsEvaluator:
         self._tree = tree
         self._params = dict(params or {})
         evaluate_points(tree, 0.0, 0.0, 0.0, self._params)  # raises FormulaError early
-        self._order: list[Expr] = []
-        self._slot: dict[int, int] = {}
-        self._flatten(tree)
-
-    def _flatten(self, node: Expr) -> int:
-        slot = self._slot.get(id(node))
-        if slot is None:
-            for arg in node.args:
-                self._flatten(arg)
-            slot = self._slot[id(node)] = len(self._order)
-            self._order.append(node)
-        return slot
+        # Children before parents, each node once, without recursion (deep flat sums).
+        self._order: list[Expr] = postorder(tree)
+        self._slot: dict[int, int] = {id(node): i for i, node in enumerate(self._order)}
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
         """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""

@@ -14,8 +14,13 @@ where it stopped. Files are written to a temporary name and renamed before their
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
 import sqlite3
+import threading
+import urllib.parse
+from collections import Counter
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -226,8 +231,9 @@ class Catalogue:
     def resolve(self, key_or_prefix: str) -> str:
         """The full key of a shape from its key or a unique prefix."""
         k = key_or_prefix.strip().lower()
-        if not k or any(c not in "0123456789abcdef" for c in k):
-            raise CatalogueError(f"'{key_or_prefix}' is not a shape key (hex digits)")
+        if not k or len(k) > 64 or any(c not in "0123456789abcdef" for c in k):
+            shown = key_or_prefix if len(key_or_prefix) <= 40 else key_or_prefix[:37] + "..."
+            raise CatalogueError(f"'{shown}' is not a shape key (hex digits)")
         rows = self.conn.execute(
             "SELECT key FROM shapes WHERE key LIKE ? ORDER BY key LIMIT 6", (k + "%",)
         ).fetchall()
@@ -281,30 +287,241 @@ def _run(row: sqlite3.Row) -> Run:
     )
 
 
+SCHEMA_VERSION = 1
+# The row that says "this SQLite file is a surfgen catalogue" (and which schema it follows).
+META = """
+CREATE TABLE IF NOT EXISTS surfgen (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+INSERT OR IGNORE INTO surfgen (key, value) VALUES ('application', 'surfgen catalogue');
+INSERT OR IGNORE INTO surfgen (key, value) VALUES ('schema', '1');
+"""
+# A catalogue made before the schema row existed has exactly these tables and columns.
+_LEGACY = {
+    "runs": {"seed", "config_hash", "next_index", "counts"},
+    "shapes": {"key", "run", "idx", "spec", "identity", "verdict", "reasons", "metrics"},
+    "tags": {"key", "tag"},
+    "curation": {"key", "at", "action", "value"},
+}
+BUSY_TIMEOUT = 30.0  # seconds a writer waits for another one (sample, serve, curation)
+
+
+class CorruptCatalogue(CatalogueError):
+    """A catalogue database that SQLite cannot read (damaged pages, truncated file)."""
+
+
+def check_hint(root: Path | str) -> str:
+    return f"run `surfgen catalogue check -C {root}`"
+
+
+def sqlite_error(exc: sqlite3.Error, db: Path | str) -> CatalogueError:
+    """One line for an SQLite error: disk full, read-only, busy, or corrupted (the rest)."""
+    text = str(exc)
+    root = Path(db).parent
+    if "disk is full" in text or "disk I/O error" in text:
+        return CatalogueError(
+            f"cannot write catalogue {db}: {text} (free some space; a sampling run continues "
+            "with --resume)"
+        )
+    if "readonly" in text or "read-only" in text:
+        return CatalogueError(f"catalogue {db} is read-only: {text}")
+    if "locked" in text or "busy" in text:
+        return CatalogueError(
+            f"catalogue {db} is busy: another process held it for more than {BUSY_TIMEOUT:g} s"
+        )
+    if "unable to open" in text:
+        return CatalogueError(f"cannot open catalogue {db}: {text}")
+    return CorruptCatalogue(f"catalogue {db} is corrupted ({text}): {check_hint(root)}")
+
+
+def connect_readonly(db: Path) -> sqlite3.Connection:
+    """A read-only connection (``mode=ro``): reading never creates or changes a file.
+
+    In a read-only folder a WAL database cannot get its shared-memory file: it is then opened
+    ``immutable`` (nobody can be writing it there either)."""
+    uri = "file:" + urllib.parse.quote(str(Path(db).resolve())) + "?mode=ro"
+    try:
+        conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT)
+        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+    except sqlite3.OperationalError:
+        if os.access(Path(db).parent, os.W_OK):
+            raise
+        conn = sqlite3.connect(uri + "&immutable=1", uri=True, timeout=BUSY_TIMEOUT)
+    conn.row_factory = sqlite3.Row
+    return conn
+
+
+def identify(db: Path) -> int | None:
+    """The schema version of the surfgen catalogue in ``db`` (0: made before versions were
+    recorded), or None for an empty database. Reads only, through a read-only connection.
+
+    Raises :class:`CatalogueError` for a foreign SQLite file or something else, and
+    :class:`CorruptCatalogue` when SQLite cannot read it."""
+    had_wal = Path(f"{db}-wal").exists()
+    try:
+        return _identify(db)
+    except CatalogueError:
+        with _OPEN_LOCK:  # e.g. a foreign WAL database: leave no files of ours beside it
+            if not had_wal and _OPEN[str(Path(db).resolve())] == 0:
+                _tidy_after_reading(Path(db))
+        raise
+
+
+def _identify(db: Path) -> int | None:
+    try:
+        conn = connect_readonly(db)
+    except sqlite3.Error as exc:
+        raise sqlite_error(exc, db) from None
+    try:
+        tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if "surfgen" in tables:
+            row = conn.execute("SELECT value FROM surfgen WHERE key='schema'").fetchone()
+            app = conn.execute("SELECT value FROM surfgen WHERE key='application'").fetchone()
+            if row is None or app is None or app[0] != "surfgen catalogue":
+                raise CatalogueError(f"{db} is not a surfgen catalogue (no schema row)")
+            try:
+                return int(row[0])
+            except ValueError:
+                raise CatalogueError(f"{db}: unreadable schema version '{row[0]}'") from None
+        if not tables:
+            return None
+        for table, columns in _LEGACY.items():
+            have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+            if not columns <= have:
+                shown = ", ".join(sorted(tables)[:5])
+                raise CatalogueError(
+                    f"{db} is not a surfgen catalogue (its tables: {shown}); "
+                    "surfgen left it unchanged"
+                )
+        return 0
+    except sqlite3.DatabaseError as exc:
+        if "not a database" in str(exc) or "encrypted" in str(exc):
+            raise CatalogueError(
+                f"{db} is not a surfgen catalogue (not an SQLite database); surfgen left it "
+                "unchanged"
+            ) from None
+        raise sqlite_error(exc, db) from None
+    finally:
+        conn.close()
+
+
 @contextmanager
 def open_catalogue(
-    root: Path | str = DEFAULT_CATALOGUE, must_exist: bool = False
+    root: Path | str = DEFAULT_CATALOGUE, must_exist: bool = False, readonly: bool = False
 ) -> Iterator[Catalogue]:
-    """Open (or create) the catalogue in ``root``; ``must_exist`` refuses to create one."""
+    """Open (or create) the catalogue in ``root``; ``must_exist`` refuses to create one.
+
+    ``readonly`` opens it with a read-only connection (for commands that only read: nothing on
+    disk changes, a read-only catalogue can be listed). An existing database is identified by
+    its schema row *before* anything is written, so a foreign SQLite file is never modified.
+    Raises :class:`CatalogueError` (:class:`CorruptCatalogue` for a damaged database).
+    """
     root = Path(root)
     db = root / DB_NAME
-    if must_exist and not db.is_file():
+    exists = db.exists()
+    had_wal = Path(f"{db}-wal").exists()  # before identify(), whose reading may create it
+    if (must_exist or readonly) and not db.is_file():
         raise CatalogueError(f"no catalogue at {root} (expected {db}; run `surfgen sample` first)")
+    if exists and not db.is_file():
+        raise CatalogueError(f"{db} is not a file")
+    version = identify(db) if exists else None
+    if version is not None and version > SCHEMA_VERSION:
+        raise CatalogueError(
+            f"{db} has schema version {version}; this surfgen reads up to {SCHEMA_VERSION} "
+            "(upgrade surfgen)"
+        )
+    if readonly:
+        try:
+            conn = connect_readonly(db)
+        except sqlite3.Error as exc:
+            raise sqlite_error(exc, db) from None
+    else:
+        conn = _open_for_writing(root, db, exists)
+    key = str(db.resolve())
+    with _OPEN_LOCK:
+        _OPEN[key] += 1
+    cat = Catalogue(root, conn)
+    try:
+        yield cat
+    except sqlite3.Error as exc:
+        raise sqlite_error(exc, db) from None
+    except OverflowError:  # a number bound to a query beyond SQLite's INTEGER
+        raise CatalogueError(
+            "a number is out of range: the catalogue holds whole numbers up to 2^63-1"
+        ) from None
+    finally:
+        cat.close()
+        with _OPEN_LOCK:
+            _OPEN[key] -= 1
+            if readonly and not had_wal and _OPEN[key] == 0:
+                _tidy_after_reading(db)
+
+
+# Connections this process has open per database: a reader tidies up SQLite's shared-memory
+# files only when it was the last one here (POSIX locks do not tell a process about itself).
+_OPEN: Counter[str] = Counter()
+_OPEN_LOCK = threading.Lock()
+_WAL_DMS_BYTE = 128  # the -shm byte every connection to a WAL database holds a shared lock on
+
+
+def in_use(db: Path) -> bool:
+    """True when another process has the WAL database ``db`` open (it holds a lock on the
+    shared-memory file's DMS byte)."""
+    shm = Path(f"{db}-shm")
+    try:
+        fd = os.open(shm, os.O_RDWR)
+    except OSError:
+        return False
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, _WAL_DMS_BYTE, os.SEEK_SET)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
+def _tidy_after_reading(db: Path) -> None:
+    """Remove the empty ``-wal`` and the ``-shm`` a read-only connection had to create, when no
+    other process is attached (the exclusive lock on the DMS byte is free), as SQLite's last
+    writer would: reading a catalogue leaves the folder as it was."""
+    shm, wal = Path(f"{db}-shm"), Path(f"{db}-wal")
+    if not shm.exists() or (wal.exists() and wal.stat().st_size > 0):
+        return
+    try:
+        fd = os.open(shm, os.O_RDWR)
+    except OSError:
+        return
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, _WAL_DMS_BYTE, os.SEEK_SET)
+    except OSError:  # another process has the database open: its files stay
+        os.close(fd)
+        return
+    try:
+        wal.unlink(missing_ok=True)
+        shm.unlink(missing_ok=True)
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+def _open_for_writing(root: Path, db: Path, exists: bool) -> sqlite3.Connection:
+    if exists and not os.access(db, os.W_OK):
+        raise CatalogueError(f"catalogue {db} is read-only: this command needs to write it")
+    if exists and not os.access(root, os.W_OK):
+        raise CatalogueError(
+            f"catalogue folder {root} is read-only: SQLite needs to write its journal there"
+        )
     try:
         root.mkdir(parents=True, exist_ok=True)
-        conn = sqlite3.connect(db, timeout=30.0)
-    except (OSError, sqlite3.Error) as exc:
-        raise CatalogueError(f"cannot open catalogue {db}: {exc}") from None
+        conn = sqlite3.connect(db, timeout=BUSY_TIMEOUT)
+    except OSError as exc:
+        raise CatalogueError(f"cannot open catalogue {db}: {exc.strerror}") from None
+    except sqlite3.Error as exc:
+        raise sqlite_error(exc, db) from None
     conn.row_factory = sqlite3.Row
     try:
         conn.execute("PRAGMA journal_mode=WAL")
         conn.execute("PRAGMA synchronous=NORMAL")
-        conn.executescript(SCHEMA)
-    except sqlite3.DatabaseError as exc:
+        conn.executescript(SCHEMA + META)
+    except sqlite3.Error as exc:
         conn.close()
-        raise CatalogueError(f"{db} is not a surfgen catalogue: {exc}") from None
-    cat = Catalogue(root, conn)
-    try:
-        yield cat
-    finally:
-        cat.close()
+        raise sqlite_error(exc, db) from None
+    return conn

@@ -6,6 +6,10 @@ from __future__ import annotations
 import importlib
 import json
 import logging
+import math
+import os
+import signal
+import sqlite3
 import sys
 import time
 from pathlib import Path
@@ -34,6 +38,8 @@ app.add_typer(config_app, name="config")
 
 def parse_numbers(text: str, what: str, counts: tuple[int, ...], integer: bool = False) -> list:
     """``"a,b,c"`` → numbers; ``counts`` are the allowed lengths."""
+    if len(text) > 200:
+        raise SpecError(f"{what} takes at most 6 numbers, got {len(text)} characters")
     parts = [p.strip() for p in text.split(",")]
     try:
         values = [int(p) if integer else float(p) for p in parts]
@@ -53,14 +59,51 @@ def parse_params(items: list[str] | None) -> dict[str, float]:
         if not sep or not name.strip():
             raise SpecError(f"--param takes NAME=VALUE, got '{item}'")
         try:
-            out[name.strip()] = float(value)
+            number = float(value)
         except ValueError:
             raise SpecError(f"--param {name.strip()}: '{value}' is not a number") from None
+        if not math.isfinite(number):
+            raise SpecError(f"--param {name.strip()}: must be a finite number, got '{value}'")
+        out[name.strip()] = number
     return out
 
 
 def emit_json(obj: Any) -> None:
     typer.echo(json.dumps(obj, indent=2, sort_keys=False, default=str))
+
+
+MaxMemoryOption = Annotated[
+    str | None,
+    typer.Option(
+        "--max-memory",
+        help="Refuse work estimated to need more memory than this (e.g. 4G; "
+        "default: the machine's available memory).",
+    ),
+]
+
+
+def catalogued_spec(root: Path, key: str):
+    """The spec of a catalogued shape for ``render --from``: refused for a draw that was never
+    evaluated (timeout, crash), with a warning for one the filters rejected."""
+    from surfgen.generator.spec import SurfaceSpec
+    from surfgen.pipelines.catalogue import CatalogueError, open_catalogue
+
+    with open_catalogue(root, readonly=True) as cat:
+        row = cat.shape(key)
+    spec = SurfaceSpec.from_json(row["spec"])
+    reasons = json.loads(row.get("reasons") or "[]")
+    if "failed" in spec.provenance:
+        raise CatalogueError(
+            f"shape {row['key']} was never evaluated ({spec.provenance['failed']}): its spec "
+            "has no d, so it cannot be rendered"
+        )
+    if row.get("verdict") != "accepted":
+        typer.echo(
+            f"warning: shape {row['key']} was rejected by the filters "
+            f"({', '.join(reasons) or 'no reason recorded'}); rendering it anyway",
+            err=True,
+        )
+    return spec
 
 
 # ----------------------------------------------------------------------------- render
@@ -110,6 +153,7 @@ def render(
         bool, typer.Option("--force", help="Write an STL even with --walls remove (open).")
     ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    max_memory: MaxMemoryOption = None,
     mathmod: Annotated[
         Path | None, typer.Option(help="A MathMod script: render its Iso3D model.")
     ] = None,
@@ -120,9 +164,11 @@ def render(
     slider: Annotated[int | None, typer.Option(help="With --mathmod: slider set K.")] = None,
 ) -> None:
     """Evaluate one shape on its grid, extract F = level and write what is asked."""
+    from surfgen.generator.limits import parse_size
     from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
 
+    limit = parse_size(max_memory) if max_memory is not None else None
     if mathmod is not None:
         from surfgen.pipelines.mathmod import read_model, render_model
 
@@ -161,18 +207,15 @@ def render(
 
     catalogued = None
     if from_catalogue is not None:
-        from surfgen.pipelines.catalogue import open_catalogue
-
-        with open_catalogue(from_catalogue[0], must_exist=True) as cat:
-            catalogued = cat.spec(from_catalogue[1])
+        catalogued = catalogued_spec(*from_catalogue)
     spec_obj = build_spec(
         preset=preset,
         formula=formula,
         spec_file=spec,
         base=catalogued,
         params=parse_params(param),
-        box=parse_numbers(box, "--box", (2, 6)) if box else None,
-        grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid else None,
+        box=parse_numbers(box, "--box", (2, 6)) if box is not None else None,
+        grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid is not None else None,
         level=level,
     )
     result = render_spec(
@@ -182,6 +225,7 @@ def render(
         mesh_path=output,
         field_path=save_field,
         png_path=png,
+        max_memory=limit,
         walls=walls,
         force=force,
     )
@@ -298,6 +342,20 @@ def sample(
             help="Render thumbnails (--no-thumbnails to skip); turntables are rendered when first shown."
         ),
     ] = True,
+    executor: Annotated[
+        str, typer.Option(help="local (worker processes here) or dask (a Dask cluster).")
+    ] = "local",
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Dask scheduler address (default $SURFGEN_SCHEDULER; none: a local cluster)."
+        ),
+    ] = None,
+    max_memory: MaxMemoryOption = None,
+    family: Annotated[
+        str | None,
+        typer.Option(help="sculpture, lattice, free or mix (default from the config: mix)."),
+    ] = None,
 ) -> None:
     """Draw random instances of equation (13) until N shapes pass the filters."""
     from rich.progress import (
@@ -309,14 +367,26 @@ def sample(
         TimeRemainingColumn,
     )
 
+    from surfgen.generator.grid import MAX_POINTS, MIN_POINTS
+    from surfgen.generator.limits import MAX_COUNT, check_count, check_seed, parse_size
     from surfgen.pipelines.config import load_config
     from surfgen.pipelines.sampling import run_sample
 
-    if n <= 0:
-        raise SpecError(f"--n must be at least 1, got {n}")
-    if grid is not None and grid < 4:
-        raise SpecError(f"--grid must be at least 4, got {grid}")
+    # Every number is checked before anything is created (a catalogue folder, a run row).
+    check_count(n, "--n")
+    check_seed(seed)
+    if grid is not None:
+        check_count(grid, "--grid", MIN_POINTS, MAX_POINTS)
+    if workers is not None:
+        check_count(workers, "--workers", 1, 256)
+    if max_draws is not None:
+        check_count(max_draws, "--max-draws", 1, MAX_COUNT)
+    limit = parse_size(max_memory) if max_memory is not None else None
+    if executor == "dask" and not scheduler:
+        scheduler = os.environ.get("SURFGEN_SCHEDULER") or None
     cfg = load_config(config).with_grid(grid)
+    if family is not None:
+        cfg = cfg.with_family(family)
     if dedupe:
         cfg = cfg.with_run(dedupe=True)
     if not thumbnails:
@@ -330,6 +400,9 @@ def sample(
         TimeElapsedColumn(),
         TimeRemainingColumn(),
     )
+    # A plain `kill` (SIGTERM) ends the run like Ctrl-C: the run is marked interrupted and the
+    # workers are stopped (they also die with this process: see executor.py).
+    signal.signal(signal.SIGTERM, _interrupt)
     with Progress(*columns, transient=False, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("sample", total=n, drawn=0, rate=0.0)
         started = time.perf_counter()
@@ -353,6 +426,9 @@ def sample(
                 max_draws=max_draws,
                 resume=resume,
                 progress=progress,
+                executor=executor,
+                scheduler=scheduler,
+                max_memory=limit,
             )
         except KeyboardInterrupt:
             bar.stop()
@@ -385,6 +461,11 @@ def sample(
         )
 
 
+def _interrupt(signum: int, _frame: Any) -> None:
+    signal.signal(signum, signal.SIG_DFL)  # a second signal ends the process at once
+    raise KeyboardInterrupt
+
+
 @config_app.command("show")
 def config_show() -> None:
     """Print the built-in default configuration (TOML, with comments)."""
@@ -400,6 +481,8 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
     "surfgen.pipelines.export",
+    "surfgen.pipelines.dataset",
+    "surfgen.pipelines.catalogue_check",
     "surfgen.pipelines.sweep",
     "surfgen.pipelines.reproduce",
     "surfgen.pipelines.mathmod",
@@ -412,13 +495,44 @@ for _module in _REGISTER:
 # ----------------------------------------------------------------------------- entry point
 
 
+def one_line(text: str, limit: int = 2000) -> str:
+    """An error message as one line of bounded length."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def describe_os_error(exc: OSError) -> str:
+    """``cannot write out/x.png: No space left on device`` from any ``OSError``."""
+    where = exc.filename if exc.filename is not None else "a file"
+    return f"{where}: {exc.strerror or exc}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; known errors print one line (``error: ...``) and exit non-zero."""
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         rv = app(args=argv, standalone_mode=False)
     except SurfgenError as exc:
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"error: {one_line(str(exc))}", err=True)
+        return 1
+    # The boundaries raise SurfgenError; these are the safety net for what slips past them,
+    # still one line and no traceback (the message names the path or the database).
+    except sqlite3.Error as exc:
+        from surfgen.pipelines.catalogue import sqlite_error
+
+        typer.echo(f"error: {one_line(str(sqlite_error(exc, 'the catalogue database')))}", err=True)
+        return 1
+    except OSError as exc:
+        typer.echo(f"error: {one_line(describe_os_error(exc))}", err=True)
+        return 1
+    except MemoryError:
+        typer.echo(
+            "error: out of memory (lower --grid, or set --max-memory to be refused early)",
+            err=True,
+        )
+        return 1
+    except RecursionError:
+        typer.echo("error: the input is nested too deeply", err=True)
         return 1
     except TyperException as exc:  # usage errors: bad option, missing argument, ...
         if type(exc).__name__ == "NoArgsIsHelpError":  # `surfgen` or a group alone: its help

@@ -18,8 +18,12 @@ from typing import Any
 from surfgen.filters.verdict import FilterConfig
 from surfgen.generator.errors import SpecError
 from surfgen.generator.grid import MAX_POINTS, MIN_POINTS
+from surfgen.generator.limits import MAX_CONFIG_FILE_BYTES, MAX_JSON_DEPTH, json_depth_ok
 from surfgen.generator.sampler import SAMPLER_VERSION, SamplerConfig
+from surfgen.generator.settings import settings_from_mapping
 from surfgen.generator.walls import WALL_MODES
+
+MAX_TIMEOUT = 86_400.0  # a day per shape: more is a typo
 
 
 @dataclass(frozen=True)
@@ -47,8 +51,11 @@ class RunSettings:
             raise SpecError(f"config [run]: grid must be a whole number, got {self.grid!r}")
         if not MIN_POINTS <= self.grid <= MAX_POINTS:
             raise SpecError(f"grid must be from {MIN_POINTS} to {MAX_POINTS}, got {self.grid}")
-        if not self.timeout > 0:
-            raise SpecError(f"config [run]: timeout must be > 0 seconds, got {self.timeout}")
+        if not 0 < self.timeout <= MAX_TIMEOUT:
+            raise SpecError(
+                f"config [run]: timeout must be more than 0 and at most {MAX_TIMEOUT:g} seconds, "
+                f"got {self.timeout}"
+            )
 
 
 @dataclass(frozen=True)
@@ -88,8 +95,29 @@ class Config:
         text = json.dumps(self.shape_dict(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
+    def to_toml(self) -> str:
+        """The whole config as a TOML file that :func:`load_config` reads back to an equal one."""
+        lines: list[str] = []
+        for table, values in self.to_dict().items():
+            lines.append(f"[{table}]")
+            lines += [
+                f"{k} = {json.dumps(v)}" for k, v in values.items()
+            ]  # JSON scalars/lists are TOML
+            lines.append("")
+        return "\n".join(lines)
+
     def with_grid(self, grid: int | None) -> Config:
         return self if grid is None else self.with_run(grid=grid)
+
+    def with_family(self, family: str) -> Config:
+        """The config with ``[sampler] family`` replaced (validated: one-line error)."""
+        data = self.sampler.to_dict()
+        data["family"] = family
+        try:
+            sampler = SamplerConfig.from_mapping(data)
+        except SpecError as exc:
+            raise SpecError(str(exc).replace("config [sampler]: family", "--family")) from None
+        return Config(self.run, sampler, self.filters)
 
     def with_run(self, **changes: Any) -> Config:
         return Config(replace(self.run, **changes), self.sampler, self.filters)
@@ -103,10 +131,11 @@ def load_config(path: Path | None = None) -> Config:
     """The defaults, overridden by the TOML file at ``path``. Raises :class:`SpecError`."""
     data = tomllib.loads(default_config_text())
     if path is not None:
-        try:
-            text = Path(path).read_text()
-        except OSError as exc:
-            raise SpecError(f"cannot read config {path}: {exc.strerror}") from None
+        from surfgen.pipelines.render import read_text_file
+
+        text = read_text_file(Path(path), MAX_CONFIG_FILE_BYTES, "config")
+        if not json_depth_ok(text):  # tomllib recurses into nested arrays and tables
+            raise SpecError(f"config {path}: nested more than {MAX_JSON_DEPTH} levels deep")
         try:
             user = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
@@ -123,10 +152,13 @@ def load_config(path: Path | None = None) -> Config:
             if bad:
                 raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
             data[table].update(values)
-    try:
-        run = RunSettings(**data["run"])
-    except TypeError as exc:
-        raise SpecError(f"config [run]: {exc}") from None
+    return config_from_dict(data)
+
+
+def config_from_dict(data: dict[str, Any]) -> Config:
+    """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``). Raises
+    :class:`SpecError`."""
+    run = settings_from_mapping(RunSettings, data["run"], "run")
     return Config(
         run, SamplerConfig.from_mapping(data["sampler"]), FilterConfig.from_mapping(data["filters"])
     )

@@ -34,6 +34,12 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
+from surfgen.generator.limits import (
+    MAX_COUNT,
+    MAX_WHERE_CONDITIONS,
+    MAX_WHERE_LENGTH,
+    MAX_WHERE_NESTING,
+)
 from surfgen.pipelines.catalogue import (
     DEFAULT_CATALOGUE,
     Catalogue,
@@ -45,6 +51,10 @@ from surfgen.pipelines.catalogue import (
 log = logging.getLogger(__name__)
 
 MAX_STARS = 5
+MAX_SORT_FIELDS = 8
+MAX_REASON = 1_000  # characters of a curator's reject reason
+MAX_NOTE = 10_000  # characters of a note
+MAX_TAGS = 50  # tags given in one action
 _TAG = re.compile(r"^[a-z0-9][a-z0-9_.\-]{0,39}$")
 _YES = {"yes", "true", "1", "y"}
 _NO = {"no", "false", "0", "n"}
@@ -99,6 +109,28 @@ FIELDS: dict[str, Field] = {
     ),
     "total_curvature": Field("number", _metric("total_curvature"), "total |Gauss curvature|"),
     "nonfinite": Field("number", _metric("nonfinite"), "non-finite samples of the field"),
+    "solidity": Field("number", _metric("solidity"), "volume / convex hull volume"),
+    "symmetry": Field(
+        "number", _metric("symmetry"), "signed axis permutations the mesh maps onto itself under"
+    ),
+    "symmetry_permutations": Field(
+        "number", _metric("symmetry_permutations"), "distinct axis permutations among them (1-6)"
+    ),
+    "symmetry_mirrors": Field(
+        "number", _metric("symmetry_mirrors"), "mirrors x->-x, y->-y, z->-z among them (0-3)"
+    ),
+    "symmetries": Field("text", _metric("symmetries"), "labels of the symmetries (~ contains)"),
+    "departure": Field(
+        "number", _metric("departure"), "volume between a sculpture and its envelope / its volume"
+    ),
+    "free_standing": Field(
+        "flag", f"COALESCE({_metric('free_standing')}, 0) = 1", "no area on the box's faces"
+    ),
+    "family": Field(
+        "text",
+        "COALESCE(json_extract(shapes.model, '$.family'), 'free')",
+        "sampler family: sculpture, lattice or free",
+    ),
     "wall_fraction": Field(
         "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"
     ),
@@ -160,7 +192,9 @@ def tokenize(text: str) -> list[Token]:
 
 
 def _error(text: str, column: int, what: str) -> WhereError:
-    return WhereError(f"--where: {what} at column {column} of '{text}' ({_fields_hint()})")
+    shown = text if len(text) <= 80 else text[:77] + "..."  # one readable line, whatever the input
+    shown = " ".join(shown.split())
+    return WhereError(f"--where: {what} at column {column} of '{shown}' ({_fields_hint()})")
 
 
 class _Parser:
@@ -172,6 +206,8 @@ class _Parser:
         self.pos = 0
         self.params: list[Any] = []
         self.fields: set[str] = set()
+        self.depth = 0  # open parentheses: the only recursion
+        self.conditions = 0
 
     @property
     def tok(self) -> Token:
@@ -209,21 +245,32 @@ class _Parser:
         return parts[0] if len(parts) == 1 else "(" + " AND ".join(parts) + ")"
 
     def factor(self) -> str:
-        if self.keyword("not"):
-            return f"NOT ({self.factor()})"
-        if self.tok.kind == "lparen":
-            self.pos += 1
-            sql = self.expr()
-            if self.tok.kind != "rparen":
-                raise self.fail("expected ')'")
-            self.pos += 1
-            return sql
-        return self.comparison()
+        negate = False
+        while self.keyword("not"):  # a loop: 5,000 'not's are one NOT or none, not a tree
+            negate = not negate
+        sql = self.group() if self.tok.kind == "lparen" else self.comparison()
+        return f"NOT ({sql})" if negate else sql
+
+    def group(self) -> str:
+        tok = self.tok
+        self.depth += 1
+        if self.depth > MAX_WHERE_NESTING:
+            raise _error(self.text, tok.column, f"more than {MAX_WHERE_NESTING} nested '('")
+        self.pos += 1
+        sql = self.expr()
+        if self.tok.kind != "rparen":
+            raise self.fail("expected ')'")
+        self.pos += 1
+        self.depth -= 1
+        return sql
 
     def comparison(self) -> str:
         name_tok = self.tok
         if name_tok.kind != "word":
             raise self.fail("expected a field name")
+        self.conditions += 1
+        if self.conditions > MAX_WHERE_CONDITIONS:
+            raise _error(self.text, name_tok.column, f"more than {MAX_WHERE_CONDITIONS} conditions")
         name = name_tok.text.lower()
         if name not in FIELDS:
             raise _error(self.text, name_tok.column, f"unknown field '{name_tok.text}'")
@@ -324,6 +371,12 @@ def parse_where(text: str | None) -> Where:
     """
     if text is None or not text.strip():
         return Where("1", (), frozenset())
+    if not isinstance(text, str):
+        raise WhereError(f"--where must be text, got {type(text).__name__}")
+    if len(text) > MAX_WHERE_LENGTH:
+        raise WhereError(
+            f"--where: {len(text)} characters is too long (at most {MAX_WHERE_LENGTH})"
+        )
     p = _Parser(text)
     sql = p.parse()
     return Where(sql, tuple(p.params), frozenset(p.fields))
@@ -334,8 +387,11 @@ def parse_sort(text: str | None) -> str:
 
     Missing values sort last; ties are broken by run and index. Raises :class:`WhereError`.
     """
+    parts = (text or "").split(",")
+    if len(parts) > MAX_SORT_FIELDS:
+        raise WhereError(f"--sort: at most {MAX_SORT_FIELDS} fields, got {len(parts)}")
     terms = []
-    for part in (text or "").split(","):
+    for part in parts:
         part = part.strip()
         if not part:
             continue
@@ -343,7 +399,7 @@ def parse_sort(text: str | None) -> str:
         name = part.lstrip("+-").strip().lower()
         if name not in _ORDER_BY:
             raise WhereError(
-                f"--sort: unknown field '{name}' (sortable: {', '.join(SORT_FIELDS)};"
+                f"--sort: unknown field '{name[:40]}' (sortable: {', '.join(SORT_FIELDS)};"
                 " prefix with - for descending)"
             )
         sql = _ORDER_BY[name]
@@ -363,6 +419,12 @@ def _loads(text: str | None, default: Any) -> Any:
         return json.loads(text)
     except json.JSONDecodeError:
         return default
+
+
+def _family(model: str | None) -> str:
+    """The sampler family in a model's JSON (shapes from before families are ``free``)."""
+    data = _loads(model, None)
+    return str(data.get("family", "free")) if isinstance(data, dict) else "free"
 
 
 def shape_record(
@@ -391,6 +453,7 @@ def shape_record(
         "rejected": row.get("user_rejected"),
         "note": row.get("note"),
         "duplicate_of": row.get("duplicate_of"),
+        "family": _family(row.get("model")),
         "tags": list(tags),
         "mesh": row.get("mesh_path"),
         "thumb": row.get("thumb_path"),
@@ -428,8 +491,8 @@ def select_shapes(
     """
     cond = parse_where(where)
     order = parse_sort(sort)
-    if limit is not None and limit < 0:
-        raise WhereError(f"--limit must be >= 0, got {limit}")
+    if limit is not None and not 0 <= limit <= MAX_COUNT:
+        raise WhereError(f"--limit must be a whole number from 0 to 2^63-1, got {limit}")
     scope = "1" if everything or cond.fields & {"verdict", "reason"} else "verdict = 'accepted'"
     q = f"SELECT shapes.* FROM shapes WHERE {scope} AND {cond.sql} ORDER BY {order}"
     params = list(cond.params)
@@ -478,7 +541,7 @@ def normalise_tags(tags: Iterable[str]) -> list[str]:
         tag = str(t).strip().lower()
         if not _TAG.match(tag):
             raise CurationError(
-                f"bad tag '{t}': 1-40 characters a-z 0-9 _ . -, starting with a letter or digit"
+                f"bad tag '{str(t)[:40]}': 1-40 characters a-z 0-9 _ . -, starting with a letter or digit"
             )
         if tag not in out:
             out.append(tag)
@@ -526,14 +589,22 @@ def _action_sql(key: str, action: str, value: Any) -> tuple[list[str], list[tupl
             raise CurationError(f"stars must be from 0 to {MAX_STARS}, got {stars}")
         return ["UPDATE shapes SET stars=? WHERE key=?"], [(stars, key)], str(stars)
     if action == "reject":
-        why = str(value or "").strip()
+        if value is not None and not isinstance(value, str):
+            raise CurationError(f"the reason must be text, got {type(value).__name__}")
+        why = (value or "").strip()
         if not why:
             raise CurationError("say why the shape is rejected (--why TEXT)")
+        if len(why) > MAX_REASON:
+            raise CurationError(f"the reason is {len(why)} characters (at most {MAX_REASON})")
         return ["UPDATE shapes SET user_rejected=? WHERE key=?"], [(why, key)], why
     if action == "unreject":
         return ["UPDATE shapes SET user_rejected=NULL WHERE key=?"], [(key,)], None
     if action in ("tag", "untag"):
-        items = [value] if isinstance(value, str) else list(value or [])
+        items = [value] if isinstance(value, str) else value
+        if not isinstance(items, list | tuple) or not all(isinstance(t, str) for t in items):
+            raise CurationError(f"tags must be a text or a list of texts, got {value!r:.60}")
+        if len(items) > MAX_TAGS:
+            raise CurationError(f"at most {MAX_TAGS} tags at once, got {len(items)}")
         tags = normalise_tags(items)
         stmt = (
             "INSERT OR IGNORE INTO tags (key, tag) VALUES (?, ?)"
@@ -542,7 +613,11 @@ def _action_sql(key: str, action: str, value: Any) -> tuple[list[str], list[tupl
         )
         return [stmt] * len(tags), [(key, t) for t in tags], " ".join(tags)
     if action == "note":
-        text = str(value or "").strip()
+        if value is not None and not isinstance(value, str):
+            raise CurationError(f"the note must be text, got {type(value).__name__}")
+        text = (value or "").strip()
+        if len(text) > MAX_NOTE:
+            raise CurationError(f"the note is {len(text)} characters (at most {MAX_NOTE})")
         return ["UPDATE shapes SET note=? WHERE key=?"], [(text or None, key)], text
     if action == "derive":  # value: the row of a variant of `key` (surfgen.pipelines.explore)
         from surfgen.pipelines.explore import derive_sql
@@ -698,7 +773,7 @@ def list_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON records.")] = False,
 ) -> None:
     """List shapes, filtered and sorted by their metrics, tags and curation."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         recs = select_shapes(cat, where=where, sort=sort, limit=limit, everything=everything)
     if as_json:
         _emit_json(recs)
@@ -725,7 +800,7 @@ def show_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Everything about one shape: formula, spec, metrics, curation, files, provenance."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         rec = get_shape(cat, key)
     if as_json:
         _emit_json(rec)

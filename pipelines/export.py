@@ -19,7 +19,7 @@ import math
 import os
 import shlex
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Annotated, Any
@@ -29,6 +29,7 @@ import trimesh
 import typer
 
 from surfgen.filters.cleanup import (
+    MAX_TARGET_FACES,
     CleanupOptions,
     CleanupResult,
     StepReport,
@@ -38,9 +39,25 @@ from surfgen.filters.cleanup import (
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import write_all_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import CAP, WALL_KINDS, Mesh, load_mesh, save_mesh, wall_fraction
+from surfgen.generator.limits import (
+    MAX_JSON_DEPTH,
+    MAX_SPEC_FILE_BYTES,
+    check_memory,
+    estimate_memory,
+    json_depth_ok,
+    parse_size,
+)
+from surfgen.generator.mesh import (
+    CAP,
+    WALL_KINDS,
+    Mesh,
+    face_areas,
+    load_mesh,
+    mesh_bytes,
+    wall_fraction,
+)
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import WALL_MODES, extract_labelled
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, now, open_catalogue
@@ -49,6 +66,7 @@ from surfgen.pipelines.curation import CatalogueOption
 log = logging.getLogger(__name__)
 
 FORMATS = ("stl", "obj", "ply", "glb", "3mf")
+MAX_INPUTS = 10_000
 PRINTABLE = ("stl", "3mf")  # must be watertight and manifold; coordinates are millimetres
 MARKABLE = ("ply", "glb")  # formats that carry the labels of --walls mark
 GRID_WARNING = (
@@ -184,6 +202,8 @@ def export_shapes(
     out_dir: Path,
     options: ExportOptions | None = None,
     catalogue: Path = DEFAULT_CATALOGUE,
+    progress: Callable[[int, int, str], None] | None = None,
+    max_memory: int | None = None,
 ) -> list[ExportResult]:
     """Export every input (key, unique key prefix, spec ``.json`` or mesh file) into ``out_dir``.
 
@@ -196,10 +216,30 @@ def export_shapes(
         raise ExportError("give at least one key, key prefix, spec file or mesh file")
     if options.format == "3mf" and importlib.util.find_spec("lxml") is None:
         raise ExportError("3MF export needs the lxml package (pip install lxml)")
+    if len(inputs) > MAX_INPUTS:
+        raise ExportError(f"at most {MAX_INPUTS} inputs per export, got {len(inputs)}")
     sources = resolve_sources(inputs, Path(catalogue))
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ExportError(f"output folder {out_dir} is a file")
     _check_names(sources, out_dir, options.format)
-    prepared = [prepare_export(s, options) for s in sources]
+    for s in sources:  # refuse before any work, not after the first shapes
+        if s.spec is not None and (options.regrid is not None or not _has_mesh(s)):
+            n = options.regrid if options.regrid is not None else None
+            points = n**3 if n is not None else s.spec.to_grid().size
+            check_memory(
+                estimate_memory(points, mesh=True, cleanup=True),
+                max_memory,
+                f"exporting {s.name} on a {n or 'x'.join(map(str, s.spec.grid))}"
+                f"{'^3' if n else ''} grid",
+            )
+    prepared = []
+    for i, s in enumerate(sources):
+        if progress is not None:
+            progress(i, len(sources), s.name)
+        prepared.append(prepare_export(s, options))
+    if progress is not None:
+        progress(len(sources), len(sources), "")
     refused = [p for p in prepared if p.problems]
     if refused and not options.force:
         first = refused[0]
@@ -208,11 +248,27 @@ def export_shapes(
             f"{first.source.name}: not printable as {options.format}: "
             f"{'; '.join(first.problems)}{more}; nothing written (--force writes it anyway)"
         )
+    files = [_encode(p, out_dir, options) for p in prepared]
+    created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ExportError(f"cannot create output folder {out_dir}: {exc.strerror}") from None
-    return [_write(p, out_dir, options) for p in prepared]
+    try:
+        write_all_atomic([item for pair, _ in files for item in pair])
+    except OSError:
+        if created:  # all or nothing: not even an empty folder
+            out_dir.rmdir()
+        raise
+    for (pair, _), _p in zip(files, prepared, strict=True):
+        for path, _data in pair:
+            path.chmod(0o644)  # exported files are for handing on
+    log.info("wrote %d files into %s", 2 * len(files), out_dir)
+    return [result for _, result in files]
+
+
+def _has_mesh(source: Source) -> bool:
+    return source.mesh_file is not None and source.mesh_file.is_file()
 
 
 def resolve_sources(inputs: Sequence[str], catalogue: Path) -> list[Source]:
@@ -225,7 +281,7 @@ def resolve_sources(inputs: Sequence[str], catalogue: Path) -> list[Source]:
     keys = [a for a in inputs if _kind(a) == "catalogue"]
     rows: dict[str, Source] = {}
     if keys:
-        with open_catalogue(catalogue, must_exist=True) as cat:
+        with open_catalogue(catalogue, readonly=True) as cat:
             for arg in keys:
                 key = cat.resolve(arg)
                 row = cat.shape(key)
@@ -255,10 +311,13 @@ def resolve_sources(inputs: Sequence[str], catalogue: Path) -> list[Source]:
 
 def read_spec_or_sidecar(path: Path) -> SurfaceSpec:
     """A spec from a spec file (``SurfaceSpec.to_json``) or from an export sidecar's ``spec``."""
+    from surfgen.pipelines.render import read_text_file
+
+    text = read_text_file(Path(path), MAX_SPEC_FILE_BYTES, "spec file")
+    if not json_depth_ok(text):
+        raise ExportError(f"{path}: JSON nested more than {MAX_JSON_DEPTH} levels deep")
     try:
-        data = json.loads(Path(path).read_text())
-    except OSError as exc:
-        raise ExportError(f"cannot read spec file {path}: {exc.strerror}") from None
+        data = json.loads(text, parse_constant=_no_json_constant)
     except json.JSONDecodeError as exc:
         raise ExportError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     if isinstance(data, dict) and "spec" in data and "box" not in data:  # a sidecar
@@ -268,6 +327,10 @@ def read_spec_or_sidecar(path: Path) -> SurfaceSpec:
     if not isinstance(data, dict):
         raise ExportError(f"{path}: expected a JSON object")
     return SurfaceSpec.from_dict(data)
+
+
+def _no_json_constant(name: str) -> float:
+    raise json.JSONDecodeError(f"{name} is not a JSON number", name, 0)
 
 
 def load_source(
@@ -354,6 +417,14 @@ def prepare_export(source: Source, options: ExportOptions) -> Prepared:
         # The target is in millimetres: convert with the scale the repaired mesh would get.
         estimate = options.size / _longest_side(result.mesh)
         cleanup = replace(cleanup, target_edge=cleanup.target_edge / estimate)
+    if cleanup.target_edge is not None:  # a tiny edge would ask for billions of faces
+        area = float(face_areas(result.mesh).sum())
+        faces = area / (0.433 * cleanup.target_edge**2)  # equilateral triangles of that edge
+        if faces > MAX_TARGET_FACES:
+            raise ExportError(
+                f"{source.name}: --target-edge {options.cleanup.target_edge:g} would make about "
+                f"{faces:.3g} faces (at most {MAX_TARGET_FACES}); choose a longer edge"
+            )
     result = result.then(refine_mesh(result.mesh, cleanup))
     final, scale = result.mesh, 1.0
     if options.size is not None:
@@ -461,22 +532,16 @@ def _scale_to(mesh: Mesh, size: float) -> tuple[Mesh, StepReport]:
     return out, report
 
 
-def _write(p: Prepared, out_dir: Path, options: ExportOptions) -> ExportResult:
-    """Write the mesh file, then its sidecar; both are built before either is written."""
+def _encode(
+    p: Prepared, out_dir: Path, options: ExportOptions
+) -> tuple[list[tuple[Path, bytes]], ExportResult]:
+    """The mesh file and its sidecar, in memory: every export is written all or nothing."""
     name = p.source.name
     path = out_dir / f"{name}.{options.format}"
     sidecar = out_dir / f"{name}.json"
     text = json.dumps(_sidecar(p, path, options, out_dir), indent=2, default=_jsonable) + "\n"
-    if options.format == "3mf":
-        write_atomic(path, encode_3mf(p.mesh))
-    else:
-        save_mesh(p.mesh, path)
-    write_atomic(sidecar, text.encode())
-    for written in (path, sidecar):
-        # Temporary files are created 0600; exported files are for handing on.
-        written.chmod(0o644)
-    log.info("wrote %s and %s", path, sidecar)
-    return ExportResult(p, path, sidecar)
+    data = encode_3mf(p.mesh) if options.format == "3mf" else mesh_bytes(p.mesh, path)
+    return [(path, data), (sidecar, text.encode())], ExportResult(p, path, sidecar)
 
 
 def _sidecar(p: Prepared, path: Path, options: ExportOptions, out_dir: Path) -> dict[str, Any]:
@@ -599,8 +664,21 @@ def export_command(
         ),
     ] = "keep",
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,
+    max_memory: Annotated[
+        str | None,
+        typer.Option(
+            "--max-memory",
+            help="Refuse work estimated to need more memory than this (e.g. 4G; "
+            "default: the machine's available memory).",
+        ),
+    ] = None,
 ) -> None:
     """Clean up (and optionally remesh and smooth) shapes and write print- or render-ready files."""
+    import sys
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    limit = parse_size(max_memory) if max_memory is not None else None
     from surfgen.pipelines.mathmod import SCRIPT_FORMATS, export_scripts
 
     if fmt.lower() in SCRIPT_FORMATS:  # the formula itself, for MathMod or K3DSurf
@@ -617,7 +695,24 @@ def export_command(
     options = ExportOptions(
         format=fmt, cleanup=cleanup, size=size, regrid=regrid, force=force, walls=walls
     )
-    results = export_shapes(inputs, output, options, catalogue)
+    with Progress(
+        TextColumn("export"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[name]}"),
+        TimeElapsedColumn(),
+        disable=not sys.stderr.isatty(),
+        transient=True,
+    ) as bar:
+        task = bar.add_task("export", total=len(inputs), name="")
+        results = export_shapes(
+            inputs,
+            output,
+            options,
+            catalogue,
+            progress=lambda i, n, name: bar.update(task, completed=i, total=n, name=name),
+            max_memory=limit,
+        )
     for r in results:
         for w in r.prepared.warnings:
             typer.echo(f"warning: {w}", err=True)

@@ -50,17 +50,31 @@ from surfgen.pipelines.catalogue import (
     DEFAULT_CATALOGUE,
     Catalogue,
     CatalogueError,
+    CorruptCatalogue,
     now,
     open_catalogue,
 )
 from surfgen.pipelines.curation import (
     FIELDS,
+    MAX_NOTE,
+    MAX_REASON,
+    MAX_STARS,
+    MAX_TAGS,
     CatalogueOption,
     CurationError,
     WhereError,
     apply_action,
     get_shape,
     select_shapes,
+)
+from surfgen.pipelines.webapi import (
+    Param,
+    install,
+    json_body,
+    key_list,
+    query_flag,
+    query_int,
+    query_str,
 )
 
 if TYPE_CHECKING:
@@ -71,7 +85,7 @@ log = logging.getLogger(__name__)
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1", "[::1]")
 _KEY = re.compile(r"[0-9a-f]{8,64}")  # a shape key (hex): what the turntable route renders
-# The value each API action reads from the request body.
+# The value each API action reads from the request body, and what it may be.
 _ACTION_FIELD = {
     "star": "stars",
     "reject": "why",
@@ -80,6 +94,20 @@ _ACTION_FIELD = {
     "untag": "tags",
     "note": "note",
 }
+_ACTION_SCHEMA: dict[str, dict[str, Param]] = {
+    "star": {"stars": Param("int", low=0, high=MAX_STARS)},
+    "reject": {"why": Param("str", required=True, nullable=False, max_length=MAX_REASON)},
+    "unreject": {},
+    "tag": {
+        "tags": Param("tags", required=True, nullable=False, max_length=40, max_items=MAX_TAGS)
+    },
+    "untag": {
+        "tags": Param("tags", required=True, nullable=False, max_length=40, max_items=MAX_TAGS)
+    },
+    "note": {"note": Param("str", max_length=MAX_NOTE)},
+}
+MAX_LIST = 100_000  # shapes in one /api/shapes reply
+MAX_SHEET = 2_000  # thumbnails on one contact sheet (256 px each: 2000 is ~130 MPixel)
 
 
 class GalleryError(SurfgenError):
@@ -217,8 +245,10 @@ def write_contact_sheet(
     """
     from surfgen.pipelines.pictures import contact_sheet
 
-    if columns < 1:
-        raise GalleryError(f"--columns must be at least 1, got {columns}")
+    if not 1 <= columns <= 100:
+        raise GalleryError(f"--columns must be from 1 to 100, got {columns}")
+    if limit is not None and not 0 <= limit <= MAX_SHEET:
+        raise GalleryError(f"--limit must be from 0 to {MAX_SHEET}, got {limit}")
     if path.suffix.lower() != ".png":
         raise GalleryError(f"the contact sheet is a PNG: '{path}' should end in .png")
     shapes = select_shapes(cat, where=where, sort=sort)
@@ -307,6 +337,7 @@ def export_gallery(
     out = Path(out)
     if out.resolve() == Path(root).resolve():
         raise GalleryError("write the gallery to another folder than the catalogue")
+    # Read-write: turntables not rendered yet are rendered and recorded (ensure_turntable).
     with open_catalogue(root, must_exist=True) as cat:
         data = gallery_data(cat, readonly=True, where=where)
         data["catalogue"] = cat.root.name
@@ -369,17 +400,29 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
     from flask import Flask, Response, abort, g, jsonify, request, send_from_directory
 
     root = Path(root).resolve()
-    with open_catalogue(root, must_exist=True):
-        pass
+    with open_catalogue(root, readonly=True) as first:  # identify it, and refuse a damaged one
+        problem = first.conn.execute("PRAGMA quick_check").fetchone()[0]
+    if problem != "ok":
+        raise CorruptCatalogue(
+            f"catalogue {root} is corrupted ({problem}): run `surfgen catalogue check -C {root}`"
+        )
     app = Flask(__name__, static_folder=str(_static_dir()), static_url_path="/static")
     app.json.sort_keys = False  # type: ignore[attr-defined]
+    install(app)
     if host in LOOPBACK:
         app.config["TRUSTED_HOSTS"] = list(LOOPBACK)
 
-    def cat() -> Catalogue:
-        if "cat" not in g:
+    def cat(write: bool | None = None) -> Catalogue:
+        """This request's catalogue connection: read-only for GET requests (and whenever
+        ``write`` is False), read-write for requests that may write (POST...)."""
+        if write is None:
+            write = request.method not in ("GET", "HEAD", "OPTIONS")
+        if "cat" not in g or (write and not g.cat_writes):
+            if "stack" in g:
+                g.stack.close()
             g.stack = ExitStack()
-            g.cat = g.stack.enter_context(open_catalogue(root, must_exist=True))
+            g.cat = g.stack.enter_context(open_catalogue(root, must_exist=True, readonly=not write))
+            g.cat_writes = write
         return g.cat
 
     @app.teardown_appcontext
@@ -405,7 +448,7 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
         key = name.removesuffix(".png")
         if not (root / "turntables" / name).is_file() and _KEY.fullmatch(key):
             try:
-                ensure_turntable(cat(), key)
+                ensure_turntable(cat(write=True), key)
             except CatalogueError:
                 abort(404)
             except SurfgenError as exc:
@@ -431,15 +474,14 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
 
     @app.get("/api/shapes")
     def shapes():
-        limit = request.args.get("limit", type=int)
         recs = select_shapes(
             cat(),
-            where=request.args.get("where"),
-            sort=request.args.get("sort"),
-            limit=limit,
-            everything=request.args.get("all") == "1",
+            where=query_str("where"),
+            sort=query_str("sort", 200),
+            limit=query_int("limit", 0, MAX_LIST),
+            everything=query_flag("all"),
         )
-        if request.args.get("keys") == "1":
+        if query_flag("keys"):
             return jsonify(keys=[r["key"] for r in recs])
         return jsonify(count=len(recs), shapes=[turntable_url(r) for r in recs])
 
@@ -451,18 +493,14 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
     def curate(key: str, action: str):
         if action not in _ACTION_FIELD:
             abort(404)
-        if not request.is_json:
-            return jsonify(error="send the action as application/json"), 415
-        body = request.get_json(silent=True)
-        if not isinstance(body, dict):
-            return jsonify(error="the body must be a JSON object"), 400
+        body = json_body(_ACTION_SCHEMA[action])
         field = _ACTION_FIELD[action]
         value = body.get(field) if field else None
-        return jsonify(shape=turntable_url(apply_action(cat(), key, action, value)))
+        return jsonify(shape=turntable_url(apply_action(cat(write=True), key, action, value)))
 
     @app.post("/api/export")
     def export():
-        keys = [k for k in request.form.get("keys", "").split(",") if k.strip()]
+        keys = key_list(request.form.getlist("keys"))
         if not keys:
             return jsonify(error="no shapes to export"), 400
         data = _export_zip(cat(), keys)
@@ -565,7 +603,7 @@ def contact_sheet_cmd(
     columns: Annotated[int, typer.Option(help="Thumbnails per row.")] = 6,
 ) -> None:
     """A grid of thumbnails with short keys, for a quick look or a figure."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         path, n = write_contact_sheet(cat, output, where, sort, limit, columns)
     typer.echo(f"wrote {path} ({n} shapes)")
 

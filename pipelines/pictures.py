@@ -725,6 +725,19 @@ def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:
     The PNG goes to a temporary file in the same folder, then replaces ``path``, so a reader
     never sees half a file. Returns the path. Raises :class:`SurfgenError` for another shape.
     """
+    array = np.asarray(image)
+    data = png_bytes(array)
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(target, data)
+    log.debug("wrote %s (%dx%d)", target, array.shape[1], array.shape[0])
+    return target
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    """The PNG file of a uint8 ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` image, in memory (so a
+    command can write several files all or nothing). Raises :class:`SurfgenError` for another
+    shape."""
     from PIL import Image
 
     array = np.asarray(image)
@@ -736,13 +749,9 @@ def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:
         raise SurfgenError(
             f"write_png needs uint8 (H, W), (H, W, 3) or (H, W, 4), got {array.dtype} {array.shape}"
         )
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
     buffer = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(array)).save(buffer, format="PNG", compress_level=6)
-    write_atomic(target, buffer.getvalue())
-    log.debug("wrote %s (%dx%d)", target, array.shape[1], array.shape[0])
-    return target
+    return buffer.getvalue()
 
 
 def render_thumbnail(

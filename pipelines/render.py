@@ -15,9 +15,16 @@ import numpy as np
 
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import write_all_atomic, write_atomic
 from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, save_mesh
+from surfgen.generator.limits import (
+    MAX_SPEC_FILE_BYTES,
+    check_memory,
+    decode_text,
+    estimate_memory,
+    read_bounded,
+)
+from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, mesh_bytes
 from surfgen.generator.presets import get_preset
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import WallReport, check_walls_mode, extract_labelled
@@ -103,11 +110,18 @@ def build_spec(
 
 
 def read_spec(path: Path) -> SurfaceSpec:
+    """The spec in a JSON file (at most :data:`MAX_SPEC_FILE_BYTES`). Raises :class:`SpecError`."""
+    return SurfaceSpec.from_json(read_text_file(path, MAX_SPEC_FILE_BYTES, "spec file"))
+
+
+def read_text_file(path: Path, limit: int, what: str) -> str:
+    """UTF-8 text of a small input file, read without trusting its size (``/dev/zero``).
+    Raises :class:`SpecError` (or :class:`LimitError`) naming the file and the problem."""
     try:
-        text = Path(path).read_text()
+        data = read_bounded(path, limit, what)
     except OSError as exc:
-        raise SpecError(f"cannot read spec file {path}: {exc.strerror}") from None
-    return SurfaceSpec.from_json(text)
+        raise SpecError(f"cannot read {what} {path}: {exc.strerror}") from None
+    return decode_text(data, path, what)
 
 
 def check_output_path(path: Path, suffixes: Sequence[str], what: str) -> None:
@@ -116,6 +130,8 @@ def check_output_path(path: Path, suffixes: Sequence[str], what: str) -> None:
         raise SpecError(
             f"{what} {path}: unknown format '{path.suffix}' (allowed: {', '.join(suffixes)})"
         )
+    if path.is_dir():
+        raise SpecError(f"{what} {path} is a folder, not a file name")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise SpecError(f"{what} {path}: folder {parent} does not exist")
@@ -125,9 +141,14 @@ def check_output_path(path: Path, suffixes: Sequence[str], what: str) -> None:
 
 def save_field(field: Field, path: Path) -> None:
     """Write the float64 field (shape (Nx, Ny, Nz)) as .npy, atomically."""
+    write_atomic(path, field_bytes(field))
+
+
+def field_bytes(field: Field) -> bytes:
+    """The .npy file of the float64 field, in memory."""
     buf = io.BytesIO()
     np.save(buf, np.asarray(field.values, dtype=np.float64))
-    write_atomic(path, buf.getvalue())
+    return buf.getvalue()
 
 
 def render_spec(
@@ -140,6 +161,7 @@ def render_spec(
     png_path: Path | None = None,
     walls: str = "keep",
     force: bool = False,
+    max_memory: int | None = None,
 ) -> RenderResult:
     """Evaluate, mesh and write what was asked.
 
@@ -147,8 +169,10 @@ def render_spec(
     keeps the solid's whole boundary, ``"mark"`` labels walls (colours in PLY/GLB and in the
     picture), ``"remove"`` keeps only the zero set (open, no caps): an STL of it is refused
     unless ``force``.  With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh
-    is extracted.  Raises :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, also for
-    ``remove`` when no crossing is a root); on error no file is written.
+    is extracted.  ``max_memory`` (bytes; None: the machine's available memory) refuses a grid
+    whose estimated memory is larger, before anything is allocated.  Raises
+    :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, ``LimitError``); on error no file
+    is written.
     """
     check_walls_mode(walls)
     if mesh_path is not None:
@@ -163,10 +187,16 @@ def render_spec(
         check_output_path(Path(field_path), (".npy",), "field file")
     if png_path is not None:
         check_output_path(Path(png_path), (".png",), "picture")
+    want_mesh = mesh_path is not None or png_path is not None or field_path is None
+    grid = spec.to_grid()
+    check_memory(
+        estimate_memory(grid.size, mesh=want_mesh, field_copy=field_path is not None),
+        max_memory,
+        f"render on a {'x'.join(map(str, grid.shape))} grid",
+    )
     start = time.perf_counter()
     tree = spec.tree()
-    field = evaluate(tree, spec.to_grid(), spec.params, evaluator=evaluator)
-    want_mesh = mesh_path is not None or png_path is not None or field_path is None
+    field = evaluate(tree, grid, spec.params, evaluator=evaluator)
     mesh: Mesh | None = None
     crossings: WallReport | None = None
     if want_mesh:
@@ -174,18 +204,19 @@ def render_spec(
             field, tree, spec.params, spec.level, cap=cap, walls=walls
         )
     seconds = time.perf_counter() - start
-    files: dict[str, str] = {}
+    # Every file is made in memory first, then all are written together: a full disk or a
+    # bad folder for one of them leaves none of them behind.
+    outputs: dict[str, tuple[Path, bytes]] = {}
     if field_path is not None:
-        save_field(field, Path(field_path))
-        files["field"] = str(field_path)
+        outputs["field"] = (Path(field_path), field_bytes(field))
     if mesh is not None and mesh_path is not None:
-        save_mesh(mesh, Path(mesh_path))
-        files["mesh"] = str(mesh_path)
+        outputs["mesh"] = (Path(mesh_path), mesh_bytes(mesh, mesh_path))
     if mesh is not None and png_path is not None:
-        from surfgen.pipelines.pictures import render_thumbnail
+        from surfgen.pipelines.pictures import png_bytes, render_image
 
-        render_thumbnail(mesh, Path(png_path), size=512)
-        files["png"] = str(png_path)
+        outputs["png"] = (Path(png_path), png_bytes(render_image(mesh, size=512)))
+    write_all_atomic(list(outputs.values()))
+    files = {kind: str(path) for kind, (path, _) in outputs.items()}
     log.info("rendered %s in %.3f s", spec.key, seconds)
     return RenderResult(spec, field, mesh, seconds, files, walls, crossings)
 

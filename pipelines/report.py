@@ -42,22 +42,65 @@ def _entropy_bits(counts: Counter) -> float:
     return float(-(p * np.log2(p)).sum())
 
 
-def _nearest_distances(cat: Catalogue, keys: list[str]) -> list[float]:
+def _nearest_by_key(cat: Catalogue, keys: list[str]) -> dict[str, float]:
     """Each accepted shape's descriptor distance to its nearest other shape (stored descriptors)."""
     from surfgen.filters.descriptor import descriptor_distances, descriptor_from_text
 
     wanted = set(keys)
     rows = cat.conn.execute("SELECT key, descriptor FROM shapes WHERE verdict='accepted'")
-    descs = [descriptor_from_text(r["descriptor"]) for r in rows if r["key"] in wanted]
-    stack = np.array([d for d in descs if d is not None])
-    if len(stack) < 2:
-        return []
-    out = []
-    for i, d in enumerate(stack):
+    pairs = [(r["key"], descriptor_from_text(r["descriptor"])) for r in rows if r["key"] in wanted]
+    pairs = [(k, d) for k, d in pairs if d is not None]
+    if len(pairs) < 2:
+        return {}
+    stack = np.array([d for _, d in pairs])
+    out = {}
+    for i, (key, d) in enumerate(pairs):
         dist = descriptor_distances(d, stack)
         dist[i] = np.inf
-        out.append(float(dist.min()))
+        out[key] = float(dist.min())
     return out
+
+
+def _nearest_distances(cat: Catalogue, keys: list[str]) -> list[float]:
+    return list(_nearest_by_key(cat, keys).values())
+
+
+def family_of(row: dict[str, Any]) -> str:
+    """The sampler family recorded in a shape's model (shapes from before families: free)."""
+    try:
+        return str(json.loads(row.get("model") or "{}").get("family", "free"))
+    except (json.JSONDecodeError, AttributeError):
+        return "free"
+
+
+SHEET_SHAPES = 24  # thumbnails per family on the report's contact sheets
+
+
+def _family_stats(rows: list[dict[str, Any]], nearest: dict[str, float]) -> dict[str, Any]:
+    """Acceptance, free-standing and symmetric shares, solidity and genus, diversity."""
+    from surfgen.filters.descriptor import DEFAULT_THRESHOLD
+
+    accepted = [r for r in rows if r["verdict"] == "accepted"]
+    metrics = [json.loads(r["metrics"] or "{}") for r in accepted]
+    n = len(accepted)
+    genus = [r["genus"] for r in accepted if r["genus"] is not None]
+    near = [nearest[r["key"]] for r in accepted if r["key"] in nearest]
+    return {
+        "drawn": len(rows),
+        "accepted": n,
+        "acceptance": n / len(rows) if rows else 0.0,
+        "free_standing": sum(1 for m in metrics if m.get("free_standing") is True),
+        "symmetric": sum(1 for m in metrics if (m.get("symmetry_permutations") or 1) > 1),
+        "mirrored": sum(1 for m in metrics if (m.get("symmetry_mirrors") or 0) > 0),
+        "solidity": [m["solidity"] for m in metrics if m.get("solidity") is not None],
+        "genus": genus,
+        "distinct_genus": len(set(genus)),
+        "nearest_distance_median": float(np.median(near)) if near else None,
+        "near_duplicate_rate": float(np.mean(np.array(near) < DEFAULT_THRESHOLD)) if near else None,
+        "thumbs": [
+            (r["thumb_path"], r["key"][:8]) for r in accepted[:SHEET_SHAPES] if r["thumb_path"]
+        ],
+    }
 
 
 def report_stats(cat: Catalogue, run: int | None = None) -> dict[str, Any]:
@@ -77,7 +120,12 @@ def report_stats(cat: Catalogue, run: int | None = None) -> dict[str, Any]:
     tags = Counter(t["tag"] for t in tag_rows if t["key"] in wanted)
     genus = Counter(r["genus"] for r in accepted if r["genus"] is not None)
     pairs = {(r["genus"], r["components"]) for r in accepted}
-    nearest = _nearest_distances(cat, keys)
+    nearest_by_key = _nearest_by_key(cat, keys)
+    nearest = list(nearest_by_key.values())
+    families: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        families.setdefault(family_of(r), []).append(r)
+    everything = _family_stats(rows, nearest_by_key)
     runs = [r for r in cat.runs() if run is None or r["id"] == run]
     return {
         "scope": f"run {run}" if run is not None else "all runs",
@@ -102,6 +150,14 @@ def report_stats(cat: Catalogue, run: int | None = None) -> dict[str, Any]:
         "genus_entropy_bits": _entropy_bits(genus),
         "nearest_distance_median": float(np.median(nearest)) if nearest else None,
         "descriptors": len(nearest),
+        "free_standing": everything["free_standing"],
+        "symmetric": everything["symmetric"],
+        "near_duplicate_rate": everything["near_duplicate_rate"],
+        "solidity": everything["solidity"],
+        "families": {
+            name: _family_stats(family_rows, nearest_by_key)
+            for name, family_rows in sorted(families.items())
+        },
         "runs": [
             {
                 "id": r["id"],
@@ -213,7 +269,7 @@ letter-spacing:.05em;color:#6b7078}.sub{color:#6b7078;margin:0}
 .card b{display:block;font-size:22px}.card span{color:#6b7078;font-size:12px}
 .figs{display:grid;grid-template-columns:repeat(auto-fill,minmax(460px,1fr));gap:14px}
 figure{background:#fff;margin:0;border-radius:10px;padding:10px;box-shadow:0 1px 3px rgba(0,0,0,.08)}
-figure img{width:100%;height:auto}figcaption{font-weight:600;margin:2px 4px 6px}
+figure img{width:100%;height:auto}figure.sheet{grid-column:1/-1}figcaption{font-weight:600;margin:2px 4px 6px}
 table{border-collapse:collapse;background:#fff;border-radius:8px;overflow:hidden}
 td,th{padding:5px 12px;border-bottom:1px solid #eee;text-align:right}th{background:#fafaf8}
 td:first-child,th:first-child{text-align:left}.tags span{display:inline-block;background:#e7f0f4;
@@ -227,8 +283,91 @@ def _card(value: Any, label: str) -> str:
     )
 
 
+def _float_hist(values: list[float], what: str):
+    def draw(ax) -> None:
+        if not values:
+            ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
+            return
+        ax.hist(values, bins=np.linspace(0.0, 1.0, 21), color=_BLUE, edgecolor="white")
+        ax.set_xlabel(what)
+        ax.set_ylabel("shapes")
+        ax.yaxis.get_major_locator().set_params(integer=True)
+
+    return draw
+
+
+def _sheet_uri(root: Path | None, thumbs: list[tuple[str, str]]) -> str | None:
+    """A contact sheet of the thumbnails as a PNG data URI (None without thumbnails)."""
+    import tempfile
+
+    from surfgen.pipelines.pictures import contact_sheet
+
+    items = [(root / path, label) for path, label in thumbs if root is not None]
+    items = [(p, label) for p, label in items if p.exists()]
+    if not items:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        out = contact_sheet(items, Path(tmp) / "sheet.png", columns=8, label_size=11)
+        data = out.read_bytes()
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+
+
+def _pct(part: int, whole: int) -> str:
+    return f"{100 * part / whole:.0f}%" if whole else "–"
+
+
+def _families_html(s: dict[str, Any], root: Path | None) -> str:
+    """A table of the families and, per family, histograms and a contact sheet."""
+    fams = s.get("families") or {}
+    if not fams:
+        return ""
+    rows = []
+    for name, f in fams.items():
+        solid = f"{np.median(f['solidity']):.2f}" if f["solidity"] else "–"
+        near = f["nearest_distance_median"]
+        rate = f["near_duplicate_rate"]
+        rows.append(
+            f"<tr><td>{html.escape(name)}</td><td>{f['drawn']}</td><td>{f['accepted']}</td>"
+            f"<td>{_pct(f['accepted'], f['drawn'])}</td>"
+            f"<td>{_pct(f['free_standing'], f['accepted'])}</td>"
+            f"<td>{_pct(f['symmetric'], f['accepted'])}</td>"
+            f"<td>{f['distinct_genus']}</td>"
+            f"<td>{solid}</td>"
+            f"<td>{'–' if near is None else f'{near:.3f}'}</td>"
+            f"<td>{'–' if rate is None else f'{100 * rate:.1f}%'}</td></tr>"
+        )
+    out = [
+        "<h2>Families</h2><table><tr><th>family</th><th>draws</th><th>accepted</th>"
+        "<th>acceptance</th><th>free-standing</th><th>permutation symmetry</th>"
+        "<th>distinct genera</th><th>median solidity</th><th>median nearest distance</th>"
+        f"<th>near duplicates</th></tr>{''.join(rows)}</table>"
+    ]
+    for name, f in fams.items():
+        if not f["accepted"]:
+            continue
+        figures = [
+            (f"{name}: solidity", _float_hist(f["solidity"], "volume / convex hull volume")),
+            (f"{name}: genus", _int_hist(f["genus"], "genus")),
+        ]
+        figs = "".join(
+            f"<figure><figcaption>{html.escape(title)}</figcaption>"
+            f"<img alt='{html.escape(title)}' src='{_figure_png(draw)}'></figure>"
+            for title, draw in figures
+        )
+        sheet = _sheet_uri(root, f["thumbs"])
+        if sheet is not None:
+            caption = f"{name}: the first {len(f['thumbs'])} accepted shapes"
+            figs += (
+                f"<figure class='sheet'><figcaption>{html.escape(caption)}</figcaption>"
+                f"<img alt='{html.escape(caption)}' src='{sheet}'></figure>"
+            )
+        out.append(f"<h2>Family: {html.escape(name)}</h2><div class='figs'>{figs}</div>")
+    return "".join(out)
+
+
 def render_report(stats: dict[str, Any], catalogue: str) -> str:
-    """The report page for ``stats`` (from :func:`report_stats`): one HTML string."""
+    """The report page for ``stats`` (from :func:`report_stats`): one HTML string; the
+    families' contact sheets are drawn from the thumbnails under ``catalogue``."""
     s = stats
     figures = [
         ("Genus of accepted shapes", _int_hist(s["genus"], "genus")),
@@ -246,8 +385,13 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
         for title, draw in figures
     )
     near = s["nearest_distance_median"]
+    accepted = s["accepted"]
+    rate = s.get("near_duplicate_rate")
     cards = "".join(
         [
+            _card(_pct(s.get("free_standing", 0), accepted), "free-standing"),
+            _card(_pct(s.get("symmetric", 0), accepted), "with a permutation symmetry"),
+            _card("–" if rate is None else f"{100 * rate:.1f}%", "nearest shape closer than 0.012"),
             _card(s["drawn"], "draws"),
             _card(s["accepted"], "accepted"),
             _card(f"{100 * s['acceptance']:.0f}%", "acceptance"),
@@ -286,6 +430,7 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
 {f" · {s['open']} open shapes have no genus" if s["open"] else ""}</p>
 <div class="cards">{cards}</div>
 <h2>Distributions</h2><div class="figs">{figs}</div>
+{_families_html(s, Path(catalogue))}
 <h2>Rejection reasons</h2><table><tr><th>reason</th><th>draws</th><th>of all draws</th></tr>
 {reason_rows}</table>
 <h2>Runs</h2><table><tr><th>run</th><th>seed</th><th>grid</th><th>draws</th><th>accepted</th>
@@ -299,7 +444,7 @@ def write_report(root: Path, path: Path | None = None, run: int | None = None) -
     """Write the report of the catalogue at ``root`` (default ``root/report.html``)."""
     from surfgen.pipelines.gallery import write_page
 
-    with open_catalogue(root, must_exist=True) as cat:
+    with open_catalogue(root, readonly=True) as cat:
         stats = report_stats(cat, run)
     path = Path(path) if path is not None else Path(root) / "report.html"
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -316,7 +461,7 @@ def report_cmd(
     ] = None,
     run: Annotated[int | None, typer.Option(help="Only this run (default: all).")] = None,
 ) -> None:
-    """Histograms of genus, components, faces and acceptance: how diverse the catalogue is."""
+    """Histograms of genus, components, faces and acceptance, per family with contact sheets."""
     typer.echo(f"wrote {write_report(catalogue, output, run)}")
 
 

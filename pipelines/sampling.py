@@ -5,6 +5,11 @@ processes in any order; the parent (the catalogue's only writer) commits results
 index order and stops at the ``n``-th accepted shape. So the catalogue holds exactly the first
 ``n`` accepted shapes by index, whatever the number of workers, and a killed run resumed with
 ``resume=True`` ends identical to an uninterrupted one.
+
+The workers are an executor (:class:`~surfgen.pipelines.executor.Executor`): local processes
+(``executor="local"``), or a Dask cluster (``executor="dask"``, :mod:`surfgen.pipelines.cluster`),
+whose workers hand the files back as bytes (:func:`make_shape_packed`). Ordering, commits and
+files are handled by one code path (:func:`_drive`) for both.
 """
 
 from __future__ import annotations
@@ -13,9 +18,12 @@ import json
 import logging
 import os
 import shutil
+import sqlite3
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -29,36 +37,55 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
+from surfgen.filters.shape import envelope_departure, quality_metrics
 from surfgen.filters.verdict import (
     REASONS,
     Verdict,
     judge,
+    plain,
     quick_metrics,
     screen_field,
     shape_metrics,
 )
 from surfgen.generator import __version__
-from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
+from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_with_edges, save_mesh
-from surfgen.generator.sampler import SAMPLER_VERSION, choose_d, draw_equation
+from surfgen.generator.limits import (
+    MAX_COUNT,
+    check_count,
+    check_memory,
+    check_seed,
+    estimate_memory,
+)
+from surfgen.generator.mesh import Mesh, extract_with_edges, mesh_bytes
+from surfgen.generator.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import label_walls
 from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
-from surfgen.pipelines.executor import KillablePool
+from surfgen.pipelines.executor import Executor, KillablePool
 
 log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
+EXECUTORS = ("local", "dask")
+# Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
+FILE_FIELDS = (
+    ("mesh_path", "mesh_file"),
+    ("thumb_path", "thumb_file"),
+    ("turntable_path", "turntable_file"),
+)
 
 
 @dataclass(frozen=True)
 class ShapeOutcome:
-    """What a worker hands back for one index: the row to store and the files' bytes."""
+    """What a worker hands back for one index: the row to store and its files, either staged
+    on the driver's disk (``*_file``) or, from a remote worker, as bytes (``data``: pairs of
+    a ``*_file`` field name and the file's bytes)."""
 
     index: int
     row: dict[str, Any]
@@ -66,6 +93,12 @@ class ShapeOutcome:
     mesh_file: Path | None = None
     thumb_file: Path | None = None
     turntable_file: Path | None = None
+    data: tuple[tuple[str, bytes], ...] = ()
+    write_error: str | None = None  # the shape's files could not be written (disk full...)
+
+
+class SampleWriteError(SurfgenError):
+    """A sampling run stopped because a file could not be written; ``--resume`` continues it."""
 
 
 @dataclass
@@ -143,14 +176,14 @@ def make_shape(
         tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
     )
     watch.lap("eval")
-    verdict, metrics, mesh = _judge(tree, spec, d, config, watch)
+    verdict, metrics, mesh = _judge(tree, spec, d, config, watch, draw)
     row: dict[str, Any] = {
         "key": spec.key,
         "spec": spec.to_json(),
         "formula": spec.formula,
         "identity": spec.identity,
         "d": d,
-        "model": json.dumps(equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        "model": _model_json(draw, equation),
         **_metric_columns(_round_metrics(metrics)),
         "verdict": "accepted" if verdict.accepted else "rejected",
         "reasons": json.dumps(list(verdict.reasons)),
@@ -160,16 +193,29 @@ def make_shape(
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
         watch.lap("describe")
         if staging is not None:
-            out = _with_files(out, mesh, staging, pictures, watch)
+            try:
+                out = _with_files(out, mesh, staging, pictures, watch)
+            except OSError as exc:  # not a verdict on the shape: the run must stop
+                return ShapeOutcome(index, row, verdict, write_error=_write_error(exc, staging))
     row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
 
 
+def _model_json(draw: Draw, equation) -> str:
+    return json.dumps(draw.model_dict(equation), sort_keys=True, separators=(",", ":"))
+
+
 def _judge(
-    tree: Expr, spec: SurfaceSpec, d: float | None, config: Config, watch: _Stopwatch
+    tree: Expr,
+    spec: SurfaceSpec,
+    d: float | None,
+    config: Config,
+    watch: _Stopwatch,
+    draw: Draw | None = None,
 ) -> tuple[Verdict, dict[str, Any], Mesh | None]:
-    """The cascade: coarse field, full field, mesh, cheap mesh checks, full mesh checks.
-    Returns the verdict, the metrics measured so far and the mesh (if one was made)."""
+    """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
+    if any), mesh, cheap mesh checks, full mesh checks, then the shape-quality metrics of an
+    accepted mesh. Returns the verdict, the metrics measured so far and the mesh (if made)."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
     if d is None:
@@ -183,6 +229,11 @@ def _judge(
     field_ = evaluate(tree, spec.to_grid(), threads=1)
     metrics["nonfinite"] = field_.nonfinite
     verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
+    if verdict.accepted and draw is not None and draw.envelope is not None:
+        envelope = evaluate(draw.envelope, spec.to_grid(), threads=1).values
+        metrics["departure"] = envelope_departure(field_.values, envelope, spec.level)
+        if plain(metrics, fcfg):  # no need to mesh it
+            verdict = Verdict.reject("plain")
     watch.lap("eval")
     if not verdict.accepted:
         return verdict, metrics, None
@@ -212,6 +263,8 @@ def _judge(
     if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick ones reused)
         metrics.update(shape_metrics(mesh, spec.box, quick=quick))
         verdict = judge(metrics, fcfg, capped=capped)
+    if verdict.accepted:
+        metrics.update(quality_metrics(mesh, metrics))
     watch.lap("filters")
     return verdict, metrics, mesh
 
@@ -234,7 +287,7 @@ def _with_files(
     the 12-view turntable, which most shapes never get hovered for, is rendered the first
     time it is asked for (:func:`surfgen.pipelines.gallery.ensure_turntable`)."""
     key = out.row["key"]
-    mesh_file = save_mesh(mesh, staging / f"{key}.ply")
+    mesh_file = write_atomic(staging / f"{key}.ply", mesh_bytes(mesh, staging / f"{key}.ply"))
     watch.lap("io")
     thumb = None
     if pictures:
@@ -243,6 +296,65 @@ def _with_files(
         thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
         watch.lap("pictures")
     return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb)
+
+
+def make_shape_packed(
+    index: int, *, seed: int, config: Config, pictures: bool = False
+) -> ShapeOutcome:
+    """:func:`make_shape` for a worker that shares no disk with the driver: the accepted
+    shape's files are made in a temporary folder and handed back as bytes in ``data``."""
+    with tempfile.TemporaryDirectory(prefix="surfgen-shape-") as tmp:
+        out = make_shape(index, seed=seed, config=config, staging=Path(tmp), pictures=pictures)
+        data = tuple(
+            (name, getattr(out, name).read_bytes())
+            for _, name in FILE_FIELDS
+            if getattr(out, name) is not None
+        )
+    return ShapeOutcome(out.index, out.row, out.verdict, data=data)
+
+
+def _stage(outcome: ShapeOutcome, staging: Path) -> ShapeOutcome:
+    """Write the bytes a remote worker handed back into the driver's staging folder, so the
+    outcome looks like a local one (its files are moved in when the row commits)."""
+    if not outcome.data:
+        return outcome
+    key = outcome.row["key"]
+    suffix = {"mesh_file": ".ply", "thumb_file": ".thumb.png", "turntable_file": ".turntable.png"}
+    try:
+        files = {
+            name: write_atomic(staging / f"{key}{suffix[name]}", b) for name, b in outcome.data
+        }
+    except OSError as exc:
+        return ShapeOutcome(
+            outcome.index, outcome.row, outcome.verdict, write_error=_write_error(exc, staging)
+        )
+    return ShapeOutcome(outcome.index, outcome.row, outcome.verdict, **files)
+
+
+def open_executor(
+    executor: str,
+    *,
+    seed: int,
+    config: Config,
+    staging: Path,
+    workers: int | None,
+    scheduler: str | None = None,
+) -> Executor:
+    """The workers that compute shapes: ``local`` processes, or a Dask cluster (``scheduler``
+    address, or a local one of ``workers`` processes). Raises :class:`SpecError` for an unknown
+    executor and ``ExecutorError`` when Dask is missing or unreachable."""
+    pictures = config.run.thumbnails
+    if executor == "local":
+        fn = partial(make_shape, seed=seed, config=config, staging=staging, pictures=pictures)
+        return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
+    if executor == "dask":
+        from surfgen.pipelines.cluster import DaskPool
+
+        fn = partial(make_shape_packed, seed=seed, config=config, pictures=pictures)
+        return DaskPool(
+            fn, config.run.timeout, scheduler=scheduler, workers=workers, environment=versions
+        )
+    raise SpecError(f"unknown executor '{executor}' (allowed: {', '.join(EXECUTORS)})")
 
 
 def run_sample(
@@ -255,21 +367,35 @@ def run_sample(
     max_draws: int | None = None,
     resume: bool = False,
     progress: Callable[[int, int, int], None] | None = None,
+    executor: str = "local",
+    scheduler: str | None = None,
+    max_memory: int | None = None,
 ) -> RunSummary:
     """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
 
-    ``progress(accepted, drawn, n)`` is called after each committed index.
-    Raises :class:`SpecError` for bad options and :class:`CatalogueError` when a run with the
-    same seed, grid and config exists and ``resume`` is false.
+    ``progress(accepted, drawn, n)`` is called after each committed index. ``executor`` is
+    ``local`` (``workers`` processes) or ``dask`` (the cluster at ``scheduler``, or a local one
+    of ``workers`` processes). Raises :class:`SpecError` for bad options,
+    :class:`CatalogueError` when a run with the same seed, grid and config exists and ``resume``
+    is false, and ``ExecutorError`` when the Dask cluster cannot be used.
     """
-    if n <= 0:
-        raise SpecError(f"--n must be at least 1, got {n}")
-    workers = os.cpu_count() or 1 if workers is None else workers
-    if workers < 1:
-        raise SpecError(f"--workers must be at least 1, got {workers}")
-    max_draws = max_draws if max_draws is not None else max(1000, 50 * n)
-    if max_draws < 1:
-        raise SpecError(f"--max-draws must be at least 1, got {max_draws}")
+    check_count(n, "--n")
+    check_seed(seed)
+    if executor not in EXECUTORS:
+        raise SpecError(f"unknown executor '{executor}' (allowed: {', '.join(EXECUTORS)})")
+    if scheduler and executor != "dask":
+        raise SpecError("--scheduler needs --executor dask")
+    if workers is not None:
+        check_count(workers, "--workers", 1, 256)
+    max_draws = max_draws if max_draws is not None else min(max(1000, 50 * n), MAX_COUNT)
+    check_count(max_draws, "--max-draws")
+    grid = config.run.grid
+    check_memory(
+        estimate_memory(grid**3, mesh=True),
+        max_memory,
+        f"sampling on a {grid}^3 grid",
+        times=workers or os.cpu_count() or 1,
+    )
     start = time.perf_counter()
     with open_catalogue(catalogue) as cat:
         cat.make_dirs()
@@ -284,16 +410,48 @@ def run_sample(
                 f"{catalogue} already has run {run.id} with seed {seed}, grid {run.grid} and this "
                 f"config ({run.accepted}/{run.n} accepted, {run.status}): {hint}"
             )
-        if run is None:
-            run = cat.create_run(
-                seed, n, config.run.grid, config.to_dict(), config.hash, SAMPLER_VERSION, versions()
+        done = run is not None and run.accepted >= n
+        staging = cat.root / ".staging"
+        # The workers start before the run is recorded: a cluster that cannot be reached
+        # leaves the catalogue as it was.
+        pool = (
+            nullcontext(None)
+            if done
+            else open_executor(
+                executor,
+                seed=seed,
+                config=config,
+                staging=staging,
+                workers=workers,
+                scheduler=scheduler,
             )
-        cat.set_run_status(run.id, "running", n=max(n, run.n) if resume else n)
-        status = "interrupted"
-        try:
-            status, stage = _drive(cat, run.id, n, seed, config, workers, max_draws, progress)
-        finally:
-            cat.set_run_status(run.id, status)
+        )
+        with pool:
+            if run is None:
+                run = cat.create_run(
+                    seed,
+                    n,
+                    config.run.grid,
+                    config.to_dict(),
+                    config.hash,
+                    SAMPLER_VERSION,
+                    versions(),
+                )
+            cat.set_run_status(run.id, "running", n=max(n, run.n) if resume else n)
+            status, stage = "interrupted", {}
+            try:
+                if done:
+                    status = "complete"
+                else:
+                    shutil.rmtree(staging, ignore_errors=True)  # an interrupted run's leftovers
+                    staging.mkdir(exist_ok=True)
+                    status, stage = _drive(cat, run.id, n, seed, config, pool, max_draws, progress)
+                    shutil.rmtree(staging, ignore_errors=True)
+            finally:
+                try:
+                    cat.set_run_status(run.id, status)
+                except sqlite3.Error as exc:  # e.g. the disk is still full: keep the first error
+                    log.error("could not record the run's status (%s)", exc)
         final = cat.get_run(run.id)
     return RunSummary(
         run_id=final.id,
@@ -315,21 +473,16 @@ def _drive(
     n: int,
     seed: int,
     config: Config,
-    workers: int,
+    pool: Executor,
     max_draws: int,
     progress,
 ) -> tuple[str, dict[str, float]]:
+    """Feed indices to ``pool`` and commit its results strictly in index order."""
     run = cat.get_run(run_id)
     accepted, next_index = run.accepted, run.next_index
     counts: Counter[str] = Counter(run.counts)
     stage: Counter[str] = Counter()
-    if accepted >= n:
-        return "complete", {}
     staging = cat.root / ".staging"
-    staging.mkdir(exist_ok=True)
-    fn = partial(
-        make_shape, seed=seed, config=config, staging=staging, pictures=config.run.thumbnails
-    )
     buffer: dict[int, Any] = {}
     known = ensure_descriptors(cat)[0] if config.run.dedupe else {}
 
@@ -339,33 +492,50 @@ def _drive(
             yield i
             i += 1
 
-    with KillablePool(fn, workers, config.run.timeout) as pool:
-        for result in pool.run(tasks()):
-            buffer[result.task] = result
-            while next_index in buffer and accepted < n:
-                res = buffer.pop(next_index)
-                outcome = _outcome(res, seed, config)
-                if outcome.verdict.accepted:
-                    dup = cat.has_accepted_identity(outcome.row["identity"])
-                    if dup is None and config.run.dedupe:
-                        dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
-                    if dup is not None:
-                        outcome = _rejected(outcome, ("duplicate",))
-                        outcome.row["duplicate_of"] = dup
-                    elif config.run.dedupe:
-                        known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
-                _commit(cat, run_id, outcome, counts)
-                accepted += int(outcome.verdict.accepted)
-                for k, v in json.loads(outcome.row.get("timings", "{}")).items():
-                    stage[k] += v
-                next_index += 1
-                if progress is not None:
-                    progress(accepted, next_index, n)
-            if accepted >= n:
-                break
-    shutil.rmtree(staging, ignore_errors=True)
+    for result in pool.run(tasks()):
+        if result.task < next_index or result.task in buffer:
+            continue  # already committed or buffered: never twice (an executor's retry)
+        if result.status == "ok" and result.value.write_error is not None:
+            # Stop at the first write error: what is committed is a prefix of the run, and
+            # this shape (and any after it) is redone by --resume once there is space.
+            _stop_writing(result.value.write_error, result.task, accepted)
+        staged = _stage(_outcome(result, seed, config), staging)
+        if staged.write_error is not None:
+            _stop_writing(staged.write_error, result.task, accepted)
+        buffer[result.task] = staged
+        while next_index in buffer and accepted < n:
+            outcome = buffer.pop(next_index)
+            if outcome.verdict.accepted:
+                dup = cat.has_accepted_identity(outcome.row["identity"])
+                if dup is None and config.run.dedupe:
+                    dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
+                if dup is not None:
+                    outcome = _rejected(outcome, ("duplicate",))
+                    outcome.row["duplicate_of"] = dup
+                elif config.run.dedupe:
+                    known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
+            _commit(cat, run_id, outcome, counts)
+            accepted += int(outcome.verdict.accepted)
+            for k, v in json.loads(outcome.row.get("timings", "{}")).items():
+                stage[k] += v
+            next_index += 1
+            if progress is not None:
+                progress(accepted, next_index, n)
+        if accepted >= n:
+            break
     status = "complete" if accepted >= n else "exhausted"
     return status, dict(stage)
+
+
+def _write_error(exc: OSError, staging: Path) -> str:
+    return f"{exc.filename or staging}: {exc.strerror}"
+
+
+def _stop_writing(error: str, index: int, accepted: int) -> None:
+    raise SampleWriteError(
+        f"cannot write {error}; sampling stopped before shape {index} ({accepted} accepted "
+        "shapes are catalogued): free some space and run the same command with --resume"
+    )
 
 
 def _near_duplicate(
@@ -413,7 +583,7 @@ def _outcome(res, seed: int, config: Config) -> ShapeOutcome:
         "formula": spec.formula,
         "identity": spec.identity,
         "d": None,
-        "model": json.dumps(draw.equation.to_dict(), sort_keys=True, separators=(",", ":")),
+        "model": _model_json(draw, draw.equation),
         "verdict": "rejected",
         "reasons": json.dumps([reason]),
         "metrics": "{}",
@@ -434,7 +604,13 @@ def _commit(cat: Catalogue, run_id: int, outcome: ShapeOutcome, counts: Counter)
         )
         for column, path, staged in files:
             if staged is not None:
-                os.replace(staged, path)
+                try:
+                    os.replace(staged, path)
+                except OSError as exc:
+                    raise SampleWriteError(
+                        f"cannot write {path}: {exc.strerror}; sampling stopped before shape "
+                        f"{outcome.index}: fix it and run the same command with --resume"
+                    ) from None
                 row[column] = str(path.relative_to(cat.root))
     else:
         for r in outcome.verdict.reasons:

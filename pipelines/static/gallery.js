@@ -23,7 +23,7 @@
   ];
 
   const state = {
-    sort: "index", desc: false, tag: "", search: "", starred: false,
+    sort: "index", desc: false, tag: "", family: "", search: "", starred: false,
     showRejected: false, showDuplicates: false, whereKeys: null, visible: [], current: null, focus: null,
   };
   const $ = (id) => document.getElementById(id);
@@ -109,6 +109,7 @@
     if (!state.showDuplicates && s.duplicate_of) return false;
     if (state.starred && !(s.stars > 0)) return false;
     if (state.tag && !s.tags.includes(state.tag)) return false;
+    if (state.family && s.family !== state.family) return false;
     if (state.whereKeys && !state.whereKeys.has(s.key)) return false;
     const q = state.search.trim().toLowerCase();
     if (q) {
@@ -380,6 +381,16 @@
     sel.value = counts.has(keep) ? keep : "";
   }
 
+  function renderFamilyOptions() {
+    const counts = new Map();
+    for (const s of shapes) counts.set(s.family, (counts.get(s.family) || 0) + 1);
+    const sel = $("family");
+    sel.replaceChildren(h("option", { value: "", text: "any family" }),
+      ...[...counts.keys()].sort().map((f) => h("option", { value: f, text: f + " (" + counts.get(f) + ")" })));
+    sel.value = counts.has(state.family) ? state.family : "";
+    state.family = sel.value;
+  }
+
   async function applyWhere() {
     const text = $("where").value.trim();
     const err = $("where-error");
@@ -407,7 +418,7 @@
   function saveState() {
     try {
       sessionStorage.setItem("surfgen-gallery", JSON.stringify({
-        sort: state.sort, desc: state.desc, tag: state.tag, starred: state.starred,
+        sort: state.sort, desc: state.desc, tag: state.tag, family: state.family, starred: state.starred,
         showRejected: state.showRejected, showDuplicates: state.showDuplicates,
       }));
     } catch (e) { /* storage may be off for file:// pages */ }
@@ -480,6 +491,8 @@
     $("show-duplicates").checked = state.showDuplicates;
     renderTagOptions();
     $("tag").value = state.tag;
+    renderFamilyOptions();
+    $("family").addEventListener("change", (e) => { state.family = e.target.value; render(); });
     sort.addEventListener("change", () => { state.sort = sort.value; randomOrder = null; render(); });
     $("direction").addEventListener("click", () => {
       state.desc = !state.desc;

@@ -1,9 +1,11 @@
-"""The fast evaluator equals the numpy reference: every opcode and operand mode, every
+"""The fast evaluator equals the numpy reference bit for bit: every opcode and operand mode, every
 constituent function, the presets, and random eq. (13)-shaped formulas (property test).
 
-"Equal" is the issue's criterion: the same NaN and infinity positions (infinities with their
-sign), the same sign everywhere, and a relative difference <= 1e-12 on finite values. On the
-machines we measured, results are in fact bit-identical (see compiler.py for the exceptions).
+Both evaluators compute every transcendental with surfgen's own functions
+(:mod:`surfgen.generator.elementary`), so the equality holds on every CPU and nothing here may
+xfail. Every NaN counts as equal to every NaN (IEEE leaves the sign and payload of a NaN made by
+an invalid operation to the hardware). numpy's own ufuncs are an accuracy cross-check only
+(``test_numpy_ufuncs_agree_within_the_conditioning``).
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from numerics_tolerance import compare_with_numpy_ufuncs
 
+from surfgen.generator import elementary as E
 from surfgen.generator.compiler import compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.evaluate import evaluate
@@ -30,59 +34,31 @@ from surfgen.generator.parser import parse
 from surfgen.generator.presets import PRESETS
 from surfgen.generator.reference import evaluate_reference
 
-RTOL = 1e-12
 # Odd sizes put 0 on the x and z axes; different sizes catch mixed-up axes.
 GRID = Grid(Box.cube(2.5), (9, 10, 11))
 # Steps of 0.5: x*y+z lands exactly on the nodes of the piecewise constituent functions.
 NODE_GRID = Grid(Box.cube(4.0), (17, 13, 9))
 
 
-def _numpy_math_is_libm() -> bool:
-    """Whether numpy's float64 transcendental functions are the C library's on this CPU
-    (true on x86-64 without AVX-512; with AVX-512 numpy uses its own SIMD versions, which
-    differ by an ulp or two, and no evaluator calling libm can match it bit for bit)."""
-    u = np.random.default_rng(0).uniform(-30.0, 30.0, 2048)
-    pairs = [(np.sin, math.sin), (np.cos, math.cos), (np.tan, math.tan), (np.arctan, math.atan)]
-    pairs += [(np.exp, math.exp), (lambda v: np.power(np.abs(v), 1.3), None)]
-    for npf, mf in pairs:
-        want = [mf(v) for v in u] if mf else [math.pow(abs(v), 1.3) for v in u]
-        if not np.array_equal(npf(u), np.array(want)):
-            return False
-    v = u / 30.0
-    return np.array_equal(np.arcsin(v), [math.asin(x) for x in v])
+def same_bits(got: np.ndarray, want: np.ndarray) -> np.ndarray:
+    """Elementwise: the same float64 bits, or both NaN."""
+    return (got.view(np.int64) == want.view(np.int64)) | (np.isnan(got) & np.isnan(want))
 
 
-NUMPY_IS_LIBM = _numpy_math_is_libm()
-
-
-def assert_equivalent(got: np.ndarray, want: np.ndarray, what: str = "") -> None:
-    try:
-        _assert_equivalent(got, want, what)
-    except AssertionError:
-        if NUMPY_IS_LIBM:
-            raise
-        pytest.xfail("numpy uses its own SIMD math on this CPU, not the C library's")
-
-
-def _assert_equivalent(got: np.ndarray, want: np.ndarray, what: str = "") -> None:
+def assert_identical(got: np.ndarray, want: np.ndarray, what: str = "") -> None:
     assert got.shape == want.shape
-    nan_g, nan_w = np.isnan(got), np.isnan(want)
-    assert np.array_equal(nan_g, nan_w), f"{what}: NaN positions differ ({(nan_g != nan_w).sum()})"
-    inf_g, inf_w = np.isinf(got), np.isinf(want)
-    assert np.array_equal(inf_g, inf_w), f"{what}: infinity positions differ"
-    assert np.array_equal(got[inf_g], want[inf_w]), f"{what}: infinities of another sign"
-    fin = np.isfinite(want)
-    a, b = got[fin], want[fin]
-    assert np.array_equal(np.sign(a), np.sign(b)), f"{what}: signs differ"
-    scale = np.maximum(np.abs(a), np.abs(b))
-    bad = np.abs(a - b) > RTOL * scale
-    assert not bad.any(), f"{what}: {bad.sum()} values differ, e.g. {a[bad][:3]} vs {b[bad][:3]}"
+    same = same_bits(got, want)
+    if not same.all():
+        bad = ~same
+        raise AssertionError(
+            f"{what}: {bad.sum()} values differ, e.g. {got[bad][:3]} vs {want[bad][:3]}"
+        )
 
 
 def check(tree: Expr, grid: Grid = GRID, params=None, threads: int = 1) -> np.ndarray:
     want = evaluate_reference(tree, grid, params).values
     got = evaluate_fast(tree, grid, params, threads=threads).values
-    assert_equivalent(got, want, str(tree))
+    assert_identical(got, want, str(tree))
     return got
 
 
@@ -166,17 +142,20 @@ def test_constant_exponents(exponent):
     check_text(f"(x*y*z)^({exponent})")  # zeros: 0^-n = inf, 0^0 = 1
 
 
-def test_integer_powers_match_c_pow_bit_for_bit():
+def test_integer_powers_are_surfgens_pow_within_2_ulp_of_c():
     grid = Grid(Box((-3.0, 0.1, -2.0), (3.0, 7.0, 2.0)), (41, 37, 29))
     x, y, z = grid.open_axes()
     base = np.broadcast_to(x * y + z * 1.37, grid.shape)
-    for n in [3, 4, 5, 6, 9, 17, 32, -2, -3, -5, -8, -32]:
+    for n in [3, 4, 5, 6, 9, 17, 32, 33, -2, -3, -5, -8, -32]:
         tree = parse(f"(x*y+z*1.37)^{n}" if n > 0 else f"(x*y+z*1.37)^({n})")
         got = evaluate_fast(tree, grid, threads=1).values
+        assert_identical(got, E.power(base, float(n)), f"n={n}")
         with np.errstate(all="ignore"):
             want = np.vectorize(lambda u, n=n: _c_pow(u, n))(base)
-        same = (got.view(np.int64) == want.view(np.int64)) | (np.isnan(got) & np.isnan(want))
-        assert same.all(), f"n={n}: {(~same).sum()} values differ from C pow"
+        fin = np.isfinite(want) & (np.abs(want) > 1e-300)
+        assert np.array_equal(np.isfinite(got), np.isfinite(want))
+        ulps = np.abs(got[fin] - want[fin]) / np.spacing(np.abs(want[fin]))
+        assert ulps.max() <= 2.0, f"n={n}: {ulps.max()} ulp from C pow"
 
 
 def _c_pow(u: float, n: int) -> float:
@@ -186,14 +165,28 @@ def _c_pow(u: float, n: int) -> float:
         return float(np.power(np.float64(u), np.float64(n)))
 
 
-def test_variable_exponent_uses_numpy_fast_path_per_row():
-    # y takes the values -1, -0.5, 0, 0.5, 1, 1.5, 2: numpy's np.power replaces pow by
-    # reciprocal, sqrt, 1, copy, square when the exponent does not vary along its inner loop.
+def test_exponent_shortcuts_apply_per_element_also_when_the_exponent_varies():
+    # y takes the values -1, -0.5, 0, 0.5, 1, 1.5, 2: where it is 2, 0.5, -1, 1, 0 the power is
+    # u*u, sqrt(u), 1/u, u, 1 (numpy's fast path of a constant exponent, kept as a convention).
     grid = Grid(Box((-2.0, -1.0, -3.0), (2.0, 2.0, 3.0)), (9, 7, 13))
-    check_text("(x*z+0.3)^y", grid)
+    got = check_text("(x*z+0.3)^y", grid)
+    x, y, z = grid.open_axes()
+    u = np.broadcast_to(x * z + 0.3, grid.shape)
+    yy = np.broadcast_to(y, grid.shape)
+    with np.errstate(all="ignore"):
+        for e, want in [
+            (2.0, u * u),
+            (0.5, np.sqrt(u)),
+            (-1.0, 1 / u),
+            (1.0, u),
+            (0.0, 1.0 + 0 * u),
+        ]:
+            m = yy == e
+            assert m.any() and same_bits(got[m], np.broadcast_to(want, grid.shape)[m]).all()
     check_text("(x+z)^y", grid)
     check_text("(z-x)^(x*y)", grid)
     check_text("2^(x*y*z)", grid)
+    check_text("(-0*x)^(0.5+0*y) + (x*y*z)^(-1+0*x)", grid)  # sqrt(-0) = -0 by the convention
 
 
 def test_special_values():
@@ -389,7 +382,7 @@ def test_compile_once_evaluate_on_several_grids():
     for grid in (GRID, NODE_GRID, Grid(Box.cube(1.0), (4, 5, 300))):
         got = evaluate_program(program, grid, threads=1).values
         want = evaluate_reference(tree, grid, {"m": 0.7}).values
-        assert_equivalent(got, want)
+        assert_identical(got, want)
 
 
 def test_evaluate_dispatches_to_the_fast_path_by_default():
@@ -414,3 +407,47 @@ def test_scratch_is_a_small_fraction_of_the_field_at_512():
         spec = PRESETS[name].spec()
         program = compile_tree(spec.tree(), spec.params)
         assert scratch_bytes(program, grid, threads=2) < 0.05 * grid.size * 8
+
+
+# ----------------------------------------------------------------------------- numpy's ufuncs
+
+
+@pytest.mark.parametrize("fn", UNARY)
+def test_numpy_ufuncs_agree_within_the_conditioning_per_function(fn):
+    for arg in ARGS:
+        checked, total = compare_with_numpy_ufuncs(parse(f"{fn}({arg})*(y+3)"), GRID)
+        assert checked >= 0.5 * total, f"{fn}({arg}): only {checked} of {total} compared"
+
+
+def test_numpy_ufuncs_agree_within_the_conditioning_on_presets():
+    for name in sorted(PRESETS):
+        spec = PRESETS[name].spec()
+        grid = Grid(spec.to_grid().box, tuple(min(n, 24) for n in spec.grid))
+        checked, total = compare_with_numpy_ufuncs(spec.tree(), grid, spec.params)
+        assert checked >= 0.5 * total, f"{name}: only {checked} of {total} compared"
+
+
+_COVERAGE: list[tuple[int, int]] = []
+
+
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(eq13_trees())
+def test_numpy_ufuncs_agree_within_the_conditioning(tree):
+    _COVERAGE.append(compare_with_numpy_ufuncs(tree, EQ13_GRID))
+
+
+def test_the_conditioning_bound_compares_most_points_and_catches_errors(monkeypatch):
+    # Most points of random eq. (13) formulas are compared (the bound is not vacuous) ...
+    if not _COVERAGE:
+        test_numpy_ufuncs_agree_within_the_conditioning()
+    checked = sum(c for c, _ in _COVERAGE) / sum(t for _, t in _COVERAGE)
+    assert checked > 0.6, f"only {checked:.0%} of the points compared"
+    # ... and an error of 1e-9 in numpy's tan is caught.
+    monkeypatch.setitem(E.UFUNCS, "tan", lambda u: np.tan(u) * (1 + 1e-9))
+    with pytest.raises(AssertionError, match="beyond the bound"):
+        compare_with_numpy_ufuncs(parse("tan(x*y-z)*(y+3)"), GRID)

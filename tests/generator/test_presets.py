@@ -104,7 +104,11 @@ def assert_same_field(got: np.ndarray, want: np.ndarray) -> None:
     np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want))
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     fin = np.isfinite(want)
-    np.testing.assert_allclose(got[fin], want[fin], rtol=1e-12, atol=0)
+    # The transcription computes with numpy's ufuncs, the evaluators with surfgen's own
+    # functions (each within an ulp or two): near F = 0 the sums cancel, so the tolerance is
+    # relative to the field's magnitude (the size of its partial results), not to each value.
+    scale = float(np.abs(want[fin]).max()) if fin.any() else 0.0
+    np.testing.assert_allclose(got[fin], want[fin], rtol=1e-12, atol=1e-12 * scale)
 
 
 @pytest.mark.parametrize("name", PAPER)

@@ -100,7 +100,9 @@ def test_html_is_self_contained(cat_dir, tmp_path) -> None:
     assert main(["report", "-C", str(root), "-o", str(out)]) == 0
     text = out.read_text()
     images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", text)
-    assert len(images) == 5  # genus, components, faces, reasons, genus x components
+    # genus, components, faces, reasons, genus x components; solidity and genus of the one
+    # family (shapes without a recorded family are "free"; no thumbnails: no contact sheet)
+    assert len(images) == 7
     assert all(len(b) > 2000 for b in images)
     assert "http://" not in text and "https://" not in text and "<script" not in text
     for label in ("Genus of accepted shapes", "Acceptance by reason", "56%", "speckle"):
@@ -125,3 +127,61 @@ def test_empty_catalogue_still_reports(tmp_path) -> None:
     assert s["drawn"] == 0 and s["nearest_distance_median"] is None
     html = render_report(s, "empty")
     assert html.count("data:image/png;base64,") == 5
+
+
+def test_stats_and_report_per_family(tmp_path) -> None:
+    from surfgen.pipelines.curation import select_shapes
+
+    root = tmp_path / "fam"
+    # (family, accepted, free_standing, symmetry_permutations, solidity, genus, descriptor bin)
+    shapes = [
+        ("sculpture", True, True, 3, 0.8, 0, 0),
+        ("sculpture", True, True, 1, 0.6, 2, 1),
+        ("sculpture", True, False, 6, 0.9, 1, 2),
+        ("sculpture", False, None, None, None, None, None),
+        ("lattice", True, False, 3, 0.4, 9, 3),
+        ("lattice", False, None, None, None, None, None),
+        (None, True, None, None, None, 4, 4),  # a shape from before families: free
+    ]
+    with open_catalogue(root) as cat:
+        run = cat.create_run(1, 5, 20, {}, "h", 2, {}).id
+        for i, (fam, ok, free, perms, solid, genus, shift) in enumerate(shapes):
+            spec = SurfaceSpec(f"x^2+y^2+z^2-{i + 1}", (-2, 2) * 3, (20,) * 3)
+            model = {"terms": [], "d": 0.0} | ({"family": fam} if fam else {})
+            metrics = {} if free is None else {"free_standing": free, "solidity": solid}
+            if perms is not None:
+                metrics["symmetry_permutations"] = perms
+            row = {
+                "key": spec.key,
+                "spec": spec.to_json(),
+                "formula": spec.formula,
+                "identity": spec.key,
+                "model": json.dumps(model),
+                "verdict": "accepted" if ok else "rejected",
+                "reasons": "[]" if ok else '["speckle"]',
+                "metrics": json.dumps(metrics),
+                "genus": genus,
+            }
+            if ok:
+                row["descriptor"] = descriptor_to_text(_descriptor(shift))
+            cat.record_shape(run, i, row, ok, {})
+        s = report_stats(cat)
+        fams = s["families"]
+        assert set(fams) == {"sculpture", "lattice", "free"}
+        sc = fams["sculpture"]
+        assert (sc["drawn"], sc["accepted"], sc["free_standing"], sc["symmetric"]) == (4, 3, 2, 2)
+        assert sc["acceptance"] == pytest.approx(0.75)
+        assert sorted(sc["solidity"]) == [0.6, 0.8, 0.9] and sc["distinct_genus"] == 3
+        assert fams["lattice"]["acceptance"] == pytest.approx(0.5)
+        assert fams["free"]["accepted"] == 1
+        assert (s["free_standing"], s["symmetric"]) == (2, 3)
+        assert s["near_duplicate_rate"] == 0.0  # every descriptor in a bin of its own
+        # --where and the gallery see the family and the quality metrics
+        picked = select_shapes(cat, where="family = sculpture and free_standing = yes")
+        assert len(picked) == 2 and {r["family"] for r in picked} == {"sculpture"}
+        assert len(select_shapes(cat, where="family = free")) == 1
+        assert len(select_shapes(cat, where="symmetry_permutations >= 3 and solidity < 0.85")) == 2
+    html = render_report(s, str(root))
+    for name in ("sculpture", "lattice", "free"):
+        assert f"Family: {name}" in html
+    assert "free-standing" in html and "permutation symmetry" in html

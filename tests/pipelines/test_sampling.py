@@ -179,10 +179,10 @@ def test_impossible_thresholds_end_after_max_draws(tmp_path: Path, capsys) -> No
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--n", "0"], "--n must be at least 1"),
-        (["--n", "-3"], "--n must be at least 1"),
-        (["--grid", "3"], "--grid must be at least 4"),
-        (["--workers", "0"], "--workers must be at least 1"),
+        (["--n", "0"], "--n must be a whole number from 1"),
+        (["--n", "-3"], "--n must be a whole number from 1"),
+        (["--grid", "3"], "--grid must be a whole number from 4 to 2048"),
+        (["--workers", "0"], "--workers must be a whole number from 1"),
         (["--config", "/nonexistent/cfg.toml"], "cannot read config /nonexistent/cfg.toml"),
         (["--n", "abc"], "Invalid value for '--n'"),
     ],

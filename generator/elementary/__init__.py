@@ -1,0 +1,264 @@
+"""surfgen's elementary functions: one registry for every transcendental of the formula language.
+
+Each function exists three times with the **same IEEE operation sequence** (contract:
+``LIBM.md`` of issue 9), so the fast evaluator and the numpy reference agree bit for bit on every
+CPU, whatever numpy's SIMD dispatch and the C library do:
+
+- ``row`` (numba, unary) ``row(W, d, a, n)``: ``W[d, k] = f(W[a, k])`` for ``k < n`` on the
+  interpreter's register file; binary functions have ``row_vv(W, d, a, b, n)``,
+  ``row_vs(W, d, a, s, n)`` and ``row_sv(W, d, s, b, n)`` (``s`` a float64 scalar);
+- ``scalar`` (numba): one value, same bits;
+- ``array`` (plain numpy): any shape (broadcasting), same bits.
+
+``ufunc`` is numpy's own function of the same name; it is *not* used to evaluate formulas, only
+as an accuracy cross-check and as the benchmark's baseline (:func:`numpy_ufuncs`).
+
+The numpy-level API used by the reference evaluator, the constituent functions and the
+compiler's constant folding is :func:`call`, :func:`power` (with the ``x^c`` convention) and
+:func:`round_trip`; inside ``with numpy_ufuncs():`` they compute with numpy's ufuncs instead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import hashlib
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from types import ModuleType
+
+import numpy as np
+
+# ----------------------------------------------------------------------------- numba's cache
+#
+# numba's on-disk cache checks only the source file of the cached function itself. The
+# interpreter (kernels.py) and the round trips compile the elementary functions *into* their own
+# machine code, so a change of trig.py or explog.py would leave them stale. The locator below
+# adds a digest of this package's sources to the freshness stamp of those files.
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+_GENERATOR = os.path.dirname(_HERE)
+
+
+def _package_digest() -> str:
+    h = hashlib.sha256()
+    for name in sorted(os.listdir(_HERE)):
+        if name.endswith(".py"):
+            with open(os.path.join(_HERE, name), "rb") as f:
+                h.update(name.encode() + b"\0" + f.read())
+    return h.hexdigest()
+
+
+def _install_cache_stamp() -> None:
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover
+        return
+    digest = _package_digest()
+    inner_classes = list(caching.CacheImpl._locator_classes)
+    if any(getattr(c, "_surfgen", False) for c in inner_classes):
+        return
+
+    class _StampedLocator(caching._CacheLocator):
+        _surfgen = True
+
+        def __init__(self, inner) -> None:
+            self._inner = inner
+
+        def ensure_cache_path(self) -> None:
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self) -> str:
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return (self._inner.get_source_stamp(), digest)
+
+        def get_disambiguator(self) -> str:
+            return self._inner.get_disambiguator()
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            path = os.path.abspath(py_file)
+            if not (path.startswith(_HERE) or path == os.path.join(_GENERATOR, "kernels.py")):
+                return None
+            for c in inner_classes:
+                inner = c.from_function(py_func, py_file)
+                if inner is not None:
+                    return cls(inner)
+            return None
+
+    caching.CacheImpl._locator_classes = [_StampedLocator, *inner_classes]
+
+
+_install_cache_stamp()
+
+# ----------------------------------------------------------------------------- the registry
+
+from surfgen.generator.elementary import explog, trig  # noqa: E402
+
+UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh")
+UNARY += ("acosh", "atanh", "exp", "log", "log10", "cbrt")
+BINARY = ("atan2", "pow")
+
+# Which module implements which function (API of LIBM.md).
+_PROVIDER: dict[str, ModuleType] = {
+    **{name: trig for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2")},
+    **{name: explog for name in ("exp", "log", "log10", "pow", "sinh", "cosh", "tanh")},
+    **{name: explog for name in ("asinh", "acosh", "atanh", "cbrt")},
+}
+
+UFUNCS: dict[str, Callable[..., np.ndarray]] = {
+    "sin": np.sin,
+    "cos": np.cos,
+    "tan": np.tan,
+    "asin": np.arcsin,
+    "acos": np.arccos,
+    "atan": np.arctan,
+    "sinh": np.sinh,
+    "cosh": np.cosh,
+    "tanh": np.tanh,
+    "asinh": np.arcsinh,
+    "acosh": np.arccosh,
+    "atanh": np.arctanh,
+    "exp": np.exp,
+    "log": np.log,
+    "log10": np.log10,
+    "cbrt": np.cbrt,
+    "atan2": np.arctan2,
+    "pow": np.power,
+}
+
+
+@dataclass(frozen=True)
+class Elementary:
+    """One function: its numba rows and scalar, its numpy twin, numpy's own ufunc."""
+
+    name: str
+    arity: int
+    scalar: Callable
+    array: Callable[..., np.ndarray]
+    ufunc: Callable[..., np.ndarray]
+    source: str  # the implementing module
+    row: Callable | None = None  # unary
+    row_vv: Callable | None = None  # binary
+    row_vs: Callable | None = None
+    row_sv: Callable | None = None
+
+
+def _entry(name: str) -> Elementary:
+    m = _PROVIDER[name]
+    common = {
+        "name": name,
+        "scalar": getattr(m, f"{name}_scalar"),
+        "array": getattr(m, f"{name}_array"),
+        "ufunc": UFUNCS[name],
+        "source": m.__name__,
+    }
+    if name in BINARY:
+        return Elementary(
+            arity=2,
+            row_vv=getattr(m, f"{name}_row_vv"),
+            row_vs=getattr(m, f"{name}_row_vs"),
+            row_sv=getattr(m, f"{name}_row_sv"),
+            **common,
+        )
+    return Elementary(arity=1, row=getattr(m, f"{name}_row"), **common)
+
+
+REGISTRY: dict[str, Elementary] = {name: _entry(name) for name in UNARY + BINARY}
+
+# ----------------------------------------------------------------------------- numpy-level API
+
+_BACKEND: contextvars.ContextVar[str] = contextvars.ContextVar("surfgen_maths", default="surfgen")
+
+
+@contextlib.contextmanager
+def numpy_ufuncs() -> Iterator[None]:
+    """Inside this block :func:`call`, :func:`power` and :func:`round_trip` compute with numpy's
+    own ufuncs (SIMD maths where the CPU has it, the direct forms of the round trips): the
+    accuracy cross-check and the benchmark's baseline. Results then depend on the CPU."""
+    token = _BACKEND.set("numpy")
+    try:
+        yield
+    finally:
+        _BACKEND.reset(token)
+
+
+def using_numpy_ufuncs() -> bool:
+    """Whether the caller is inside :func:`numpy_ufuncs`."""
+    return _BACKEND.get() == "numpy"
+
+
+def call(name: str, *args) -> np.ndarray:
+    """``name(*args)`` on arrays (float64, broadcasting) with surfgen's function."""
+    if _BACKEND.get() == "numpy":
+        return UFUNCS[name](*args)
+    return REGISTRY[name].array(*(np.asarray(a, np.float64) for a in args))
+
+
+# ``x^c`` convention (numpy's fast path of np.power, kept as a rule applied per element by both
+# evaluators): an exponent equal to 2, 0.5, -1, 1 or 0 gives u*u, sqrt(u), 1/u, u and 1.
+# It differs from C pow only for sqrt: sqrt(-0) = -0 and sqrt(-inf) = NaN where pow gives +0, +inf.
+POW_SHORTCUTS = (2.0, 0.5, -1.0, 1.0, 0.0)
+
+
+def _pow_shortcut(u: np.ndarray, e: float) -> np.ndarray | None:
+    if e == 2.0:
+        return u * u
+    if e == 0.5:
+        return np.sqrt(u)
+    if e == -1.0:
+        return 1.0 / u
+    if e == 1.0:
+        return u.copy()
+    if e == 0.0:
+        return np.ones_like(u)
+    return None
+
+
+def power(u, e) -> np.ndarray:
+    """``u^e`` of the formula language: C ``pow`` (surfgen's) with the ``x^c`` convention."""
+    u = np.asarray(u, np.float64)
+    e = np.asarray(e, np.float64)
+    if _BACKEND.get() == "numpy":
+        return np.power(u, e)
+    with np.errstate(all="ignore"):
+        if e.ndim == 0:
+            short = _pow_shortcut(u, float(e))
+            return short if short is not None else REGISTRY["pow"].array(u, e)
+        out = REGISTRY["pow"].array(u, e)
+        out = np.where(e == 2.0, u * u, out)
+        out = np.where(e == 0.5, np.sqrt(u), out)
+        out = np.where(e == -1.0, 1.0 / u, out)
+        out = np.where(e == 1.0, u, out)
+        return np.where(e == 0.0, 1.0, out)
+
+
+from surfgen.generator.elementary import roundtrip  # noqa: E402
+
+ROUND_TRIPS = roundtrip.ROUND_TRIPS
+
+
+def round_trip(name: str, u) -> np.ndarray:
+    """A closed-form round trip (``"atantan"`` = ``atan(tan(u))``, ...; see :mod:`.roundtrip`)."""
+    if _BACKEND.get() == "numpy":
+        return roundtrip.direct_array(name, np.asarray(u, np.float64), UFUNCS)
+    return roundtrip.ARRAYS[name](np.asarray(u, np.float64))
+
+
+__all__ = [
+    "BINARY",
+    "Elementary",
+    "POW_SHORTCUTS",
+    "REGISTRY",
+    "ROUND_TRIPS",
+    "UFUNCS",
+    "UNARY",
+    "call",
+    "numpy_ufuncs",
+    "power",
+    "round_trip",
+    "using_numpy_ufuncs",
+]

@@ -1,0 +1,385 @@
+"""Families: named, configurable distributions over equation (13) instances.
+
+Every family draws a plain :class:`~surfgen.generator.equation13.Equation13` — a sum of products
+of factors ``A/D * B/E * C/F`` minus d — so every shape stays an instance of the paper's model;
+what a family changes is *which* instances are likely (``[sampler] family``, ``mix``):
+
+- ``sculpture`` (the paper's equations A and B, and MathMod's curated surfaces): an **envelope**,
+  a bounded sum term whose A is a power function with a constant term — a superellipsoid
+  ``|x|^p + |y|^p + |z|^p - 1`` (optionally stretched along one axis), a product of two of them
+  (the two factors of one sum term, as equation B's ``(x²+y²+z²-5)(|x|^0.13|y|^0.13|z|^0.13-5)``),
+  or a superellipsoid closed by a cubic term as in equation C — plus an **ornament**: one factor
+  of the free draw, summed over a symmetry group (the 3 cyclic or all 6 axis permutations, each
+  copy one more sum term; ``mirror`` groups use ``|x|, |y|, |z|``), optionally under an outer
+  power k (``(O_1 + O_2 + O_3)^k`` expanded into the sum of its products of k factors, the
+  multinomial coefficients folded into the constant factor in front). The ornament's strength is
+  drawn relative to its own spread near the envelope's surface, so it carves to a drawn depth
+  (a fraction of the envelope's size) without erasing it; d is the ornament's median there, so
+  the carved surface stays on the envelope on average; the box fits the envelope with a margin,
+  so the shape stands free.
+- ``lattice``: triply periodic patterns of linear arguments — Schwarz-like ``Σ H(w x_k)``,
+  gyroid-like ``Σ_cyclic H1(w x_k) H2(w x_k+1)``, or a product ``Π H(w x_k)`` plus a Schwarz
+  part — with H a sine/cosine or a continuous or pulse constituent function (Figure 3's porous
+  cubes); cut by the box and capped; d at a quantile near the middle of the values.
+- ``free``: :func:`surfgen.generator.sampler.draw_free`, the first sampler's draw.
+
+Each family is a pure function of ``(seed, index, config)``: it reads only
+:func:`~surfgen.generator.sampler.rng_for` ``(seed, index)``, and ``mix`` picks the family from a
+second stream of the same index.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import Counter
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from surfgen.generator.equation13 import (
+    Equation13,
+    Factor,
+    PowerFunction,
+    PowerTerm,
+    Transform,
+)
+from surfgen.generator.evaluate import evaluate
+from surfgen.generator.expr import Expr, add_all, mul_all
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.sampler import (
+    Draw,
+    SamplerConfig,
+    _choice,
+    draw_factor,
+    draw_free,
+    rng_for,
+    round_significant,
+)
+
+ONE = PowerFunction.constant(1.0)
+_CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+_ALL = tuple(itertools.permutations(range(3)))
+GROUP_PERMUTATIONS = {
+    "none": ((0, 1, 2),),
+    "mirror": ((0, 1, 2),),
+    "cyclic": _CYCLIC,
+    "cyclic_mirror": _CYCLIC,
+    "full": _ALL,
+    "full_mirror": _ALL,
+}
+EXTENT_GRID = 33  # samples per axis of the search box used to measure an envelope's extent
+EXTENT_BOX = 2.5
+# Continuous and pulse constituents for lattices (saw teeth would draw walls at every jump).
+LATTICE_CONSTITUENTS = ("tri2", "tri3", "rect2")
+
+
+def family_rng(seed: int, index: int) -> np.random.Generator:
+    """The stream ``mix`` picks shape ``index``'s family from (separate from the draw's own)."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index, 1)))
+
+
+def pick_family(seed: int, index: int, cfg: SamplerConfig) -> str:
+    """The family of shape ``index``: ``cfg.family``, or a weighted pick from ``cfg.mix``."""
+    if cfg.family != "mix":
+        return cfg.family
+    return str(_choice(family_rng(seed, index), cfg.mix, cfg.mix_weights))
+
+
+def draw_family(seed: int, index: int, cfg: SamplerConfig) -> Draw:
+    """Shape ``index`` of the run ``seed`` in the configured family (or mix)."""
+    family = pick_family(seed, index, cfg)
+    if family == "sculpture":
+        return draw_sculpture(seed, index, cfg)
+    if family == "lattice":
+        return draw_lattice(seed, index, cfg)
+    return draw_free(seed, index, cfg)
+
+
+# ----------------------------------------------------------------------------- building blocks
+
+
+def only_a(p: PowerFunction) -> Factor:
+    """A factor that is its A = P alone (every other element left out)."""
+    return Factor(
+        powers=(p,) + (ONE,) * 7,
+        lambdas=(1.0,) + (0.0,) * 7,
+        mus=(0.0,) * 4,
+        h=Transform("sin"),
+        g=Transform("asin"),
+    )
+
+
+def only_b(p: PowerFunction, h: Transform) -> Factor:
+    """A factor that is its B = H(P) alone."""
+    return Factor(
+        powers=(ONE, ONE, p) + (ONE,) * 5,
+        lambdas=(0.0, 0.0, 1.0) + (0.0,) * 5,
+        mus=(1.0, 0.0, 0.0, 0.0),
+        h=h,
+        g=Transform("asin"),
+    )
+
+
+def constant(value: float) -> Factor:
+    return only_a(PowerFunction.constant(value))
+
+
+def permute_power(p: PowerFunction, perm: tuple[int, ...], absolute: bool) -> PowerFunction:
+    """``p`` with the variable of axis k moved to axis ``perm[k]`` (x -> perm's axis)."""
+    terms = []
+    for t in p.terms:
+        e = [0.0, 0.0, 0.0]
+        for k, v in enumerate((t.b, t.c, t.d)):
+            e[perm[k]] = v
+        terms.append(PowerTerm(t.a, *e))
+    return PowerFunction(tuple(terms), p.absolute or absolute)
+
+
+def permute_factor(f: Factor, perm: tuple[int, ...], absolute: bool = False) -> Factor:
+    """The factor with its variables permuted; ``absolute`` puts every power function in
+    ``|x|, |y|, |z|`` (the mirror symmetries)."""
+    return replace(f, powers=tuple(permute_power(p, perm, absolute) for p in f.powers))
+
+
+def _superellipsoid(p: float, radii: tuple[float, float, float]) -> PowerFunction:
+    """``Σ |x_k|^p / r_k^p - 1``: negative inside, a convex body for p >= 1."""
+    terms = [
+        PowerTerm(round_significant(1.0 / r**p, 4), *(p if j == k else 0.0 for j in range(3)))
+        for k, r in enumerate(radii)
+    ]
+    return PowerFunction((*terms, PowerTerm(-1.0)), absolute=True)
+
+
+def _sum_tree(terms: list[tuple[Factor, ...]]) -> Expr:
+    return add_all([mul_all([f.to_tree() for f in prod]) for prod in terms])
+
+
+def _eval(tree: Expr, box: Box, n: int) -> np.ndarray:
+    return evaluate(tree, Grid(box, (n,) * 3), threads=1).values
+
+
+# ----------------------------------------------------------------------------- sculpture
+
+
+def _draw_envelope(
+    rng: np.random.Generator, cfg: SamplerConfig, permutes: bool
+) -> tuple[list[tuple[Factor, ...]], dict[str, Any]]:
+    """The envelope's sum terms and their description."""
+    kind = str(_choice(rng, cfg.sculpture_envelopes, cfg.sculpture_envelope_weights))
+    p = round(float(rng.uniform(*cfg.sculpture_exponent)), 1)
+    radii = [1.0, 1.0, 1.0]
+    if rng.random() < cfg.sculpture_stretch_prob:
+        radii[int(rng.integers(0, 3))] = round(float(rng.uniform(0.6, 1.5)), 2)
+    info: dict[str, Any] = {"kind": kind, "exponent": p, "radii": list(radii)}
+    first = _superellipsoid(p, tuple(radii))
+    if kind == "superellipsoid":
+        return [(only_a(first),)], info
+    if kind == "product":
+        # A second body that pokes out of the first: a boxier one inside, or a rounder (or
+        # diamond) one outside along the axes; inside is where exactly one of them is.
+        if p < 2.6:
+            p2, r2 = round(min(p * 2.2, 8.0), 1), round(float(rng.uniform(0.72, 0.9)), 2)
+        else:
+            p2, r2 = round(max(p / 2.2, 1.0), 1), round(float(rng.uniform(1.08, 1.3)), 2)
+        info.update(second_exponent=p2, second_radius=r2)
+        return [(only_a(first), only_a(_superellipsoid(p2, (r2,) * 3)))], info
+    # cubic: a superellipsoid steep enough (p > 3) to stay closed, plus c x^3 (summed over
+    # the axes when the ornament is permuted, to keep that symmetry), as in equation C.
+    p = round(max(p, 3.5) + 1.0, 1)
+    first = _superellipsoid(p, tuple(radii))
+    c = round(float(rng.uniform(0.25, 0.7)) * (1 if rng.random() < 0.5 else -1), 2)
+    axes = range(3) if permutes else (0,)
+    cubic = PowerFunction(
+        tuple(PowerTerm(c, *(3.0 if j == k else 0.0 for j in range(3))) for k in axes)
+    )
+    info.update(exponent=p, cubic=c, cubic_axes=len(axes))
+    return [(only_a(first),), (only_a(cubic),)], info
+
+
+def _envelope_extent(tree: Expr) -> float | None:
+    """The largest |coordinate| of the envelope's inside (one search cell added), or None if
+    the inside reaches the search box (not bounded there) or is empty."""
+    box = Box.cube(EXTENT_BOX)
+    v = _eval(tree, box, EXTENT_GRID)
+    inside = np.isfinite(v) & (v < 0)
+    if not inside.any():
+        return None
+    axis = np.linspace(-EXTENT_BOX, EXTENT_BOX, EXTENT_GRID)
+    idx = np.nonzero(inside)
+    extent = max(float(np.abs(axis[i]).max()) for i in idx)
+    cell = 2 * EXTENT_BOX / (EXTENT_GRID - 1)
+    return None if extent >= EXTENT_BOX - cell / 2 else extent + cell
+
+
+def _draw_ornament(rng: np.random.Generator, cfg: SamplerConfig) -> tuple[Factor, float]:
+    """One factor of the free draw, with more constituent functions and a drawn frequency
+    (the coefficients inside H and G scaled), never without a trigonometric/constituent part."""
+    ocfg = replace(
+        cfg,
+        constituent_prob=cfg.sculpture_constituent_prob,
+        omit_element_prob=cfg.sculpture_omit_element_prob,
+    )
+    f = draw_factor(rng, ocfg)
+    if f.h.name in ("tan", "cot", "sec", "csc") and rng.random() < cfg.sculpture_bounded_prob:
+        # Poles throw debris far from the envelope: mostly keep H to sin and cos.
+        f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
+    freq = round(float(rng.uniform(*cfg.sculpture_frequency)), 1)
+    mus = list(f.mus)
+    if not any(mus):
+        mus[int(rng.integers(0, 4))] = 1.0
+    # P3, P4, P5, P7 are the arguments of H (P6, P8 only divide P5, P7).
+    powers = tuple(
+        PowerFunction(
+            tuple(PowerTerm(_scale(t.a, freq), t.b, t.c, t.d) for t in p.terms), p.absolute
+        )
+        if k in (2, 3, 4, 6)
+        else p
+        for k, p in enumerate(f.powers)
+    )
+    lambdas = list(f.lambdas)
+    for k, mu in zip((2, 3, 4, 6), mus, strict=True):
+        if mu and lambdas[k] == 0:
+            lambdas[k] = 1.0
+    return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+def _scale(a: float, freq: float) -> float:
+    return round_significant(a * freq, 4)
+
+
+def _ornament_terms(
+    ornament: Factor, perms: tuple[tuple[int, ...], ...], mirror: bool, k: int
+) -> list[tuple[float, tuple[Factor, ...]]]:
+    """``(Σ_perms O∘perm)^k`` expanded: (multinomial coefficient, factors) per product."""
+    copies = [permute_factor(ornament, p, mirror) for p in perms]
+    out = []
+    for combo in itertools.combinations_with_replacement(range(len(copies)), k):
+        counts = Counter(combo)
+        coef = math.factorial(k)
+        for c in counts.values():
+            coef //= math.factorial(c)
+        out.append((float(coef), tuple(copies[i] for i in combo)))
+    return out
+
+
+def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
+    """The ``sculpture`` family (see the module docstring)."""
+    rng = rng_for(seed, index)
+    group = str(_choice(rng, cfg.sculpture_groups, cfg.sculpture_group_weights))
+    perms = GROUP_PERMUTATIONS[group]
+    mirror = group.endswith("mirror")
+    k = int(_choice(rng, cfg.sculpture_powers, cfg.sculpture_power_weights))
+    if len(perms) > 3:  # (6 copies)^k would print as dozens of products
+        k = 1
+    env_terms, env_info = _draw_envelope(rng, cfg, permutes=len(perms) > 1)
+    ornament, freq = _draw_ornament(rng, cfg)
+    depth = round(float(rng.uniform(*cfg.sculpture_depth)), 2)
+    margin = float(rng.uniform(*cfg.sculpture_margin))
+    envelope = _sum_tree(env_terms)
+    structure: dict[str, Any] = {
+        "envelope": env_info,
+        "ornament": {"factor": Equation13(((ornament,),)).to_dict()["terms"][0][0]},
+        "group": group,
+        "k": k,
+    }
+    structure["ornament"].update(frequency=freq, depth=depth)
+    extent = _envelope_extent(envelope)
+    products = _ornament_terms(ornament, perms, mirror, k)
+    if extent is None:  # an envelope that does not close: give it a box, it will be rejected
+        half = EXTENT_BOX
+        return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
+    half = round(extent * (1 + depth + margin), 2)
+    box = Box.cube(half)
+    unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
+    strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
+    structure["ornament"].update(strength=strength)
+    structure["extent"] = round(extent, 4)
+    return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
+
+
+def _sculpture_draw(env_terms, products, strength, half, d, structure, envelope) -> Draw:
+    terms = list(env_terms)
+    for coef, prod in products:
+        c = round_significant(strength * coef, 3) or 1.0
+        terms.append((constant(c), *prod))
+    equation = Equation13(tuple(terms), 0.0)
+    return Draw(equation, Box.cube(half), None, "sculpture", structure, d, envelope)
+
+
+def _strength(
+    envelope: Expr, ornament: Expr, box: Box, n: int, depth: float
+) -> tuple[float, float | None]:
+    """The ornament's strength s that moves the envelope's surface by about ``depth`` where
+    the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
+    there. d is None when the ornament is constant or non-finite near the surface."""
+    e = _eval(envelope, box, n)
+    o = _eval(ornament, box, n)
+    step = (box.hi[0] - box.lo[0]) / (n - 1)
+    grad = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
+    ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
+    band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
+    if np.count_nonzero(band) < 16:
+        return 1.0, None
+    lo, med, hi = np.quantile(o[band], (0.1, 0.5, 0.9))
+    spread = float(hi - lo)
+    if not spread > 0 or not math.isfinite(spread):
+        return 1.0, None
+    slope = float(np.median(grad[band]))
+    s = round_significant(depth * slope / spread, 3)
+    if s == 0:
+        return 1.0, None
+    return s, round_significant(s * float(med), 6)
+
+
+# ----------------------------------------------------------------------------- lattice
+
+
+def _lattice_transform(
+    rng: np.random.Generator, cfg: SamplerConfig, period: float
+) -> tuple[Transform, float]:
+    """H and the coefficient of its linear argument for the given period."""
+    if rng.random() < cfg.lattice_constituent_prob:
+        name = str(rng.choice(LATTICE_CONSTITUENTS))
+        r = round(period, 3)
+        if name == "rect2":
+            t = round(float(rng.uniform(0.2, 0.45)) * r, 3)
+            return Transform(name, (r, t)), 1.0
+        return Transform(name, (r,)), 1.0
+    name = "cos" if rng.random() < 0.5 else "sin"
+    return Transform(name), round(2 * math.pi / period, 4)
+
+
+def _linear(w: float, axis: int) -> PowerFunction:
+    return PowerFunction((PowerTerm(w, *(1.0 if j == axis else 0.0 for j in range(3))),))
+
+
+def draw_lattice(seed: int, index: int, cfg: SamplerConfig) -> Draw:
+    """The ``lattice`` family (see the module docstring)."""
+    rng = rng_for(seed, index)
+    pattern = str(_choice(rng, cfg.lattice_patterns, cfg.lattice_pattern_weights))
+    half = round(float(rng.uniform(*cfg.box_half)), 1)
+    periods = float(rng.uniform(*cfg.lattice_periods))
+    period = 2 * half / periods
+    h1, w1 = _lattice_transform(rng, cfg, period)
+    h2, w2 = _lattice_transform(rng, cfg, period)
+    terms: list[tuple[Factor, ...]] = []
+    if pattern == "schwarz":
+        terms = [(only_b(_linear(w1, k), h1),) for k in range(3)]
+    elif pattern == "gyroid":
+        terms = [
+            (only_b(_linear(w1, k), h1), only_b(_linear(w2, (k + 1) % 3), h2)) for k in range(3)
+        ]
+    else:
+        c = round(float(rng.uniform(0.3, 1.2)), 2)
+        terms = [tuple(only_b(_linear(w1, k), h1) for k in range(3))]
+        terms += [(constant(c), only_b(_linear(w2, k), h2)) for k in range(3)]
+    q = float(rng.uniform(*cfg.lattice_d_quantile))
+    structure = {
+        "pattern": pattern,
+        "periods": round(periods, 3),
+        "H": [h1.name, h2.name] if pattern != "schwarz" else [h1.name],
+        "group": "cyclic",
+    }
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q, "lattice", structure)

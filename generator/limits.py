@@ -1,0 +1,202 @@
+"""The documented limits of surfgen's inputs, in one place (README, "Errors").
+
+Every boundary checks its limit *before* the work that the limit protects (recursion, allocation,
+reading), so a hostile or careless input ends in one :class:`~surfgen.generator.errors.SurfgenError`
+line instead of a ``RecursionError``, ``MemoryError`` or a stalled machine.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from surfgen.generator.errors import SurfgenError
+
+# Formulas: the tree has at most MAX_FORMULA_NODES nodes, and neither the text nor its canonical
+# form nests parentheses (grouping and function calls) deeper than MAX_FORMULA_NESTING. Long
+# flat sums and chains of signs or powers are fine up to the node limit: everything that walks a
+# tree does so without recursion. The text limits are cheap guards checked before parsing, set
+# so that the canonical form of any accepted tree is itself accepted (parse(print(t)) == t).
+MAX_FORMULA_NODES = 20_000
+MAX_FORMULA_NESTING = 64
+MAX_FORMULA_TOKENS = 100_000
+MAX_FORMULA_LENGTH = 1_000_000
+
+# ``--where`` expressions: characters, conditions and nesting (parentheses).
+MAX_WHERE_LENGTH = 4_000
+MAX_WHERE_CONDITIONS = 200
+MAX_WHERE_NESTING = 50
+
+# Input files read whole into memory.
+MAX_SPEC_FILE_BYTES = 1 << 20  # a spec (or export sidecar) JSON: 1 MiB
+MAX_CONFIG_FILE_BYTES = 1 << 20  # a config TOML: 1 MiB
+MAX_JSON_DEPTH = 32  # nesting of JSON arrays/objects in a spec file or a web request
+
+# Seeds: what numpy's SeedSequence and SQLite's INTEGER both hold.
+MAX_SEED = 2**63 - 1
+# Counts given on the command line (--n, --max-draws, --limit, ...): SQLite's INTEGER.
+MAX_COUNT = 2**63 - 1
+
+
+class LimitError(SurfgenError):
+    """An input beyond one of the documented limits (size, depth, memory, range)."""
+
+
+def read_bounded(path: str | os.PathLike, limit: int, what: str) -> bytes:
+    """The bytes of ``path``, refusing a file (or device, or pipe) longer than ``limit``.
+
+    Reads at most ``limit + 1`` bytes, so ``/dev/zero`` or a 5 GB file costs nothing.
+    Raises :class:`LimitError` when too long, ``OSError`` when it cannot be read.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(21, "Is a directory", str(path))
+    with open(path, "rb") as f:
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise LimitError(f"{what} {path} is larger than {format_bytes(limit)} (the limit)")
+    return data
+
+
+def decode_text(data: bytes, path: str | os.PathLike, what: str) -> str:
+    """UTF-8 text of a file's bytes; :class:`LimitError` naming the byte offset otherwise."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise LimitError(
+            f"{what} {path} is not UTF-8 text (bad byte 0x{data[exc.start]:02x} at offset {exc.start})"
+        ) from None
+    if "\x00" in text:
+        raise LimitError(f"{what} {path} is not text (it holds NUL bytes)")
+    return text
+
+
+def json_depth_ok(text: str, limit: int = MAX_JSON_DEPTH) -> bool:
+    """True when the JSON text nests arrays/objects at most ``limit`` deep (checked before
+    ``json.loads``, which recurses). Brackets inside strings are skipped."""
+    depth = 0
+    in_string = escaped = False
+    for ch in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            if depth > limit:
+                return False
+        elif ch in "]}":
+            depth -= 1
+    return True
+
+
+def format_bytes(n: float) -> str:
+    """``1536`` → ``'1.5 KiB'``."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} TiB"  # pragma: no cover
+
+
+def check_seed(seed: int, option: str = "--seed") -> int:
+    """``seed`` if it is a whole number in [0, 2^63 - 1]; :class:`LimitError` otherwise."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise LimitError(f"{option} must be a whole number from 0 to 2^63-1, got {seed}")
+    return seed
+
+
+def check_count(value: int, option: str, low: int = 1, high: int = MAX_COUNT) -> int:
+    """``value`` if it is a whole number in [low, high]; :class:`LimitError` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        top = "2^63-1" if high == MAX_COUNT else str(high)
+        raise LimitError(f"{option} must be a whole number from {low} to {top}, got {value}")
+    return value
+
+
+# ----------------------------------------------------------------------------- memory
+
+# Bytes per grid point, measured on this project's machine (tracemalloc peaks of `render` on
+# 128^3 and 192^3 grids): the float64 field is 8; marching cubes' working arrays (float32
+# offsets, masks, the capped copy, scikit-image's own) about 20; the mesh about 120 bytes per
+# face, with a typical surface giving 0.1-0.25 faces per point (noise up to 1.2: the estimate is
+# for a typical shape, and an out-of-memory error is still reported in one line).
+FIELD_BYTES_PER_POINT = 8
+MARCHING_BYTES_PER_POINT = 20
+MESH_BYTES_PER_POINT = 30
+CLEANUP_MESH_COPIES = 4  # pymeshlab's cleanup and remeshing hold a few copies of the mesh
+
+
+def estimate_memory(
+    points: int, mesh: bool = True, field_copy: bool = False, cleanup: bool = False
+) -> dict[str, int]:
+    """The memory a command needs for a grid of ``points`` samples, by part (bytes).
+
+    ``mesh``: marching cubes and a mesh are made; ``field_copy``: the field is also encoded
+    as a file in memory; ``cleanup``: the mesh goes through the export cleanup chain."""
+    parts = {"field": FIELD_BYTES_PER_POINT * points}
+    if field_copy:
+        parts["field file"] = FIELD_BYTES_PER_POINT * points
+    if mesh:
+        parts["marching cubes"] = MARCHING_BYTES_PER_POINT * points
+        copies = CLEANUP_MESH_COPIES if cleanup else 1
+        parts["mesh"] = MESH_BYTES_PER_POINT * points * copies
+    return parts
+
+
+def available_memory() -> int:
+    """The machine's available memory (``MemAvailable``), or its physical memory elsewhere."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError):  # pragma: no cover - not POSIX
+        return 1 << 34
+
+
+_UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+
+
+def parse_size(text: str, option: str = "--max-memory") -> int:
+    """``'4G'``, ``'512MiB'``, ``'1.5g'``, ``'1000000'`` → bytes (binary units).
+    Raises :class:`LimitError`."""
+    raw = str(text).strip().lower().replace(" ", "")
+    body = raw[:-2] if raw.endswith("ib") else raw[:-1] if raw.endswith("b") else raw
+    unit = body[-1:] if body[-1:] in _UNITS and body[-1:] != "" and not body[-1:].isdigit() else ""
+    number = body[: len(body) - len(unit)]
+    try:
+        value = float(number)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value * _UNITS[unit] < 2**62):
+        raise LimitError(
+            f"{option} must be a positive size such as 512M, 4G or 1.5GiB, got '{text}'"
+        )
+    return int(value * _UNITS[unit])
+
+
+def check_memory(parts: dict[str, int], limit: int | None, what: str, times: int = 1) -> int:
+    """Refuse, before anything is allocated, a command whose estimate exceeds ``limit`` (None:
+    the machine's available memory). ``times`` parallel copies (worker processes).
+    Returns the estimate; raises :class:`LimitError` with the estimate, its parts and the limit."""
+    need = sum(parts.values()) * times
+    source = "--max-memory" if limit is not None else "the available memory; --max-memory"
+    limit = available_memory() if limit is None else limit
+    if need > limit:
+        detail = ", ".join(f"{k} {format_bytes(v)}" for k, v in parts.items())
+        per = f" x {times} workers" if times > 1 else ""
+        raise LimitError(
+            f"{what} needs about {format_bytes(need)} of memory ({detail}{per}), more than the "
+            f"limit of {format_bytes(limit)} ({source} sets it); use a smaller grid"
+        )
+    return need

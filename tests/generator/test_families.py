@@ -1,0 +1,170 @@
+"""Families: pure functions of (seed, index, config); free keeps today's models; structure."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from surfgen.generator.equation13 import Equation13
+from surfgen.generator.errors import SpecError
+from surfgen.generator.evaluate import evaluate
+from surfgen.generator.families import pick_family
+from surfgen.generator.grid import Grid
+from surfgen.generator.sampler import SamplerConfig, choose_d, draw_equation
+
+# sha256 (16 hex digits) of {"model", "box", "q"} of shapes 0..29 of seed 7, recorded from the
+# sampler before families existed: family = "free" must keep drawing exactly these models.
+FREE_SEED_7 = [
+    "ed683cde5f5f1af2", "a19e42b8ed388d35", "ec461bf3cdfc3128", "ab9816f9e654503c",
+    "4de1cc7a407ed49f", "cad9eeb5a0446507", "b5bffe52a83d8474", "42211f1942ae36dc",
+    "f031739b94f67ef1", "24688e8b717d9181", "c0f7ea7c2aff652b", "221267814a38b450",
+    "0cdb228885ec9265", "c7ce40bb58a3ff73", "2330b0c1cda5173b", "eaa7d70bc1dbe3e4",
+    "26672880f5338b05", "5d6e097302aab1f4", "0a0477770d8ac291", "0d7fc9bbba376d4a",
+    "810e47dfa6b65be7", "67f37fa763d9e5f3", "48873c4bdd189fb7", "401de5a8bed71735",
+    "904cc5cfdfa7af92", "5c44b8000eb8e44e", "b37ad3be7f806b90", "0b7a2f59b88a4f9c",
+    "af31970eb382c4c3", "016e3c92b0a7e671",
+]  # fmt: skip
+
+
+def family(name: str) -> SamplerConfig:
+    return replace(SamplerConfig(), family=name)
+
+
+def model_hash(draw) -> str:
+    text = json.dumps(
+        {"model": draw.equation.to_dict(), "box": list(draw.box.bounds()), "q": draw.d_quantile},
+        sort_keys=True,
+        separators=(",", ":"),
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def test_free_family_keeps_todays_models() -> None:
+    cfg = family("free")
+    assert [model_hash(draw_equation(7, i, cfg)) for i in range(30)] == FREE_SEED_7
+
+
+def test_a_free_shape_of_the_mix_is_the_free_shape() -> None:
+    mix, free = SamplerConfig(), family("free")
+    picks = [pick_family(7, i, mix) for i in range(60)]
+    assert set(picks) == {"sculpture", "lattice", "free"}
+    for i, name in enumerate(picks):
+        if name == "free":
+            assert model_hash(draw_equation(7, i, mix)) == model_hash(draw_equation(7, i, free))
+
+
+@pytest.mark.parametrize("name", ["sculpture", "lattice", "mix"])
+def test_draws_are_pure_functions_of_seed_index_and_config(name: str) -> None:
+    cfg = family(name)
+    first = [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]
+    assert first == [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]  # any order
+    assert first[0] != draw_equation(4, 4, cfg).model_dict()  # another seed
+    other = replace(cfg, sculpture_depth=(0.5, 0.6), lattice_periods=(3.0, 4.0))
+    assert first[0] != draw_equation(3, 4, other).model_dict()  # another config
+
+
+def test_sculptures_record_their_structure_and_stand_free_in_their_box() -> None:
+    cfg = family("sculpture")
+    groups = set()
+    for i in range(8):
+        draw = draw_equation(11, i, cfg)
+        s = draw.structure
+        assert draw.family == "sculpture" and set(s) >= {"envelope", "ornament", "group", "k"}
+        groups.add(s["group"])
+        model = draw.model_dict()
+        assert model["family"] == "sculpture" and model["structure"]["k"] in (1, 2, 3)
+        # the model is still an eq. (13) instance: it reloads from its JSON
+        assert Equation13.from_dict(json.loads(json.dumps(model))) == draw.equation
+        # the envelope is inside the box, away from its faces
+        values = evaluate(draw.envelope, Grid(draw.box, (24,) * 3), threads=1).values
+        inside = values < 0
+        assert inside.any()
+        assert not (inside[0].any() or inside[-1].any() or inside[:, 0].any())
+        assert not (inside[:, -1].any() or inside[:, :, 0].any() or inside[:, :, -1].any())
+        d = choose_d(draw, cfg)
+        assert d == draw.d
+    assert len(groups) >= 3
+
+
+def test_lattices_are_periodic_patterns_cut_by_the_box() -> None:
+    cfg = family("lattice")
+    for i in range(6):
+        draw = draw_equation(5, i, cfg)
+        assert draw.family == "lattice" and draw.structure["pattern"] in (
+            "schwarz",
+            "gyroid",
+            "product",
+        )
+        d = choose_d(draw, cfg)
+        assert d is not None
+        values = evaluate(draw.equation.with_d(d).to_tree(), Grid(draw.box, (16,) * 3)).values
+        assert (values < 0).any() and (values > 0).any()
+
+
+def test_mix_weights_decide_the_share_of_each_family() -> None:
+    cfg = replace(SamplerConfig(), mix=("sculpture", "free"), mix_weights=(3.0, 1.0))
+    picks = [pick_family(1, i, cfg) for i in range(400)]
+    assert 0.68 < picks.count("sculpture") / 400 < 0.82
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"family": "statues"}, "family must be one of sculpture, lattice, free, mix"),
+        ({"family": 3}, "family must be text, got 3"),
+        ({"mix": ("sculpture", "blob")}, "mix has unknown 'blob' (allowed: sculpture, lattice"),
+        ({"mix_weights": (1.0, 2.0)}, "mix and mix_weights must be non-empty lists of the same"),
+        ({"mix_weights": (1.0, -1.0, 1.0)}, "mix_weights must be non-negative"),
+        ({"mix_weights": (0, 0, 0)}, "mix_weights must be non-negative and not all zero"),
+        ({"mix_weights": ("a", 1, 1)}, "mix_weights must be numbers"),
+        ({"sculpture_groups": ("none", "tetra")}, "sculpture_groups has unknown 'tetra'"),
+        ({"sculpture_powers": (1, 4)}, "sculpture_powers must be whole numbers 1..3"),
+    ],
+)
+def test_bad_families_and_weights_are_one_line_errors(change: dict, message: str) -> None:
+    data = SamplerConfig().to_dict() | {
+        k: list(v) if isinstance(v, tuple) else v for k, v in change.items()
+    }
+    if "sculpture_groups" in change:
+        data["sculpture_group_weights"] = [1.0, 1.0]
+    if "sculpture_powers" in change:
+        data["sculpture_power_weights"] = [1.0, 1.0]
+    with pytest.raises(SpecError, match=message.replace("(", r"\(")) as info:
+        SamplerConfig.from_mapping(data)
+    assert "\n" not in str(info.value)
+
+
+def test_structure_is_json_ready() -> None:
+    for name in ("sculpture", "lattice"):
+        draw = draw_equation(2, 0, family(name))
+        text = json.dumps(draw.model_dict(), sort_keys=True)
+        assert json.loads(text)["family"] == name
+        assert np.isfinite(draw.box.hi[0])
+
+
+@pytest.mark.parametrize(
+    ("args", "toml", "message"),
+    [
+        (
+            ["--family", "statue"],
+            "",
+            "error: --family must be one of sculpture, lattice, free, mix",
+        ),
+        ([], "[sampler]\nfamily = 'x'\n", "error: config [sampler]: family must be one of"),
+        ([], "[sampler]\nmix_weights = [1, -1, 1]\n", "mix_weights must be non-negative"),
+        ([], "[sampler]\nmix = ['free', 'slab']\nmix_weights = [1, 1]\n", "mix has unknown 'slab'"),
+    ],
+)
+def test_cli_refuses_bad_families_in_one_line(args, toml, message, tmp_path, capsys) -> None:
+    from surfgen.pipelines.cli import main
+
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text(toml)
+    code = main(["sample", "--n", "1", "--out", str(tmp_path / "cat"), "--config", str(cfg), *args])
+    err = capsys.readouterr().err.strip()
+    assert code != 0 and err.startswith("error:") and "\n" not in err and message in err
+    assert not (tmp_path / "cat").exists()  # nothing written

@@ -1,0 +1,142 @@
+"""One result everywhere: the sha256 of the fields of every preset and of 50 eq. (13) formulas is
+pinned here, and must hold on every CPU (AMD AVX2, Intel AVX-512, ...) and with vectorisation
+disabled (``SURFGEN_NO_VECTORIZE=1``, checked in a subprocess).
+
+The formulas are stored in ``data/eq13_formulas.jsonl`` (drawn once by the sampler, seed 7;
+they are data now, not regenerated). The hashes are in ``data/field_hashes.json``; after a
+deliberate change of the numerics, regenerate them with
+
+    python tests/generator/test_field_hashes.py --update
+
+and say why in the commit. Every NaN is hashed as the same NaN (IEEE leaves the sign and
+payload of a NaN made by an invalid operation to the hardware: x86 and ARM differ).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from surfgen.generator.fast import evaluate_fast
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.parser import parse
+from surfgen.generator.presets import PRESETS
+from surfgen.generator.reference import evaluate_reference
+
+DATA = Path(__file__).parent / "data"
+FORMULAS = DATA / "eq13_formulas.jsonl"
+HASHES = DATA / "field_hashes.json"
+SHAPE = (13, 12, 11)  # small, odd/even sizes: 0 on the x and z axes of symmetric boxes
+
+
+def field_hash(values: np.ndarray) -> str:
+    v = np.array(values, dtype="<f8")
+    v[np.isnan(v)] = np.nan
+    return hashlib.sha256(v.tobytes()).hexdigest()
+
+
+def cases() -> list[tuple[str, object, Grid, dict]]:
+    """(key, tree, grid, params) of every preset and stored eq. (13) formula."""
+    out = []
+    for name in sorted(PRESETS):
+        spec = PRESETS[name].spec()
+        out.append((f"preset {name}", spec.tree(), Grid(spec.to_grid().box, SHAPE), spec.params))
+    for i, line in enumerate(FORMULAS.read_text().splitlines()):
+        row = json.loads(line)
+        grid = Grid(Box(tuple(row["lo"]), tuple(row["hi"])), SHAPE)
+        out.append((f"eq13 #{i}", parse(row["formula"]), grid, {}))
+    return out
+
+
+def fast_hashes() -> dict[str, str]:
+    return {
+        key: field_hash(evaluate_fast(tree, grid, params, threads=1).values)
+        for key, tree, grid, params in cases()
+    }
+
+
+def _pinned() -> dict[str, str]:
+    return json.loads(HASHES.read_text())["fields"]
+
+
+def _diff(got: dict[str, str], want: dict[str, str]) -> list[str]:
+    return [k for k in want if got.get(k) != want[k]] + [k for k in got if k not in want]
+
+
+def test_formula_data_holds_50_eq13_formulas():
+    rows = FORMULAS.read_text().splitlines()
+    assert len(rows) == 50 and len(set(rows)) == 50
+
+
+def test_fields_match_the_pinned_hashes():
+    got = fast_hashes()
+    bad = _diff(got, _pinned())
+    assert not bad, f"{len(bad)} fields changed: {bad[:5]}"
+
+
+def test_the_reference_gives_the_pinned_hashes_too():
+    pinned = _pinned()
+    for key, tree, grid, params in cases():
+        assert field_hash(evaluate_reference(tree, grid, params).values) == pinned[key], key
+
+
+_SUBPROCESS = """
+import json, re, sys
+sys.path.insert(0, {here!r})
+from test_field_hashes import fast_hashes
+from surfgen.generator import NO_VECTORIZE, kernels
+hashes = fast_hashes()
+asm = "\\n".join(kernels.run_serial.inspect_asm().values())
+print(json.dumps({{
+    "switch": NO_VECTORIZE,
+    "hashes": hashes,
+    "asm_chars": len(asm),
+    "packed": len(re.findall(r"\\bv?(mul|add|sub|div)pd\\b", asm)),
+    "fma": len(re.findall(r"\\bv?f(n)?m(add|sub)\\d", asm)),
+}}))
+"""
+
+
+def test_same_hashes_with_vectorisation_disabled(tmp_path):
+    # A fresh numba cache: numba's cache key ignores the vectoriser flags, and a fresh compile
+    # lets us read the machine code (no packed arithmetic left, no FMA).
+    env = dict(os.environ, SURFGEN_NO_VECTORIZE="1", NUMBA_CACHE_DIR=str(tmp_path))
+    code = _SUBPROCESS.format(here=str(Path(__file__).parent))
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1800
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["switch"] is True
+    assert result["asm_chars"] > 10_000  # the interpreter and everything it calls
+    assert result["packed"] == 0, "vectorisation is still on"
+    assert result["fma"] == 0
+    bad = _diff(result["hashes"], _pinned())
+    assert not bad, f"{len(bad)} fields differ without vectorisation: {bad[:5]}"
+
+
+def _update() -> None:
+    import platform
+
+    hashes = fast_hashes()
+    cpu = platform.processor() or platform.machine()
+    if os.path.exists("/proc/cpuinfo"):
+        m = re.search(r"model name\s*:\s*(.*)", Path("/proc/cpuinfo").read_text())
+        cpu = m.group(1) if m else cpu
+    doc = {"grid": list(SHAPE), "generated_on": cpu, "fields": hashes}
+    HASHES.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {len(hashes)} hashes to {HASHES}")
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--update"]:
+        _update()
+    else:
+        print(__doc__)
