@@ -15,12 +15,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.mesh import Mesh
 from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
 
 REASONS = (
@@ -155,18 +156,12 @@ def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
     ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
     (area of the largest component / total)."""
-    tri = mesh.vertices[mesh.faces]
-    areas = face_areas(mesh)
+    areas = _face_areas(mesh.vertices, mesh.faces)
     total = float(areas.sum()) or 1.0
     lo = np.array(box[0::2])
     hi = np.array(box[1::2])
     tol = 1e-9 * float(np.max(hi - lo))
-    on_face = np.zeros(mesh.n_faces, dtype=bool)
-    for k in range(3):
-        c = tri[:, :, k]
-        on_face |= np.all(np.abs(c - lo[k]) <= tol, axis=1) | np.all(
-            np.abs(c - hi[k]) <= tol, axis=1
-        )
+    on_face = _on_box_faces(mesh.vertices, mesh.faces, lo, hi, tol)
     labels = face_components(mesh)
     per = np.bincount(labels, weights=areas)
     return {
@@ -177,25 +172,73 @@ def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
     }
 
 
-def shape_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
-    """:func:`measure_mesh` (manifoldness through pymeshlab, genus, ...), :func:`quick_metrics`,
+@numba.njit(cache=True, nogil=True)
+def _face_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """:func:`~surfgen.generator.mesh.face_areas` without numpy's temporaries (np.cross makes
+    nine): the same products, differences and sums in the same order, so the same bits."""
+    out = np.empty(f.shape[0])
+    for t in range(f.shape[0]):
+        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
+        ax = v[i1, 0] - v[i0, 0]
+        ay = v[i1, 1] - v[i0, 1]
+        az = v[i1, 2] - v[i0, 2]
+        bx = v[i2, 0] - v[i0, 0]
+        by = v[i2, 1] - v[i0, 1]
+        bz = v[i2, 2] - v[i0, 2]
+        cx = ay * bz - az * by
+        cy = az * bx - ax * bz
+        cz = ax * by - ay * bx
+        out[t] = 0.5 * math.sqrt(cx * cx + cy * cy + cz * cz)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _on_box_faces(
+    v: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: float
+) -> np.ndarray:
+    """(F,) bool: the faces whose three corners lie on one face of the box (within ``tol``).
+
+    The test is per vertex (one bit per box face), so each corner is compared once instead of
+    once per face around it; the comparisons are the same, so is the result.
+    """
+    sides = np.zeros(v.shape[0], dtype=np.uint8)
+    for i in range(v.shape[0]):
+        bits = 0
+        for k in range(3):
+            if abs(v[i, k] - lo[k]) <= tol:
+                bits |= 1 << (2 * k)
+            if abs(v[i, k] - hi[k]) <= tol:
+                bits |= 2 << (2 * k)
+        sides[i] = bits
+    out = np.zeros(f.shape[0], dtype=np.bool_)
+    for t in range(f.shape[0]):
+        out[t] = (sides[f[t, 0]] & sides[f[t, 1]] & sides[f[t, 2]]) != 0
+    return out
+
+
+def shape_metrics(
+    mesh: Mesh, box: tuple[float, ...], quick: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """:func:`measure_mesh` (manifoldness through pymeshlab, genus, ...), :func:`quick_metrics`
+    (pass ``quick`` if they are already measured: they are not measured again),
     and ``total_curvature``: the sum over vertices of the absolute angle deficit, / 4 pi
     (1 for any convex closed surface, more for wavy ones)."""
     m = measure_mesh(mesh).to_dict()
-    m.update(quick_metrics(mesh, box))
+    m.update(quick_metrics(mesh, box) if quick is None else quick)
     m["total_curvature"] = _total_abs_curvature(mesh.vertices, mesh.faces) / (4 * math.pi)
     return m
 
 
 def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
     """Sum of |2 pi - sum of corner angles| over vertices (discrete Gauss-Bonnet)."""
+    # Each edge vector and its length are computed once: the corner at k sees edge k and the
+    # reversed edge k+2 (x - y == -(y - x) exactly, so the angles are bit for bit the same).
+    edges = [v[f[:, (k + 1) % 3]] - v[f[:, k]] for k in range(3)]
+    lengths = [np.linalg.norm(e, axis=1) for e in edges]
     angles = np.empty(f.shape)
     for k in range(3):
-        a = v[f[:, (k + 1) % 3]] - v[f[:, k]]
-        b = v[f[:, (k + 2) % 3]] - v[f[:, k]]
-        cos = np.einsum("ij,ij->i", a, b) / (
-            np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) + 1e-300
-        )
+        j = (k + 2) % 3
+        cos = -np.einsum("ij,ij->i", edges[k], edges[j]) / (lengths[k] * lengths[j] + 1e-300)
         angles[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
     angle_sum = np.bincount(f.ravel(), weights=angles.ravel(), minlength=len(v))
     used = np.bincount(f.ravel(), minlength=len(v)) > 0

@@ -296,8 +296,7 @@ def _rebuild_files(cat, row: dict) -> None:
     from surfgen.generator.evaluate import evaluate
     from surfgen.generator.mesh import extract_mesh, load_mesh, save_mesh
     from surfgen.generator.spec import SurfaceSpec
-    from surfgen.pipelines.pictures import render_thumbnail, render_turntable
-    from surfgen.pipelines.sampling import TURNTABLE_SIZE
+    from surfgen.pipelines.pictures import TURNTABLE_SIZE, render_thumbnail, render_turntable
 
     key = row["key"]
     if row.get("verdict") != "accepted":

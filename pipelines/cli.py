@@ -337,7 +337,10 @@ def sample(
         bool, typer.Option(help="Reject near duplicates of accepted shapes on the fly.")
     ] = False,
     thumbnails: Annotated[
-        bool, typer.Option(help="Render thumbnails and turntables (--no-thumbnails to skip).")
+        bool,
+        typer.Option(
+            help="Render thumbnails (--no-thumbnails to skip); turntables are rendered when first shown."
+        ),
     ] = True,
     executor: Annotated[
         str, typer.Option(help="local (worker processes here) or dask (a Dask cluster).")

@@ -32,7 +32,9 @@ from __future__ import annotations
 import io
 import json
 import logging
+import re
 import shutil
+import threading
 import zipfile
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -82,6 +84,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1", "[::1]")
+_KEY = re.compile(r"[0-9a-f]{8,64}")  # a shape key (hex): what the turntable route renders
 # The value each API action reads from the request body, and what it may be.
 _ACTION_FIELD = {
     "star": "stars",
@@ -121,45 +124,106 @@ class PictureResult:
     failed: list[tuple[str, str]]
 
 
+# One lock per key: the live gallery is threaded, and two hovers of one card must not render
+# its turntable twice (the atomic write would make that harmless, only wasteful).
+_RENDERING: dict[str, threading.Lock] = {}
+_RENDERING_GUARD = threading.Lock()
+
+
+def turntable_url(rec: dict[str, Any]) -> dict[str, Any]:
+    """``rec`` (a :func:`~surfgen.pipelines.curation.shape_record`) with ``turntable`` set to
+    where the live gallery serves it, rendered or not: an accepted shape with a mesh always
+    has one (the image route renders it on first request, :func:`ensure_turntable`)."""
+    if rec.get("mesh") and not rec.get("turntable") and rec.get("verdict") == "accepted":
+        rec["turntable"] = f"turntables/{rec['key']}.png"
+    return rec
+
+
+def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | None:
+    """The turntable strip of accepted shape ``key``: the cached file if it is recorded and
+    there, else rendered from the mesh now (atomic write into ``turntables/KEY.png``) and
+    recorded, so later requests and later servers serve the file.
+
+    Returns None for a shape that is not accepted or has no mesh. Raises
+    :class:`CatalogueError` for an unknown key and :class:`SurfgenError` (a ``MeshError``)
+    if the mesh cannot be read or drawn.
+    """
+    from surfgen.generator.mesh import load_mesh
+    from surfgen.pipelines.pictures import TURNTABLE_SIZE, TURNTABLE_VIEWS, render_turntable
+
+    with _RENDERING_GUARD:
+        lock = _RENDERING.setdefault(key, threading.Lock())
+    with lock:
+        row = cat.conn.execute(
+            "SELECT verdict, mesh_path, turntable_path FROM shapes WHERE key=?", (key,)
+        ).fetchone()
+        if row is None:
+            raise CatalogueError(f"no shape with key '{key}' in {cat.root}")
+        target = cat.turntables / f"{key}.png"
+        recorded = row["turntable_path"]
+        if not force and recorded and (cat.root / recorded).is_file():
+            return cat.root / recorded
+        if row["verdict"] != "accepted" or not row["mesh_path"]:
+            log.info("shape %s: no turntable (not accepted or no mesh)", key)
+            return None
+        if force or not target.is_file():  # else a file written by a process killed before
+            mesh = load_mesh(cat.root / row["mesh_path"])  # it could record it: keep it
+            render_turntable(mesh, target, views=TURNTABLE_VIEWS, size=TURNTABLE_SIZE)
+            log.info("rendered the turntable of %s", key)
+        rel = str(target.relative_to(cat.root))
+        if recorded != rel:
+            with cat.conn:
+                cat.conn.execute("UPDATE shapes SET turntable_path=? WHERE key=?", (rel, key))
+        return target
+
+
 def render_pictures(
     cat: Catalogue,
     force: bool = False,
     where: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    turntables: bool = True,
 ) -> PictureResult:
-    """Render the thumbnail (256², ``thumbs/KEY.png``) and 12-view turntable
-    (``turntables/KEY.png``) of every accepted shape that lacks one (all with ``force``),
-    from its mesh, and record their paths. Shapes whose mesh cannot be read are listed in
-    ``failed``, the others still rendered. Raises :class:`WhereError` for a bad ``where``."""
+    """Render the missing thumbnails (256², ``thumbs/KEY.png``) and, with ``turntables``, the
+    missing 12-view turntables (``turntables/KEY.png``) of the accepted shapes (all of them
+    with ``force``) from their meshes, and record their paths. Shapes whose mesh cannot be
+    read are listed in ``failed``, the others still rendered. Raises :class:`WhereError` for a
+    bad ``where``."""
     from surfgen.generator.mesh import load_mesh
-    from surfgen.pipelines.pictures import render_thumbnail, render_turntable
+    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
     cat.make_dirs()
     shapes = select_shapes(cat, where=where)
     rendered = skipped = 0
     failed: list[tuple[str, str]] = []
+
+    def have(rel: str | None) -> bool:
+        return bool(rel) and (cat.root / rel).is_file() and not force  # type: ignore[operator]
+
     for i, s in enumerate(shapes):
         key = s["key"]
-        thumb, turn = cat.thumbs / f"{key}.png", cat.turntables / f"{key}.png"
-        have = all(rel and (cat.root / rel).is_file() for rel in (s["thumb"], s["turntable"]))
-        if have and not force:
+        need_thumb = not have(s["thumb"])
+        need_turn = turntables and not have(s["turntable"])
+        if not need_thumb and not need_turn:
             skipped += 1
         elif not s["mesh"]:
             failed.append((key, "no mesh recorded"))
         else:
             try:
-                mesh = load_mesh(cat.root / s["mesh"])
-                render_thumbnail(mesh, thumb, size=256)
-                render_turntable(mesh, turn, views=12, size=256)
+                if need_thumb:
+                    thumb = cat.thumbs / f"{key}.png"
+                    render_thumbnail(load_mesh(cat.root / s["mesh"]), thumb, size=THUMBNAIL_SIZE)
+                    with cat.conn:
+                        cat.conn.execute(
+                            "UPDATE shapes SET thumb_path=? WHERE key=?",
+                            (str(thumb.relative_to(cat.root)), key),
+                        )
+                if need_turn:
+                    ensure_turntable(cat, key, force=force)
             except SurfgenError as exc:
                 log.warning("shape %s: no pictures (%s)", key, exc)
                 failed.append((key, str(exc)))
             else:
-                with cat.conn:
-                    cat.conn.execute(
-                        "UPDATE shapes SET thumb_path=?, turntable_path=? WHERE key=?",
-                        (str(thumb.relative_to(cat.root)), str(turn.relative_to(cat.root)), key),
-                    )
                 rendered += 1
         if progress is not None:
             progress(i + 1, len(shapes))
@@ -265,17 +329,30 @@ def export_gallery(
 ) -> tuple[Path, int]:
     """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
     ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
+    Turntables not rendered yet are rendered first (and cached in the catalogue).
 
     Returns the index path and the number of shapes. Raises :class:`CatalogueError` for a
     missing catalogue and :class:`GalleryError` if ``out`` cannot be written.
     """
-    with open_catalogue(root, readonly=True) as cat:
-        data = gallery_data(cat, readonly=True, where=where)
-        data["catalogue"] = cat.root.name
-        data["meshes"] = meshes
     out = Path(out)
     if out.resolve() == Path(root).resolve():
         raise GalleryError("write the gallery to another folder than the catalogue")
+    # Read-write: turntables not rendered yet are rendered and recorded (ensure_turntable).
+    with open_catalogue(root, must_exist=True) as cat:
+        data = gallery_data(cat, readonly=True, where=where)
+        data["catalogue"] = cat.root.name
+        data["meshes"] = meshes
+        # A static page cannot render on demand: make the turntables nobody asked for yet
+        # (cached in the catalogue, so the next export copies them).
+        cat.make_dirs()
+        for s in data["shapes"]:
+            if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file()):
+                try:
+                    made = ensure_turntable(cat, s["key"])
+                except SurfgenError as exc:
+                    log.warning("shape %s: no turntable (%s)", s["key"], exc)
+                    continue
+                s["turntable"] = str(made.relative_to(cat.root)) if made else None
     try:
         for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
             (out / sub).mkdir(parents=True, exist_ok=True)
@@ -361,9 +438,25 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
 
     @app.get("/")
     def index() -> Response:
-        return Response(render_page(gallery_data(cat(), readonly=False)), mimetype="text/html")
+        data = gallery_data(cat(), readonly=False)
+        data["shapes"] = [turntable_url(s) for s in data["shapes"]]
+        return Response(render_page(data), mimetype="text/html")
 
-    for folder in ("thumbs", "turntables", "meshes"):
+    @app.get("/turntables/<path:name>")
+    def turntable(name: str) -> Response:
+        # Rendered on first request and cached in the catalogue (ensure_turntable).
+        key = name.removesuffix(".png")
+        if not (root / "turntables" / name).is_file() and _KEY.fullmatch(key):
+            try:
+                ensure_turntable(cat(write=True), key)
+            except CatalogueError:
+                abort(404)
+            except SurfgenError as exc:
+                log.warning("shape %s: no turntable (%s)", key, exc)
+                abort(404)
+        return send_from_directory(root / "turntables", name, max_age=0)
+
+    for folder in ("thumbs", "meshes"):
 
         def send(name: str, _folder: str = folder) -> Response:
             return send_from_directory(root / _folder, name, max_age=0)
@@ -390,11 +483,11 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
         )
         if query_flag("keys"):
             return jsonify(keys=[r["key"] for r in recs])
-        return jsonify(count=len(recs), shapes=recs)
+        return jsonify(count=len(recs), shapes=[turntable_url(r) for r in recs])
 
     @app.get("/api/shapes/<key>")
     def shape(key: str):
-        return jsonify(shape=get_shape(cat(), key))
+        return jsonify(shape=turntable_url(get_shape(cat(), key)))
 
     @app.post("/api/shapes/<key>/<action>")
     def curate(key: str, action: str):
@@ -403,7 +496,7 @@ def create_app(root: Path, host: str = "127.0.0.1") -> Flask:
         body = json_body(_ACTION_SCHEMA[action])
         field = _ACTION_FIELD[action]
         value = body.get(field) if field else None
-        return jsonify(shape=apply_action(cat(write=True), key, action, value))
+        return jsonify(shape=turntable_url(apply_action(cat(write=True), key, action, value)))
 
     @app.post("/api/export")
     def export():

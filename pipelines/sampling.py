@@ -72,9 +72,6 @@ from surfgen.pipelines.executor import Executor, KillablePool
 log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
-# Turntable frames are smaller than thumbnails: 12 views at 256 px cost more than the rest of
-# a shape's pipeline together; 160 px is plenty for the gallery's hover spin.
-TURNTABLE_SIZE = 160
 EXECUTORS = ("local", "dask")
 # Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
 FILE_FIELDS = (
@@ -151,7 +148,8 @@ def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
 
 
 class _Stopwatch:
-    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``filters``, ``io``)."""
+    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``filters``, ``describe``,
+    ``io``, ``pictures``)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
@@ -193,12 +191,12 @@ def make_shape(
     out = ShapeOutcome(index, row, verdict)
     if verdict.accepted and mesh is not None:
         row["descriptor"] = descriptor_to_text(descriptor(mesh))
+        watch.lap("describe")
         if staging is not None:
             try:
-                out = _with_files(out, mesh, staging, pictures)
+                out = _with_files(out, mesh, staging, pictures, watch)
             except OSError as exc:  # not a verdict on the shape: the run must stop
                 return ShapeOutcome(index, row, verdict, write_error=_write_error(exc, staging))
-        watch.lap("io")
     row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
     return out
 
@@ -253,7 +251,8 @@ def _judge(
     finally:
         watch.lap("mesh")
     # Cheap checks first (most draws fail them)...
-    metrics.update(quick_metrics(mesh, spec.box))
+    quick = quick_metrics(mesh, spec.box)
+    metrics.update(quick)
     verdict = judge(metrics, fcfg, capped=capped)
     if verdict.accepted and "wall_fraction" not in metrics:
         # ...then the walls (root, pole or jump for every crossing: refines with the formula)
@@ -261,8 +260,8 @@ def _judge(
         metrics["wall_fraction"] = crossings.wall_fraction
         watch.lap("walls")
         verdict = judge(metrics, fcfg, capped=capped)
-    if verdict.accepted:  # ...then pymeshlab's topology and the curvature
-        metrics.update(shape_metrics(mesh, spec.box))
+    if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick ones reused)
+        metrics.update(shape_metrics(mesh, spec.box, quick=quick))
         verdict = judge(metrics, fcfg, capped=capped)
     if verdict.accepted:
         metrics.update(quality_metrics(mesh, metrics))
@@ -278,20 +277,25 @@ def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
     return cols
 
 
-def _with_files(out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool) -> ShapeOutcome:
+def _with_files(
+    out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool, watch: _Stopwatch
+) -> ShapeOutcome:
     """Write the accepted shape's files into the run's staging folder; the parent moves them
-    into the catalogue when it commits the row (so a discarded index leaves nothing behind)."""
+    into the catalogue when it commits the row (so a discarded index leaves nothing behind).
+
+    Only the thumbnail is rendered here (contact sheets and the gallery grid show every one);
+    the 12-view turntable, which most shapes never get hovered for, is rendered the first
+    time it is asked for (:func:`surfgen.pipelines.gallery.ensure_turntable`)."""
     key = out.row["key"]
     mesh_file = write_atomic(staging / f"{key}.ply", mesh_bytes(mesh, staging / f"{key}.ply"))
-    thumb = turn = None
+    watch.lap("io")
+    thumb = None
     if pictures:
-        from surfgen.pipelines.pictures import render_thumbnail, render_turntable
+        from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
-        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=256)
-        turn = render_turntable(
-            mesh, staging / f"{key}.turntable.png", views=12, size=TURNTABLE_SIZE
-        )
-    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb, turn)
+        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
+        watch.lap("pictures")
+    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb)
 
 
 def make_shape_packed(

@@ -9,6 +9,7 @@ import re
 import socket
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 import zipfile
@@ -23,9 +24,10 @@ from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
+from surfgen.pipelines import pictures
 from surfgen.pipelines.catalogue import open_catalogue
 from surfgen.pipelines.cli import main
-from surfgen.pipelines.gallery import create_app, render_pictures
+from surfgen.pipelines.gallery import create_app, ensure_turntable, render_pictures
 
 SHAPES = {
     "sphere": ("x^2+y^2+z^2-1", 1.5),
@@ -206,6 +208,112 @@ def test_api_export_zip(cat_dir, keys) -> None:
     names = set(zipfile.ZipFile(io.BytesIO(res.data)).namelist())
     assert {f"meshes/{keys['torus']}.ply", f"specs/{keys['sphere']}.json", "shapes.json"} <= names
     assert client.post("/api/export", data={"keys": ""}).status_code == 400
+
+
+# ----------------------------------------------------------------------------- lazy turntables
+
+
+def without_turntables(root: Path) -> None:
+    """What `surfgen sample` leaves: thumbnails, but no turntable rendered or recorded."""
+    with open_catalogue(root, must_exist=True) as cat, cat.conn:
+        cat.conn.execute("UPDATE shapes SET turntable_path=NULL")
+    for f in (root / "turntables").glob("*.png"):
+        f.unlink()
+
+
+@pytest.fixture
+def renders(monkeypatch) -> list[str]:
+    """The file names render_turntable is asked to write, in order."""
+    calls: list[str] = []
+    real = pictures.render_turntable
+
+    def counting(mesh, path, **kwargs):
+        calls.append(Path(path).name)
+        return real(mesh, path, **kwargs)
+
+    monkeypatch.setattr(pictures, "render_turntable", counting)
+    return calls
+
+
+def test_turntable_rendered_on_first_request_cached_and_served_after_restart(
+    cat_dir, keys, renders
+) -> None:
+    without_turntables(cat_dir)
+    torus, sphere = keys["torus"], keys["sphere"]
+    client = create_app(cat_dir).test_client()
+    data = page_data(client.get("/").get_data(as_text=True))
+    urls = {s["key"]: s["turntable"] for s in data["shapes"]}
+    assert urls == {k: f"turntables/{k}.png" for k in keys.values()}  # offered, not rendered
+    assert not any((cat_dir / "turntables").iterdir()) and renders == []
+
+    first = client.get(f"/turntables/{torus}.png")
+    assert first.status_code == 200 and first.mimetype == "image/png"
+    with Image.open(io.BytesIO(first.data)) as im:
+        assert im.size == (12 * 256, 256)
+    assert renders == [f"{torus}.png"]
+    assert client.get(f"/turntables/{torus}.png").data == first.data
+    assert renders == [f"{torus}.png"]  # the second request was served from the cache
+    with open_catalogue(cat_dir, must_exist=True) as cat:
+        assert cat.shape(torus)["turntable_path"] == f"turntables/{torus}.png"
+        assert cat.shape(sphere)["turntable_path"] is None
+    assert sorted(p.name for p in (cat_dir / "turntables").iterdir()) == [f"{torus}.png"]
+
+    restarted = create_app(cat_dir).test_client()  # a new server over the same catalogue
+    assert restarted.get(f"/turntables/{torus}.png").data == first.data
+    assert renders == [f"{torus}.png"]
+    # Records from the API keep offering the lazy picture, also after a curation action.
+    starred = restarted.post(f"/api/shapes/{sphere}/star", json={"stars": 2}).get_json()
+    assert starred["shape"]["turntable"] == f"turntables/{sphere}.png"
+    one = restarted.get(f"/api/shapes/{sphere}").get_json()["shape"]
+    assert one["turntable"] == f"turntables/{sphere}.png"
+    listed = restarted.get("/api/shapes").get_json()["shapes"]
+    assert all(s["turntable"] == f"turntables/{s['key']}.png" for s in listed)
+    # Unknown keys and other names are 404s, and render nothing.
+    assert restarted.get("/turntables/0123456789abcdef.png").status_code == 404
+    assert restarted.get("/turntables/../catalogue.sqlite").status_code == 404
+    assert restarted.get("/turntables/notakey.png").status_code == 404
+    assert renders == [f"{torus}.png"]
+
+
+def test_turntable_rendered_once_when_asked_twice_at_once(cat_dir, keys, renders) -> None:
+    without_turntables(cat_dir)
+    paths: list[Path | None] = []
+
+    def ask() -> None:
+        with open_catalogue(cat_dir, must_exist=True) as cat:
+            paths.append(ensure_turntable(cat, keys["genus2"]))
+
+    threads = [threading.Thread(target=ask) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert renders == [f"{keys['genus2']}.png"]
+    assert paths == [cat_dir / "turntables" / f"{keys['genus2']}.png"] * 3
+
+
+def test_thumbnails_and_static_gallery_render_missing_turntables(
+    cat_dir, keys, renders, capsys, tmp_path
+) -> None:
+    without_turntables(cat_dir)
+    thumb = cat_dir / "thumbs" / f"{keys['torus']}.png"
+    before = thumb.stat().st_mtime_ns
+    out = tmp_path / "site"
+    rc, stdout, _ = cli(
+        capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--where", "genus = 1"
+    )
+    assert rc == 0 and "(1 shapes)" in stdout
+    assert renders == [f"{keys['torus']}.png"]
+    data = page_data((out / "index.html").read_text())
+    assert data["shapes"][0]["turntable"] == f"turntables/{keys['torus']}.png"
+    assert (out / "turntables" / f"{keys['torus']}.png").is_file()
+    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir))
+    assert rc == 0 and stdout.startswith("rendered 3, already there 1, failed 0")
+    assert sorted(renders) == sorted(f"{k}.png" for k in keys.values())
+    assert thumb.stat().st_mtime_ns == before  # only the missing turntables were drawn
+    with open_catalogue(cat_dir, must_exist=True) as cat:
+        for key in keys.values():
+            assert cat.shape(key)["turntable_path"] == f"turntables/{key}.png"
 
 
 def test_static_gallery(cat_dir, keys, capsys, tmp_path) -> None:

@@ -349,3 +349,21 @@ def test_render_from_catalogue_takes_overrides(reference_run: Path, capsys) -> N
     assert r["grid"] == [12, 12, 12] and r["level"] == 0.25
     assert main(["render", "--from", str(reference_run), key, "--preset", "sphere"]) == 1
     assert "exactly one of --preset, --formula, --spec or --from" in capsys.readouterr().err
+
+
+def test_sample_renders_thumbnails_and_leaves_turntables_for_first_view(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from surfgen.pipelines.gallery import create_app
+
+    cat = tmp_path / "cat"
+    run_sample(n=1, seed=11, config=load_config().with_grid(GRID), catalogue=cat, workers=1)
+    with open_catalogue(cat, must_exist=True) as c:
+        (row,) = c.shapes(verdict="accepted")
+    key = row["key"]
+    assert row["thumb_path"] == f"thumbs/{key}.png" and row["turntable_path"] is None
+    with Image.open(cat / row["thumb_path"]) as im:
+        assert im.size == (256, 256)
+    assert not any((cat / "turntables").iterdir())
+    res = create_app(cat).test_client().get(f"/turntables/{key}.png")
+    assert res.status_code == 200 and (cat / "turntables" / f"{key}.png").is_file()
