@@ -403,7 +403,8 @@ def wait_for(what: Callable[[], object], timeout: float = 15.0, message: str = "
         time.sleep(0.1)
 
 
-def make_browser(profile: Path):
+def make_browser(profile: Path, flags: tuple[str, ...] = ("--disable-gpu",)):
+    """Debian's headless Chromium through chromedriver, with a fresh profile and ``flags``."""
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
@@ -415,7 +416,7 @@ def make_browser(profile: Path):
     for arg in (
         "--headless",
         "--no-sandbox",
-        "--disable-gpu",
+        *flags,
         "--disable-background-networking",
         "--disable-component-update",
         "--disable-sync",

@@ -11,13 +11,15 @@ from pathlib import Path
 import pytest
 from test_gallery import (
     ARTEFACTS,
-    CHROMEDRIVER,
     CHROMIUM,
     build_catalogue,
     db_row,
     start_server,
     stop_server,
     wait_for,
+)
+from test_gallery import (
+    make_browser as make_gallery_browser,
 )
 
 from surfgen.pipelines.catalogue import open_catalogue
@@ -42,25 +44,7 @@ def keys(template) -> dict[str, str]:
 
 
 def make_browser(profile: Path):
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    assert CHROMEDRIVER.exists(), "apt-get install chromium-driver"
-    options = webdriver.ChromeOptions()
-    options.binary_location = str(CHROMIUM)
-    for arg in (
-        "--headless",
-        "--no-sandbox",
-        *WEBGL_FLAGS,
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        f"--user-data-dir={profile}",
-        "--window-size=1280,900",
-    ):
-        options.add_argument(arg)
-    return webdriver.Chrome(options=options, service=Service(str(CHROMEDRIVER)))
+    return make_gallery_browser(profile, WEBGL_FLAGS)
 
 
 def rendered(browser) -> bool:
