@@ -202,6 +202,61 @@ def _emd(a: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.abs(np.cumsum(others, axis=1) - np.cumsum(a)).mean(axis=1)
 
 
+class DescriptorSet:
+    """A growing set of keyed descriptors with a fast nearest-neighbour query (the cumulative
+    histograms are computed once per descriptor, rows grow by doubling): the sampler checks
+    every accepted shape against all the ones before it. Same distances as
+    :func:`descriptor_distances`."""
+
+    def __init__(self) -> None:
+        self.keys: list[str] = []
+        self._rows = np.zeros((0, SIZE))
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def add(self, key: str, values: np.ndarray) -> None:
+        n = len(self.keys)
+        if n == len(self._rows):
+            grown = np.zeros((max(64, 2 * n), SIZE))
+            grown[:n] = self._rows
+            self._rows = grown
+        self._rows[n] = _cumulative(np.asarray(values, dtype=np.float64)[None, :])[0]
+        self.keys.append(key)
+
+    def nearest(self, values: np.ndarray) -> tuple[str | None, float]:
+        """The key of the closest descriptor (the first one on a tie) and its distance, or
+        ``(None, inf)`` for an empty set."""
+        if not self.keys:
+            return None, float("inf")
+        a = _cumulative(np.asarray(values, dtype=np.float64)[None, :])[0]
+        dist = _scaled(a, self._rows[: len(self.keys)])
+        j = int(np.argmin(dist))
+        return self.keys[j], float(dist[j])
+
+
+def _cumulative(rows: np.ndarray) -> np.ndarray:
+    """Rows with every histogram block replaced by its cumulative sum (placement unchanged)."""
+    out = rows.copy()
+    for lo, hi, _ in _BLOCKS:
+        out[:, lo:hi] = np.cumsum(rows[:, lo:hi], axis=1)
+    out[:, FORM_SIZE + PLACE_SIZE :] = np.cumsum(rows[:, FORM_SIZE + PLACE_SIZE :], axis=1)
+    return out
+
+
+def _scaled(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """:func:`descriptor_distances` on rows already made cumulative by :func:`_cumulative`."""
+    form = np.zeros(rows.shape[0])
+    for lo, hi, weight in _BLOCKS:
+        form += weight * np.abs(rows[:, lo:hi] - a[lo:hi]).mean(axis=1)
+    place = slice(FORM_SIZE, FORM_SIZE + PLACE_SIZE)
+    placement = np.abs(rows[:, place] - a[place]).mean(axis=1)
+    relief_part = slice(FORM_SIZE + PLACE_SIZE, SIZE)
+    relief = np.abs(rows[:, relief_part] - a[relief_part]).mean(axis=1)
+    channels = {"form": form, "placement": placement, "relief": relief}
+    return np.maximum.reduce([channels[k] / CHANNEL_SCALES[k] for k in CHANNEL_SCALES])
+
+
 def is_near_duplicate(a: np.ndarray, b: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> bool:
     """Whether descriptors ``a`` and ``b`` are closer than ``threshold``."""
     return descriptor_distance(a, b) < threshold
