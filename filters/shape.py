@@ -128,39 +128,3 @@ def quality_metrics(mesh: Mesh, metrics: dict[str, Any]) -> dict[str, Any]:
     }
     out.update(symmetry_metrics(mesh))
     return out
-
-
-def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:
-    """How far the surface ``values = level`` departs from its envelope ``envelope = 0``, both
-    sampled on the same grid: the spread (5th to 95th percentile) of the envelope's normal
-    offset ``E / |grad E|`` over the surface, divided by the envelope's radius (that of a ball of
-    its volume). A shape that is its envelope, or its envelope grown or shrunk evenly, gives
-    about 0; a few scratches leave the percentiles alone; deep carving gives 0.2 and more.
-
-    The surface points are where the grid's edges cross the level, interpolated linearly (the
-    marching-cubes vertices), so the measure does not see the grid's staircase. Returns
-    ``inf`` when the envelope is empty on the grid or the surface has too few points.
-    """
-    f = np.asarray(values, dtype=np.float64) - level
-    env = np.asarray(envelope, dtype=np.float64)
-    n_env = int(np.count_nonzero(np.isfinite(env) & (env < 0)))
-    if n_env == 0:
-        return float("inf")
-    with np.errstate(all="ignore"):
-        grad = np.sqrt(sum(g * g for g in np.gradient(env)))  # per grid step
-        offsets = []
-        for axis in range(3):
-            fa, ea, ga = (np.moveaxis(a, axis, 0) for a in (f, env, grad))
-            f0, f1 = fa[:-1], fa[1:]
-            cross = np.isfinite(f0) & np.isfinite(f1) & ((f0 < 0) != (f1 < 0))
-            t = f0[cross] / (f0[cross] - f1[cross])
-            e = ea[:-1][cross] + t * (ea[1:][cross] - ea[:-1][cross])
-            g = ga[:-1][cross] + t * (ga[1:][cross] - ga[:-1][cross])
-            offsets.append(e / g)
-        off = np.concatenate(offsets)
-    off = off[np.isfinite(off)]
-    if off.size < 8:
-        return float("inf")
-    radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)  # in grid steps, like the offsets
-    lo, hi = np.quantile(off, (0.05, 0.95))
-    return float((hi - lo) / radius)

@@ -281,7 +281,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, feature, stray, tries = _coarse_ornament(
+    ornament, freq, products, unit, feature, stray, departure, tries = _coarse_ornament(
         rng,
         cfg,
         envelope if extent is not None else None,
@@ -299,7 +299,12 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     }
     structure["ornament"].update(frequency=freq, depth=depth)
     if feature is not None:
-        structure["ornament"].update(feature=round(feature, 4), stray=round(stray, 4), tries=tries)
+        structure["ornament"].update(
+            feature=round(feature, 4),
+            stray=round(stray, 4),
+            departure=round(min(departure, 99.0), 4),
+            tries=tries,
+        )
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
         return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
     strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
@@ -325,14 +330,22 @@ def _coarse_ornament(
         products = _ornament_terms(ornament, perms, mirror, k)
         unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, None, tries
+            return ornament, freq, products, unit, None, None, None, tries
         o = _eval(unit, box, FEATURE_GRID)
         feature = _feature_size(e, o, box)
-        stray = _stray_share(e, o, box, depth)
-        clean = feature >= cfg.sculpture_min_feature and stray <= cfg.sculpture_max_stray
-        score = min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0) - stray
+        stray, departure = _carved(e, o, box, depth)
+        clean = (
+            feature >= cfg.sculpture_min_feature
+            and stray <= cfg.sculpture_max_stray
+            and departure >= cfg.sculpture_min_departure
+        )
+        score = (
+            min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0)
+            + min(departure / max(cfg.sculpture_min_departure, 1e-9), 1.0)
+            - stray
+        )
         if best is None or score > best_score:
-            best, best_score = (ornament, freq, products, unit, feature, stray), score
+            best, best_score = (ornament, freq, products, unit, feature, stray, departure), score
         if clean:
             break
     assert best is not None
@@ -343,11 +356,19 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
     """The share of the carved surface's crossings (on the feature grid, strength and d as
     :func:`_strength` sets them) that lie farther from the envelope's surface than twice the
     carving depth plus two cells: debris thrown away from the body. 1 when it cannot tell."""
+    return _carved(e, o, box, depth)[0]
+
+
+def _carved(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> tuple[float, float]:
+    """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
+    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell) and its
+    :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
+    the full grid."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
     s, d = _strength_on(e, o, step, depth)
     if d is None:
-        return 1.0
+        return 1.0, 0.0
     with np.errstate(invalid="ignore", over="ignore"):
         f = e + s * o - d
         ge = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
@@ -361,9 +382,46 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
         crossing[tuple(lo)] |= change
     count = np.count_nonzero(crossing)
     if count == 0:
-        return 1.0
+        return 1.0, 0.0
     far = crossing & ~(distance <= 2 * depth + 2 * step)
-    return np.count_nonzero(far) / count
+    departure = envelope_departure(f, e)
+    return np.count_nonzero(far) / count, departure if math.isfinite(departure) else 0.0
+
+
+def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:
+    """How far the surface ``values = level`` departs from its envelope ``envelope = 0``, both
+    sampled on the same grid: the spread (5th to 95th percentile) of the envelope's normal
+    offset ``E / |grad E|`` over the surface, divided by the envelope's radius (that of a ball of
+    its volume). A shape that is its envelope, or its envelope grown or shrunk evenly, gives
+    about 0; a few scratches leave the percentiles alone; deep carving gives 0.2 and more.
+
+    The surface points are where the grid's edges cross the level, interpolated linearly (the
+    marching-cubes vertices), so the measure does not see the grid's staircase. Returns
+    ``inf`` when the envelope is empty on the grid or the surface has too few points.
+    """
+    f = np.asarray(values, dtype=np.float64) - level
+    env = np.asarray(envelope, dtype=np.float64)
+    n_env = int(np.count_nonzero(np.isfinite(env) & (env < 0)))
+    if n_env == 0:
+        return float("inf")
+    with np.errstate(all="ignore"):
+        grad = np.sqrt(sum(g * g for g in np.gradient(env)))  # per grid step
+        offsets = []
+        for axis in range(3):
+            fa, ea, ga = (np.moveaxis(a, axis, 0) for a in (f, env, grad))
+            f0, f1 = fa[:-1], fa[1:]
+            cross = np.isfinite(f0) & np.isfinite(f1) & ((f0 < 0) != (f1 < 0))
+            t = f0[cross] / (f0[cross] - f1[cross])
+            e = ea[:-1][cross] + t * (ea[1:][cross] - ea[:-1][cross])
+            g = ga[:-1][cross] + t * (ga[1:][cross] - ga[:-1][cross])
+            offsets.append(e / g)
+        off = np.concatenate(offsets)
+    off = off[np.isfinite(off)]
+    if off.size < 8:
+        return float("inf")
+    radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)  # in grid steps, like the offsets
+    lo, hi = np.quantile(off, (0.05, 0.95))
+    return float((hi - lo) / radius)
 
 
 def _feature_size(e: np.ndarray, o: np.ndarray, box: Box) -> float:

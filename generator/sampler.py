@@ -115,6 +115,7 @@ class SamplerConfig:
     sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
     sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     sculpture_max_stray: float = 0.02  # share of the carved surface far from the envelope
+    sculpture_min_departure: float = 0.12  # carved surface's departure from the envelope
     sculpture_ornament_tries: int = 6  # ornaments drawn until one carves cleanly
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
     lattice_pattern_weights: tuple[float, ...] = (0.15, 0.2, 0.15, 0.2, 0.15, 0.15)
@@ -207,6 +208,7 @@ class SamplerConfig:
             ("constituent_r", 1e-6, 1e6),
             ("box_half", 1e-6, 1e6),
             ("sculpture_min_feature", 0, 10),
+            ("sculpture_min_departure", 0, 10),
             ("sculpture_ornament_tries", 1, 50),
             ("lattice_anisotropy", 0.1, 10),
         ):

@@ -904,7 +904,9 @@ def dedupe_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
     threshold: Annotated[
         float | None,
-        typer.Option(help="Descriptor distance below which shapes are duplicates (in units of the calibrated scales; default 1)."),
+        typer.Option(
+            help="Descriptor distance below which shapes are duplicates (in units of the calibrated scales; default 1)."
+        ),
     ] = None,
     dry_run: Annotated[bool, typer.Option(help="Report, change nothing.")] = False,
 ) -> None:

@@ -37,7 +37,7 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
-from surfgen.filters.shape import envelope_departure, quality_metrics
+from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import (
     REASONS,
     Verdict,
@@ -51,6 +51,7 @@ from surfgen.generator import __version__
 from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
+from surfgen.generator.families import envelope_departure
 from surfgen.generator.files import write_atomic
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.limits import (

@@ -7,7 +7,6 @@ import pytest
 
 from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.shape import (
-    envelope_departure,
     mesh_symmetries,
     quality_metrics,
     solidity,
@@ -15,6 +14,7 @@ from surfgen.filters.shape import (
 )
 from surfgen.filters.verdict import FilterConfig, judge
 from surfgen.generator.evaluate import evaluate
+from surfgen.generator.families import envelope_departure
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse

@@ -183,7 +183,9 @@ def test_stray_share_sees_debris_away_from_the_envelope() -> None:
 
 def test_sculptures_redraw_fine_ornaments() -> None:
     strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
-    loose = replace(strict, sculpture_min_feature=0.0, sculpture_max_stray=1.0)
+    loose = replace(
+        strict, sculpture_min_feature=0.0, sculpture_max_stray=1.0, sculpture_min_departure=0.0
+    )
     kept = []
     for i in range(12):
         s = draw_equation(7, i, strict).structure["ornament"]

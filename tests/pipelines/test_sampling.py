@@ -300,6 +300,11 @@ def test_dedupe_on_the_fly_marks_what_each_duplicate_copies(tmp_path: Path, caps
         ]
         assert dups and all(r["duplicate_of"] == first["key"] for r in dups)
         assert first["descriptor"]
+    # --no-dedupe keeps near duplicates (the default, [run] dedupe, rejects them)
+    kept = [str(tmp_path / "kept") if a == str(cat) else a for a in args]
+    assert main([*kept, "--no-dedupe"]) == 0
+    with open_catalogue(tmp_path / "kept", must_exist=True) as c:
+        assert len(c.shapes(verdict="accepted")) == 2
 
 
 def test_ctrl_c_keeps_the_catalogue_and_says_how_to_resume(
