@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.files import staged_folder
 from surfgen.pipelines.catalogue import (
     DEFAULT_CATALOGUE,
     Catalogue,
@@ -337,6 +338,7 @@ def export_gallery(
     out = Path(out)
     if out.resolve() == Path(root).resolve():
         raise GalleryError("write the gallery to another folder than the catalogue")
+    _check_gallery_target(out)
     # Read-write: turntables not rendered yet are rendered and recorded (ensure_turntable).
     with open_catalogue(root, must_exist=True) as cat:
         data = gallery_data(cat, readonly=True, where=where)
@@ -354,29 +356,62 @@ def export_gallery(
                     continue
                 s["turntable"] = str(made.relative_to(cat.root)) if made else None
     try:
-        for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
-            (out / sub).mkdir(parents=True, exist_ok=True)
-        for f in _static_dir().iterdir():
-            if f.is_file():
-                shutil.copy2(f, out / "static" / f.name)
-        for s in data["shapes"]:
-            for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
-                rel = s[kind]
-                if rel and (Path(root) / rel).is_file():
-                    (out / rel).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copy2(Path(root) / rel, out / rel)
-                else:
-                    s[kind] = None
-            if not meshes:
-                s["mesh"] = None
-        if meshes:  # 3-D detail pages need the meshes
-            from surfgen.pipelines.viewer import export_detail_pages
-
-            export_detail_pages(Path(root), out, data["shapes"])
-        write_page(out / "index.html", render_page(data))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with staged_folder(out) as work:  # all or nothing: `out` changes only at the end
+            _write_gallery(Path(root), work, data, meshes)
     except OSError as exc:
-        raise GalleryError(f"cannot write the gallery to {out}: {exc}") from None
+        where = f" ({exc.filename})" if exc.filename and Path(exc.filename) != out else ""
+        raise GalleryError(
+            f"cannot write the gallery to {out}: {exc.strerror or exc}{where}; it was left as it was"
+        ) from None
     return out / "index.html", len(data["shapes"])
+
+
+GALLERY_MARK = ".surfgen-gallery"  # a folder holding it is a gallery that may be replaced
+GALLERY_ENTRIES = {"index.html", "static", "thumbs", "turntables", "meshes", "shapes", GALLERY_MARK}
+
+
+def _check_gallery_target(out: Path) -> None:
+    """Refuse a target that is not a folder surfgen may replace whole: a file, or a folder
+    with anything but an earlier gallery in it (``gallery -o ~`` must not swap out a home)."""
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise GalleryError(f"cannot write the gallery to {out}: it is a file, not a folder")
+    if not out.is_dir() or (out / GALLERY_MARK).is_file():
+        return
+    foreign = sorted(p.name for p in out.iterdir() if p.name not in GALLERY_ENTRIES)
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        raise GalleryError(
+            f"cannot write the gallery to {out}: the folder holds other files ({shown}) and "
+            "a gallery replaces its folder whole; choose a new or empty folder"
+        )
+
+
+def _write_gallery(root: Path, work: Path, data: dict[str, Any], meshes: bool) -> None:
+    """Every file of the static gallery, into the (new, empty) folder ``work``."""
+    for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
+        (work / sub).mkdir(parents=True, exist_ok=True)
+    for f in _static_dir().iterdir():
+        if f.is_file():
+            shutil.copy2(f, work / "static" / f.name)
+    for s in data["shapes"]:
+        for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
+            rel = s[kind]
+            if rel and (root / rel).is_file():
+                (work / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(root / rel, work / rel)
+            else:
+                s[kind] = None
+        if not meshes:
+            s["mesh"] = None
+    if meshes:  # 3-D detail pages need the meshes
+        from surfgen.pipelines.viewer import export_detail_pages
+
+        export_detail_pages(root, work, data["shapes"])
+    write_page(work / "index.html", render_page(data))
+    (work / GALLERY_MARK).write_text(
+        json.dumps({"surfgen": "gallery", "catalogue": data["catalogue"]}) + "\n"
+    )
 
 
 def write_page(path: Path, text: str) -> Path:

@@ -16,7 +16,7 @@ import typer
 
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import write_all_atomic
 from surfgen.generator.mathmod import Model, load_model, read_script, to_script
 from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, save_mesh
 from surfgen.generator.spec import SurfaceSpec
@@ -171,18 +171,13 @@ def import_script(
 
 
 def write_all(out_dir: Path, files: Mapping[Path, bytes]) -> list[Path]:
-    """Write every file (atomically) or, if one fails, remove those already written."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    done: list[Path] = []
-    for target, data in files.items():
-        try:
-            write_atomic(target, data)
-        except OSError as exc:
-            for p in done:
-                p.unlink(missing_ok=True)
-            raise SpecError(f"cannot write {target}: {exc.strerror}") from None
-        done.append(target)
-    return done
+    """Write every file or none (:func:`write_all_atomic`: a file that was there before and
+    would have been replaced is put back if a later one fails)."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return write_all_atomic(list(files.items()))
+    except OSError as exc:
+        raise SpecError(f"cannot write {exc.filename or out_dir}: {exc.strerror}") from None
 
 
 # ----------------------------------------------------------------------------- export
