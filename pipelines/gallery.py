@@ -32,6 +32,7 @@ from __future__ import annotations
 import io
 import json
 import logging
+import os
 import re
 import shutil
 import threading
@@ -48,6 +49,7 @@ import typer
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.files import staged_folder
 from surfgen.pipelines.catalogue import (
+    DB_NAME,
     DEFAULT_CATALOGUE,
     Catalogue,
     CatalogueError,
@@ -339,30 +341,46 @@ def export_gallery(
     if out.resolve() == Path(root).resolve():
         raise GalleryError("write the gallery to another folder than the catalogue")
     _check_gallery_target(out)
-    # Read-write: turntables not rendered yet are rendered and recorded (ensure_turntable).
-    with open_catalogue(root, must_exist=True) as cat:
+    with open_catalogue(root, must_exist=True, readonly=True) as cat:
         data = gallery_data(cat, readonly=True, where=where)
         data["catalogue"] = cat.root.name
         data["meshes"] = meshes
-        # A static page cannot render on demand: make the turntables nobody asked for yet
-        # (cached in the catalogue, so the next export copies them).
-        cat.make_dirs()
-        for s in data["shapes"]:
-            if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file()):
+        missing = [
+            s
+            for s in data["shapes"]
+            if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file())
+        ]
+    # A static page cannot render on demand: make the turntables nobody asked for yet, cached
+    # in the catalogue (so the next export copies them) — or, for a catalogue this user cannot
+    # write, in the gallery only.
+    fresh: list[dict[str, Any]] = []
+    if missing and not _writable_catalogue(Path(root)):
+        log.warning(
+            "catalogue %s is read-only: %d turntables are rendered for the gallery only",
+            root,
+            len(missing),
+        )
+        fresh = missing
+    elif missing:
+        with open_catalogue(root, must_exist=True) as cat:
+            cat.make_dirs()
+            for s in missing:
                 try:
                     made = ensure_turntable(cat, s["key"])
                 except SurfgenError as exc:
                     log.warning("shape %s: no turntable (%s)", s["key"], exc)
                     continue
                 s["turntable"] = str(made.relative_to(cat.root)) if made else None
+    existed = out.exists()
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with staged_folder(out) as work:  # all or nothing: `out` changes only at the end
-            _write_gallery(Path(root), work, data, meshes)
+            _write_gallery(Path(root), work, data, meshes, fresh)
     except OSError as exc:
         where = f" ({exc.filename})" if exc.filename and Path(exc.filename) != out else ""
+        kept = "the gallery there was left as it was" if existed else "nothing was written"
         raise GalleryError(
-            f"cannot write the gallery to {out}: {exc.strerror or exc}{where}; it was left as it was"
+            f"cannot write the gallery to {out}: {exc.strerror or exc}{where}; {kept}"
         ) from None
     return out / "index.html", len(data["shapes"])
 
@@ -387,9 +405,38 @@ def _check_gallery_target(out: Path) -> None:
         )
 
 
-def _write_gallery(root: Path, work: Path, data: dict[str, Any], meshes: bool) -> None:
-    """Every file of the static gallery, into the (new, empty) folder ``work``."""
-    for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
+def _writable_catalogue(root: Path) -> bool:
+    """Whether this user may write the catalogue's database, folder and turntables."""
+    folders = [root, root / "turntables"]
+    return os.access(root / DB_NAME, os.W_OK) and all(
+        os.access(f, os.W_OK) for f in folders if f.exists()
+    )
+
+
+def _write_gallery(
+    root: Path,
+    work: Path,
+    data: dict[str, Any],
+    meshes: bool,
+    fresh: list[dict[str, Any]] = (),  # type: ignore[assignment]
+) -> None:
+    """Every file of the static gallery, into the (new, empty) folder ``work``; the shapes in
+    ``fresh`` get a turntable rendered from their mesh straight into it."""
+    from surfgen.generator.mesh import load_mesh
+    from surfgen.pipelines.pictures import TURNTABLE_SIZE, TURNTABLE_VIEWS, render_turntable
+
+    (work / "turntables").mkdir()
+    for s in fresh:
+        rel = f"turntables/{s['key']}.png"
+        try:
+            mesh = load_mesh(root / s["mesh"])
+            render_turntable(mesh, work / rel, views=TURNTABLE_VIEWS, size=TURNTABLE_SIZE)
+        except SurfgenError as exc:
+            log.warning("shape %s: no turntable (%s)", s["key"], exc)
+            s["turntable"] = None
+            continue
+        s["turntable"] = rel
+    for sub in ("static", "thumbs", *(["meshes"] if meshes else [])):
         (work / sub).mkdir(parents=True, exist_ok=True)
     for f in _static_dir().iterdir():
         if f.is_file():
@@ -397,6 +444,8 @@ def _write_gallery(root: Path, work: Path, data: dict[str, Any], meshes: bool) -
     for s in data["shapes"]:
         for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
             rel = s[kind]
+            if kind == "turntable" and rel and (work / rel).is_file():
+                continue  # rendered just now
             if rel and (root / rel).is_file():
                 (work / rel).parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(root / rel, work / rel)
