@@ -37,7 +37,7 @@ import re
 import shutil
 import threading
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass
 from importlib import resources
@@ -332,7 +332,10 @@ def export_gallery(
 ) -> tuple[Path, int]:
     """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
     ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
-    Turntables not rendered yet are rendered first (and cached in the catalogue).
+    Turntables not rendered yet are rendered first (and cached in the catalogue, if this user
+    may write it). The catalogue is read through a read-only connection. Everything is written
+    into a temporary folder beside ``out`` that replaces ``out`` at the end: an earlier gallery
+    there is kept if anything fails; a folder with other files in it is refused.
 
     Returns the index path and the number of shapes. Raises :class:`CatalogueError` for a
     missing catalogue and :class:`GalleryError` if ``out`` cannot be written.
@@ -418,7 +421,7 @@ def _write_gallery(
     work: Path,
     data: dict[str, Any],
     meshes: bool,
-    fresh: list[dict[str, Any]] = (),  # type: ignore[assignment]
+    fresh: Sequence[dict[str, Any]] = (),
 ) -> None:
     """Every file of the static gallery, into the (new, empty) folder ``work``; the shapes in
     ``fresh`` get a turntable rendered from their mesh straight into it."""
