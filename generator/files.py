@@ -14,6 +14,7 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import re
 import shutil
 import uuid
 from collections.abc import Iterator, Sequence
@@ -23,8 +24,45 @@ from pathlib import Path
 log = logging.getLogger(__name__)
 
 
+KEPT = "old.tmp"  # what a rename replaced, until the transaction ends (ends in .tmp, like
+# every temporary name here, so `catalogue check` counts a leftover as a temporary file)
+
+
 def _temp_name(path: Path, tag: str = "tmp") -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.{tag}")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def clear_leftovers(target: Path) -> None:
+    """Remove the temporary files and folders beside ``target`` that a killed process left
+    (their names carry its pid); if ``target`` itself is missing because the process was
+    killed between moving the old version aside and the new one in, put the old one back."""
+    pattern = re.compile(rf"\.{re.escape(target.name)}\.(\d+)\.[0-9a-f]{{8}}\.(old\.)?tmp")
+    try:
+        entries = list(target.parent.iterdir())
+    except OSError:
+        return
+    for entry in sorted(entries):
+        m = pattern.fullmatch(entry.name)
+        if m is None or int(m.group(1)) == os.getpid() or _alive(int(m.group(1))):
+            continue
+        try:
+            if m.group(2) and not (target.exists() or target.is_symlink()):
+                os.replace(entry, target)
+                log.warning("put back %s, left aside by a process that was killed", target)
+            else:
+                _remove(entry)
+        except OSError as exc:  # not ours to remove (another user's folder): leave it
+            log.debug("could not clear %s (%s)", entry, exc)
 
 
 def _reraise(exc: OSError, path: Path) -> OSError:
@@ -72,10 +110,10 @@ class Renames:
             if dst.is_dir() and not dst.is_symlink():
                 if not src.is_dir():
                     raise IsADirectoryError(errno.EISDIR, "it is a folder, not a file name")
-                kept, aside = _temp_name(dst, "old"), True
+                kept, aside = _temp_name(dst, KEPT), True
                 os.replace(dst, kept)
             elif dst.exists() or dst.is_symlink():
-                kept = _temp_name(dst, "old")
+                kept = _temp_name(dst, KEPT)
                 try:
                     os.link(dst, kept, follow_symlinks=False)
                 except OSError:  # no hard links here (FAT, some network file systems)
@@ -194,6 +232,7 @@ def staged_folder(target: str | os.PathLike) -> Iterator[Path]:
     (a read-only or missing parent).
     """
     target = Path(os.path.abspath(target))  # `-o .` has a name to put a sibling beside
+    clear_leftovers(target)
     work = _temp_name(target)
     try:
         work.mkdir()
@@ -227,6 +266,7 @@ def staged_into(target: str | os.PathLike) -> Iterator[Path]:
         raise _reraise(exc, target.parent) from None
     if target.exists() and not target.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, "it is a file, not a folder", str(target))
+    clear_leftovers(target)
     work = _temp_name(target)
     try:
         work.mkdir()

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from surfgen.generator.errors import SurfgenError
-from surfgen.generator.files import staged_folder
+from surfgen.generator.files import renaming, stage, staged_folder
 from surfgen.pipelines.catalogue import (
     DB_NAME,
     DEFAULT_CATALOGUE,
@@ -180,6 +180,26 @@ def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | No
         return target
 
 
+def _thumbnail(cat: Catalogue, key: str, mesh: Any) -> Path:
+    """Draw the thumbnail of ``key`` and record it: the file and its row as one (a row that
+    cannot be written, e.g. on a full disk, takes the new file back)."""
+    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, png_bytes, render_image
+
+    thumb = cat.thumbs / f"{key}.png"
+    staged = stage(thumb, png_bytes(render_image(mesh, size=THUMBNAIL_SIZE)))
+    try:
+        with renaming() as tx:
+            tx.move(staged, thumb)
+            with cat.conn:
+                cat.conn.execute(
+                    "UPDATE shapes SET thumb_path=? WHERE key=?",
+                    (str(thumb.relative_to(cat.root)), key),
+                )
+    finally:
+        staged.unlink(missing_ok=True)
+    return thumb
+
+
 def render_pictures(
     cat: Catalogue,
     force: bool = False,
@@ -193,7 +213,6 @@ def render_pictures(
     read are listed in ``failed``, the others still rendered. Raises :class:`WhereError` for a
     bad ``where``."""
     from surfgen.generator.mesh import load_mesh
-    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
     cat.make_dirs()
     shapes = select_shapes(cat, where=where)
@@ -214,13 +233,7 @@ def render_pictures(
         else:
             try:
                 if need_thumb:
-                    thumb = cat.thumbs / f"{key}.png"
-                    render_thumbnail(load_mesh(cat.root / s["mesh"]), thumb, size=THUMBNAIL_SIZE)
-                    with cat.conn:
-                        cat.conn.execute(
-                            "UPDATE shapes SET thumb_path=? WHERE key=?",
-                            (str(thumb.relative_to(cat.root)), key),
-                        )
+                    _thumbnail(cat, key, load_mesh(cat.root / s["mesh"]))
                 if need_turn:
                     ensure_turntable(cat, key, force=force)
             except SurfgenError as exc:

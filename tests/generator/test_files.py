@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from surfgen.generator import files
 from surfgen.generator.files import (
     renaming,
     stage,
@@ -146,3 +147,26 @@ def test_staged_into_keeps_other_files_and_replaces_whole_entries(
         "sweep.json": b"new",
     }
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_leftovers_of_a_killed_process_are_cleared(tmp_path: Path) -> None:
+    import subprocess
+
+    dead = subprocess.Popen(["true"])
+    dead.wait()  # its pid names the leftovers of a process that is gone
+    out = tmp_path / "site"
+    (tmp_path / f".site.{dead.pid}.0123abcd.tmp").mkdir()  # a half-written gallery
+    (tmp_path / f".site.{dead.pid}.0123abcd.tmp" / "index.html").write_text("half")
+    old = tmp_path / f".site.{dead.pid}.4567cdef.old.tmp"  # killed between the two renames
+    old.mkdir()
+    (old / "index.html").write_text("the earlier gallery")
+    mine = tmp_path / f".site.{os.getpid()}.89abcdef.tmp"  # a live process's: kept
+    mine.mkdir()
+    other = tmp_path / f".site.v2.{dead.pid}.0123abcd.tmp"  # another target's: kept
+    other.mkdir()
+    files.clear_leftovers(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([mine.name, other.name, "site"])
+    assert (out / "index.html").read_text() == "the earlier gallery"
+    with staged_folder(out) as work:
+        (work / "index.html").write_text("new")
+    assert (out / "index.html").read_text() == "new"

@@ -308,3 +308,30 @@ def test_read_only_folders_and_catalogue_for_real(template, base: Path, capsys) 
     assert {k: v for k, v in after.items() if k not in written} == before  # nothing else
     assert "ok/site/index.html" in written and "ok/exp" in written
     assert not any(p.name.endswith(("-wal", "-shm")) for p in cat.iterdir())
+
+
+def test_a_saved_variant_is_files_and_row_or_nothing(template, tmp_path: Path, monkeypatch):
+    """Explore's "save variant" writes a mesh, a thumbnail and a turntable with a row: when
+    the row cannot be written (SQLite's disk full), the files go too."""
+    import sqlite3
+
+    import surfgen.pipelines.curation as curation
+    from surfgen.pipelines.catalogue import open_catalogue
+    from surfgen.pipelines.explore import save_variant
+
+    root, keys = template
+    cat_dir = tmp_path / "cat"
+    shutil.copytree(root, cat_dir)
+    before = snapshot(cat_dir)
+
+    def disk_full(*args, **kwargs):
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(curation, "apply_action", disk_full)
+    with open_catalogue(cat_dir) as cat, pytest.raises(Exception, match="disk is full"):
+        save_variant(cat, keys["torus"], {"d": 0.09})
+    assert snapshot(cat_dir) == before  # no mesh, thumbnail, turntable or temporary folder
+    monkeypatch.undo()
+    with open_catalogue(cat_dir) as cat:
+        rec = save_variant(cat, keys["torus"], {"d": 0.09})
+    assert (cat_dir / "meshes" / f"{rec['key']}.ply").is_file()
