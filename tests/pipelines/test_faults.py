@@ -208,7 +208,7 @@ def test_sqlite_disk_full_in_the_parent_stops_then_resume_is_identical(
     assert "--resume" in err[0] and "Traceback" not in err[0]
     shapes = [r for r in table(cat) if len(r) == 10]
     assert shapes == [r for r in want if len(r) == 10][: len(shapes)]  # a prefix
-    assert victim not in {r[1] for r in shapes} and len(shapes) >= 3
+    assert victim not in {r[1] for r in shapes} and len(shapes) >= 2  # two accepted before it
     # every row's mesh is there and every mesh has its row; nothing staged is left
     named = {Path(r[9]).name for r in shapes if r[9]}
     assert {p.name for p in (cat / "meshes").iterdir()} == named
