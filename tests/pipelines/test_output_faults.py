@@ -13,6 +13,7 @@ import io
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import traceback
@@ -190,12 +191,13 @@ def import_everything() -> None:
 
 def as_user(uid: int, run: Callable[[], object]) -> object:
     """``run()`` in a forked child that became user ``uid`` (no groups); its return value,
-    or the traceback text of what it raised. The child shares this process's compiled code."""
-    import_everything()
+    or the traceback text of what it raised. The child shares this process's compiled code
+    and imported modules (see :func:`import_everything`)."""
     read, write = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: never returns into pytest
         os.close(read)
+        signal.alarm(120)  # a child stuck on a lock another thread held at the fork dies
         try:
             os.setgroups([])
             os.setresgid(uid, uid, uid)
@@ -209,7 +211,8 @@ def as_user(uid: int, run: Callable[[], object]) -> object:
     os.close(write)
     with os.fdopen(read) as pipe:
         text = pipe.read()
-    os.waitpid(pid, 0)
+    _, status = os.waitpid(pid, 0)
+    assert text, f"the child died without an answer (wait status {status})"
     return json.loads(text)
 
 
@@ -289,6 +292,7 @@ def test_read_only_folders_and_catalogue_for_real(template, base: Path, capsys) 
         "export-ok": ["export", sphere, "-C", cat, "--format", "ply", "-o", ok / "exp"],
     }
     argv = [[str(a) for a in args] for args in commands.values()]
+    import_everything()
     results = as_user(NOBODY, lambda: run_commands(argv))
     assert isinstance(results, list), results["traceback"]  # not the child's traceback
     got = dict(zip(commands, results, strict=True))
