@@ -127,6 +127,34 @@ def test_export_rolls_back_when_the_second_rename_fails(
     assert snapshot(out) == before
 
 
+def test_mathmod_render_and_import_roll_back(tmp_path: Path, monkeypatch, capsys) -> None:
+    ball = {
+        "Iso3D": {
+            "Name": ["Ball"], "Component": ["S"], "Fxyz": ["x^2+y^2+z^2-1"], "Grid": ["16"],
+            **{f"{a}{m}": [v] for a in "XYZ" for m, v in (("min", "-1.5"), ("max", "1.5"))},
+        }
+    }  # fmt: skip
+    script = tmp_path / "script.json"
+    script.write_text(
+        json.dumps({"MathModels": [ball, {"Iso3D": {**ball["Iso3D"], "Name": ["Cube"]}}]})
+    )
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "ball.ply").write_bytes(b"an earlier mesh")
+    (out / "Ball.json").write_bytes(b"an earlier spec")
+    before = snapshot(out)
+    fail_nth_rename(monkeypatch, out)
+    rc, _, err = cli(capsys, "render", "--mathmod", script, "--name", "Ball", "-o",
+                     out / "ball.ply", "--png", out / "ball.png")  # fmt: skip
+    one_line(rc, err, str(out / "ball.png"), "Input/output error")
+    assert snapshot(out) == before  # the earlier mesh is back
+    monkeypatch.undo()
+    fail_nth_rename(monkeypatch, out)  # Ball.json replaced, Cube.json fails
+    rc, _, err = cli(capsys, "import", "mathmod", script, "-o", out)
+    one_line(rc, err, str(out / "Cube.json"), "Input/output error")
+    assert snapshot(out) == before
+
+
 # ----------------------------------------------------------------------------- the gallery
 
 
