@@ -40,7 +40,7 @@ import numpy as np
 import typer
 
 from surfgen.generator.errors import SurfgenError
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import renaming, write_atomic
 from surfgen.generator.mesh import Mesh, load_mesh
 from surfgen.generator.reference import evaluate_points
 from surfgen.generator.spec import SurfaceSpec
@@ -330,10 +330,9 @@ def export_dataset(
         (work / "README.md").write_text(
             dataset_card(summary, records, runs, stats, options, catalogue, out_dir)
         )
-        if out_dir.exists():
-            out_dir.rmdir()  # empty (checked above)
-        os.replace(work, out_dir)
-        os.chmod(out_dir, 0o755)  # mkdtemp makes it 0700; a dataset is for handing on
+        os.chmod(work, 0o755)  # mkdtemp makes it 0700; a dataset is for handing on
+        with renaming() as tx:  # an empty folder already there is put back if this fails
+            tx.move(work, out_dir)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise

@@ -29,17 +29,21 @@ import json
 import logging
 import math
 import re
+import shutil
 import struct
+import tempfile
 import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.expr import Expr, format_number, to_string, walk
+from surfgen.generator.files import renaming
 from surfgen.generator.grid import MIN_POINTS, Box, Grid
 from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
@@ -620,7 +624,7 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     """
     from surfgen.filters.verdict import shape_metrics
     from surfgen.generator.mesh import extract_mesh, save_mesh
-    from surfgen.pipelines.curation import apply_action, get_shape
+    from surfgen.pipelines.curation import get_shape
     from surfgen.pipelines.pictures import render_thumbnail, render_turntable
 
     full = cat.resolve(key)
@@ -639,9 +643,35 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     cat.make_dirs()
     mesh_rel, thumb_rel, turn_rel = (f"meshes/{new}.ply", f"thumbs/{new}.png",
                                      f"turntables/{new}.png")  # fmt: skip
-    save_mesh(mesh, cat.root / mesh_rel)
-    render_thumbnail(mesh, cat.root / thumb_rel, size=256)
-    render_turntable(mesh, cat.root / turn_rel, views=12, size=256)
+    # The three files are made in a temporary folder of the catalogue, then moved in with the
+    # row as one (generator/files.renaming): a full disk leaves neither files nor row.
+    work = Path(tempfile.mkdtemp(prefix=".derive-", suffix=".tmp", dir=cat.root))
+    try:
+        save_mesh(mesh, work / "mesh.ply")
+        render_thumbnail(mesh, work / "thumb.png", size=256)
+        render_turntable(mesh, work / "turntable.png", views=12, size=256)
+        with renaming() as tx:
+            tx.move(work / "mesh.ply", cat.root / mesh_rel)
+            tx.move(work / "thumb.png", cat.root / thumb_rel)
+            tx.move(work / "turntable.png", cat.root / turn_rel)
+            _record_derived(cat, full, new, spec, metrics, mesh_rel, thumb_rel, turn_rel)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return get_shape(cat, new, full=False)
+
+
+def _record_derived(
+    cat: Catalogue,
+    full: str,
+    new: str,
+    spec: SurfaceSpec,
+    metrics: dict[str, Any],
+    mesh_rel: str,
+    thumb_rel: str,
+    turn_rel: str,
+) -> None:
+    from surfgen.pipelines.curation import apply_action
+
     columns = ("faces", "vertices", "components", "genus", "euler", "area", "volume")
     row = {
         "key": new,
@@ -658,7 +688,6 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
         **{k: metrics.get(k) for k in columns},
     }
     apply_action(cat, full, "derive", row)
-    return get_shape(cat, new, full=False)
 
 
 _DERIVED_RUN_SQL = (

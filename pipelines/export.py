@@ -255,14 +255,12 @@ def export_shapes(
     except OSError as exc:
         raise ExportError(f"cannot create output folder {out_dir}: {exc.strerror}") from None
     try:
-        write_all_atomic([item for pair, _ in files for item in pair])
+        # exported files are for handing on: 0644 whatever the umask
+        write_all_atomic([item for pair, _ in files for item in pair], mode=0o644)
     except OSError:
         if created:  # all or nothing: not even an empty folder
             out_dir.rmdir()
         raise
-    for (pair, _), _p in zip(files, prepared, strict=True):
-        for path, _data in pair:
-            path.chmod(0o644)  # exported files are for handing on
     log.info("wrote %d files into %s", 2 * len(files), out_dir)
     return [result for _, result in files]
 

@@ -32,11 +32,12 @@ from __future__ import annotations
 import io
 import json
 import logging
+import os
 import re
 import shutil
 import threading
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass
 from importlib import resources
@@ -46,7 +47,9 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.files import renaming, stage, staged_folder
 from surfgen.pipelines.catalogue import (
+    DB_NAME,
     DEFAULT_CATALOGUE,
     Catalogue,
     CatalogueError,
@@ -177,6 +180,26 @@ def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | No
         return target
 
 
+def _thumbnail(cat: Catalogue, key: str, mesh: Any) -> Path:
+    """Draw the thumbnail of ``key`` and record it: the file and its row as one (a row that
+    cannot be written, e.g. on a full disk, takes the new file back)."""
+    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, png_bytes, render_image
+
+    thumb = cat.thumbs / f"{key}.png"
+    staged = stage(thumb, png_bytes(render_image(mesh, size=THUMBNAIL_SIZE)))
+    try:
+        with renaming() as tx:
+            tx.move(staged, thumb)
+            with cat.conn:
+                cat.conn.execute(
+                    "UPDATE shapes SET thumb_path=? WHERE key=?",
+                    (str(thumb.relative_to(cat.root)), key),
+                )
+    finally:
+        staged.unlink(missing_ok=True)
+    return thumb
+
+
 def render_pictures(
     cat: Catalogue,
     force: bool = False,
@@ -190,7 +213,6 @@ def render_pictures(
     read are listed in ``failed``, the others still rendered. Raises :class:`WhereError` for a
     bad ``where``."""
     from surfgen.generator.mesh import load_mesh
-    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, render_thumbnail
 
     cat.make_dirs()
     shapes = select_shapes(cat, where=where)
@@ -211,13 +233,7 @@ def render_pictures(
         else:
             try:
                 if need_thumb:
-                    thumb = cat.thumbs / f"{key}.png"
-                    render_thumbnail(load_mesh(cat.root / s["mesh"]), thumb, size=THUMBNAIL_SIZE)
-                    with cat.conn:
-                        cat.conn.execute(
-                            "UPDATE shapes SET thumb_path=? WHERE key=?",
-                            (str(thumb.relative_to(cat.root)), key),
-                        )
+                    _thumbnail(cat, key, load_mesh(cat.root / s["mesh"]))
                 if need_turn:
                     ensure_turntable(cat, key, force=force)
             except SurfgenError as exc:
@@ -329,7 +345,10 @@ def export_gallery(
 ) -> tuple[Path, int]:
     """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
     ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
-    Turntables not rendered yet are rendered first (and cached in the catalogue).
+    Turntables not rendered yet are rendered first (and cached in the catalogue, if this user
+    may write it). The catalogue is read through a read-only connection. Everything is written
+    into a temporary folder beside ``out`` that replaces ``out`` at the end: an earlier gallery
+    there is kept if anything fails; a folder with other files in it is refused.
 
     Returns the index path and the number of shapes. Raises :class:`CatalogueError` for a
     missing catalogue and :class:`GalleryError` if ``out`` cannot be written.
@@ -337,46 +356,127 @@ def export_gallery(
     out = Path(out)
     if out.resolve() == Path(root).resolve():
         raise GalleryError("write the gallery to another folder than the catalogue")
-    # Read-write: turntables not rendered yet are rendered and recorded (ensure_turntable).
-    with open_catalogue(root, must_exist=True) as cat:
+    _check_gallery_target(out)
+    with open_catalogue(root, must_exist=True, readonly=True) as cat:
         data = gallery_data(cat, readonly=True, where=where)
         data["catalogue"] = cat.root.name
         data["meshes"] = meshes
-        # A static page cannot render on demand: make the turntables nobody asked for yet
-        # (cached in the catalogue, so the next export copies them).
-        cat.make_dirs()
-        for s in data["shapes"]:
-            if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file()):
+        missing = [
+            s
+            for s in data["shapes"]
+            if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file())
+        ]
+    # A static page cannot render on demand: make the turntables nobody asked for yet, cached
+    # in the catalogue (so the next export copies them) — or, for a catalogue this user cannot
+    # write, in the gallery only.
+    fresh: list[dict[str, Any]] = []
+    if missing and not _writable_catalogue(Path(root)):
+        log.warning(
+            "catalogue %s is read-only: %d turntables are rendered for the gallery only",
+            root,
+            len(missing),
+        )
+        fresh = missing
+    elif missing:
+        with open_catalogue(root, must_exist=True) as cat:
+            cat.make_dirs()
+            for s in missing:
                 try:
                     made = ensure_turntable(cat, s["key"])
                 except SurfgenError as exc:
                     log.warning("shape %s: no turntable (%s)", s["key"], exc)
                     continue
                 s["turntable"] = str(made.relative_to(cat.root)) if made else None
+    existed = out.exists()
     try:
-        for sub in ("static", "thumbs", "turntables", *(["meshes"] if meshes else [])):
-            (out / sub).mkdir(parents=True, exist_ok=True)
-        for f in _static_dir().iterdir():
-            if f.is_file():
-                shutil.copy2(f, out / "static" / f.name)
-        for s in data["shapes"]:
-            for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
-                rel = s[kind]
-                if rel and (Path(root) / rel).is_file():
-                    (out / rel).parent.mkdir(parents=True, exist_ok=True)
-                    shutil.copy2(Path(root) / rel, out / rel)
-                else:
-                    s[kind] = None
-            if not meshes:
-                s["mesh"] = None
-        if meshes:  # 3-D detail pages need the meshes
-            from surfgen.pipelines.viewer import export_detail_pages
-
-            export_detail_pages(Path(root), out, data["shapes"])
-        write_page(out / "index.html", render_page(data))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with staged_folder(out) as work:  # all or nothing: `out` changes only at the end
+            _write_gallery(Path(root), work, data, meshes, fresh)
     except OSError as exc:
-        raise GalleryError(f"cannot write the gallery to {out}: {exc}") from None
+        where = f" ({exc.filename})" if exc.filename and Path(exc.filename) != out else ""
+        kept = "the gallery there was left as it was" if existed else "nothing was written"
+        raise GalleryError(
+            f"cannot write the gallery to {out}: {exc.strerror or exc}{where}; {kept}"
+        ) from None
     return out / "index.html", len(data["shapes"])
+
+
+GALLERY_MARK = ".surfgen-gallery"  # a folder holding it is a gallery that may be replaced
+GALLERY_ENTRIES = {"index.html", "static", "thumbs", "turntables", "meshes", "shapes", GALLERY_MARK}
+
+
+def _check_gallery_target(out: Path) -> None:
+    """Refuse a target that is not a folder surfgen may replace whole: a file, or a folder
+    with anything but an earlier gallery in it (``gallery -o ~`` must not swap out a home)."""
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise GalleryError(f"cannot write the gallery to {out}: it is a file, not a folder")
+    if not out.is_dir() or (out / GALLERY_MARK).is_file():
+        return
+    foreign = sorted(p.name for p in out.iterdir() if p.name not in GALLERY_ENTRIES)
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        raise GalleryError(
+            f"cannot write the gallery to {out}: the folder holds other files ({shown}) and "
+            "a gallery replaces its folder whole; choose a new or empty folder"
+        )
+
+
+def _writable_catalogue(root: Path) -> bool:
+    """Whether this user may write the catalogue's database, folder and turntables."""
+    folders = [root, root / "turntables"]
+    return os.access(root / DB_NAME, os.W_OK) and all(
+        os.access(f, os.W_OK) for f in folders if f.exists()
+    )
+
+
+def _write_gallery(
+    root: Path,
+    work: Path,
+    data: dict[str, Any],
+    meshes: bool,
+    fresh: Sequence[dict[str, Any]] = (),
+) -> None:
+    """Every file of the static gallery, into the (new, empty) folder ``work``; the shapes in
+    ``fresh`` get a turntable rendered from their mesh straight into it."""
+    from surfgen.generator.mesh import load_mesh
+    from surfgen.pipelines.pictures import TURNTABLE_SIZE, TURNTABLE_VIEWS, render_turntable
+
+    (work / "turntables").mkdir()
+    for s in fresh:
+        rel = f"turntables/{s['key']}.png"
+        try:
+            mesh = load_mesh(root / s["mesh"])
+            render_turntable(mesh, work / rel, views=TURNTABLE_VIEWS, size=TURNTABLE_SIZE)
+        except SurfgenError as exc:
+            log.warning("shape %s: no turntable (%s)", s["key"], exc)
+            s["turntable"] = None
+            continue
+        s["turntable"] = rel
+    for sub in ("static", "thumbs", *(["meshes"] if meshes else [])):
+        (work / sub).mkdir(parents=True, exist_ok=True)
+    for f in _static_dir().iterdir():
+        if f.is_file():
+            shutil.copy2(f, work / "static" / f.name)
+    for s in data["shapes"]:
+        for kind in ("thumb", "turntable", *(["mesh"] if meshes else [])):
+            rel = s[kind]
+            if kind == "turntable" and rel and (work / rel).is_file():
+                continue  # rendered just now
+            if rel and (root / rel).is_file():
+                (work / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(root / rel, work / rel)
+            else:
+                s[kind] = None
+        if not meshes:
+            s["mesh"] = None
+    if meshes:  # 3-D detail pages need the meshes
+        from surfgen.pipelines.viewer import export_detail_pages
+
+        export_detail_pages(root, work, data["shapes"])
+    write_page(work / "index.html", render_page(data))
+    (work / GALLERY_MARK).write_text(
+        json.dumps({"surfgen": "gallery", "catalogue": data["catalogue"]}) + "\n"
+    )
 
 
 def write_page(path: Path, text: str) -> Path:

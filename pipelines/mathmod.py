@@ -16,9 +16,9 @@ import typer
 
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import write_all_atomic
 from surfgen.generator.mathmod import Model, load_model, read_script, to_script
-from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, save_mesh
+from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, mesh_bytes
 from surfgen.generator.spec import SurfaceSpec
 
 log = logging.getLogger(__name__)
@@ -93,20 +93,17 @@ def render_model(
     if not parts:
         raise EmptySurface(f"model {model.name}: no component has a surface in its box")
     mesh = merge_meshes(parts)
-    files: dict[str, str] = {}
+    # Both files made in memory, then written all or nothing (an older mesh is kept if the
+    # picture cannot be written).
+    outputs: dict[str, tuple[Path, bytes]] = {}
     if mesh_path is not None:
-        save_mesh(mesh, Path(mesh_path))
-        files["mesh"] = str(mesh_path)
+        outputs["mesh"] = (Path(mesh_path), mesh_bytes(mesh, Path(mesh_path)))
     if png_path is not None:
-        from surfgen.pipelines.pictures import render_thumbnail
+        from surfgen.pipelines.pictures import png_bytes, render_image
 
-        try:
-            render_thumbnail(mesh, Path(png_path), size=512)
-        except BaseException:
-            if mesh_path is not None:
-                Path(mesh_path).unlink(missing_ok=True)  # all or nothing
-            raise
-        files["png"] = str(png_path)
+        outputs["png"] = (Path(png_path), png_bytes(render_image(mesh, size=512)))
+    write_all_atomic(list(outputs.values()))
+    files = {kind: str(path) for kind, (path, _) in outputs.items()}
     return {
         "model": model.name,
         "description": model.description,
@@ -171,18 +168,13 @@ def import_script(
 
 
 def write_all(out_dir: Path, files: Mapping[Path, bytes]) -> list[Path]:
-    """Write every file (atomically) or, if one fails, remove those already written."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    done: list[Path] = []
-    for target, data in files.items():
-        try:
-            write_atomic(target, data)
-        except OSError as exc:
-            for p in done:
-                p.unlink(missing_ok=True)
-            raise SpecError(f"cannot write {target}: {exc.strerror}") from None
-        done.append(target)
-    return done
+    """Write every file or none (:func:`write_all_atomic`: a file that was there before and
+    would have been replaced is put back if a later one fails)."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return write_all_atomic(list(files.items()))
+    except OSError as exc:
+        raise SpecError(f"cannot write {exc.filename or out_dir}: {exc.strerror}") from None
 
 
 # ----------------------------------------------------------------------------- export

@@ -50,7 +50,7 @@ from surfgen.filters.compare import hausdorff, inside_iou
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import staged_into, write_all_atomic
 from surfgen.generator.grid import Box, Field, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
 from surfgen.generator.presets import eq_a_formula, get_preset
@@ -211,7 +211,29 @@ def reproduce(
     if not (isinstance(grid_scale, (int, float)) and 0.0 < grid_scale <= 4.0):
         raise SpecError(f"--grid-scale must be a number in (0, 4], got {grid_scale}")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    # Everything is drawn in a folder beside ``out`` and moved in at the end, all together:
+    # figures of an earlier run that this one does not redraw are kept, and a failure (a
+    # full disk half-way) leaves ``out`` as it was.
+    try:
+        with staged_into(out) as work:
+            sensitivity, seconds = _reproduce_into(work, figures, grid_scale, progress)
+    except OSError as exc:
+        raise SpecError(
+            f"cannot write to {out}: {exc.strerror or exc}"
+            + (f" ({exc.filename})" if exc.filename else "")
+            + "; it was left as it was"
+        ) from None
+    log.info("reproduced figures %s in %.1f s", list(figures), seconds)
+    return ReproduceResult(out, sensitivity, seconds)
+
+
+def _reproduce_into(
+    out: Path,
+    figures: tuple[int, ...],
+    grid_scale: float,
+    progress: Callable[[str], None] | None,
+) -> tuple[dict[str, Any], float]:
+    """Draw ``figures`` and write every file of :func:`reproduce` into the folder ``out``."""
     say = progress or (lambda _msg: None)
     start = time.perf_counter()
     from surfgen.pipelines.plots import plot_constituents
@@ -243,10 +265,13 @@ def reproduce(
         "figure2_readings": readings,
         "seconds": round(seconds, 1),
     }
-    write_atomic(out / "sensitivity.json", (json.dumps(sensitivity, indent=2) + "\n").encode())
-    write_atomic(out / "report.html", _report_html(out, sensitivity).encode())
-    log.info("reproduced figures %s in %.1f s", list(figures), seconds)
-    return ReproduceResult(out, sensitivity, seconds)
+    write_all_atomic(
+        [
+            (out / "sensitivity.json", (json.dumps(sensitivity, indent=2) + "\n").encode()),
+            (out / "report.html", _report_html(out, sensitivity).encode()),
+        ]
+    )
+    return sensitivity, seconds
 
 
 def _check_figures(figures: Sequence[int]) -> tuple[int, ...]:

@@ -23,7 +23,7 @@ import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable
-from contextlib import nullcontext
+from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -52,7 +52,7 @@ from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr
 from surfgen.generator.families import envelope_departure
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import renaming, write_atomic
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.limits import (
     MAX_COUNT,
@@ -65,7 +65,7 @@ from surfgen.generator.mesh import Mesh, extract_with_edges, mesh_bytes
 from surfgen.generator.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import label_walls
-from surfgen.pipelines.catalogue import Catalogue, CatalogueError, open_catalogue
+from surfgen.pipelines.catalogue import DB_NAME, Catalogue, CatalogueError, open_catalogue
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
 from surfgen.pipelines.executor import Executor, KillablePool
@@ -427,7 +427,11 @@ def run_sample(
                 scheduler=scheduler,
             )
         )
-        with pool:
+        with ExitStack() as cleanup:
+            # after the workers are gone (they write there): what was staged and not
+            # committed is redone by --resume
+            cleanup.callback(shutil.rmtree, staging, ignore_errors=True)
+            cleanup.enter_context(pool)
             if run is None:
                 run = cat.create_run(
                     seed,
@@ -447,7 +451,6 @@ def run_sample(
                     shutil.rmtree(staging, ignore_errors=True)  # an interrupted run's leftovers
                     staging.mkdir(exist_ok=True)
                     status, stage = _drive(cat, run.id, n, seed, config, pool, max_draws, progress)
-                    shutil.rmtree(staging, ignore_errors=True)
             finally:
                 try:
                     cat.set_run_status(run.id, status)
@@ -590,26 +593,36 @@ def _outcome(res, seed: int, config: Config) -> ShapeOutcome:
 
 
 def _commit(cat: Catalogue, run_id: int, outcome: ShapeOutcome, counts: Counter) -> None:
+    """Move the shape's staged files into the catalogue and insert its row, as one: if a
+    rename or the row fails (a full disk, for SQLite too), the files already moved go back to
+    the staging folder, so the catalogue never has a file without its row or a row without
+    its files, and the run stops for ``--resume`` to redo this shape."""
     row = dict(outcome.row)
     key = row["key"]
-    if outcome.verdict.accepted:
-        files = (
-            ("mesh_path", cat.meshes / f"{key}.ply", outcome.mesh_file),
-            ("thumb_path", cat.thumbs / f"{key}.png", outcome.thumb_file),
-            ("turntable_path", cat.turntables / f"{key}.png", outcome.turntable_file),
-        )
-        for column, path, staged in files:
-            if staged is not None:
-                try:
-                    os.replace(staged, path)
-                except OSError as exc:
-                    raise SampleWriteError(
-                        f"cannot write {path}: {exc.strerror}; sampling stopped before shape "
-                        f"{outcome.index}: fix it and run the same command with --resume"
-                    ) from None
-                row[column] = str(path.relative_to(cat.root))
-    else:
+    reasons = Counter(counts)
+    if not outcome.verdict.accepted:
         for r in outcome.verdict.reasons:
-            counts[r] += 1
+            reasons[r] += 1
     assert all(r in REASONS for r in outcome.verdict.reasons), outcome.verdict.reasons
-    cat.record_shape(run_id, outcome.index, row, outcome.verdict.accepted, counts)
+    stop = f"sampling stopped before shape {outcome.index}: fix it and run the same command with --resume"
+    try:
+        with renaming() as tx:
+            if outcome.verdict.accepted:
+                files = (
+                    ("mesh_path", cat.meshes / f"{key}.ply", outcome.mesh_file),
+                    ("thumb_path", cat.thumbs / f"{key}.png", outcome.thumb_file),
+                    ("turntable_path", cat.turntables / f"{key}.png", outcome.turntable_file),
+                )
+                for column, path, staged in files:
+                    if staged is not None:
+                        tx.move(staged, path)
+                        row[column] = str(path.relative_to(cat.root))
+            cat.record_shape(run_id, outcome.index, row, outcome.verdict.accepted, reasons)
+    except OSError as exc:
+        raise SampleWriteError(f"cannot write {exc.filename}: {exc.strerror}; {stop}") from None
+    except sqlite3.Error as exc:
+        raise SampleWriteError(
+            f"cannot write catalogue {cat.root / DB_NAME}: {exc}; {stop}"
+        ) from None
+    counts.clear()
+    counts.update(reasons)  # only once the row is in

@@ -32,7 +32,7 @@ import numpy as np
 import typer
 
 from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
-from surfgen.generator.files import write_atomic
+from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
@@ -212,20 +212,44 @@ def run_sweep(
     """Evaluate ``base`` with ``{name: value}`` for each value and write the sweep's files to
     ``out`` (see the module docstring). Every step's spec is checked before anything is
     evaluated or written. Raises the change set's errors and :class:`SweepError`."""
-    from surfgen.filters.compare import inside_samples
-    from surfgen.generator.evaluate import evaluate
-    from surfgen.generator.mesh import extract_mesh, save_mesh
-    from surfgen.pipelines.pictures import render_image, write_png
-
     specs = sweep_specs(base, name, values)
     target = comparison_grid(specs)
     frame_box = union_box(specs)
     out = Path(out)
     try:
-        (out / "meshes").mkdir(parents=True, exist_ok=True)
-        (out / "frames").mkdir(parents=True, exist_ok=True)
+        # Every file goes to a folder beside ``out`` first and replaces ``out``'s sweep files
+        # at the end, all together: a failure leaves ``out`` as it was.
+        with staged_into(out) as work:
+            steps, files = _sweep_into(work, base, name, values, specs, target, frame_box, cap,
+                                       progress)  # fmt: skip
     except OSError as exc:
-        raise SweepError(f"cannot write to {out}: {exc.strerror}") from None
+        raise SweepError(
+            f"cannot write the sweep to {out}: {exc.strerror or exc}"
+            + (f" ({exc.filename})" if exc.filename else "")
+            + "; it was left as it was"
+        ) from None
+    return SweepResult(name, steps, out, files)
+
+
+def _sweep_into(
+    out: Path,
+    base: SurfaceSpec,
+    name: str,
+    values: Sequence[float],
+    specs: list[SurfaceSpec],
+    target: Grid,
+    frame_box: tuple[float, ...],
+    cap: bool,
+    progress: Callable[[int, int], None] | None,
+) -> tuple[list[Step], dict[str, str]]:
+    """Evaluate every step and write all the sweep's files into the (new) folder ``out``."""
+    from surfgen.filters.compare import inside_samples
+    from surfgen.generator.evaluate import evaluate
+    from surfgen.generator.mesh import extract_mesh, save_mesh
+    from surfgen.pipelines.pictures import render_image, write_png
+
+    (out / "meshes").mkdir()
+    (out / "frames").mkdir()
     steps: list[Step] = []
     first_inside = first_points = prev_inside = prev_points = None
     for i, (value, spec) in enumerate(zip(values, specs, strict=True)):
@@ -271,8 +295,7 @@ def run_sweep(
         prev_inside, prev_points = inside, points
         if progress is not None:
             progress(i + 1, len(specs))
-    files = _write_summary(base, name, steps, out, cap, target)
-    return SweepResult(name, steps, out, files)
+    return steps, _write_summary(base, name, steps, out, cap, target)
 
 
 def _label(name: str, step: Step) -> str:

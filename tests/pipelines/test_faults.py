@@ -167,6 +167,60 @@ def test_disk_full_during_sample_stops_then_resume_is_identical(
     assert not (cat / ".staging").exists()
 
 
+def test_sqlite_disk_full_in_the_parent_stops_then_resume_is_identical(
+    uninterrupted: Path, tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """The catalogue's database cannot grow (SQLite's own SQLITE_FULL, made real with
+    ``PRAGMA max_page_count`` on the sampler's connection) when the third accepted shape is
+    committed: one line, the catalogue opens and passes `catalogue check`, holds exactly the
+    shapes before it (no row without files, no file without row), and --resume ends as an
+    uninterrupted run."""
+    from surfgen.pipelines.catalogue import Catalogue
+
+    want = table(uninterrupted)
+    accepted = [r for r in want if len(r) == 10 and r[6] == "accepted"]
+    victim = accepted[2][1]
+    real = Catalogue.record_shape
+    full: list[str] = []
+
+    def record_on_a_full_disk(self, run_id, index, row, accepted, counts):
+        if row["key"] == victim:  # from here on the database has no room for a new page
+            pages = self.conn.execute("PRAGMA page_count").fetchone()[0]
+            self.conn.execute(f"PRAGMA max_page_count = {pages}")
+            try:
+                return real(self, run_id, index, row, accepted, counts)
+            except sqlite3.OperationalError as exc:
+                full.append(str(exc))
+                raise
+        return real(self, run_id, index, row, accepted, counts)
+
+    monkeypatch.setattr(Catalogue, "record_shape", record_on_a_full_disk)
+    cat = tmp_path / "cat"
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[run]\nthumbnails = false\n")
+    args = ["sample", "--n", "4", "--seed", "11", "--grid", str(GRID), "--workers", "2"]
+    args += ["--config", str(cfg), "--out", str(cat)]
+    assert main(args) == 1
+    assert full == ["database or disk is full"]  # the fault was SQLite's own
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: cannot write catalogue "), err
+    assert str(cat / "catalogue.sqlite") in err[0] and "database or disk is full" in err[0]
+    assert "--resume" in err[0] and "Traceback" not in err[0]
+    shapes = [r for r in table(cat) if len(r) == 10]
+    assert shapes == [r for r in want if len(r) == 10][: len(shapes)]  # a prefix
+    assert victim not in {r[1] for r in shapes} and len(shapes) >= 2  # two accepted before it
+    # every row's mesh is there and every mesh has its row; nothing staged is left
+    named = {Path(r[9]).name for r in shapes if r[9]}
+    assert {p.name for p in (cat / "meshes").iterdir()} == named
+    assert not (cat / ".staging").exists()
+    assert main(["catalogue", "check", "-C", str(cat)]) == 0
+    assert "orphan files (no row names them): 0" in capsys.readouterr().out
+    monkeypatch.setattr(Catalogue, "record_shape", real)  # space is freed
+    assert main([*args, "--resume"]) == 0
+    capsys.readouterr()
+    assert table(cat) == want
+
+
 # ----------------------------------------------------------------------------- serve + sample
 
 
