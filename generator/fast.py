@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from surfgen.generator import kernels
-from surfgen.generator.compiler import Program, compile_tree
+from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Field, Grid
@@ -148,6 +148,80 @@ def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     prof = np.zeros(len(program.code))
     kernels.run_serial(_prog(program), _tile(grid.shape[2]), ax, ay, az, out, prof)
     return Field(grid, out), prof
+
+
+POINTS_TILE = 256  # points per W row of the points kernel
+
+
+def points_program(program: Program) -> tuple:
+    """``program`` rewritten for :func:`kernels.run_points`: every block runs along a list of
+    points instead of a grid axis.
+
+    On a grid, a value that does not vary along a block's run axis is a row scalar (an S slot,
+    operand modes ``vs``, ``sv`` and ``s``); along points every value varies, so S slot ``s``
+    becomes W row ``n_vector + s`` and those operations their ``vv`` and ``v`` forms (the same
+    scalar operation per element: the rows of :mod:`~surfgen.generator.elementary` are one
+    scalar function in a loop, and the ``x^c`` convention is applied per element in both).
+    """
+    nv = int(program.n_vector)
+    code = np.array(program.code, dtype=np.int64)
+    mode = code[:, 1].copy()
+    vs, sv, s = mode == M_VS, mode == M_SV, mode == M_S
+    code[vs, 1] = M_VV
+    code[vs, 4] += nv
+    code[sv, 1] = M_VV
+    code[sv, 3] += nv
+    code[s, 1] = M_V  # the only M_S operation is copy
+    code[s, 3] += nv
+    loads = np.array(program.loads, dtype=np.int64)
+    scalar = loads[:, 3] == 0
+    loads[scalar, 2] += nv
+    return (
+        code,
+        np.ascontiguousarray(program.blocks),
+        loads,
+        np.ascontiguousarray(program.stores),
+        np.ascontiguousarray(program.consts),
+        np.ascontiguousarray(program.rows),
+        nv + max(1, int(program.n_scalar)),
+    )
+
+
+class PointsEvaluator:
+    """A compiled formula evaluated at arbitrary points (numba, one thread).
+
+    ``PointsEvaluator(program)(x, y, z)`` returns F at ``(x[i], y[i], z[i])``: the values
+    :func:`evaluate_program` gives at grid points, and the reference's
+    (:func:`surfgen.generator.reference.evaluate_points`), bit for bit.
+    """
+
+    def __init__(self, program: Program) -> None:
+        if not isinstance(program, Program):
+            raise TypeError(f"expected a Program, got {type(program).__name__}")
+        if np.any(program.code[:, 1] == M_S) and not np.all(
+            program.code[program.code[:, 1] == M_S, 0] == OP["copy"]
+        ):
+            raise AssertionError("a scalar-mode operation other than copy")  # pragma: no cover
+        self.program = program
+        self._prog = points_program(program)
+
+    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""
+        px = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+        py = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+        pz = np.ascontiguousarray(z, dtype=np.float64).reshape(-1)
+        if not (px.size == py.size == pz.size):
+            raise ValueError(f"x, y, z differ in length: {px.size}, {py.size}, {pz.size}")
+        out = np.empty(px.size, dtype=np.float64)
+        if px.size:
+            kernels.run_points(self._prog, POINTS_TILE, px, py, pz, out)
+        return out
+
+
+def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> PointsEvaluator:
+    """A :class:`PointsEvaluator` of ``tree`` (compiled programs are shared with
+    :func:`evaluate_fast`). Raises :class:`FormulaError` as :func:`compile_tree` does."""
+    return PointsEvaluator(_compiled(tree, tuple(sorted((params or {}).items()))))
 
 
 def _warm_tree() -> Expr:

@@ -754,3 +754,63 @@ def run_parallel(prog, tile, ax, ay, az, out, chunks):
     cx = min(chunks, nx)
     for c in prange(cx):
         _slab(c * nx // cx, (c + 1) * nx // cx, prog, tile, sx, sy, sz, syz, out, prof)
+
+
+# ----------------------------------------------------------------------------- arbitrary points
+
+
+@njit(**_OPTS)
+def run_points(prog, tile, px, py, pz, out):
+    """Evaluate a program at the points ``(px[p], py[p], pz[p])`` into ``out[p]``.
+
+    ``prog`` is ``(code, blocks, loads, stores, consts, rows, n_rows)`` of a program rewritten
+    by :func:`surfgen.generator.fast.points_program`: every block runs along the points, so
+    each level's store holds one value per point of the current tile and the row scalars of
+    the grid's blocks (S slots) are W rows ``n_vector + slot`` read by ``vv`` operations.
+    Each element goes through the same scalar operations as on a grid, so the values are the
+    grid interpreter's (and the reference's) bit for bit.
+    """
+    code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]
+    n_rows = prog[6]
+    depth = 1
+    for lv in range(8):
+        depth = max(depth, rows[lv])
+    st = np.empty((8, depth, tile))  # st[level, row, point]
+    W = np.empty((n_rows, tile))
+    S = np.empty(1)
+    T = np.empty((2, tile))
+    prof = np.empty(0)
+    total = px.size
+    for p0 in range(0, total, tile):
+        n = min(tile, total - p0)
+        for k in range(n):
+            st[1, 0, k] = px[p0 + k]
+            st[2, 0, k] = py[p0 + k]
+            st[4, 0, k] = pz[p0 + k]
+        for lv in (1, 2, 4, 6, 3, 5, 7):
+            c0 = blocks[lv, 0]
+            c1 = blocks[lv, 1]
+            if c0 == c1:
+                continue
+            for q in range(blocks[lv, 2], blocks[lv, 3]):
+                kind = loads[q, 0]
+                row = loads[q, 1]
+                slot = loads[q, 2]
+                if kind == 0:
+                    v = consts[row]
+                    for k in range(n):
+                        W[slot, k] = v
+                else:
+                    for k in range(n):
+                        W[slot, k] = st[kind, row, k]
+            _exec(code, c0, c1, consts, W, S, T, n, prof)
+            for q in range(blocks[lv, 4], blocks[lv, 5]):
+                slot = stores[q, 0]
+                kind = stores[q, 1]
+                row = stores[q, 2]
+                if kind == 7:
+                    for k in range(n):
+                        out[p0 + k] = W[slot, k]
+                else:
+                    for k in range(n):
+                        st[kind, row, k] = W[slot, k]
