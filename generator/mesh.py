@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import logging
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import trimesh
+from numba import njit
 from scipy.ndimage import maximum_filter
 from skimage.measure import marching_cubes
 
@@ -96,15 +98,27 @@ _MAX_ROUNDS = 200
 
 def face_areas(mesh: Mesh) -> np.ndarray:
     """Area of each face, shape ``(F,)``."""
-    v, f = mesh.vertices, mesh.faces
-    a = v[f[:, 0]]
-    b = v[f[:, 1]] - a
-    c = v[f[:, 2]] - a
-    # The cross product by components: np.cross and np.linalg.norm are slow on (F, 3).
-    x = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
-    y = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
-    z = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
-    return 0.5 * np.sqrt(x * x + y * y + z * z)
+    out = np.empty(mesh.n_faces)
+    _face_areas(mesh.vertices, mesh.faces, out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _face_areas(v, f, out):
+    """``0.5 |(v1 - v0) x (v2 - v0)|`` per face, the cross product by components (the same
+    operations in the same order as numpy on whole columns, one pass without temporaries)."""
+    for n in range(f.shape[0]):
+        i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
+        b0 = v[i1, 0] - v[i0, 0]
+        b1 = v[i1, 1] - v[i0, 1]
+        b2 = v[i1, 2] - v[i0, 2]
+        c0 = v[i2, 0] - v[i0, 0]
+        c1 = v[i2, 1] - v[i0, 1]
+        c2 = v[i2, 2] - v[i0, 2]
+        x = b1 * c2 - b2 * c1
+        y = b2 * c0 - b0 * c2
+        z = b0 * c1 - b1 * c0
+        out[n] = 0.5 * math.sqrt(x * x + y * y + z * z)
 
 
 def bbox_diagonal(mesh: Mesh) -> float:

@@ -188,40 +188,17 @@ def classify_edges(
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges refined with the formula.
     """
-    values = np.asarray(field.values, dtype=np.float64).reshape(-1)
+    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
-    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
-    kinds = np.full(len(edges), UNKNOWN, dtype=np.uint8)
-    idx = np.flatnonzero(edges[:, 0] >= 0)
-    axis = edges[idx, 0]
-    ijk = edges[idx, 1:]
-    pos = ijk[np.arange(idx.size), axis]  # index along the edge's axis
-    length = shape[axis]
-    ok = pos + 1 < length
-    idx, axis, ijk, pos, length = idx[ok], axis[ok], ijk[ok], pos[ok], length[ok]
-    step = strides[axis]
-    ia = ijk @ strides
-    ib = ia + step
-    with np.errstate(invalid="ignore"):
-        fa = values[ia] - level
-        fb = values[ib] - level
-        ina = np.isfinite(fa) & (fa < 0)
-        crossing = ina != (np.isfinite(fb) & (fb < 0))
-    sel = np.flatnonzero(crossing)
-    idx, axis, ijk, pos, length = idx[sel], axis[sel], ijk[sel], pos[sel], length[sel]
-    step, ia, ib, fa, fb, ina = step[sel], ia[sel], ib[sel], fa[sel], fb[sel], ina[sel]
-    kinds[idx] = ROOT
-    # Neighbours along the same grid line; a missing one (grid border) makes the edge suspect.
-    has_m, has_p = pos >= 1, pos + 2 < length
-    fm = values[np.where(has_m, ia - step, ia)] - level
-    fp = values[np.where(has_p, ib + step, ib)] - level
-    suspect = ~(has_m & has_p & _smooth(fm, fa, fb, fp))
-    s = np.flatnonzero(suspect)
-    if s.size == 0:
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
+    if idx.size == 0:
         return kinds, 0
     points = points_evaluator(tree, params)
-    kinds[idx[s]] = _classify_suspects(points, level, field, ijk[s], axis[s], ina[s], fa[s], fb[s])
-    return kinds, int(suspect.sum())
+    kinds[idx] = _classify_suspects(
+        points, level, field, edges[idx, 1:], edges[idx, 0], ina, fa, fb
+    )
+    return kinds, int(idx.size)
 
 
 def _classify_suspects(
@@ -271,20 +248,6 @@ def _classify_suspects(
             mid = now
     out[rest] = _decide(mid, now, fa, fb)
     return out
-
-
-def _smooth(fm: np.ndarray, fa: np.ndarray, fb: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """Crossings that look like a smooth root on the samples (see the module's docstring)."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        d = fb - fa
-        dm = fa - fm
-        dp = fp - fb
-        return (
-            np.isfinite(dm + d + dp)
-            & (np.sign(dm) == np.sign(d))
-            & (np.sign(dp) == np.sign(d))
-            & (np.abs(d) <= SMOOTH_RATIO * np.maximum(np.abs(dm), np.abs(dp)))
-        )
 
 
 _NB = {"cache": True, "error_model": "numpy", "nogil": True}
@@ -412,6 +375,74 @@ def _decide(mid, end, fa, fb):
     return out
 
 
+@njit(inline="always", **_NB)
+def _sign(u):
+    """np.sign (NaN stays NaN; the callers have only finite values)."""
+    if u > 0.0:
+        return 1.0
+    if u < 0.0:
+        return -1.0
+    return u
+
+
+@njit(**_NB)
+def _crossings(values, shape, edges, level, ratio):
+    """Kinds of the vertices' edges from the samples alone, and the suspects.
+
+    Rows with axis -1, at the grid's end, or whose samples are on the same side (inside is
+    ``F < level``, finite) are UNKNOWN, the others ROOT.  A crossing is *suspect* unless both
+    neighbours along its grid line exist and the secants look smooth (step 1 of the module's
+    docstring): returns
+    the kinds, and for the suspects their rows, ``fa``, ``fb`` (``F - level`` at the edge's
+    samples) and whether sample a is inside.
+    """
+    n = edges.shape[0]
+    kinds = np.full(n, UNKNOWN, dtype=np.uint8)
+    rows = np.empty(n, dtype=np.int64)
+    out_a = np.empty(n)
+    out_b = np.empty(n)
+    out_in = np.empty(n, dtype=np.bool_)
+    strides = (shape[1] * shape[2], shape[2], 1)
+    count = 0
+    for v in range(n):
+        axis = edges[v, 0]
+        if axis < 0:
+            continue
+        pos = edges[v, 1 + axis]
+        length = shape[axis]
+        if pos + 1 >= length:
+            continue
+        step = strides[axis]
+        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
+        ib = ia + step
+        fa = values[ia] - level
+        fb = values[ib] - level
+        ina = np.isfinite(fa) and fa < 0.0
+        if ina == (np.isfinite(fb) and fb < 0.0):
+            continue
+        kinds[v] = ROOT
+        smooth = False
+        if pos >= 1 and pos + 2 < length:
+            fm = values[ia - step] - level
+            fp = values[ib + step] - level
+            d = fb - fa
+            dm = fa - fm
+            dp = fp - fb
+            smooth = (
+                np.isfinite(dm + d + dp)
+                and _sign(dm) == _sign(d)
+                and _sign(dp) == _sign(d)
+                and abs(d) <= ratio * max(abs(dm), abs(dp))
+            )
+        if not smooth:
+            rows[count] = v
+            out_a[count] = fa
+            out_b[count] = fb
+            out_in[count] = ina
+            count += 1
+    return kinds, rows[:count], out_a[:count], out_b[:count], out_in[:count]
+
+
 def face_kinds_of(
     mesh: Mesh, edges: np.ndarray, kinds: np.ndarray, cap: bool, field: Field
 ) -> np.ndarray:
@@ -420,26 +451,41 @@ def face_kinds_of(
     With ``cap``, faces lying on a box face are CAP.  Otherwise a face is a wall when most of
     its labelled vertices are walls (a pole if any of those is a pole, else a jump), else ROOT.
     """
-    out = np.full(mesh.n_faces, ROOT, dtype=np.uint8)
-    wall_vertex = (kinds == POLE) | (kinds == JUMP)
-    if wall_vertex.any():
-        f = mesh.faces
-        known = (kinds != UNKNOWN).astype(np.int8)
-        wall = wall_vertex.astype(np.int8)
-        n_known = known[f[:, 0]] + known[f[:, 1]] + known[f[:, 2]]
-        n_wall = wall[f[:, 0]] + wall[f[:, 1]] + wall[f[:, 2]]
-        is_wall = 2 * n_wall > n_known
-        pole = (kinds == POLE)[f[is_wall]]
-        out[is_wall] = np.where(pole[:, 0] | pole[:, 1] | pole[:, 2], POLE, JUMP)
+    lo = np.asarray(field.grid.box.lo, dtype=np.float64)
+    hi = np.asarray(field.grid.box.hi, dtype=np.float64)
+    return _face_kinds(mesh.vertices, mesh.faces, kinds, cap, lo, hi)
+
+
+@njit(**_NB)
+def _face_kinds(v, f, kinds, cap, lo, hi):
+    n_faces = f.shape[0]
+    out = np.full(n_faces, ROOT, dtype=np.uint8)
+    bits = np.zeros(v.shape[0], dtype=np.uint8)
     if cap:
         # One bit per box face for each vertex on it; a cap face has a bit all three share.
-        v = mesh.vertices
-        lo = np.asarray(field.grid.box.lo)
-        hi = np.asarray(field.grid.box.hi)
-        bits = np.zeros(mesh.n_vertices, dtype=np.uint8)
-        for k in range(3):
-            bits |= (v[:, k] == lo[k]).astype(np.uint8) << np.uint8(2 * k)
-            bits |= (v[:, k] == hi[k]).astype(np.uint8) << np.uint8(2 * k + 1)
-        f = mesh.faces
-        out[(bits[f[:, 0]] & bits[f[:, 1]] & bits[f[:, 2]]) != 0] = CAP
+        for i in range(v.shape[0]):
+            b = 0
+            for k in range(3):
+                if v[i, k] == lo[k]:
+                    b |= 1 << (2 * k)
+                if v[i, k] == hi[k]:
+                    b |= 1 << (2 * k + 1)
+            bits[i] = b
+    for n in range(n_faces):
+        if cap and (bits[f[n, 0]] & bits[f[n, 1]] & bits[f[n, 2]]) != 0:
+            out[n] = CAP
+            continue
+        known = 0
+        wall = 0
+        pole = False
+        for c in range(3):
+            kind = kinds[f[n, c]]
+            if kind != UNKNOWN:
+                known += 1
+            if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
+                wall += 1
+            if kind == POLE:
+                pole = True
+        if 2 * wall > known:
+            out[n] = POLE if pole else JUMP
     return out
