@@ -36,9 +36,12 @@ def check(tree: Expr, grid: Grid = GRID, params=None) -> None:
     points = points_evaluator(tree, params)
     x, y, z = (a.reshape(-1) for a in np.meshgrid(*grid.axes(), indexing="ij"))
     want = evaluate_reference(tree, grid, params).values.reshape(-1)
-    assert_identical(points(x, y, z), want, f"{tree} on the grid")
+    assert_identical(points(x, y, z), want, f"{tree} on the grid")  # shared levels
+    assert_identical(points.plain(x, y, z), want, f"{tree} on the grid, unshared")
     x, y, z = RNG_POINTS
-    assert_identical(points(x, y, z), evaluate_points(tree, x, y, z, params), f"{tree} scattered")
+    want = evaluate_points(tree, x, y, z, params)
+    assert_identical(points(x, y, z), want, f"{tree} scattered")
+    assert_identical(points.plain(x, y, z), want, f"{tree} scattered, unshared")
 
 
 @pytest.mark.parametrize("fn", UNARY)
@@ -81,6 +84,22 @@ def test_presets():
 @given(eq13_trees())
 def test_random_eq13_formulas(tree):
     check(tree, EQ13_GRID)
+
+
+def test_points_on_grid_lines_share_levels_exactly():
+    # The walls' refinement: points on edges of a grid, coordinates shared along lines, with
+    # -0.0 and +0.0 (told apart: 1/x and atan2 see the sign) and repeated points.
+    tree = parse("1/x+atan2(y,z)*cos(x*y)^2.5+abs(z)^0.31*tan(y*z)-sinh(x)*y")
+    axis = np.array([-1.0, -0.0, 0.0, 0.5, 1.25])
+    x, y, z = (a.reshape(-1) for a in np.meshgrid(axis, axis, axis, indexing="ij"))
+    t = np.linspace(0.01, 0.99, x.size)
+    x = np.concatenate([x, x + 0.0 * t, x + t * 0.25, x])
+    y = np.concatenate([y, y + t * 0.25, y + 0.0 * t, y])
+    z = np.concatenate([z, z, z + t * 0.25, z])
+    points = points_evaluator(tree)
+    want = evaluate_points(tree, x, y, z)
+    assert_identical(points(x, y, z), want, "grid lines")
+    assert_identical(points.plain(x, y, z), want, "grid lines, unshared")
 
 
 def test_more_points_than_a_tile_and_none():
