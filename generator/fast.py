@@ -192,7 +192,9 @@ class PointsEvaluator:
 
     ``PointsEvaluator(program)(x, y, z)`` returns F at ``(x[i], y[i], z[i])``: the values
     :func:`evaluate_program` gives at grid points, and the reference's
-    (:func:`surfgen.generator.reference.evaluate_points`), bit for bit.
+    (:func:`surfgen.generator.reference.evaluate_points`), bit for bit.  Each level of the
+    program is evaluated once per distinct value it needs (:meth:`_lattice`); :meth:`plain`
+    evaluates every level at every point.
     """
 
     def __init__(self, program: Program) -> None:
