@@ -1,20 +1,26 @@
-"""Benchmark: what classifying walls adds to the mesh stage (issue 11), on sampled shapes.
+"""Benchmark: what classifying walls adds to the mesh stage (issue 11), at 64³.
 
-For the first ``--n`` draws of ``--seed`` whose coarse field passes the sampler's screen, the
-field is evaluated once on ``--grid``³ (64 by default, as in the sampler) and three things are
-timed on it, in the same run, best of ``--repeat``:
+Two sets of shapes, each field evaluated once on ``--grid``³ (64 by default, as in the sampler):
+
+- *named*: analytic shapes with walls (poles of tan and 1/u, the resets of ``atan(tan u)``,
+  ``stair1``, ``stair2``, ``saw1``) and without (sphere, torus, gyroid);
+- *sampled*: the first ``--n`` draws of ``--seed`` whose coarse field passes the sampler's screen.
+
+On each, in the same run, best of ``--repeat``:
 
 - ``placement``: ``extract_mesh`` with the merge-robust vertex placement switched off (the mesh
-  stage as it was);
-- ``mesh``: ``extract_mesh`` (robust placement: the mesh stage now);
+  stage as it was before issue 11);
+- ``mesh``: ``extract_mesh`` (robust placement: the mesh stage now; capped, as the sampler);
 - ``walls``: ``extract_labelled(..., walls="mark")``: the mesh plus the root/pole/jump
-  classification of every crossing.
+  classification of every crossing, with the numba points kernel;
+- ``numpy`` (with ``--numpy``): the same with the points evaluated by the reference's numpy
+  functions node by node (the evaluator before the points kernel).
 
-Prints per shape the ratios mesh/placement and walls/mesh, then their median, 90th percentile
-and maximum, and how many shapes stay within +20 %.  Shared machines are noisy: ratios measured
-in one run are what to quote.
+Prints per shape the ratio walls/mesh (the target: at most +20 %), the points the kernel
+evaluated, then the median, 90th percentile and maximum per set, and how many shapes stay within
++20 %.  Shared machines are noisy: ratios measured in one run are what to quote.
 
-    python benchmarks/bench_walls.py [--n 40] [--seed 7] [--grid 64] [--repeat 3]
+    python benchmarks/bench_walls.py [--n 24] [--seed 7] [--grid 64] [--repeat 3] [--numpy]
 """
 
 from __future__ import annotations
@@ -27,13 +33,64 @@ from collections.abc import Callable
 import numpy as np
 
 import surfgen.generator.mesh as mesh_module
+import surfgen.generator.walls as walls_module
 from surfgen.filters.verdict import screen_field
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Grid
+from surfgen.generator.expr import postorder
+from surfgen.generator.fast import points_evaluator
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.parser import parse
+from surfgen.generator.reference import apply_node
 from surfgen.generator.sampler import choose_d, draw_equation
 from surfgen.generator.walls import extract_labelled
 from surfgen.pipelines.config import load_config
+
+NAMED = [
+    # (name, formula, half side of the box); walls first
+    ("tan", "tan(x)+0.3*y", 3.0),
+    ("tan*tan", "tan(x)*tan(y)-z", 3.0),
+    ("1/x", "1/x+y+z", 2.0),
+    ("atan(tan)", "atan(tan(2*x))+0.5-0.3*y*z", 3.0),
+    ("stair1", "stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),
+    ("stair2", "stair2(x*y,0.7,1)-z", 2.0),
+    ("saw1", "saw1(x+y,0.6,4)-0.3*z^2", 2.0),
+    ("sphere", "x^2+y^2+z^2-1", 1.3),
+    ("torus", "(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.5),
+    ("gyroid", "sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
+]
+
+
+class NumpyPoints:
+    """The formula at points with the reference's numpy functions, node by node (the walls'
+    points evaluator before the numba kernel)."""
+
+    def __init__(self, tree, params):
+        self.order = postorder(tree)
+        self.slot = {id(node): i for i, node in enumerate(self.order)}
+        self.params = dict(params or {})
+
+    def __call__(self, x, y, z):
+        env = {"x": np.asarray(x, np.float64), "y": np.asarray(y, np.float64)}
+        env["z"] = np.asarray(z, np.float64)
+        values = []
+        with np.errstate(all="ignore"):
+            for node in self.order:
+                values.append(
+                    apply_node(node, lambda n: values[self.slot[id(n)]], env, self.params)
+                )
+        return np.array(np.broadcast_to(values[-1], env["x"].shape), dtype=np.float64)
+
+
+class Counting:
+    """Wraps a points evaluator and counts the points it is asked for."""
+
+    def __init__(self, inner):
+        self.inner, self.points = inner, 0
+
+    def __call__(self, x, y, z):
+        self.points += np.size(x)
+        return self.inner(x, y, z)
 
 
 def best(fn: Callable[[], object], repeat: int) -> float:
@@ -54,18 +111,79 @@ def old_placement(field, level):
         mesh_module._separate = keep
 
 
+def measure(name, tree, field, repeat, numpy_too):
+    """One row: times, ratios, and the classification's point count."""
+    counter = {}
+
+    def counting(t, p):
+        counter["c"] = Counting(points_evaluator(t, p))
+        return counter["c"]
+
+    keep = walls_module.points_evaluator
+    walls_module.points_evaluator = counting
+    try:
+        mesh, report = extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
+    finally:
+        walls_module.points_evaluator = keep
+    n_points = counter["c"].points if "c" in counter else 0
+    t_old = best(lambda: old_placement(field, 0.0), repeat)
+    t_mesh = best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), repeat)
+    t_walls = best(lambda: extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark"), repeat)
+    t_numpy = float("nan")
+    if numpy_too:
+        walls_module.points_evaluator = NumpyPoints
+        try:
+            t_numpy = best(
+                lambda: extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark"), repeat
+            )
+        finally:
+            walls_module.points_evaluator = keep
+    print(
+        f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} {report.refined:>7} "
+        f"{n_points:>7} {1000 * t_old:>7.1f} {1000 * t_mesh:>7.1f} {1000 * t_walls:>7.1f} "
+        f"{1000 * t_numpy:>7.1f} {t_walls / t_mesh - 1:>+7.0%} {t_numpy / t_mesh - 1:>+7.0%}",
+        flush=True,
+    )
+    return t_mesh / t_old, t_walls / t_mesh - 1.0, report.wall_fraction
+
+
+def summary(title, rows):
+    if not rows:
+        return
+    extra = np.array([r[1] for r in rows])
+    walls = np.array([r[2] > 0.0 for r in rows])
+    print(
+        f"{title}: {len(rows)} shapes; walls extra over the mesh stage: median "
+        f"{statistics.median(extra):+.0%}, p90 {np.percentile(extra, 90):+.0%}, max "
+        f"{extra.max():+.0%}; within +20 %: {np.count_nonzero(extra <= 0.2)} of {len(rows)} "
+        f"({np.count_nonzero(extra[~walls] <= 0.2)} of {np.count_nonzero(~walls)} without walls, "
+        f"{np.count_nonzero(extra[walls] <= 0.2)} of {np.count_nonzero(walls)} with walls)"
+    )
+    if walls.any():
+        print(f"{'':>{len(title)}}  with walls: median {statistics.median(extra[walls]):+.0%}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=40)
+    parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--grid", type=int, default=64)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--numpy", action="store_true", help="also time the numpy points path")
+    parser.add_argument("--no-named", action="store_true")
     args = parser.parse_args()
+    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'refined':>7} {'points':>7} "
+          f"{'old ms':>7} {'mesh ms':>7} {'walls ms':>7} {'numpy ms':>7} {'+walls':>7} "
+          f"{'+numpy':>7}")  # fmt: skip
+    named = []
+    if not args.no_named:
+        for name, formula, half in NAMED:
+            tree = parse(formula)
+            field = evaluate(tree, Grid(Box.cube(half), (args.grid,) * 3), threads=1)
+            named.append(measure(name, tree, field, args.repeat, args.numpy))
     config = load_config()
     rows = []
     index = 0
-    print(f"{'index':>5} {'faces':>7} {'walls%':>6} {'refined':>8} "
-          f"{'placement':>9} {'mesh':>7} {'walls':>7} {'mesh/old':>8} {'+walls':>7}")  # fmt: skip
     while len(rows) < args.n and index < 50 * args.n:
         draw = draw_equation(args.seed, index, config.sampler)
         index += 1
@@ -78,36 +196,17 @@ def main() -> None:
             continue
         field = evaluate(tree, Grid(draw.box, (args.grid,) * 3), threads=1)
         try:
-            mesh, report = extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
+            mesh_module.extract_mesh(field, 0.0, cap=True)
         except EmptySurface:
             continue
-        t_old = best(lambda: old_placement(field, 0.0), args.repeat)  # noqa: B023
-        t_mesh = best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), args.repeat)  # noqa: B023
-        t_walls = best(
-            lambda: extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark"),  # noqa: B023
-            args.repeat,
-        )
-        rows.append((t_mesh / t_old, t_walls / t_mesh, report.wall_fraction))
-        print(
-            f"{index - 1:>5} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} "
-            f"{report.refined:>8} {1000 * t_old:>7.1f}ms {1000 * t_mesh:>5.1f}ms "
-            f"{1000 * t_walls:>5.1f}ms {t_mesh / t_old:>8.2f} {t_walls / t_mesh - 1:>+7.0%}",
-            flush=True,
-        )
-    placement = np.array([r[0] for r in rows])
-    walls = np.array([r[1] for r in rows]) - 1.0
-    no_walls = np.array([r[2] == 0.0 for r in rows])
-    print(f"\n{len(rows)} shapes of seed {args.seed} at {args.grid}^3 (best of {args.repeat})")
-    for name, values in (("robust placement / old", placement), ("walls: extra", walls)):
-        print(
-            f"{name:>24}: median {statistics.median(values):.2f}, "
-            f"p90 {np.percentile(values, 90):.2f}, max {values.max():.2f}"
-        )
+        rows.append(measure(f"#{index - 1}", tree, field, args.repeat, args.numpy))
+    print(f"\nat {args.grid}^3, best of {args.repeat}")
+    summary("named", named)
+    summary(f"sampled (seed {args.seed})", rows)
+    placement = np.array([r[0] for r in named + rows])
     print(
-        f"within +20 %: {np.count_nonzero(walls <= 0.2)} of {len(rows)} shapes "
-        f"({np.count_nonzero(walls[no_walls] <= 0.2)} of {np.count_nonzero(no_walls)} without "
-        f"walls, {np.count_nonzero(walls[~no_walls] <= 0.2)} of {np.count_nonzero(~no_walls)} "
-        "with walls)"
+        f"robust placement / old placement: median {statistics.median(placement):.2f}, "
+        f"p90 {np.percentile(placement, 90):.2f}, max {placement.max():.2f}"
     )
 
 

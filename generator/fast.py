@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from surfgen.generator import kernels
-from surfgen.generator.compiler import Program, compile_tree
+from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Field, Grid
@@ -148,6 +148,136 @@ def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     prof = np.zeros(len(program.code))
     kernels.run_serial(_prog(program), _tile(grid.shape[2]), ax, ay, az, out, prof)
     return Field(grid, out), prof
+
+
+POINTS_TILE = 256  # points per W row of the points kernel
+
+
+def points_program(program: Program) -> tuple:
+    """``program`` rewritten for :func:`kernels.run_points`: every block runs along a list of
+    points instead of a grid axis.
+
+    On a grid, a value that does not vary along a block's run axis is a row scalar (an S slot,
+    operand modes ``vs``, ``sv`` and ``s``); along points every value varies, so S slot ``s``
+    becomes W row ``n_vector + s`` and those operations their ``vv`` and ``v`` forms (the same
+    scalar operation per element: the rows of :mod:`~surfgen.generator.elementary` are one
+    scalar function in a loop, and the ``x^c`` convention is applied per element in both).
+    """
+    nv = int(program.n_vector)
+    code = np.array(program.code, dtype=np.int64)
+    mode = code[:, 1].copy()
+    vs, sv, s = mode == M_VS, mode == M_SV, mode == M_S
+    code[vs, 1] = M_VV
+    code[vs, 4] += nv
+    code[sv, 1] = M_VV
+    code[sv, 3] += nv
+    code[s, 1] = M_V  # the only M_S operation is copy
+    code[s, 3] += nv
+    loads = np.array(program.loads, dtype=np.int64)
+    scalar = loads[:, 3] == 0
+    loads[scalar, 2] += nv
+    return (
+        code,
+        np.ascontiguousarray(program.blocks),
+        loads,
+        np.ascontiguousarray(program.stores),
+        np.ascontiguousarray(program.consts),
+        np.ascontiguousarray(program.rows),
+        nv + max(1, int(program.n_scalar)),
+    )
+
+
+class PointsEvaluator:
+    """A compiled formula evaluated at arbitrary points (numba, one thread).
+
+    ``PointsEvaluator(program)(x, y, z)`` returns F at ``(x[i], y[i], z[i])``: the values
+    :func:`evaluate_program` gives at grid points, and the reference's
+    (:func:`surfgen.generator.reference.evaluate_points`), bit for bit.  Each level of the
+    program is evaluated once per distinct value it needs (:meth:`_lattice`); :meth:`plain`
+    evaluates every level at every point.
+    """
+
+    def __init__(self, program: Program) -> None:
+        if not isinstance(program, Program):
+            raise TypeError(f"expected a Program, got {type(program).__name__}")
+        if np.any(program.code[:, 1] == M_S) and not np.all(
+            program.code[program.code[:, 1] == M_S, 0] == OP["copy"]
+        ):
+            raise AssertionError("a scalar-mode operation other than copy")  # pragma: no cover
+        self.program = program
+        self._prog = points_program(program)
+
+    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""
+        px = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+        py = np.ascontiguousarray(y, dtype=np.float64).reshape(-1)
+        pz = np.ascontiguousarray(z, dtype=np.float64).reshape(-1)
+        if not (px.size == py.size == pz.size):
+            raise ValueError(f"x, y, z differ in length: {px.size}, {py.size}, {pz.size}")
+        out = np.empty(px.size, dtype=np.float64)
+        if px.size:
+            self._lattice(px, py, pz, out)
+        return out
+
+    def plain(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """The same values, every level computed at every point (:func:`kernels.run_points`,
+        no sharing): the check of :meth:`__call__`'s sharing."""
+        px, py, pz = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, z))
+        out = np.empty(px.size, dtype=np.float64)
+        if px.size:
+            kernels.run_points(self._prog, POINTS_TILE, px, py, pz, out)
+        return out
+
+    def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
+        """Evaluate each level once per distinct value it needs (:func:`kernels.run_lattice`).
+
+        Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
+        alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are
+        told apart by their bits (-0.0 and +0.0 are distinct), so every entry is computed from
+        exactly the bits of its points.
+        """
+        blocks = self.program.blocks
+        active = blocks[:, 1] > blocks[:, 0]
+        ids, firsts = {}, {}
+        for bit, coords in ((1, px), (2, py), (4, pz)):
+            ids[bit], firsts[bit] = kernels.dedupe(coords.view(np.int64))
+        sizes = np.zeros(8, dtype=np.int64)
+        for bit in (1, 2, 4):
+            sizes[bit] = firsts[bit].size
+        sizes[7] = px.size
+        parts: dict[tuple[int, int], np.ndarray] = {}
+        for lv, (a, b) in ((3, (1, 2)), (5, (1, 4)), (6, (2, 4))):
+            if not active[lv]:
+                continue
+            ids[lv], first = kernels.dedupe(ids[a] * sizes[b] + ids[b])
+            sizes[lv] = first.size
+            parts[(lv, a)], parts[(lv, b)] = ids[a][first], ids[b][first]
+        for k in (1, 2, 4, 3, 5, 6):
+            if k in ids:
+                parts[(7, k)] = ids[k]
+        map_at = np.zeros((8, 8), dtype=np.int64)
+        chunks, at = [], 0
+        for (lv, k), part in parts.items():
+            map_at[lv, k] = at
+            chunks.append(part)
+            at += part.size
+        maps = np.concatenate(chunks) if chunks else np.zeros(1, dtype=np.int64)
+        rows = self.program.rows
+        offsets = np.zeros(8, dtype=np.int64)
+        total = 0
+        for k in (1, 2, 3, 4, 5, 6):
+            offsets[k] = total
+            total += int(rows[k] * sizes[k])
+        store = np.empty(max(total, 1))
+        for bit, coords in ((1, px), (2, py), (4, pz)):
+            store[offsets[bit] : offsets[bit] + sizes[bit]] = coords[firsts[bit]]
+        kernels.run_lattice(self._prog, POINTS_TILE, sizes, offsets, maps, map_at, store, out)
+
+
+def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> PointsEvaluator:
+    """A :class:`PointsEvaluator` of ``tree`` (compiled programs are shared with
+    :func:`evaluate_fast`). Raises :class:`FormulaError` as :func:`compile_tree` does."""
+    return PointsEvaluator(_compiled(tree, tuple(sorted((params or {}).items()))))
 
 
 def _warm_tree() -> Expr:

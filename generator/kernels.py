@@ -754,3 +754,153 @@ def run_parallel(prog, tile, ax, ay, az, out, chunks):
     cx = min(chunks, nx)
     for c in prange(cx):
         _slab(c * nx // cx, (c + 1) * nx // cx, prog, tile, sx, sy, sz, syz, out, prof)
+
+
+# ----------------------------------------------------------------------------- arbitrary points
+
+
+@njit(**_OPTS)
+def run_points(prog, tile, px, py, pz, out):
+    """Evaluate a program at the points ``(px[p], py[p], pz[p])`` into ``out[p]``.
+
+    ``prog`` is ``(code, blocks, loads, stores, consts, rows, n_rows)`` of a program rewritten
+    by :func:`surfgen.generator.fast.points_program`: every block runs along the points, so
+    each level's store holds one value per point of the current tile and the row scalars of
+    the grid's blocks (S slots) are W rows ``n_vector + slot`` read by ``vv`` operations.
+    Each element goes through the same scalar operations as on a grid, so the values are the
+    grid interpreter's (and the reference's) bit for bit.
+    """
+    code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]
+    n_rows = prog[6]
+    depth = 1
+    for lv in range(8):
+        depth = max(depth, rows[lv])
+    st = np.empty((8, depth, tile))  # st[level, row, point]
+    W = np.empty((n_rows, tile))
+    S = np.empty(1)
+    T = np.empty((2, tile))
+    prof = np.empty(0)
+    total = px.size
+    for p0 in range(0, total, tile):
+        n = min(tile, total - p0)
+        for k in range(n):
+            st[1, 0, k] = px[p0 + k]
+            st[2, 0, k] = py[p0 + k]
+            st[4, 0, k] = pz[p0 + k]
+        for lv in (1, 2, 4, 6, 3, 5, 7):
+            c0 = blocks[lv, 0]
+            c1 = blocks[lv, 1]
+            if c0 == c1:
+                continue
+            for q in range(blocks[lv, 2], blocks[lv, 3]):
+                kind = loads[q, 0]
+                row = loads[q, 1]
+                slot = loads[q, 2]
+                if kind == 0:
+                    v = consts[row]
+                    for k in range(n):
+                        W[slot, k] = v
+                else:
+                    for k in range(n):
+                        W[slot, k] = st[kind, row, k]
+            _exec(code, c0, c1, consts, W, S, T, n, prof)
+            for q in range(blocks[lv, 4], blocks[lv, 5]):
+                slot = stores[q, 0]
+                kind = stores[q, 1]
+                row = stores[q, 2]
+                if kind == 7:
+                    for k in range(n):
+                        out[p0 + k] = W[slot, k]
+                else:
+                    for k in range(n):
+                        st[kind, row, k] = W[slot, k]
+
+
+@njit(**_OPTS)
+def dedupe(keys):
+    """Distinct int64 keys in order of first appearance (open addressing, O(n)).
+
+    Returns ``ids`` (``keys[p]`` is the ``ids[p]``-th distinct key) and ``first`` (the position
+    of each distinct key's first appearance)."""
+    n = keys.size
+    cap = 16
+    while cap < 2 * n:
+        cap *= 2
+    mask = np.uint64(cap - 1)
+    table = np.full(cap, -1, dtype=np.int64)
+    first = np.empty(n, dtype=np.int64)
+    ids = np.empty(n, dtype=np.int64)
+    m = 0
+    for p in range(n):
+        k = keys[p]
+        u = np.uint64(k)
+        h = ((u ^ (u >> np.uint64(31))) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(17)
+        h = h & mask
+        while True:
+            t = table[h]
+            if t == -1:
+                table[h] = m
+                first[m] = p
+                ids[p] = m
+                m += 1
+                break
+            if keys[first[t]] == k:
+                ids[p] = t
+                break
+            h = (h + np.uint64(1)) & mask
+    return ids, first[:m]
+
+
+@njit(**_OPTS)
+def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out):
+    """Evaluate a points program (see :func:`run_points`) level by level over the distinct
+    values each level needs: level ``lv`` runs over ``sizes[lv]`` entries (distinct x values,
+    distinct (x, y) pairs, ..., every point for xyz); a load of level ``K`` in level ``lv``'s
+    block reads entry ``maps[map_at[lv, K] + c]`` of K's store for entry ``c`` (K == lv: the
+    level's own variable, entry ``c``).  Stores live in ``store``: level K, row r, entry e at
+    ``offsets[K] + r * sizes[K] + e``; rows 0 of levels x, y, z hold the coordinates (filled
+    by the caller).  Every entry is computed from the same bits as at its points, so values
+    equal :func:`run_points`' bit for bit."""
+    code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
+    n_rows = prog[6]
+    W = np.empty((n_rows, tile))
+    S = np.empty(1)
+    T = np.empty((2, tile))
+    prof = np.empty(0)
+    for lv in (1, 2, 4, 6, 3, 5, 7):
+        c0 = blocks[lv, 0]
+        c1 = blocks[lv, 1]
+        if c0 == c1:
+            continue
+        total = sizes[lv]
+        for e0 in range(0, total, tile):
+            n = min(tile, total - e0)
+            for q in range(blocks[lv, 2], blocks[lv, 3]):
+                kind = loads[q, 0]
+                row = loads[q, 1]
+                slot = loads[q, 2]
+                if kind == 0:
+                    v = consts[row]
+                    for k in range(n):
+                        W[slot, k] = v
+                elif kind == lv:
+                    base = offsets[kind] + row * sizes[kind] + e0
+                    for k in range(n):
+                        W[slot, k] = store[base + k]
+                else:
+                    base = offsets[kind] + row * sizes[kind]
+                    at = map_at[lv, kind] + e0
+                    for k in range(n):
+                        W[slot, k] = store[base + maps[at + k]]
+            _exec(code, c0, c1, consts, W, S, T, n, prof)
+            for q in range(blocks[lv, 4], blocks[lv, 5]):
+                slot = stores[q, 0]
+                kind = stores[q, 1]
+                row = stores[q, 2]
+                if kind == 7:
+                    for k in range(n):
+                        out[e0 + k] = W[slot, k]
+                else:
+                    base = offsets[kind] + row * sizes[kind] + e0
+                    for k in range(n):
+                        store[base + k] = W[slot, k]

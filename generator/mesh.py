@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import logging
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import trimesh
+from numba import njit
 from scipy.ndimage import maximum_filter
 from skimage.measure import marching_cubes
 
@@ -96,15 +98,27 @@ _MAX_ROUNDS = 200
 
 def face_areas(mesh: Mesh) -> np.ndarray:
     """Area of each face, shape ``(F,)``."""
-    v, f = mesh.vertices, mesh.faces
-    a = v[f[:, 0]]
-    b = v[f[:, 1]] - a
-    c = v[f[:, 2]] - a
-    # The cross product by components: np.cross and np.linalg.norm are slow on (F, 3).
-    x = b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]
-    y = b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]
-    z = b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]
-    return 0.5 * np.sqrt(x * x + y * y + z * z)
+    out = np.empty(mesh.n_faces)
+    _face_areas(mesh.vertices, mesh.faces, out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _face_areas(v, f, out):
+    """``0.5 |(v1 - v0) x (v2 - v0)|`` per face, the cross product by components (the same
+    operations in the same order as numpy on whole columns, one pass without temporaries)."""
+    for n in range(f.shape[0]):
+        i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
+        b0 = v[i1, 0] - v[i0, 0]
+        b1 = v[i1, 1] - v[i0, 1]
+        b2 = v[i1, 2] - v[i0, 2]
+        c0 = v[i2, 0] - v[i0, 0]
+        c1 = v[i2, 1] - v[i0, 1]
+        c2 = v[i2, 2] - v[i0, 2]
+        x = b1 * c2 - b2 * c1
+        y = b2 * c0 - b0 * c2
+        z = b0 * c1 - b1 * c0
+        out[n] = 0.5 * math.sqrt(x * x + y * y + z * z)
 
 
 def bbox_diagonal(mesh: Mesh) -> float:
@@ -175,6 +189,10 @@ def extract_with_edges(
     faces = faces.astype(np.int64)
     moved = np.any((index < 0.0) | (index > np.asarray(grid.shape) - 1.0), axis=1)
     edges = _vertex_edges(index, moved)
+    inner = _keep_off_cell_faces(index, faces, edges, moved)
+    if inner is not None:
+        rows, index_rows = inner
+        vertices[rows] = lo + index_rows * np.asarray(grid.spacing, dtype=np.float64)
     # One point, one vertex: crossings towards the pad (cap) sit half a cell outside the box
     # and clamping put them on the box sample they came from, so a sample on a box edge
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
@@ -208,6 +226,59 @@ def _vertex_edges(index: np.ndarray, moved: np.ndarray) -> np.ndarray:
     out[on_edge, 0] = axis[on_edge]
     out[on_edge, 1:] = ijk[on_edge]
     return out
+
+
+def _keep_off_cell_faces(
+    index: np.ndarray, faces: np.ndarray, edges: np.ndarray, moved: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Move cell-interior vertices that lie within SEPARATION of their cell's faces inside.
+
+    Lewiner's tables put an extra vertex inside the cell of some ambiguous cases, at the mean
+    of the cell's 8 corners weighted by ``1 / |value|``.  A corner whose offset is tiny next
+    to the others' (a sample at or rounded onto the level: ``_TINY``, or raised only as far as
+    :func:`_separate` needs) outweighs them all and pulls the vertex onto itself: within
+    float32 resolution of the sample, of the cap vertex on it when it is a box sample, and of
+    the centre vertex of a neighbouring cell pulled onto the same sample (issue shape 20d0c322:
+    a centre vertex 5e-8 cells from a box sample carrying a cap vertex).  Two corners that
+    outweigh the rest pull it onto the crossing of their edge; those (one fractional
+    coordinate) are already on an edge for :func:`_vertex_edges` and merged with it.  The
+    others are clamped into their cell shrunk by SEPARATION on every side: at least that far
+    from every vertex on the cell's boundary and from every other cell's interior vertex, for
+    a geometric change of at most SEPARATION of a cell per coordinate.
+
+    The cell is the one holding the vertex's neighbours (the crossings of its cell): per axis,
+    the floor of their smallest index.  Modifies ``index`` in place; returns the rows changed
+    and their new indices, or None when no vertex needed it.
+    """
+    frac = index - np.floor(index)
+    near_face = np.any((frac < SEPARATION) | (frac > 1.0 - SEPARATION), axis=1)
+    candidates = np.flatnonzero((edges[:, 0] < 0) & ~moved & near_face)
+    if candidates.size == 0:
+        return None
+    is_candidate = np.zeros(len(index), dtype=bool)
+    is_candidate[candidates] = True
+    touching = faces[is_candidate[faces].any(axis=1)]
+    low = np.full((len(index), 3), np.inf)
+    high = np.full((len(index), 3), -np.inf)
+    for a in range(3):  # every corner of a touching face sees the other two
+        for b in range(3):
+            if a != b:
+                np.minimum.at(low, touching[:, a], index[touching[:, b]])
+                np.maximum.at(high, touching[:, a], index[touching[:, b]])
+    low = np.minimum(low[candidates], index[candidates])
+    high = np.maximum(high[candidates], index[candidates])
+    cell = np.floor(low)
+    # A zero span on an axis would leave the cell undecided there (a flat fan, which the
+    # centre-vertex cases cannot make): such an axis is left as it is.
+    decided = high > low
+    inside = np.clip(index[candidates], cell + SEPARATION, cell + 1.0 - SEPARATION)
+    new = np.where(decided, inside, index[candidates])
+    changed = np.any(new != index[candidates], axis=1)
+    if not changed.any():
+        return None
+    rows = candidates[changed]
+    index[rows] = new[changed]
+    return rows, index[rows]
 
 
 def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:

@@ -40,9 +40,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from surfgen.generator.errors import EmptySurface
-from surfgen.generator.expr import Expr, postorder
+from surfgen.generator.expr import Expr
+from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.mesh import (
     CAP,
@@ -55,7 +57,6 @@ from surfgen.generator.mesh import (
     extract_with_edges,
     wall_fraction,
 )
-from surfgen.generator.reference import apply_node, evaluate_points
 
 log = logging.getLogger(__name__)
 
@@ -175,38 +176,6 @@ def label_walls(
     return Mesh(out.vertices, out.faces, face_kinds[keep]), report
 
 
-class PointsEvaluator:
-    """``tree`` sampled at arbitrary points, the reference's numpy functions node by node.
-
-    The tree is flattened once into a post-order list (shared nodes once), so a call costs one
-    numpy operation per node: :func:`~surfgen.generator.reference.evaluate_points` looks every
-    node up in a dict keyed by the (recursively hashed) tree, which costs more than the
-    arithmetic on the few thousand points a refinement round needs.  Values are the reference's.
-    """
-
-    def __init__(self, tree: Expr, params: Mapping[str, float] | None = None) -> None:
-        self._tree = tree
-        self._params = dict(params or {})
-        evaluate_points(tree, 0.0, 0.0, 0.0, self._params)  # raises FormulaError early
-        # Children before parents, each node once, without recursion (deep flat sums).
-        self._order: list[Expr] = postorder(tree)
-        self._slot: dict[int, int] = {id(node): i for i, node in enumerate(self._order)}
-
-    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""
-        env = {"x": np.asarray(x, np.float64), "y": np.asarray(y, np.float64)}
-        env["z"] = np.asarray(z, np.float64)
-        values: list[np.ndarray] = []
-
-        def value_of(node: Expr) -> np.ndarray:
-            return values[self._slot[id(node)]]
-
-        with np.errstate(all="ignore"):
-            for node in self._order:
-                values.append(apply_node(node, value_of, env, self._params))
-        return np.array(np.broadcast_to(values[-1], env["x"].shape), dtype=np.float64)
-
-
 def classify_edges(
     field: Field,
     tree: Expr,
@@ -219,164 +188,259 @@ def classify_edges(
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges refined with the formula.
     """
-    values = np.asarray(field.values, dtype=np.float64).reshape(-1)
+    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
-    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
-    kinds = np.full(len(edges), UNKNOWN, dtype=np.uint8)
-    idx = np.flatnonzero(edges[:, 0] >= 0)
-    axis = edges[idx, 0]
-    ijk = edges[idx, 1:]
-    pos = ijk[np.arange(idx.size), axis]  # index along the edge's axis
-    length = shape[axis]
-    ok = pos + 1 < length
-    idx, axis, ijk, pos, length = idx[ok], axis[ok], ijk[ok], pos[ok], length[ok]
-    step = strides[axis]
-    ia = ijk @ strides
-    ib = ia + step
-    with np.errstate(invalid="ignore"):
-        fa = values[ia] - level
-        fb = values[ib] - level
-        ina = np.isfinite(fa) & (fa < 0)
-        crossing = ina != (np.isfinite(fb) & (fb < 0))
-    sel = np.flatnonzero(crossing)
-    idx, axis, ijk, pos, length = idx[sel], axis[sel], ijk[sel], pos[sel], length[sel]
-    step, ia, ib, fa, fb, ina = step[sel], ia[sel], ib[sel], fa[sel], fb[sel], ina[sel]
-    kinds[idx] = ROOT
-    # Neighbours along the same grid line; a missing one (grid border) makes the edge suspect.
-    has_m, has_p = pos >= 1, pos + 2 < length
-    fm = values[np.where(has_m, ia - step, ia)] - level
-    fp = values[np.where(has_p, ib + step, ib)] - level
-    suspect = ~(has_m & has_p & _smooth(fm, fa, fb, fp))
-    s = np.flatnonzero(suspect)
-    if s.size == 0:
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
+    if idx.size == 0:
         return kinds, 0
-    points = PointsEvaluator(tree, params)
-    s = s[~_secant_root(points, level, field, ijk[s], axis[s], fa[s], fb[s])]
-    if s.size:
-        kinds[idx[s]] = _refine(points, level, field, ijk[s], axis[s], ina[s], fa[s], fb[s])
-    return kinds, int(suspect.sum())
+    points = points_evaluator(tree, params)
+    kinds[idx] = _classify_suspects(
+        points, level, field, edges[idx, 1:], edges[idx, 0], ina, fa, fb
+    )
+    return kinds, int(idx.size)
 
 
-def _secant_root(
+def _classify_suspects(
     points: PointsEvaluator,
     level: float,
     field: Field,
     ijk: np.ndarray,
     axis: np.ndarray,
-    fa: np.ndarray,
-    fb: np.ndarray,
-) -> np.ndarray:
-    """Suspects that one secant step shows to be roots: ``|F(t*)| < SECANT_ROOT * min(|fa|,
-    |fb|)`` where F is linear enough over the edge (a jump or pole keeps |F| of the order of
-    its samples' there; a sample exactly at the level never certifies, min being 0)."""
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        t = np.clip(fa / (fa - fb), SEPARATION_T, 1.0 - SEPARATION_T)
-        finite = np.isfinite(t)
-        t = np.where(finite, t, 0.5)
-        xyz = _edge_points(field, ijk, axis, t[:, None])[:, 0, :]
-        f = points(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
-        return finite & (np.abs(f) < SECANT_ROOT * np.minimum(np.abs(fa), np.abs(fb)))
-
-
-def _edge_points(field: Field, ijk: np.ndarray, axis: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Points ``(n, m, 3)`` at fractions ``s`` ``(n, m)`` along each edge (sample ``ijk``,
-    one step along ``axis``)."""
-    axes = field.grid.axes()
-    spacing = np.asarray(field.grid.spacing)
-    origin = np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1)  # (n, 3)
-    direction = np.eye(3)[axis] * spacing[axis][:, None]  # (n, 3)
-    return origin[:, None, :] + s[..., None] * direction[:, None, :]
-
-
-def _smooth(fm: np.ndarray, fa: np.ndarray, fb: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """Crossings that look like a smooth root on the samples (see the module's docstring)."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        d = fb - fa
-        dm = fa - fm
-        dp = fp - fb
-        return (
-            np.isfinite(dm + d + dp)
-            & (np.sign(dm) == np.sign(d))
-            & (np.sign(dp) == np.sign(d))
-            & (np.abs(d) <= SMOOTH_RATIO * np.maximum(np.abs(dm), np.abs(dp)))
-        )
-
-
-def _refine(
-    points: PointsEvaluator,
-    level: float,
-    field: Field,
-    a: np.ndarray,
-    axis: np.ndarray,
     a_inside: np.ndarray,
     fa: np.ndarray,
     fb: np.ndarray,
 ) -> np.ndarray:
-    """Refine each edge (sample ``a``, one step along ``axis``) and classify it."""
-    n = len(a)
-    lo = np.zeros(n)
-    hi = np.ones(n)
-    f_lo = fa.copy()
-    f_hi = fb.copy()
-    lo_inside = a_inside.copy()
+    """Kinds of the suspect edges (sample ``ijk``, one step along ``axis``): the secant step,
+    then the refinement of those it does not show to be roots (see the module's docstring).
+
+    The per-edge arithmetic runs in numba (:func:`_secant_points`, :func:`_secant_roots`,
+    :func:`_round_points`, :func:`_round_update`, :func:`_decide`), the formula in three batched
+    calls of the points kernel; each step does, edge by edge, the operations the numpy version
+    of this module did on arrays, so the kinds are the same.
+    """
+    axes = field.grid.axes()
+    spacing = np.asarray(field.grid.spacing, dtype=np.float64)
+    origin = np.ascontiguousarray(np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1))
+    step = np.ascontiguousarray(np.eye(3)[axis] * spacing[axis][:, None])  # (n, 3)
+    fa = np.ascontiguousarray(fa, dtype=np.float64)
+    fb = np.ascontiguousarray(fb, dtype=np.float64)
+    xyz, finite = _secant_points(origin, step, fa, fb, SEPARATION_T)
+    f = points(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
+    rest = np.flatnonzero(~_secant_roots(f, finite, fa, fb, SECANT_ROOT))
+    out = np.full(len(fa), ROOT, dtype=np.uint8)
+    if rest.size == 0:
+        return out
+    origin, step, fa, fb = origin[rest], step[rest], fa[rest], fb[rest]
+    n = rest.size
+    # bracket: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); after round one and after the last
+    now = np.empty((n, 5))
+    now[:, 0], now[:, 1], now[:, 2], now[:, 3] = 0.0, 1.0, fa, fb
+    now[:, 4] = a_inside[rest]
+    mid = now
     frac = np.arange(1, POINTS + 1) / (POINTS + 1)
-    saved = None
     for rnd in range(ROUNDS):
-        s = lo[:, None] + (hi - lo)[:, None] * frac[None, :]  # (n, POINTS)
-        pts = _edge_points(field, a, axis, s)
-        flat = pts.reshape(-1, 3)
+        xyz, s = _round_points(origin, step, now, frac)
+        flat = xyz.reshape(-1, 3)
         vals = points(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(n, POINTS) - level
-        # side of every point of the bracket: [lo, p1..p7, hi]
-        all_s = np.concatenate([lo[:, None], s, hi[:, None]], axis=1)
-        all_f = np.concatenate([f_lo[:, None], vals, f_hi[:, None]], axis=1)
-        with np.errstate(invalid="ignore"):
-            inside = np.isfinite(all_f) & (all_f < 0)
-        change = inside[:, 1:] != inside[:, :-1]
-        first = np.argmax(change, axis=1)  # there is one: the ends are on opposite sides
-        rows = np.arange(n)
-        lo, hi = all_s[rows, first], all_s[rows, first + 1]
-        f_lo, f_hi = all_f[rows, first], all_f[rows, first + 1]
-        lo_inside = inside[rows, first]
+        now = _round_update(now, s, vals)
         if rnd == 0:
-            saved = (lo.copy(), hi.copy(), f_lo.copy(), f_hi.copy())
-    assert saved is not None
-    return _decide(saved, (lo, hi, f_lo, f_hi), lo_inside, fa, fb)
+            mid = now
+    out[rest] = _decide(mid, now, fa, fb)
+    return out
 
 
-def _decide(
-    mid: tuple[np.ndarray, ...],
-    end: tuple[np.ndarray, ...],
-    lo_inside: np.ndarray,
-    fa: np.ndarray,
-    fb: np.ndarray,
-) -> np.ndarray:
-    """The kind of each refined edge from its brackets after two and after four rounds."""
-    lo2, hi2, f_lo2, f_hi2 = mid
-    lo4, hi4, f_lo4, f_hi4 = end
-    kept_lo = lo4 == 0.0  # the bracket still starts at sample a
-    kept_hi = hi4 == 1.0  # ... or still ends at sample b
-    outside_end = np.where(lo_inside, f_hi4, f_lo4)
-    scale = np.abs(np.where(np.isfinite(fa), fa, 0.0)) + np.abs(np.where(np.isfinite(fb), fb, 0.0))
-    with np.errstate(invalid="ignore", over="ignore"):
-        m2 = np.maximum(
-            np.where(kept_lo, 0.0, np.abs(f_lo2)), np.where(kept_hi, 0.0, np.abs(f_hi2))
+_NB = {"cache": True, "error_model": "numpy", "nogil": True}
+
+
+@njit(**_NB)
+def _secant_points(origin, step, fa, fb, sep):
+    """The secant point ``t* = fa / (fa - fb)`` of each edge, clipped to [sep, 1 - sep], mid-edge
+    where it is NaN; returns the ``(n, 3)`` points and whether t* was a number."""
+    n = fa.size
+    xyz = np.empty((n, 3))
+    finite = np.empty(n, dtype=np.bool_)
+    for e in range(n):
+        t = fa[e] / (fa[e] - fb[e])
+        finite[e] = t == t  # np.clip keeps NaN and takes +-inf to the bounds
+        if not finite[e]:
+            t = 0.5
+        elif t < sep:
+            t = sep
+        elif t > 1.0 - sep:
+            t = 1.0 - sep
+        for k in range(3):
+            xyz[e, k] = origin[e, k] + t * step[e, k]
+    return xyz, finite
+
+
+@njit(**_NB)
+def _secant_roots(f, finite, fa, fb, ratio):
+    """``|F(t*)| < ratio * min(|fa|, |fb|)`` (a NaN anywhere: not a root)."""
+    n = f.size
+    out = np.zeros(n, dtype=np.bool_)
+    for e in range(n):
+        a, b = abs(fa[e]), abs(fb[e])
+        if a != a or b != b:
+            continue
+        out[e] = finite[e] and abs(f[e]) < ratio * min(a, b)
+    return out
+
+
+@njit(**_NB)
+def _round_points(origin, step, now, frac):
+    """The points at fractions ``lo + (hi - lo) * frac`` of each bracket: ``(n, m, 3)`` points
+    and ``(n, m)`` fractions."""
+    n = origin.shape[0]
+    m = frac.size
+    s = np.empty((n, m))
+    xyz = np.empty((n, m, 3))
+    for e in range(n):
+        lo = now[e, 0]
+        width = now[e, 1] - lo
+        for q in range(m):
+            s[e, q] = lo + width * frac[q]
+            for k in range(3):
+                xyz[e, q, k] = origin[e, k] + s[e, q] * step[e, k]
+    return xyz, s
+
+
+@njit(**_NB)
+def _round_update(now, s, vals):
+    """The new bracket of each edge: the first side change along ``[lo, s..., hi]``."""
+    n, m = vals.shape
+    out = np.empty_like(now)
+    for e in range(n):
+        prev_s, prev_f = now[e, 0], now[e, 2]
+        prev_in = np.isfinite(prev_f) and prev_f < 0.0
+        found = False
+        for q in range(m + 1):
+            if q < m:
+                cur_s, cur_f = s[e, q], vals[e, q]
+            else:
+                cur_s, cur_f = now[e, 1], now[e, 3]
+            cur_in = np.isfinite(cur_f) and cur_f < 0.0
+            if cur_in != prev_in:
+                out[e, 0], out[e, 1], out[e, 2], out[e, 3] = prev_s, cur_s, prev_f, cur_f
+                out[e, 4] = 1.0 if prev_in else 0.0
+                found = True
+                break
+            prev_s, prev_f, prev_in = cur_s, cur_f, cur_in
+        if not found:  # cannot happen: the ends are on opposite sides (argmax would take 0)
+            out[e, 0], out[e, 1], out[e, 2] = now[e, 0], s[e, 0], now[e, 2]
+            out[e, 3] = vals[e, 0]
+            out[e, 4] = 1.0 if np.isfinite(now[e, 2]) and now[e, 2] < 0.0 else 0.0
+    return out
+
+
+@njit(inline="always", **_NB)
+def _nanmax(a, b):
+    """np.maximum: NaN propagates."""
+    if a != a or b != b:
+        return np.nan
+    return max(a, b)
+
+
+@njit(**_NB)
+def _decide(mid, end, fa, fb):
+    """The kind of each refined edge from its brackets after the first and the last round."""
+    n = fa.size
+    out = np.empty(n, dtype=np.uint8)
+    for e in range(n):
+        f_lo2, f_hi2 = mid[e, 2], mid[e, 3]
+        lo4, hi4, f_lo4, f_hi4 = end[e, 0], end[e, 1], end[e, 2], end[e, 3]
+        kept_lo = lo4 == 0.0  # the bracket still starts at sample a
+        kept_hi = hi4 == 1.0  # ... or still ends at sample b
+        outside_end = f_hi4 if end[e, 4] != 0.0 else f_lo4
+        scale = (abs(fa[e]) if np.isfinite(fa[e]) else 0.0) + (
+            abs(fb[e]) if np.isfinite(fb[e]) else 0.0
         )
-        m4 = np.maximum(
-            np.where(kept_lo, 0.0, np.abs(f_lo4)), np.where(kept_hi, 0.0, np.abs(f_hi4))
-        )
-        kept_value = np.where(kept_lo, np.abs(fa), np.where(kept_hi, np.abs(fb), 0.0))
-        kept_small = ~(kept_lo | kept_hi) | (kept_value <= ROOT_KEPT * scale)
-        root = kept_small & ((m4 <= ROOT_SHRINK * m2) | (m4 <= ROOT_FLOOR * scale))
-        ends = np.maximum(np.abs(f_lo4), np.where(np.isfinite(f_hi4), np.abs(f_hi4), 0.0))
+        m2 = _nanmax(0.0 if kept_lo else abs(f_lo2), 0.0 if kept_hi else abs(f_hi2))
+        m4 = _nanmax(0.0 if kept_lo else abs(f_lo4), 0.0 if kept_hi else abs(f_hi4))
+        kept_value = abs(fa[e]) if kept_lo else (abs(fb[e]) if kept_hi else 0.0)
+        kept_small = not (kept_lo or kept_hi) or kept_value <= ROOT_KEPT * scale
+        root = kept_small and (m4 <= ROOT_SHRINK * m2 or m4 <= ROOT_FLOOR * scale)
+        ends = _nanmax(abs(f_lo4), abs(f_hi4) if np.isfinite(f_hi4) else 0.0)
         pole = (
             np.isinf(outside_end)
-            | ((m4 >= POLE_GROWTH * m2) & (m4 > 0))
-            | (ends >= POLE_SCALE * scale)
+            or (m4 >= POLE_GROWTH * m2 and m4 > 0.0)
+            or ends >= POLE_SCALE * scale
         )
-    out = np.full(len(lo4), JUMP, dtype=np.uint8)
-    out[pole & ~np.isnan(outside_end)] = POLE  # F becoming NaN is the edge of a domain: a jump
-    out[root & np.isfinite(outside_end)] = ROOT
+        kind = JUMP
+        if pole and not np.isnan(outside_end):  # F becoming NaN is a domain's edge: a jump
+            kind = POLE
+        if root and np.isfinite(outside_end):
+            kind = ROOT
+        out[e] = kind
     return out
+
+
+@njit(inline="always", **_NB)
+def _sign(u):
+    """np.sign (NaN stays NaN; the callers have only finite values)."""
+    if u > 0.0:
+        return 1.0
+    if u < 0.0:
+        return -1.0
+    return u
+
+
+@njit(**_NB)
+def _crossings(values, shape, edges, level, ratio):
+    """Kinds of the vertices' edges from the samples alone, and the suspects.
+
+    Rows with axis -1, at the grid's end, or whose samples are on the same side (inside is
+    ``F < level``, finite) are UNKNOWN, the others ROOT.  A crossing is *suspect* unless both
+    neighbours along its grid line exist and the secants look smooth (step 1 of the module's
+    docstring): returns
+    the kinds, and for the suspects their rows, ``fa``, ``fb`` (``F - level`` at the edge's
+    samples) and whether sample a is inside.
+    """
+    n = edges.shape[0]
+    kinds = np.full(n, UNKNOWN, dtype=np.uint8)
+    rows = np.empty(n, dtype=np.int64)
+    out_a = np.empty(n)
+    out_b = np.empty(n)
+    out_in = np.empty(n, dtype=np.bool_)
+    strides = (shape[1] * shape[2], shape[2], 1)
+    count = 0
+    for v in range(n):
+        axis = edges[v, 0]
+        if axis < 0:
+            continue
+        pos = edges[v, 1 + axis]
+        length = shape[axis]
+        if pos + 1 >= length:
+            continue
+        step = strides[axis]
+        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
+        ib = ia + step
+        fa = values[ia] - level
+        fb = values[ib] - level
+        ina = np.isfinite(fa) and fa < 0.0
+        if ina == (np.isfinite(fb) and fb < 0.0):
+            continue
+        kinds[v] = ROOT
+        smooth = False
+        if pos >= 1 and pos + 2 < length:
+            fm = values[ia - step] - level
+            fp = values[ib + step] - level
+            d = fb - fa
+            dm = fa - fm
+            dp = fp - fb
+            smooth = (
+                np.isfinite(dm + d + dp)
+                and _sign(dm) == _sign(d)
+                and _sign(dp) == _sign(d)
+                and abs(d) <= ratio * max(abs(dm), abs(dp))
+            )
+        if not smooth:
+            rows[count] = v
+            out_a[count] = fa
+            out_b[count] = fb
+            out_in[count] = ina
+            count += 1
+    return kinds, rows[:count], out_a[:count], out_b[:count], out_in[:count]
 
 
 def face_kinds_of(
@@ -387,26 +451,41 @@ def face_kinds_of(
     With ``cap``, faces lying on a box face are CAP.  Otherwise a face is a wall when most of
     its labelled vertices are walls (a pole if any of those is a pole, else a jump), else ROOT.
     """
-    out = np.full(mesh.n_faces, ROOT, dtype=np.uint8)
-    wall_vertex = (kinds == POLE) | (kinds == JUMP)
-    if wall_vertex.any():
-        f = mesh.faces
-        known = (kinds != UNKNOWN).astype(np.int8)
-        wall = wall_vertex.astype(np.int8)
-        n_known = known[f[:, 0]] + known[f[:, 1]] + known[f[:, 2]]
-        n_wall = wall[f[:, 0]] + wall[f[:, 1]] + wall[f[:, 2]]
-        is_wall = 2 * n_wall > n_known
-        pole = (kinds == POLE)[f[is_wall]]
-        out[is_wall] = np.where(pole[:, 0] | pole[:, 1] | pole[:, 2], POLE, JUMP)
+    lo = np.asarray(field.grid.box.lo, dtype=np.float64)
+    hi = np.asarray(field.grid.box.hi, dtype=np.float64)
+    return _face_kinds(mesh.vertices, mesh.faces, kinds, cap, lo, hi)
+
+
+@njit(**_NB)
+def _face_kinds(v, f, kinds, cap, lo, hi):
+    n_faces = f.shape[0]
+    out = np.full(n_faces, ROOT, dtype=np.uint8)
+    bits = np.zeros(v.shape[0], dtype=np.uint8)
     if cap:
         # One bit per box face for each vertex on it; a cap face has a bit all three share.
-        v = mesh.vertices
-        lo = np.asarray(field.grid.box.lo)
-        hi = np.asarray(field.grid.box.hi)
-        bits = np.zeros(mesh.n_vertices, dtype=np.uint8)
-        for k in range(3):
-            bits |= (v[:, k] == lo[k]).astype(np.uint8) << np.uint8(2 * k)
-            bits |= (v[:, k] == hi[k]).astype(np.uint8) << np.uint8(2 * k + 1)
-        f = mesh.faces
-        out[(bits[f[:, 0]] & bits[f[:, 1]] & bits[f[:, 2]]) != 0] = CAP
+        for i in range(v.shape[0]):
+            b = 0
+            for k in range(3):
+                if v[i, k] == lo[k]:
+                    b |= 1 << (2 * k)
+                if v[i, k] == hi[k]:
+                    b |= 1 << (2 * k + 1)
+            bits[i] = b
+    for n in range(n_faces):
+        if cap and (bits[f[n, 0]] & bits[f[n, 1]] & bits[f[n, 2]]) != 0:
+            out[n] = CAP
+            continue
+        known = 0
+        wall = 0
+        pole = False
+        for c in range(3):
+            kind = kinds[f[n, c]]
+            if kind != UNKNOWN:
+                known += 1
+            if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
+                wall += 1
+            if kind == POLE:
+                pole = True
+        if 2 * wall > known:
+            out[n] = POLE if pole else JUMP
     return out

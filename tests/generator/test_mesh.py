@@ -319,13 +319,7 @@ ISSUE_SHAPES = {
 ISSUE_BOXES = {"10d816d0": 1.5, "20d0c322": 1.9, "08af9540": 1.1, "039701a8": 1.8}
 
 
-# 20d0c322's field changed with surfgen's own elementary functions (issue 9) and now meets a
-# case the placement does not handle yet: two vertices on one box sample (README, Walls: open
-# defect). It is kept in ISSUE_SHAPES and left out here until that is fixed.
-KNOWN_OPEN = {"20d0c322"}
-
-
-@pytest.mark.parametrize("key", sorted(set(ISSUE_SHAPES) - KNOWN_OPEN))
+@pytest.mark.parametrize("key", sorted(ISSUE_SHAPES))
 def test_issue_catalogue_shapes_survive_merges(key):
     # At their own 64^3 grid (above the suite's usual 48^3: that is where they failed).
     grid = Grid(Box.cube(ISSUE_BOXES[key]), (64, 64, 64))

@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 
 from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import CAP, JUMP, POLE, ROOT, load_mesh, save_mesh, wall_fraction
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_points, evaluate_reference
-from surfgen.generator.walls import PointsEvaluator, extract_labelled
+from surfgen.generator.walls import extract_labelled
 
 
 def labelled(formula: str, half: float, n: int, walls: str = "mark", cap: bool = False):
@@ -128,5 +129,5 @@ def test_points_evaluator_is_the_reference():
     tree = parse("atan(tan(2*x))*stair1(y,0.5,1,4)+abs(z)^0.3/sec(x*y)-rect2(z,1,0.4)")
     rng = np.random.default_rng(3)
     x, y, z = rng.uniform(-3, 3, size=(3, 500))
-    got = PointsEvaluator(tree)(x, y, z)
+    got = points_evaluator(tree)(x, y, z)  # the walls' evaluator: the numba points kernel
     assert np.array_equal(got, evaluate_points(tree, x, y, z), equal_nan=True)
