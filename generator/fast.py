@@ -34,7 +34,7 @@ numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 log = logging.getLogger(__name__)
 
-TILE_MAX = 256  # points per W row: n_vector rows of this stay in L1/L2
+TILE_MAX = 512  # points per W row (several z rows when nz <= 256): n_vector rows stay in L2
 CHUNKS_PER_THREAD = 4  # slabs per thread, for load balance when threads are shared
 COMPILED_CACHE = 64  # programs kept by evaluate_fast, keyed by (tree, params)
 
@@ -108,7 +108,11 @@ def _resolve_threads(threads: int | None) -> int:
 
 
 def _tile(n: int) -> int:
-    """Tile length for runs of up to n points: at most TILE_MAX, equal chunks."""
+    """Tile length for runs of up to n points along z: at most TILE_MAX, equal chunks; for
+    short runs (n <= TILE_MAX/2) as many whole runs as fit, which the yz and xyz blocks fill
+    with several rows j at once (fewer dispatches per point; see kernels._block)."""
+    if 0 < n <= TILE_MAX // 2:
+        return (TILE_MAX // n) * n
     pieces = math.ceil(n / TILE_MAX)
     return max(1, math.ceil(n / pieces))
 

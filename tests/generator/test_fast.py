@@ -451,3 +451,33 @@ def test_the_conditioning_bound_compares_most_points_and_catches_errors(monkeypa
     monkeypatch.setitem(E.UFUNCS, "tan", lambda u: np.tan(u) * (1 + 1e-9))
     with pytest.raises(AssertionError, match="beyond the bound"):
         compare_with_numpy_ufuncs(parse("tan(x*y-z)*(y+3)"), GRID)
+
+
+# ----------------------------------------------------------------------------- tiles
+
+
+@pytest.mark.parametrize("tile_max", [4, 8, 24, 512])
+@pytest.mark.parametrize(
+    "formula",
+    [
+        "tan(x*z+y*z)+atan(x-z)*abs(y*z)^1.5",  # no y or xy scalar: several rows j per tile
+        "sin(x*y)*z+cos(y)*z^2",  # scalar loads vary with j: one row at a time
+    ],
+)
+def test_tiles_of_several_rows_give_the_same_bits(monkeypatch, tile_max, formula):
+    # Short z runs are packed several rows j to a tile (kernels._block_rows); runs longer than
+    # the tile are cut into chunks; both must be the reference's values bit for bit, threads 1 and 2.
+    from surfgen.generator import fast
+
+    monkeypatch.setattr(fast, "TILE_MAX", tile_max)
+    tree = parse(formula)
+    program = compile_tree(tree)
+    c0, c1, l0, l1 = program.blocks[7, :4]
+    per_j = [(k, v) for k, _, _, v in program.loads[l0:l1] if v == 0 and k in (2, 3)]
+    assert bool(per_j) == ("sin" in formula)
+    for shape in ((5, 7, 4), (4, 9, 10), (4, 5, 26)):
+        grid = Grid(Box.cube(2.0), shape)
+        want = evaluate_reference(tree, grid).values
+        for threads in (1, 2):
+            got = evaluate_program(program, grid, threads=threads).values
+            assert_identical(got, want, f"{formula} {shape} tile<={tile_max} {threads}T")
