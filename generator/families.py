@@ -71,6 +71,7 @@ GROUP_PERMUTATIONS = {
 }
 EXTENT_GRID = 33  # samples per axis of the search box used to measure an envelope's extent
 EXTENT_BOX = 2.5
+FEATURE_GRID = 32  # samples per axis on which an ornament's feature size is measured
 # Continuous and pulse constituents for lattices (saw teeth would draw walls at every jump).
 LATTICE_CONSTITUENTS = ("tri2", "tri3", "rect2")
 
@@ -274,10 +275,15 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     if len(perms) > 3:  # (6 copies)^k would print as dozens of products
         k = 1
     env_terms, env_info = _draw_envelope(rng, cfg, permutes=len(perms) > 1)
-    ornament, freq = _draw_ornament(rng, cfg)
     depth = round(float(rng.uniform(*cfg.sculpture_depth)), 2)
     margin = float(rng.uniform(*cfg.sculpture_margin))
     envelope = _sum_tree(env_terms)
+    extent = _envelope_extent(envelope)
+    half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
+    box = Box.cube(half)
+    ornament, freq, products, unit, feature, tries = _coarse_ornament(
+        rng, cfg, envelope if extent is not None else None, box, perms, mirror, k
+    )
     structure: dict[str, Any] = {
         "envelope": env_info,
         "ornament": {"factor": Equation13(((ornament,),)).to_dict()["terms"][0][0]},
@@ -285,18 +291,58 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
         "k": k,
     }
     structure["ornament"].update(frequency=freq, depth=depth)
-    extent = _envelope_extent(envelope)
-    products = _ornament_terms(ornament, perms, mirror, k)
+    if feature is not None:
+        structure["ornament"].update(feature=round(feature, 4), tries=tries)
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
-        half = EXTENT_BOX
         return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
-    half = round(extent * (1 + depth + margin), 2)
-    box = Box.cube(half)
-    unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
     strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
     structure["ornament"].update(strength=strength)
     structure["extent"] = round(extent, 4)
     return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
+
+
+def _coarse_ornament(rng, cfg: SamplerConfig, envelope: Expr | None, box: Box, perms, mirror, k):
+    """Draw ornaments until one's features are at least ``sculpture_min_feature`` of the box
+    (at most ``sculpture_ornament_tries``; else the coarsest drawn): finer ones carve noise
+    and debris, which the filters reject or the eye calls a rough ball (README, Families).
+    Returns the ornament, its frequency, the expanded products, their sum as a tree, its
+    feature size (None without an envelope) and the number of ornaments drawn."""
+    e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
+    best = None
+    for tries in range(1, cfg.sculpture_ornament_tries + 1):
+        ornament, freq = _draw_ornament(rng, cfg)
+        products = _ornament_terms(ornament, perms, mirror, k)
+        unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
+        if e is None:
+            return ornament, freq, products, unit, None, tries
+        feature = _feature_size(e, _eval(unit, box, FEATURE_GRID), box)
+        if best is None or feature > best[4]:
+            best = (ornament, freq, products, unit, feature)
+        if feature >= cfg.sculpture_min_feature:
+            break
+    assert best is not None
+    return (*best, tries)
+
+
+def _feature_size(e: np.ndarray, o: np.ndarray, box: Box) -> float:
+    """How large the ornament ``o``'s features are where the envelope ``e`` has its surface:
+    the 10-90 % spread of ``o`` over the median of ``|grad o|`` there, over the box's half-size
+    (about 0.36 wavelengths of a sine; a grid too coarse to see the features gives about one
+    cell). 0 when it cannot be measured (a constant, non-finite ornament)."""
+    n = e.shape[0]
+    step = (box.hi[0] - box.lo[0]) / (n - 1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        ge = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
+        go = np.sqrt(sum(g**2 for g in np.gradient(o, step)))
+    ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(ge) & np.isfinite(go) & (ge > 0)
+    band = ok & (np.abs(e) < 1.5 * step * np.where(ok, ge, 0.0))
+    if np.count_nonzero(band) < 16:
+        return 0.0
+    lo, hi = np.quantile(o[band], (0.1, 0.9))
+    slope = float(np.median(go[band]))
+    if not (slope > 0 and math.isfinite(float(hi - lo))):
+        return 0.0
+    return float(hi - lo) / slope / float(box.hi[0])
 
 
 def _sculpture_draw(env_terms, products, strength, half, d, structure, envelope) -> Draw:
@@ -362,24 +408,53 @@ def draw_lattice(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     half = round(float(rng.uniform(*cfg.box_half)), 1)
     periods = float(rng.uniform(*cfg.lattice_periods))
     period = 2 * half / periods
-    h1, w1 = _lattice_transform(rng, cfg, period)
-    h2, w2 = _lattice_transform(rng, cfg, period)
+    scales = [1.0, 1.0, 1.0]
+    if rng.random() < cfg.lattice_anisotropy_prob:
+        scales = [round(float(rng.uniform(*cfg.lattice_anisotropy)), 2) for _ in range(3)]
+    if pattern in ("diamond",):  # written in sines and cosines: the pattern needs both
+        h1, w1 = Transform("sin"), round(2 * math.pi / period, 4)
+        h2, w2 = Transform("cos"), w1
+    else:
+        h1, w1 = _lattice_transform(rng, cfg, period)
+        h2, w2 = _lattice_transform(rng, cfg, period)
+
+    def wave(h: Transform, w: float, axis: int, times: float = 1.0) -> Factor:
+        return only_b(_linear(round_significant(w * scales[axis], 4) * times, axis), h)
+
     terms: list[tuple[Factor, ...]] = []
     if pattern == "schwarz":
-        terms = [(only_b(_linear(w1, k), h1),) for k in range(3)]
+        terms = [(wave(h1, w1, k),) for k in range(3)]
     elif pattern == "gyroid":
-        terms = [
-            (only_b(_linear(w1, k), h1), only_b(_linear(w2, (k + 1) % 3), h2)) for k in range(3)
-        ]
-    else:
+        terms = [(wave(h1, w1, k), wave(h2, w2, (k + 1) % 3)) for k in range(3)]
+    elif pattern == "product":
         c = round(float(rng.uniform(0.3, 1.2)), 2)
-        terms = [tuple(only_b(_linear(w1, k), h1) for k in range(3))]
-        terms += [(constant(c), only_b(_linear(w2, k), h2)) for k in range(3)]
+        terms = [tuple(wave(h1, w1, k) for k in range(3))]
+        terms += [(constant(c), wave(h2, w2, k)) for k in range(3)]
+    elif pattern == "diamond":
+        # sin sin sin + sin cos cos + cos sin cos + cos cos sin (Schwarz's D surface)
+        for sines in ((0, 1, 2), (0,), (1,), (2,)):
+            terms.append(tuple(wave(h1 if k in sines else h2, w1, k) for k in range(3)))
+    elif pattern == "neovius":
+        # 3 (H x + H y + H z) + c H x H y H z, c about 4 (Neovius's surface)
+        c = round(float(rng.uniform(2.5, 5.5)), 2)
+        terms = [(constant(3.0), wave(h1, w1, k)) for k in range(3)]
+        terms.append((constant(c), *(wave(h1, w1, k) for k in range(3))))
+    else:  # iwp: 2 (cos x cos y + cos y cos z + cos z cos x) - (cos 2x + cos 2y + cos 2z)
+        # (Schoen's I-WP); with sines the second part is + cos 2x (a shift of half a period),
+        # with a constituent H that same H at twice the frequency.
+        h2, w2, sign = (
+            (h1, w1, -1.0)
+            if h1.name not in ("sin", "cos")
+            else (Transform("cos"), w1, 1.0 if h1.name == "sin" else -1.0)
+        )
+        terms = [(constant(2.0), wave(h1, w1, k), wave(h1, w1, (k + 1) % 3)) for k in range(3)]
+        terms += [(constant(sign), wave(h2, w2, k, 2.0)) for k in range(3)]
     q = float(rng.uniform(*cfg.lattice_d_quantile))
     structure = {
         "pattern": pattern,
         "periods": round(periods, 3),
-        "H": [h1.name, h2.name] if pattern != "schwarz" else [h1.name],
-        "group": "cyclic",
+        "H": [h1.name] if pattern in ("schwarz", "neovius") else [h1.name, h2.name],
+        "group": "cyclic" if scales[0] == scales[1] == scales[2] else "none",
+        "axis_scales": scales,
     }
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q, "lattice", structure)

@@ -50,7 +50,7 @@ SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
 # Symmetry groups of a sculpture's ornament: how many axis permutations it is summed over, and
 # whether it uses |x|, |y|, |z| (the mirrors).
 SCULPTURE_GROUPS = ("none", "mirror", "cyclic", "cyclic_mirror", "full", "full_mirror")
-LATTICE_PATTERNS = ("schwarz", "gyroid", "product")
+LATTICE_PATTERNS = ("schwarz", "gyroid", "product", "diamond", "neovius", "iwp")
 # Transforms whose values stay in [-1, 1], and inverse functions defined on all of R.
 BOUNDED_TRANSFORMS = (
     "sin",
@@ -113,9 +113,13 @@ class SamplerConfig:
     sculpture_constituent_prob: float = 0.3  # the ornament's H or G is a constituent function
     sculpture_omit_element_prob: float = 0.55
     sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
+    sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
+    sculpture_ornament_tries: int = 6  # ornaments drawn until one is coarse enough
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
-    lattice_pattern_weights: tuple[float, ...] = (0.35, 0.4, 0.25)
+    lattice_pattern_weights: tuple[float, ...] = (0.15, 0.2, 0.15, 0.2, 0.15, 0.15)
     lattice_periods: tuple[float, float] = (1.0, 2.5)  # periods across the box
+    lattice_anisotropy_prob: float = 0.5  # each axis's period scaled by its own factor
+    lattice_anisotropy: tuple[float, float] = (0.6, 1.6)  # that factor's range
     lattice_constituent_prob: float = 0.3  # a constituent function instead of sin/cos
     lattice_d_quantile: tuple[float, float] = (0.25, 0.6)
 
@@ -154,6 +158,7 @@ class SamplerConfig:
             "sculpture_omit_element_prob",
             "sculpture_bounded_prob",
             "lattice_constituent_prob",
+            "lattice_anisotropy_prob",
         )
         require_fractions(self, probabilities, "sampler", "a probability")
         ranges = (
@@ -168,6 +173,7 @@ class SamplerConfig:
             "sculpture_frequency",
             "lattice_periods",
             "lattice_d_quantile",
+            "lattice_anisotropy",
         )
         for name in ranges:
             if len(getattr(self, name)) != 2:
@@ -198,6 +204,9 @@ class SamplerConfig:
             ("exponent_real", -100, 100),
             ("constituent_r", 1e-6, 1e6),
             ("box_half", 1e-6, 1e6),
+            ("sculpture_min_feature", 0, 10),
+            ("sculpture_ornament_tries", 1, 50),
+            ("lattice_anisotropy", 0.1, 10),
         ):
             require_range(self, name, low, high, "sampler")
         if not self.sculpture_exponent[0] >= 1:

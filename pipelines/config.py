@@ -35,7 +35,7 @@ class RunSettings:
     timeout: float = 60.0
     thumbnails: bool = True
     dedupe: bool = False
-    dedupe_threshold: float = 0.012
+    dedupe_threshold: float = 1.0
     walls: str = "keep"
 
     def __post_init__(self) -> None:

@@ -706,12 +706,13 @@ def dedupe_catalogue(
     """Mark near duplicates among the accepted shapes: each gets ``duplicate_of`` = the key of the
     earliest (by run, index) shape it copies. Earlier marks on accepted shapes are recomputed, so
     a new threshold takes effect; exact duplicates rejected while sampling are left alone.
-    Raises :class:`CurationError` for a threshold outside (0, 1]."""
+    Raises :class:`CurationError` for a threshold outside (0, 100] (the distance is in units of
+    the descriptor's calibrated scales: 1 is the default)."""
     from surfgen.filters.descriptor import DEFAULT_THRESHOLD
 
     threshold = DEFAULT_THRESHOLD if threshold is None else float(threshold)
-    if not 0.0 < threshold <= 1.0:
-        raise CurationError(f"--threshold must be in (0, 1], got {threshold}")
+    if not 0.0 < threshold <= 100.0:
+        raise CurationError(f"--threshold must be in (0, 100], got {threshold}")
     descriptors, computed, missing = ensure_descriptors(cat, progress)
     marked = find_near_duplicates(descriptors, threshold)
     if not dry_run:
@@ -903,7 +904,7 @@ def dedupe_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
     threshold: Annotated[
         float | None,
-        typer.Option(help="Descriptor distance below which shapes are duplicates (default 0.012)."),
+        typer.Option(help="Descriptor distance below which shapes are duplicates (in units of the calibrated scales; default 1)."),
     ] = None,
     dry_run: Annotated[bool, typer.Option(help="Report, change nothing.")] = False,
 ) -> None:

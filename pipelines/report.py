@@ -391,7 +391,7 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
         [
             _card(_pct(s.get("free_standing", 0), accepted), "free-standing"),
             _card(_pct(s.get("symmetric", 0), accepted), "with a permutation symmetry"),
-            _card("–" if rate is None else f"{100 * rate:.1f}%", "nearest shape closer than 0.012"),
+            _card("–" if rate is None else f"{100 * rate:.1f}%", "near duplicates (nearest shape closer than 1)"),
             _card(s["drawn"], "draws"),
             _card(s["accepted"], "accepted"),
             _card(f"{100 * s['acceptance']:.0f}%", "acceptance"),

@@ -12,9 +12,9 @@ import pytest
 from surfgen.generator.equation13 import Equation13
 from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.families import pick_family
-from surfgen.generator.grid import Grid
-from surfgen.generator.sampler import SamplerConfig, choose_d, draw_equation
+from surfgen.generator.families import _feature_size, pick_family
+from surfgen.generator.grid import Box, Grid
+from surfgen.generator.sampler import LATTICE_PATTERNS, SamplerConfig, choose_d, draw_equation
 
 # sha256 (16 hex digits) of {"model", "box", "q"} of shapes 0..29 of seed 7, recorded from the
 # sampler before families existed: family = "free" must keep drawing exactly these models.
@@ -94,15 +94,94 @@ def test_lattices_are_periodic_patterns_cut_by_the_box() -> None:
     cfg = family("lattice")
     for i in range(6):
         draw = draw_equation(5, i, cfg)
-        assert draw.family == "lattice" and draw.structure["pattern"] in (
-            "schwarz",
-            "gyroid",
-            "product",
-        )
+        assert draw.family == "lattice" and draw.structure["pattern"] in LATTICE_PATTERNS
         d = choose_d(draw, cfg)
         assert d is not None
         values = evaluate(draw.equation.with_d(d).to_tree(), Grid(draw.box, (16,) * 3)).values
         assert (values < 0).any() and (values > 0).any()
+
+
+_TPMS = {  # the textbook formulas, in units of one period 2 pi
+    "diamond": lambda x, y, z: (
+        np.sin(x) * np.sin(y) * np.sin(z)
+        + np.sin(x) * np.cos(y) * np.cos(z)
+        + np.cos(x) * np.sin(y) * np.cos(z)
+        + np.cos(x) * np.cos(y) * np.sin(z)
+    ),
+    "neovius": lambda x, y, z, c: (
+        3 * (np.cos(x) + np.cos(y) + np.cos(z)) + c * np.cos(x) * np.cos(y) * np.cos(z)
+    ),
+    "iwp": lambda x, y, z: (
+        2 * (np.cos(x) * np.cos(y) + np.cos(y) * np.cos(z) + np.cos(z) * np.cos(x))
+        - (np.cos(2 * x) + np.cos(2 * y) + np.cos(2 * z))
+    ),
+}
+
+
+@pytest.mark.parametrize("pattern", sorted(_TPMS))
+def test_minimal_surface_lattices_are_the_textbook_formulas(pattern: str) -> None:
+    cfg = replace(
+        family("lattice"),
+        lattice_patterns=(pattern,),
+        lattice_pattern_weights=(1.0,),
+        lattice_constituent_prob=0.0,
+        lattice_anisotropy_prob=0.0,
+    )
+    for i in range(4):
+        draw = draw_equation(11, i, cfg)
+        grid = Grid(draw.box, (9,) * 3)
+        got = evaluate(draw.equation.to_tree(), grid, threads=1).values
+        wave = next(f for f in draw.equation.terms[0] if f.mus[0])  # the first H(w x_k)
+        w = next(t.a for t in wave.powers[2].terms)
+        x, y, z = (w * a for a in np.broadcast_arrays(*grid.open_axes()))
+        # H may be a sine or a cosine (a phase of the pattern): compare with both readings
+        if pattern == "diamond":
+            want = [_TPMS[pattern](x, y, z)]
+        else:
+            c = draw.equation.terms[-1][0].powers[0].terms[0].a  # neovius: the product's weight
+            args = (x, y, z, c)[: 4 if pattern == "neovius" else 3]
+            shift = [a - np.pi / 2 for a in args[:3]]
+            want = [_TPMS[pattern](*args), _TPMS[pattern](*shift, *args[3:])]
+            if pattern == "iwp":  # with sines: 2 sum sin sin + sum cos 2x
+                want.append(_TPMS[pattern](*shift) + 2 * sum(np.cos(2 * a) for a in args))
+        assert any(np.allclose(got, w, atol=1e-9) for w in want), pattern
+
+
+def test_anisotropic_lattices_scale_each_axis() -> None:
+    cfg = replace(family("lattice"), lattice_anisotropy_prob=1.0, lattice_constituent_prob=0.0)
+    draws = [draw_equation(3, i, cfg) for i in range(10)]
+    scales = [d.structure["axis_scales"] for d in draws]
+    assert all(0.6 <= s <= 1.6 for sc in scales for s in sc)
+    assert any(len(set(sc)) == 3 for sc in scales)
+    assert all(
+        d.structure["group"] == "none" for d in draws if len(set(d.structure["axis_scales"])) > 1
+    )
+
+
+def test_feature_size_measures_the_ornament_wavelength() -> None:
+    box = Box.cube(1.0)
+    n = 32
+    x, y, z = np.broadcast_arrays(*Grid(box, (n,) * 3).open_axes())
+    sphere = x**2 + y**2 + z**2 - 0.6**2
+    coarse = _feature_size(sphere, np.sin(3 * x), box)
+    fine = _feature_size(sphere, np.sin(12 * x), box)
+    assert fine < coarse / 2.5  # four times the frequency: a quarter of the size, roughly
+    assert _feature_size(sphere, np.ones_like(sphere), box) == 0.0  # constant: no features
+    assert _feature_size(sphere, np.full_like(sphere, np.nan), box) == 0.0
+
+
+def test_sculptures_redraw_fine_ornaments() -> None:
+    strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
+    loose = replace(strict, sculpture_min_feature=0.0)
+    kept = []
+    for i in range(12):
+        s = draw_equation(7, i, strict).structure["ornament"]
+        if "feature" in s:
+            assert 1 <= s["tries"] <= 6
+            assert s["feature"] >= 0.3 or s["tries"] == 6
+            kept.append(s["feature"])
+        assert draw_equation(7, i, loose).structure["ornament"].get("tries", 1) == 1
+    assert kept and np.mean(np.array(kept) >= 0.3) > 0.7
 
 
 def test_mix_weights_decide_the_share_of_each_family() -> None:

@@ -337,7 +337,7 @@ def test_cli_curation_writes_the_catalogue(cat_dir, keys, capsys) -> None:
             "error: --where: unknown field 'colour'",
         ),
         (("catalogue", "list", "--sort", "colour"), "error: --sort: unknown field 'colour'"),
-        (("catalogue", "dedupe", "--threshold", "2"), "error: --threshold must be in (0, 1]"),
+        (("catalogue", "dedupe", "--threshold", "200"), "error: --threshold must be in (0, 100]"),
     ],
 )
 def test_cli_errors_are_one_line(cat_dir, keys, capsys, args, fragment) -> None:
