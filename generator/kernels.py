@@ -602,7 +602,9 @@ def _block(
             stores,
             consts,
             sx,
+            sy,
             sz,
+            sxy,
             sxz,
             syz,
             out,
@@ -701,7 +703,9 @@ def _block_rows(
     stores,
     consts,
     sx,
+    sy,
     sz,
+    sxy,
     sxz,
     syz,
     out,
@@ -711,7 +715,8 @@ def _block_rows(
     prof,
 ):
     """A block along z (yz or xyz) in tiles of up to m whole rows j (see :func:`_block`): its
-    scalar loads are constants or x values, the same for every j."""
+    scalar loads are constants or x values, the same for every j; y and xy values enter as
+    vector loads (kinds 2 and 3, one value per row j: fast.rows_program rewrites a program so)."""
     for q in range(l0, l1):
         if loads[q, 3] == 0:
             if loads[q, 0] == 0:
@@ -732,6 +737,16 @@ def _block_rows(
                     for r in range(rows):
                         for k in range(nrun):
                             W[slot, r * nrun + k] = syz[row, j + r, k]
+                elif kind == 2:
+                    for r in range(rows):
+                        v = sy[row, j + r]
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = v
+                elif kind == 3:
+                    for r in range(rows):
+                        v = sxy[row, j + r]
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = v
                 elif kind == 5:
                     for r in range(rows):
                         for k in range(nrun):
