@@ -281,8 +281,15 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, feature, tries = _coarse_ornament(
-        rng, cfg, envelope if extent is not None else None, box, perms, mirror, k
+    ornament, freq, products, unit, feature, stray, tries = _coarse_ornament(
+        rng,
+        cfg,
+        envelope if extent is not None else None,
+        box,
+        perms,
+        mirror,
+        k,
+        depth * (extent or 0.0),
     )
     structure: dict[str, Any] = {
         "envelope": env_info,
@@ -292,7 +299,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     }
     structure["ornament"].update(frequency=freq, depth=depth)
     if feature is not None:
-        structure["ornament"].update(feature=round(feature, 4), tries=tries)
+        structure["ornament"].update(feature=round(feature, 4), stray=round(stray, 4), tries=tries)
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
         return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
     strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
@@ -301,27 +308,62 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
 
 
-def _coarse_ornament(rng, cfg: SamplerConfig, envelope: Expr | None, box: Box, perms, mirror, k):
-    """Draw ornaments until one's features are at least ``sculpture_min_feature`` of the box
-    (at most ``sculpture_ornament_tries``; else the coarsest drawn): finer ones carve noise
-    and debris, which the filters reject or the eye calls a rough ball (README, Families).
-    Returns the ornament, its frequency, the expanded products, their sum as a tree, its
-    feature size (None without an envelope) and the number of ornaments drawn."""
+def _coarse_ornament(
+    rng, cfg: SamplerConfig, envelope: Expr | None, box: Box, perms, mirror, k, depth: float
+):
+    """Draw ornaments until one carves cleanly: features at least ``sculpture_min_feature`` of
+    the box, and at most ``sculpture_max_stray`` of its surface far from the envelope (at most ``sculpture_ornament_tries``; else
+    the best drawn). Finer ornaments carve noise, and ornaments that outgrow the envelope away
+    from its surface throw debris: the filters reject both, or the eye calls them rough balls
+    (README, Families). Returns the ornament, its frequency, the expanded products, their sum
+    as a tree, its feature size and stray share (None without an envelope) and the number of
+    ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
-    best = None
+    best, best_score = None, -math.inf
     for tries in range(1, cfg.sculpture_ornament_tries + 1):
         ornament, freq = _draw_ornament(rng, cfg)
         products = _ornament_terms(ornament, perms, mirror, k)
         unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, tries
-        feature = _feature_size(e, _eval(unit, box, FEATURE_GRID), box)
-        if best is None or feature > best[4]:
-            best = (ornament, freq, products, unit, feature)
-        if feature >= cfg.sculpture_min_feature:
+            return ornament, freq, products, unit, None, None, tries
+        o = _eval(unit, box, FEATURE_GRID)
+        feature = _feature_size(e, o, box)
+        stray = _stray_share(e, o, box, depth)
+        clean = feature >= cfg.sculpture_min_feature and stray <= cfg.sculpture_max_stray
+        score = min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0) - stray
+        if best is None or score > best_score:
+            best, best_score = (ornament, freq, products, unit, feature, stray), score
+        if clean:
             break
     assert best is not None
     return (*best, tries)
+
+
+def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
+    """The share of the carved surface's crossings (on the feature grid, strength and d as
+    :func:`_strength` sets them) that lie farther from the envelope's surface than twice the
+    carving depth plus two cells: debris thrown away from the body. 1 when it cannot tell."""
+    n = e.shape[0]
+    step = (box.hi[0] - box.lo[0]) / (n - 1)
+    s, d = _strength_on(e, o, step, depth)
+    if d is None:
+        return 1.0
+    with np.errstate(invalid="ignore", over="ignore"):
+        f = e + s * o - d
+        ge = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
+        distance = np.abs(e) / np.where(ge > 0, ge, np.inf)
+    inside = f < 0
+    crossing = np.zeros_like(inside)
+    for axis in range(3):
+        change = np.diff(inside, axis=axis)
+        lo = [slice(None)] * 3
+        lo[axis] = slice(0, -1)
+        crossing[tuple(lo)] |= change
+    count = np.count_nonzero(crossing)
+    if count == 0:
+        return 1.0
+    far = crossing & ~(distance <= 2 * depth + 2 * step)
+    return np.count_nonzero(far) / count
 
 
 def _feature_size(e: np.ndarray, o: np.ndarray, box: Box) -> float:
@@ -359,11 +401,18 @@ def _strength(
 ) -> tuple[float, float | None]:
     """The ornament's strength s that moves the envelope's surface by about ``depth`` where
     the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
-    there. d is None when the ornament is constant or non-finite near the surface."""
-    e = _eval(envelope, box, n)
-    o = _eval(ornament, box, n)
+    there, on an ``n``-cube of the box. d is None when the ornament is constant or non-finite
+    near the surface."""
     step = (box.hi[0] - box.lo[0]) / (n - 1)
-    grad = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
+    return _strength_on(_eval(envelope, box, n), _eval(ornament, box, n), step, depth)
+
+
+def _strength_on(
+    e: np.ndarray, o: np.ndarray, step: float, depth: float
+) -> tuple[float, float | None]:
+    """:func:`_strength` on sampled envelope ``e`` and ornament ``o`` (grid step ``step``)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        grad = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
     if np.count_nonzero(band) < 16:

@@ -100,11 +100,11 @@ class SamplerConfig:
     mix: tuple[str, ...] = ("sculpture", "lattice", "free")
     mix_weights: tuple[float, ...] = (0.8, 0.08, 0.12)
     sculpture_envelopes: tuple[str, ...] = SCULPTURE_ENVELOPES
-    sculpture_envelope_weights: tuple[float, ...] = (0.6, 0.2, 0.2)
+    sculpture_envelope_weights: tuple[float, ...] = (0.45, 0.25, 0.3)
     sculpture_exponent: tuple[float, float] = (1.6, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
     sculpture_stretch_prob: float = 0.15  # one axis of the envelope stretched (breaks symmetry)
     sculpture_groups: tuple[str, ...] = SCULPTURE_GROUPS
-    sculpture_group_weights: tuple[float, ...] = (0.1, 0.15, 0.25, 0.2, 0.15, 0.15)
+    sculpture_group_weights: tuple[float, ...] = (0.15, 0.2, 0.2, 0.2, 0.1, 0.15)
     sculpture_powers: tuple[int, ...] = (1, 2, 3)  # outer power k of the ornament sum
     sculpture_power_weights: tuple[float, ...] = (0.6, 0.25, 0.15)
     sculpture_depth: tuple[float, float] = (0.1, 0.4)  # carving depth / envelope radius
@@ -114,7 +114,8 @@ class SamplerConfig:
     sculpture_omit_element_prob: float = 0.55
     sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
     sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
-    sculpture_ornament_tries: int = 6  # ornaments drawn until one is coarse enough
+    sculpture_max_stray: float = 0.02  # share of the carved surface far from the envelope
+    sculpture_ornament_tries: int = 6  # ornaments drawn until one carves cleanly
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
     lattice_pattern_weights: tuple[float, ...] = (0.15, 0.2, 0.15, 0.2, 0.15, 0.15)
     lattice_periods: tuple[float, float] = (1.0, 2.5)  # periods across the box
@@ -161,6 +162,7 @@ class SamplerConfig:
             "lattice_anisotropy_prob",
         )
         require_fractions(self, probabilities, "sampler", "a probability")
+        require_fractions(self, ("sculpture_max_stray",), "sampler", "a share")
         ranges = (
             "exponent_real",
             "constituent_r",

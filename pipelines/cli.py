@@ -334,8 +334,12 @@ def sample(
         bool, typer.Option(help="Continue the run with the same seed, grid and config.")
     ] = False,
     dedupe: Annotated[
-        bool, typer.Option(help="Reject near duplicates of accepted shapes on the fly.")
-    ] = False,
+        bool | None,
+        typer.Option(
+            "--dedupe/--no-dedupe",
+            help="Reject near duplicates of accepted shapes on the fly (default: [run] dedupe, on).",
+        ),
+    ] = None,
     thumbnails: Annotated[
         bool,
         typer.Option(
@@ -387,8 +391,8 @@ def sample(
     cfg = load_config(config).with_grid(grid)
     if family is not None:
         cfg = cfg.with_family(family)
-    if dedupe:
-        cfg = cfg.with_run(dedupe=True)
+    if dedupe is not None:
+        cfg = cfg.with_run(dedupe=dedupe)
     if not thumbnails:
         cfg = cfg.with_run(thumbnails=False)
     columns = (

@@ -34,7 +34,7 @@ class RunSettings:
     cap: bool = True
     timeout: float = 60.0
     thumbnails: bool = True
-    dedupe: bool = False
+    dedupe: bool = True
     dedupe_threshold: float = 1.0
     walls: str = "keep"
 

@@ -399,8 +399,8 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
             _card(s["distinct_genus_components"], "distinct (genus, components)"),
             _card(f"{s['genus_entropy_bits']:.2f}", "genus entropy (bits)"),
             _card("–" if near is None else f"{near:.3f}", "median nearest-shape distance"),
-            _card(s["near_duplicates"], "near duplicates"),
-            _card(s["exact_duplicates"], "exact duplicates"),
+            _card(s["near_duplicates"], "near duplicates marked (catalogue dedupe)"),
+            _card(s["exact_duplicates"], "duplicates rejected while sampling (exact or near)"),
             _card(s["user_rejected"], "rejected by curators"),
             _card(sum(n for k, n in s["stars"].items() if k), "starred"),
         ]

@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from surfgen.filters.descriptor import (
+    DescriptorSet,
     descriptor,
-    descriptor_distances,
     descriptor_from_text,
     descriptor_to_text,
 )
@@ -484,7 +484,10 @@ def _drive(
     stage: Counter[str] = Counter()
     staging = cat.root / ".staging"
     buffer: dict[int, Any] = {}
-    known = ensure_descriptors(cat)[0] if config.run.dedupe else {}
+    known = DescriptorSet()
+    if config.run.dedupe:
+        for key, values in ensure_descriptors(cat)[0].items():
+            known.add(key, values)
 
     def tasks():
         i = next_index
@@ -513,7 +516,7 @@ def _drive(
                     outcome = _rejected(outcome, ("duplicate",))
                     outcome.row["duplicate_of"] = dup
                 elif config.run.dedupe:
-                    known[outcome.row["key"]] = descriptor_from_text(outcome.row["descriptor"])
+                    known.add(outcome.row["key"], descriptor_from_text(outcome.row["descriptor"]))
             _commit(cat, run_id, outcome, counts)
             accepted += int(outcome.verdict.accepted)
             for k, v in json.loads(outcome.row.get("timings", "{}")).items():
@@ -538,18 +541,10 @@ def _stop_writing(error: str, index: int, accepted: int) -> None:
     )
 
 
-def _near_duplicate(
-    outcome: ShapeOutcome, known: dict[str, np.ndarray], threshold: float
-) -> str | None:
-    """The key of the first accepted shape whose descriptor is within ``threshold``, if any."""
-    if not known:
-        return None
-    keys = list(known)
-    dist = descriptor_distances(
-        descriptor_from_text(outcome.row["descriptor"]), np.stack(list(known.values()))
-    )
-    j = int(np.argmin(dist))
-    return keys[j] if dist[j] < threshold else None
+def _near_duplicate(outcome: ShapeOutcome, known: DescriptorSet, threshold: float) -> str | None:
+    """The key of the accepted shape nearest to this one if it is within ``threshold``."""
+    key, dist = known.nearest(descriptor_from_text(outcome.row["descriptor"]))
+    return key if dist < threshold else None
 
 
 def _rejected(outcome: ShapeOutcome, reasons: tuple[str, ...]) -> ShapeOutcome:

@@ -12,7 +12,7 @@ import pytest
 from surfgen.generator.equation13 import Equation13
 from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.families import _feature_size, pick_family
+from surfgen.generator.families import _feature_size, _stray_share, pick_family
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.sampler import LATTICE_PATTERNS, SamplerConfig, choose_d, draw_equation
 
@@ -170,9 +170,20 @@ def test_feature_size_measures_the_ornament_wavelength() -> None:
     assert _feature_size(sphere, np.full_like(sphere, np.nan), box) == 0.0
 
 
+def test_stray_share_sees_debris_away_from_the_envelope() -> None:
+    box = Box.cube(1.5)
+    x, y, z = np.broadcast_arrays(*Grid(box, (32,) * 3).open_axes())
+    sphere = x**2 + y**2 + z**2 - 1.0
+    carving = np.sin(3 * x) * np.sin(3 * y)  # bounded: the surface stays near the envelope
+    debris = np.sin(3 * x) * np.sin(3 * y) * np.exp(2.5 * (x**2 + y**2 + z**2))  # outgrows it
+    assert _stray_share(sphere, carving, box, 0.2) < 0.02
+    assert _stray_share(sphere, debris, box, 0.2) > 0.1
+    assert _stray_share(sphere, np.ones_like(sphere), box, 0.2) == 1.0  # cannot tell
+
+
 def test_sculptures_redraw_fine_ornaments() -> None:
     strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
-    loose = replace(strict, sculpture_min_feature=0.0)
+    loose = replace(strict, sculpture_min_feature=0.0, sculpture_max_stray=1.0)
     kept = []
     for i in range(12):
         s = draw_equation(7, i, strict).structure["ornament"]
