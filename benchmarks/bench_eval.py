@@ -209,27 +209,41 @@ def compare(a: np.ndarray, b: np.ndarray) -> tuple[float, bool]:
     return (float(rel.max()) if rel.size else 0.0), same
 
 
+def interleaved(fns: dict, repeats: int) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """Best time of each function over ``repeats`` rounds, the functions taking turns in every
+    round: on a shared machine a burst of load then hits all candidates alike instead of
+    whichever happened to be timed at that moment (the ratios are what this script reports)."""
+    best = dict.fromkeys(fns, float("inf"))
+    outs: dict[str, np.ndarray] = {}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            outs[name] = fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    return best, outs
+
+
 def run_case(case: Case, repeats: int) -> Row:
     grid = Grid(case.box, (case.n,) * 3)
     program = compile_tree(case.tree, case.params)
-    t1, fast = best_time(lambda: evaluate_program(program, grid, threads=1).values, repeats)
-    t2, _ = best_time(lambda: evaluate_program(program, grid, threads=2).values, repeats)
-    tr, ref = best_time(
-        lambda: evaluate_reference(case.tree, grid, case.params, maths="numpy").values, repeats
-    )
+    fns = {
+        "fast1": lambda: evaluate_program(program, grid, threads=1).values,
+        "fast2": lambda: evaluate_program(program, grid, threads=2).values,
+        "ref": lambda: evaluate_reference(case.tree, grid, case.params, maths="numpy").values,
+    }
+    if case.n <= DENSE_MAX_N:  # the dense baseline keeps every node's full array: small grids only
+        ax = np.meshgrid(*grid.axes(), indexing="ij", copy=True)
+        fns["dense"] = lambda: evaluate_points(case.tree, *ax, case.params, maths="numpy")
+    times, outs = interleaved(fns, repeats)
+    t1, t2, tr = times["fast1"], times["fast2"], times["ref"]
+    fast, ref = outs["fast1"], outs["ref"]
     maxrel, same = compare(fast, ref)
     own = evaluate_reference(case.tree, grid, case.params).values
     exact = bool(
         ((fast.view(np.int64) == own.view(np.int64)) | (np.isnan(fast) & np.isnan(own))).all()
     )
     pts = grid.size
-    dense = None
-    if case.n <= DENSE_MAX_N:  # the dense baseline keeps every node's full array: small grids only
-        ax = np.meshgrid(*grid.axes(), indexing="ij", copy=True)
-        td, _ = best_time(
-            lambda: evaluate_points(case.tree, *ax, case.params, maths="numpy"), repeats
-        )
-        dense = pts / td
+    dense = pts / times["dense"] if "dense" in times else None
     return Row(
         case.name,
         case.n,

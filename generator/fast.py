@@ -34,7 +34,7 @@ numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 log = logging.getLogger(__name__)
 
-TILE_MAX = 256  # points per W row: n_vector rows of this stay in L1/L2
+TILE_MAX = 512  # points per W row (several z rows when nz <= 256): n_vector rows stay in L2
 CHUNKS_PER_THREAD = 4  # slabs per thread, for load balance when threads are shared
 COMPILED_CACHE = 64  # programs kept by evaluate_fast, keyed by (tree, params)
 
@@ -71,8 +71,8 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
     n_threads = _resolve_threads(threads)
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
-    prog = _prog(program)
     tile = _tile(grid.shape[2])  # rows along z; x and y runs are cut to the same length
+    prog = _prog(program, tile >= 2 * grid.shape[2])
     if n_threads == 1:
         kernels.run_serial(prog, tile, ax, ay, az, out, _NO_PROFILE)
     else:
@@ -108,7 +108,11 @@ def _resolve_threads(threads: int | None) -> int:
 
 
 def _tile(n: int) -> int:
-    """Tile length for runs of up to n points: at most TILE_MAX, equal chunks."""
+    """Tile length for runs of up to n points along z: at most TILE_MAX, equal chunks; for
+    short runs (n <= TILE_MAX/2) as many whole runs as fit, which the yz and xyz blocks fill
+    with several rows j at once (fewer dispatches per point; see kernels._block)."""
+    if 0 < n <= TILE_MAX // 2:
+        return (TILE_MAX // n) * n
     pieces = math.ceil(n / TILE_MAX)
     return max(1, math.ceil(n / pieces))
 
@@ -120,11 +124,17 @@ def scratch_bytes(program: Program, grid: Grid, threads: int = 1) -> int:
     r = program.rows
     tile = _tile(nz)
     shared = r[1] * nx + r[2] * ny + r[4] * nz + r[6] * ny * nz
-    per_thread = (program.n_vector + 2) * tile + program.n_scalar + r[3] * ny + r[5] * nz
+    per_thread = (
+        (_prog(program, tile >= 2 * nz)[6] + 2) * tile + program.n_scalar + r[3] * ny + r[5] * nz
+    )
     return int(8 * (shared + max(1, threads) * per_thread))
 
 
-def _prog(program: Program) -> tuple:
+def _prog(program: Program, rows: bool = False) -> tuple:
+    """The tuple the kernels take; ``rows``: the program rewritten for tiles of several rows j
+    (:func:`rows_program`)."""
+    if rows:
+        return rows_program(program)
     return (
         program.code,
         program.blocks,
@@ -133,6 +143,54 @@ def _prog(program: Program) -> tuple:
         program.consts,
         program.rows,
         program.n_vector,
+        program.n_scalar,
+    )
+
+
+@functools.lru_cache(maxsize=COMPILED_CACHE)
+def rows_program(program: Program) -> tuple:
+    """The kernels' tuple of ``program`` for tiles of several rows j (kernels._block_rows).
+
+    In the yz and xyz blocks a y or xy value is one scalar per row j, loaded into an S slot; a
+    tile of several rows needs it as a vector instead. Each such load becomes a W row filled
+    per row j (load kinds 2 and 3 with vector = 1), and the instructions that read the slot read
+    that row: ``op(W, S)`` -> ``op(W, W)`` and ``op(S, W)`` -> ``op(W, W)`` with the operands in
+    the same order, ``W = S`` -> a copy. Every operation computes the same function of the same
+    values elementwise (the row functions and scalar ones share their code), so the bits are
+    those of the original program. A block that is a single copy (a broadcast root) is kept.
+    """
+    code = program.code.copy()
+    loads = program.loads.copy()
+    nv = program.n_vector
+    for lv in (6, 7):
+        c0, c1, l0, l1 = (int(v) for v in program.blocks[lv, :4])
+        if c1 - c0 == 1 and code[c0, 0] == OP["copy"]:
+            continue
+        slot_row: dict[int, int] = {}
+        for q in range(l0, l1):
+            kind, row, slot, vec = (int(v) for v in loads[q])
+            if vec == 0 and kind in (2, 3):
+                slot_row[slot] = nv
+                loads[q] = (kind, row, nv, 1)
+                nv += 1
+        for pc in range(c0, c1):
+            mode, a, b = int(code[pc, 1]), int(code[pc, 3]), int(code[pc, 4])
+            if mode == M_VS and b in slot_row:
+                code[pc, 1], code[pc, 4] = M_VV, slot_row[b]
+            elif mode == M_SV and a in slot_row:
+                code[pc, 1], code[pc, 3] = M_VV, slot_row[a]
+            elif mode == M_S and a in slot_row:
+                code[pc] = (OP["copy"], M_V, code[pc, 2], slot_row[a], 0, 0)
+    for a in (code, loads):
+        a.flags.writeable = False
+    return (
+        code,
+        program.blocks,
+        loads,
+        program.stores,
+        program.consts,
+        program.rows,
+        nv,
         program.n_scalar,
     )
 
@@ -146,7 +204,8 @@ def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
     prof = np.zeros(len(program.code))
-    kernels.run_serial(_prog(program), _tile(grid.shape[2]), ax, ay, az, out, prof)
+    tile = _tile(grid.shape[2])
+    kernels.run_serial(_prog(program, tile >= 2 * grid.shape[2]), tile, ax, ay, az, out, prof)
     return Field(grid, out), prof
 
 

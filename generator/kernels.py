@@ -575,6 +575,45 @@ def _block(
     # A root of a lower level (a formula of one or two variables): the output is a broadcast,
     # written straight from its source instead of through the register file.
     broadcast = lv == 7 and c1 - c0 == 1 and code[c0, 0] == OP_COPY
+    # Rows of several j per tile when a run is short (nrun <= tile/2) and no scalar load varies
+    # with j (y or xy values): the code then runs on m*nrun points per dispatch, and the per-op
+    # cost of the interpreter is paid once per m rows. Every operation is elementwise, so the
+    # values (and bits) are those of a row at a time.
+    m = tile // nrun if (lv == 6 or lv == 7) and nrun > 0 else 1
+    if m > 1:
+        for q in range(l0, l1):
+            if loads[q, 3] == 0 and (loads[q, 0] == 2 or loads[q, 0] == 3):
+                m = 1
+    if m > 1 and not broadcast:
+        _block_rows(
+            m,
+            i,
+            j0,
+            j1,
+            nrun,
+            code,
+            c0,
+            c1,
+            l0,
+            l1,
+            s0,
+            s1,
+            loads,
+            stores,
+            consts,
+            sx,
+            sy,
+            sz,
+            sxy,
+            sxz,
+            syz,
+            out,
+            W,
+            S,
+            T,
+            prof,
+        )
+        return
     for j in range(j0, j1):
         for q in range(l0, l1):
             if loads[q, 3] == 0:
@@ -644,6 +683,92 @@ def _block(
                     for k in range(n):
                         sx[row, r0 + k] = W[slot, k]
             r0 += n
+
+
+@njit(**_OPTS)
+def _block_rows(
+    m,
+    i,
+    j0,
+    j1,
+    nrun,
+    code,
+    c0,
+    c1,
+    l0,
+    l1,
+    s0,
+    s1,
+    loads,
+    stores,
+    consts,
+    sx,
+    sy,
+    sz,
+    sxy,
+    sxz,
+    syz,
+    out,
+    W,
+    S,
+    T,
+    prof,
+):
+    """A block along z (yz or xyz) in tiles of up to m whole rows j (see :func:`_block`): its
+    scalar loads are constants or x values, the same for every j; y and xy values enter as
+    vector loads (kinds 2 and 3, one value per row j: fast.rows_program rewrites a program so)."""
+    for q in range(l0, l1):
+        if loads[q, 3] == 0:
+            if loads[q, 0] == 0:
+                S[loads[q, 2]] = consts[loads[q, 1]]
+            else:
+                S[loads[q, 2]] = sx[loads[q, 1], i]
+    j = j0
+    while j < j1:
+        rows = min(m, j1 - j)
+        n = rows * nrun
+        for q in range(l0, l1):
+            vec = loads[q, 3]
+            if vec == 1 or (vec == 2 and j == j0):
+                kind = loads[q, 0]
+                row = loads[q, 1]
+                slot = loads[q, 2]
+                if kind == 6:
+                    for r in range(rows):
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = syz[row, j + r, k]
+                elif kind == 2:
+                    for r in range(rows):
+                        v = sy[row, j + r]
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = v
+                elif kind == 3:
+                    for r in range(rows):
+                        v = sxy[row, j + r]
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = v
+                elif kind == 5:
+                    for r in range(rows):
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = sxz[row, k]
+                else:  # z (the only other vector load of a block along z)
+                    for r in range(rows):
+                        for k in range(nrun):
+                            W[slot, r * nrun + k] = sz[row, k]
+        _exec(code, c0, c1, consts, W, S, T, n, prof)
+        for q in range(s0, s1):
+            slot = stores[q, 0]
+            kind = stores[q, 1]
+            row = stores[q, 2]
+            if kind == 7:
+                for r in range(rows):
+                    for k in range(nrun):
+                        out[i, j + r, k] = W[slot, r * nrun + k]
+            else:  # the yz store
+                for r in range(rows):
+                    for k in range(nrun):
+                        syz[row, j + r, k] = W[slot, r * nrun + k]
+        j += rows
 
 
 @njit(**_OPTS)

@@ -30,9 +30,10 @@ published kernel structure, Muller's "Elementary Functions"; the code is our own
 * sin, cos on ``|y| <= pi/4``: odd/even minimax polynomials (degree 6 in ``z = y*y``), the
   leading term kept exact (``1 - z/2`` as a double-double); both are computed and the
   quadrant selects.
-* tan: ``y`` in ``|y| <= pi/8``, ``T = tan(y)`` (degree 10 in z) as a double-double and
-  ``tan(x) = (a + b*T) / (c + d*T)`` with (a, b, c, d) chosen by ``n mod 4`` — i.e. ``T``,
-  ``(1+T)/(1-T)``, ``-1/T``, ``(T-1)/(T+1)`` — divided as double-doubles.
+* tan: ``y`` in ``|y| <= pi/8``, ``T = tan(y)`` (degree 10 in z, Estrin's scheme) as a
+  double-double and ``tan(x) = (a + b*T) / (c + d*T)`` with (a, b, c, d) chosen by ``n mod 4``
+  — i.e. ``T``, ``(1+T)/(1-T)``, ``-1/T``, ``(T-1)/(T+1)`` — divided as double-doubles with
+  one division (a quotient cut to 26 bits makes the remainder exact without an exact product).
 * asin, acos: ``|x| <= 1/2`` polynomial in ``x*x`` (degree 13); above,
   ``asin(x) = pi/2 - 2*asin(sqrt((1-x)/2))`` with the square root as a double-double; the
   same polynomial serves both (select the argument, evaluate once).
@@ -396,36 +397,41 @@ def _cos_finish(q, yh, yl):
 
 @_dual(inline=True)
 def _tan_finish(q, yh, yl):
-    """tan(q*pi/4 + y) for q = n mod 4, |y| <= ~pi/8, via (a + b*T)/(c + d*T)."""
+    """tan(q*pi/4 + y) for q = n mod 4, |y| <= ~pi/8, via (a + b*T)/(c + d*T).
+
+    Cost matters here (tan led the interpreter's profile): the polynomial is evaluated by
+    Estrin's scheme (short dependency chains, so the vectorised loop is not latency-bound), the
+    numerator and denominator are exact sums by Dekker's fast two-sum (``|b*T| <= tan(pi/8) <
+    1 = |a|`` or ``a = 0``), and the double-double quotient takes one division: ``t`` = the
+    quotient cut to 26 bits, ``zd`` = the denominator cut to 26 bits, so ``t*zd`` is exact and
+    ``nh - t*zd`` exact by Sterbenz; the remainder divided by ``dh`` corrects ``t``.
+    """
     z = yh * yh
-    p = _T0 + z * (
-        _T1
-        + z
-        * (
-            _T2
-            + z
-            * (
-                _T3
-                + z * (_T4 + z * (_T5 + z * (_T6 + z * (_T7 + z * (_T8 + z * (_T9 + z * _T10))))))
-            )
-        )
-    )
+    z2 = z * z
+    z4 = z2 * z2
+    z8 = z4 * z4
+    f0 = (_T0 + z * _T1) + z2 * (_T2 + z * _T3)
+    f1 = (_T4 + z * _T5) + z2 * (_T6 + z * _T7)
+    f2 = (_T8 + z * _T9) + z2 * _T10
+    p = (f0 + z4 * f1) + z8 * f2
     corr = (yh * z) * p + (yl + yl * z)  # tan' = 1 + tan^2 ~ 1 + z
     th, tl = _fast_two_sum(yh, corr)
-    # q: 0 -> T/1, 1 -> (1+T)/(1-T), 2 -> -1/T, 3 -> (T-1)/(1+T)
+    # q: 0 -> T/1, 1 -> (1+T)/(1-T), 2 -> -1/T, 3 -> (T-1)/(1+T); c = b
     a = _where(q == 0.0, 0.0, _where(q == 1.0, 1.0, -1.0))
     b = _where(q == 2.0, 0.0, 1.0)
-    c = _where(q == 2.0, 0.0, 1.0)
     d = _where(q == 0.0, 0.0, _where(q == 1.0, -1.0, 1.0))
-    nh, nl = _two_sum(a, b * th)
+    nh, nl = _fast_two_sum(a, b * th)
     nl = nl + b * tl
-    dh, dl = _two_sum(c, d * th)
+    dh, dl = _fast_two_sum(b, d * th)
     dl = dl + d * tl
     inv = 1.0 / dh
     qh = nh * inv
-    ph, pl = _two_prod(qh, dh)
-    r = (((nh - ph) - pl) + nl) - qh * dl
-    return qh + r * inv
+    cq = _SPLIT * qh
+    t = cq - (cq - qh)  # qh to 26 bits
+    cd = _SPLIT * dh
+    zd = cd - (cd - dh)  # dh to 26 bits: t * zd is exact
+    r = ((nh - t * zd) - t * (dh - zd)) + (nl - t * dl)
+    return t + r * inv
 
 
 @_dual(inline=True)

@@ -445,3 +445,19 @@ def test_polynomial_fit_errors(coeffs: str, g, zmax) -> None:
             for a in reversed(c):
                 p = p * z + a
             assert abs(p / g(y) - 1) < mp.mpf(2) ** -52
+
+
+def test_tan_row_vectorises_without_fused_multiply_add() -> None:
+    """tan, the costliest row of the interpreter's profile: its loop runs on packed doubles,
+    and LLVM contracts no multiply-add (the numpy twin rounds every product)."""
+    import re
+
+    from surfgen.generator import NO_VECTORIZE
+
+    fresh = njit(error_model="numpy")(T.tan_row.py_func)  # cached functions show no code
+    W = np.zeros((2, 16))
+    fresh(W, 1, 0, 16)
+    asm = "\n".join(fresh.inspect_asm().values())
+    packed = re.search(r"\bv(mul|div)pd\s+[^\n]*[yz]mm", asm)
+    assert bool(packed) != NO_VECTORIZE, "vectorised iff SURFGEN_NO_VECTORIZE is unset"
+    assert not re.search(r"\bv?f(n)?m(add|sub)\d", asm), "FMA in tan_row"

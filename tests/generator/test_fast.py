@@ -451,3 +451,46 @@ def test_the_conditioning_bound_compares_most_points_and_catches_errors(monkeypa
     monkeypatch.setitem(E.UFUNCS, "tan", lambda u: np.tan(u) * (1 + 1e-9))
     with pytest.raises(AssertionError, match="beyond the bound"):
         compare_with_numpy_ufuncs(parse("tan(x*y-z)*(y+3)"), GRID)
+
+
+# ----------------------------------------------------------------------------- tiles
+
+
+@pytest.mark.parametrize("tile_max", [4, 8, 24, 512])
+@pytest.mark.parametrize(
+    "formula",
+    [
+        "tan(x*z+y*z)+atan(x-z)*abs(y*z)^1.5",  # no y or xy scalar in the per-point block
+        "sin(x*y)*z+cos(y)*z^2+atan2(x*y,z)+(x*y)^z",  # y and xy scalars: rewritten to W rows
+    ],
+)
+def test_tiles_of_several_rows_give_the_same_bits(monkeypatch, tile_max, formula):
+    # Short z runs are packed several rows j to a tile (kernels._block_rows, with y and xy
+    # scalars turned into rows by fast.rows_program); runs longer than the tile are cut into
+    # chunks; every way must give the reference's values bit for bit, on 1 and 2 threads.
+    from surfgen.generator import fast
+    from surfgen.generator.compiler import M_S, M_SV, M_VS
+
+    monkeypatch.setattr(fast, "TILE_MAX", tile_max)
+    tree = parse(formula)
+    program = compile_tree(tree)
+    l0, l1 = program.blocks[7, 2:4]
+    per_j = [slot for k, _, slot, v in program.loads[l0:l1] if v == 0 and k in (2, 3)]
+    assert bool(per_j) == ("sin" in formula)
+    code, _, loads, _, _, _, n_vector, _ = fast.rows_program(program)
+    rewritten = [
+        q for lv in (6, 7) for q in range(*program.blocks[lv, 2:4]) if program.loads[q, 3] == 0
+    ]
+    rewritten = [q for q in rewritten if program.loads[q, 0] in (2, 3)]
+    assert n_vector == program.n_vector + len(rewritten)
+    assert not [s for k, _, s, v in loads[l0:l1] if v == 0 and k in (2, 3)]
+    c0, c1 = program.blocks[7, :2]
+    for _, mode, _, a, b, _ in code[c0:c1]:  # no instruction reads a per-row scalar any more
+        assert not (mode == M_VS and b in per_j)
+        assert not (mode in (M_SV, M_S) and a in per_j)
+    for shape in ((5, 7, 4), (4, 9, 10), (4, 5, 26)):
+        grid = Grid(Box.cube(2.0), shape)
+        want = evaluate_reference(tree, grid).values
+        for threads in (1, 2):
+            got = evaluate_program(program, grid, threads=threads).values
+            assert_identical(got, want, f"{formula} {shape} tile<={tile_max} {threads}T")
