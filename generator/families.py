@@ -314,8 +314,15 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
 
 
 def _coarse_ornament(
-    rng, cfg: SamplerConfig, envelope: Expr | None, box: Box, perms, mirror, k, depth: float
-):
+    rng: np.random.Generator,
+    cfg: SamplerConfig,
+    envelope: Expr | None,
+    box: Box,
+    perms: tuple[tuple[int, ...], ...],
+    mirror: bool,
+    k: int,
+    depth: float,
+) -> tuple[Factor, float, list, Expr, float | None, float | None, float | None, int]:
     """Draw ornaments until one carves cleanly: features at least ``sculpture_min_feature`` of
     the box, and at most ``sculpture_max_stray`` of its surface far from the envelope (at most ``sculpture_ornament_tries``; else
     the best drawn). Finer ornaments carve noise, and ornaments that outgrow the envelope away
