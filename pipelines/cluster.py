@@ -118,7 +118,11 @@ class DaskPool:
         """One result per task, in completion order; ``tasks`` is pulled a chunk at a time."""
         distributed = _load_distributed()
         it = iter(tasks)
-        done = distributed.as_completed()
+        # Bound to this pool's client: by default as_completed takes the process's default
+        # client, whose event loop may be another one (a second Client in the same process),
+        # and a future that a killed worker sends back to "pending" then fails to wait
+        # ("Event ... is bound to a different event loop"; dask/distributed#4317).
+        done = distributed.as_completed(loop=self.client.loop)
         pending: dict[Any, list[Any]] = {}
         window: deque[tuple[Any, list[Any]]] = deque()  # submitted chunks, oldest first
         finished: set[Any] = set()
