@@ -174,3 +174,26 @@ def cat_dir(template, tmp_path):
     root = tmp_path / "cat"
     shutil.copytree(template[0], root)
     return root
+
+
+@pytest.hookimpl(trylast=True)  # after -k/-m deselection: only tests that will run
+def pytest_collection_modifyitems(config, items) -> None:
+    """Start the slow background parts of the selected tests now (a test module's
+    ``start_in_background``, for the tests it names in ``BACKGROUND_TESTS``), so they overlap
+    the rest of the suite."""
+    for item in items:
+        module = getattr(item, "module", None)
+        if item.name in getattr(module, "BACKGROUND_TESTS", ()):
+            module.start_in_background()  # starts once however often it is called
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:
+    """Stop background parts no test collected (an interrupted or failed-early session)."""
+    import sys
+
+    for module in list(sys.modules.values()):
+        stop = getattr(module, "stop_background", None)
+        if stop is not None and getattr(module, "__file__", "").startswith(
+            str(session.config.rootpath)
+        ):
+            stop()

@@ -71,6 +71,7 @@ def cluster():
         ) as c,
         distributed.Client(c) as client,
     ):
+        client.wait_for_workers(2, timeout=120)  # the tests compare against the full set
         yield c.scheduler_address, client
 
 
