@@ -21,7 +21,7 @@ import numpy as np
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, face_areas
 from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
 
 REASONS = (
@@ -156,7 +156,7 @@ def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
     ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
     (area of the largest component / total)."""
-    areas = _face_areas(mesh.vertices, mesh.faces)
+    areas = face_areas(mesh)
     total = float(areas.sum()) or 1.0
     lo = np.array(box[0::2])
     hi = np.array(box[1::2])
@@ -170,26 +170,6 @@ def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
         "box_fraction": float(areas[on_face].sum()) / total,
         "largest_component_fraction": float(per.max()) / total if per.size else 0.0,
     }
-
-
-@numba.njit(cache=True, nogil=True)
-def _face_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """:func:`~surfgen.generator.mesh.face_areas` without numpy's temporaries (np.cross makes
-    nine): the same products, differences and sums in the same order, so the same bits."""
-    out = np.empty(f.shape[0])
-    for t in range(f.shape[0]):
-        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
-        ax = v[i1, 0] - v[i0, 0]
-        ay = v[i1, 1] - v[i0, 1]
-        az = v[i1, 2] - v[i0, 2]
-        bx = v[i2, 0] - v[i0, 0]
-        by = v[i2, 1] - v[i0, 1]
-        bz = v[i2, 2] - v[i0, 2]
-        cx = ay * bz - az * by
-        cy = az * bx - ax * bz
-        cz = ax * by - ay * bx
-        out[t] = 0.5 * math.sqrt(cx * cx + cy * cy + cz * cz)
-    return out
 
 
 @numba.njit(cache=True, nogil=True)
