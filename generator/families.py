@@ -331,6 +331,8 @@ def _coarse_ornament(
     as a tree, its feature size and stray share (None without an envelope) and the number of
     ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
+    # the envelope's slope: the same for every ornament tried
+    ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
     best, best_score = None, -math.inf
     for tries in range(1, cfg.sculpture_ornament_tries + 1):
         ornament, freq = _draw_ornament(rng, cfg)
@@ -339,8 +341,8 @@ def _coarse_ornament(
         if e is None:
             return ornament, freq, products, unit, None, None, None, tries
         o = _eval(unit, box, FEATURE_GRID)
-        feature = _feature_size(e, o, box)
-        stray, departure = _carved(e, o, box, depth)
+        feature = _feature_size(e, o, box, ge)
+        stray, departure = _carved(e, o, box, depth, ge)
         clean = (
             feature >= cfg.sculpture_min_feature
             and stray <= cfg.sculpture_max_stray
@@ -366,19 +368,21 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
     return _carved(e, o, box, depth)[0]
 
 
-def _carved(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> tuple[float, float]:
+def _carved(
+    e: np.ndarray, o: np.ndarray, box: Box, depth: float, ge: np.ndarray | None = None
+) -> tuple[float, float]:
     """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
     sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell) and its
     :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
     the full grid."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
-    s, d = _strength_on(e, o, step, depth)
+    ge = _slope(e, step) if ge is None else ge
+    s, d = _strength_on(e, o, step, depth, ge)
     if d is None:
         return 1.0, 0.0
     with np.errstate(invalid="ignore", over="ignore"):
         f = e + s * o - d
-        ge = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
         distance = np.abs(e) / np.where(ge > 0, ge, np.inf)
     inside = f < 0
     crossing = np.zeros_like(inside)
@@ -431,16 +435,21 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     return float((hi - lo) / radius)
 
 
-def _feature_size(e: np.ndarray, o: np.ndarray, box: Box) -> float:
+def _slope(a: np.ndarray, step: float) -> np.ndarray:
+    """``|grad a|`` by central differences (non-finite where ``a`` overflows)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.sqrt(sum(g**2 for g in np.gradient(a, step)))
+
+
+def _feature_size(e: np.ndarray, o: np.ndarray, box: Box, ge: np.ndarray | None = None) -> float:
     """How large the ornament ``o``'s features are where the envelope ``e`` has its surface:
     the 10-90 % spread of ``o`` over the median of ``|grad o|`` there, over the box's half-size
     (about 0.36 wavelengths of a sine; a grid too coarse to see the features gives about one
     cell). 0 when it cannot be measured (a constant, non-finite ornament)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
-    with np.errstate(invalid="ignore", over="ignore"):
-        ge = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
-        go = np.sqrt(sum(g**2 for g in np.gradient(o, step)))
+    ge = _slope(e, step) if ge is None else ge
+    go = _slope(o, step)
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(ge) & np.isfinite(go) & (ge > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, ge, 0.0))
     if np.count_nonzero(band) < 16:
@@ -473,11 +482,11 @@ def _strength(
 
 
 def _strength_on(
-    e: np.ndarray, o: np.ndarray, step: float, depth: float
+    e: np.ndarray, o: np.ndarray, step: float, depth: float, grad: np.ndarray | None = None
 ) -> tuple[float, float | None]:
-    """:func:`_strength` on sampled envelope ``e`` and ornament ``o`` (grid step ``step``)."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        grad = np.sqrt(sum(g**2 for g in np.gradient(e, step)))
+    """:func:`_strength` on sampled envelope ``e`` and ornament ``o`` (grid step ``step``;
+    ``grad``: ``e``'s :func:`_slope` if already known)."""
+    grad = _slope(e, step) if grad is None else grad
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
     if np.count_nonzero(band) < 16:
