@@ -393,9 +393,17 @@ def stop_server(proc: subprocess.Popen) -> None:
 
 
 def wait_for(what: Callable[[], object], timeout: float = 15.0, message: str = "") -> object:
+    """Poll ``what`` until it is truthy. The page re-renders a card when its state changes, so an
+    element found a moment ago may be gone when it is read: a stale element means "look again",
+    as Selenium's own ``WebDriverWait`` treats it; only the deadline fails the test."""
+    from selenium.common.exceptions import StaleElementReferenceException
+
     deadline = time.monotonic() + timeout
     while True:
-        value = what()
+        try:
+            value = what()
+        except StaleElementReferenceException:
+            value = None
         if value:
             return value
         if time.monotonic() > deadline:
