@@ -36,6 +36,7 @@ from collections import Counter
 from dataclasses import replace
 from typing import Any
 
+import numba
 import numpy as np
 
 from surfgen.generator.equation13 import (
@@ -409,30 +410,87 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     The surface points are where the grid's edges cross the level, interpolated linearly (the
     marching-cubes vertices), so the measure does not see the grid's staircase. Returns
     ``inf`` when the envelope is empty on the grid or the surface has too few points.
+
+    ``|grad E|`` is ``numpy.gradient``'s (central differences inside, one-sided at the faces, in
+    grid steps), computed only at the ends of the crossing edges (:func:`_crossing_offsets`:
+    the same operations, so the same bits, without the three whole-grid gradient arrays).
     """
-    f = np.asarray(values, dtype=np.float64) - level
-    env = np.asarray(envelope, dtype=np.float64)
-    n_env = int(np.count_nonzero(np.isfinite(env) & (env < 0)))
+    f = np.ascontiguousarray(values, dtype=np.float64)
+    env = np.ascontiguousarray(envelope, dtype=np.float64)
+    if f.ndim != 3 or f.shape != env.shape or min(f.shape) < 2:
+        raise ValueError(f"values and envelope must be one 3-D grid, got {f.shape}, {env.shape}")
+    n_env, off = _crossing_offsets(f, float(level), env)
     if n_env == 0:
         return float("inf")
-    with np.errstate(all="ignore"):
-        grad = np.sqrt(sum(g * g for g in np.gradient(env)))  # per grid step
-        offsets = []
-        for axis in range(3):
-            fa, ea, ga = (np.moveaxis(a, axis, 0) for a in (f, env, grad))
-            f0, f1 = fa[:-1], fa[1:]
-            cross = np.isfinite(f0) & np.isfinite(f1) & ((f0 < 0) != (f1 < 0))
-            t = f0[cross] / (f0[cross] - f1[cross])
-            e = ea[:-1][cross] + t * (ea[1:][cross] - ea[:-1][cross])
-            g = ga[:-1][cross] + t * (ga[1:][cross] - ga[:-1][cross])
-            offsets.append(e / g)
-        off = np.concatenate(offsets)
     off = off[np.isfinite(off)]
     if off.size < 8:
         return float("inf")
     radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)  # in grid steps, like the offsets
     lo, hi = np.quantile(off, (0.05, 0.95))
     return float((hi - lo) / radius)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _gradient_norm(e: np.ndarray, i: int, j: int, k: int) -> float:
+    """``sqrt(gx² + gy² + gz²)`` of ``numpy.gradient(e)`` (unit spacing, edge order 1) at one
+    point, with numpy's operations: ``(e[i+1] - e[i-1]) / 2`` inside, a one-sided difference on
+    the faces, the squares summed in axis order."""
+    n0, n1, n2 = e.shape
+    if i == 0:
+        g0 = e[1, j, k] - e[0, j, k]
+    elif i == n0 - 1:
+        g0 = e[i, j, k] - e[i - 1, j, k]
+    else:
+        g0 = (e[i + 1, j, k] - e[i - 1, j, k]) / 2.0
+    if j == 0:
+        g1 = e[i, 1, k] - e[i, 0, k]
+    elif j == n1 - 1:
+        g1 = e[i, j, k] - e[i, j - 1, k]
+    else:
+        g1 = (e[i, j + 1, k] - e[i, j - 1, k]) / 2.0
+    if k == 0:
+        g2 = e[i, j, 1] - e[i, j, 0]
+    elif k == n2 - 1:
+        g2 = e[i, j, k] - e[i, j, k - 1]
+    else:
+        g2 = (e[i, j, k + 1] - e[i, j, k - 1]) / 2.0
+    return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _crossing_offsets(v: np.ndarray, level: float, e: np.ndarray) -> tuple[int, np.ndarray]:
+    """The envelope's cell count (finite and < 0) and, for every grid edge whose ends are
+    finite and on either side of ``level``, ``E / |grad E|`` interpolated linearly to the
+    crossing (axis by axis, in C order: the order does not change the percentiles)."""
+    n0, n1, n2 = v.shape
+    n_env = 0
+    for i in range(n0):
+        for j in range(n1):
+            for k in range(n2):
+                x = e[i, j, k]
+                if np.isfinite(x) and x < 0:
+                    n_env += 1
+    out = np.empty(3 * v.size, np.float64)
+    m = 0
+    for axis in range(3):
+        for i in range(n0 - (axis == 0)):
+            for j in range(n1 - (axis == 1)):
+                for k in range(n2 - (axis == 2)):
+                    i1 = i + (axis == 0)
+                    j1 = j + (axis == 1)
+                    k1 = k + (axis == 2)
+                    f0 = v[i, j, k] - level
+                    f1 = v[i1, j1, k1] - level
+                    if not (np.isfinite(f0) and np.isfinite(f1)) or (f0 < 0) == (f1 < 0):
+                        continue
+                    t = f0 / (f0 - f1)
+                    e0 = e[i, j, k]
+                    g0 = _gradient_norm(e, i, j, k)
+                    ee = e0 + t * (e[i1, j1, k1] - e0)
+                    g = g0 + t * (_gradient_norm(e, i1, j1, k1) - g0)
+                    out[m] = ee / g
+                    m += 1
+    return n_env, out[:m]
 
 
 def _slope(a: np.ndarray, step: float) -> np.ndarray:
