@@ -38,6 +38,7 @@ from typing import Any
 
 import numba
 import numpy as np
+from scipy import ndimage
 
 from surfgen.generator.equation13 import (
     Equation13,
@@ -282,7 +283,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, feature, stray, departure, tries = _coarse_ornament(
+    ornament, freq, products, unit, checks, tries = _coarse_ornament(
         rng,
         cfg,
         envelope if extent is not None else None,
@@ -299,11 +300,13 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
         "k": k,
     }
     structure["ornament"].update(frequency=freq, depth=depth)
-    if feature is not None:
+    if checks is not None:
+        feature, stray, departure, pieces = checks
         structure["ornament"].update(
             feature=round(feature, 4),
             stray=round(stray, 4),
             departure=round(min(departure, 99.0), 4),
+            pieces=pieces,
             tries=tries,
         )
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
@@ -323,14 +326,17 @@ def _coarse_ornament(
     mirror: bool,
     k: int,
     depth: float,
-) -> tuple[Factor, float, list, Expr, float | None, float | None, float | None, int]:
+) -> tuple[Factor, float, list, Expr, tuple[float, float, float, int] | None, int]:
     """Draw ornaments until one carves cleanly: features at least ``sculpture_min_feature`` of
-    the box, and at most ``sculpture_max_stray`` of its surface far from the envelope (at most ``sculpture_ornament_tries``; else
-    the best drawn). Finer ornaments carve noise, and ornaments that outgrow the envelope away
-    from its surface throw debris: the filters reject both, or the eye calls them rough balls
-    (README, Families). Returns the ornament, its frequency, the expanded products, their sum
-    as a tree, its feature size and stray share (None without an envelope) and the number of
-    ornaments drawn."""
+    the box, at most ``sculpture_max_stray`` of its surface far from the envelope, a departure
+    from the envelope of at least ``sculpture_min_departure``, and a carved body in at most
+    ``sculpture_max_pieces`` pieces (at most ``sculpture_ornament_tries``; else the best drawn).
+    Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
+    throw debris, and ornaments that break the body into crumbs make speckle: the filters
+    reject all three after evaluating and meshing the full grid, or the eye calls them rough
+    balls (README, Families). Returns the ornament, its frequency, the expanded products, their
+    sum as a tree, its checks ``(feature, stray, departure, pieces)`` (None without an
+    envelope) and the number of ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
     # the envelope's slope: the same for every ornament tried
     ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
@@ -340,22 +346,25 @@ def _coarse_ornament(
         products = _ornament_terms(ornament, perms, mirror, k)
         unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, None, None, tries
+            return ornament, freq, products, unit, None, tries
         o = _eval(unit, box, FEATURE_GRID)
         feature = _feature_size(e, o, box, ge)
-        stray, departure = _carved(e, o, box, depth, ge)
+        stray, departure, pieces = _carved(e, o, box, depth, ge)
         clean = (
             feature >= cfg.sculpture_min_feature
             and stray <= cfg.sculpture_max_stray
             and departure >= cfg.sculpture_min_departure
+            and pieces <= cfg.sculpture_max_pieces
         )
         score = (
             min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0)
             + min(departure / max(cfg.sculpture_min_departure, 1e-9), 1.0)
             - stray
+            - (pieces > cfg.sculpture_max_pieces)
         )
         if best is None or score > best_score:
-            best, best_score = (ornament, freq, products, unit, feature, stray, departure), score
+            checks = (feature, stray, departure, pieces)
+            best, best_score = (ornament, freq, products, unit, checks), score
         if clean:
             break
     assert best is not None
@@ -371,17 +380,17 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
 
 def _carved(
     e: np.ndarray, o: np.ndarray, box: Box, depth: float, ge: np.ndarray | None = None
-) -> tuple[float, float]:
+) -> tuple[float, float, int]:
     """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
-    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell) and its
+    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
     :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
-    the full grid."""
+    the full grid, and its :func:`pieces` (0 when it cannot tell)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
     ge = _slope(e, step) if ge is None else ge
     s, d = _strength_on(e, o, step, depth, ge)
     if d is None:
-        return 1.0, 0.0
+        return 1.0, 0.0, 0
     with np.errstate(invalid="ignore", over="ignore"):
         f = e + s * o - d
         distance = np.abs(e) / np.where(ge > 0, ge, np.inf)
@@ -394,10 +403,34 @@ def _carved(
         crossing[tuple(lo)] |= change
     count = np.count_nonzero(crossing)
     if count == 0:
-        return 1.0, 0.0
+        return 1.0, 0.0, 0
     far = crossing & ~(distance <= 2 * depth + 2 * step)
     departure = envelope_departure(f, e)
-    return np.count_nonzero(far) / count, departure if math.isfinite(departure) else 0.0
+    stray = np.count_nonzero(far) / count
+    return stray, departure if math.isfinite(departure) else 0.0, pieces(f)
+
+
+_CUBE = np.ones((3, 3, 3), dtype=bool)
+
+
+def pieces(values: np.ndarray, level: float = 0.0) -> int:
+    """How many pieces the closed surface ``values = level`` has at least, from the samples
+    alone: (components of the solid) + (components of the rest, the outside of the box
+    included) - 1, both connected through the 26 neighbours of a sample.
+
+    A capped marching-cubes surface separates the solid's regions from the rest's, each of its
+    components exactly two of them, and the regions with the surfaces between them form a tree
+    (every closed surface in space splits it in two): surfaces = regions - 1. Marching cubes
+    joins samples only within a cell, where all are 26-neighbours, so it has at least as many
+    regions of each kind as this count: the count never exceeds the mesh's components. The
+    solid is the mesher's (finite samples below the level)."""
+    with np.errstate(invalid="ignore"):
+        solid = np.isfinite(values) & (values < level)
+    if not solid.any() or solid.all():
+        return 0
+    n_solid = ndimage.label(solid, structure=_CUBE)[1]
+    n_rest = ndimage.label(np.pad(~solid, 1, constant_values=True), structure=_CUBE)[1]
+    return int(n_solid + n_rest - 1)
 
 
 def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:

@@ -184,7 +184,11 @@ def test_stray_share_sees_debris_away_from_the_envelope() -> None:
 def test_sculptures_redraw_fine_ornaments() -> None:
     strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
     loose = replace(
-        strict, sculpture_min_feature=0.0, sculpture_max_stray=1.0, sculpture_min_departure=0.0
+        strict,
+        sculpture_min_feature=0.0,
+        sculpture_max_stray=1.0,
+        sculpture_min_departure=0.0,
+        sculpture_max_pieces=100000,
     )
     kept = []
     for i in range(12):
@@ -316,3 +320,50 @@ def test_envelope_departure_is_the_whole_grid_numpy_measure_bit_for_bit() -> Non
         )
         assert got == want or (np.isinf(got) and np.isinf(want)), (got, want)
     assert any(np.isfinite(envelope_departure(v, e, lv)) for v, e, lv in cases)
+
+
+def test_pieces_counts_the_components_of_closed_surfaces() -> None:
+    """Regions of the solid and of the rest, minus one: a ball 1, two balls 2, a hollow ball
+    (a ball with a void) 2, a torus 1, a ball cut by the box 1 — as the capped mesh has."""
+    from surfgen.generator.families import pieces
+
+    box = Box.cube(1.5)
+    x, y, z = np.broadcast_arrays(*Grid(box, (40,) * 3).open_axes())
+    r2 = x**2 + y**2 + z**2
+    ball = r2 - 1.0
+    two = np.minimum((x - 0.8) ** 2 + y**2 + z**2, (x + 0.8) ** 2 + y**2 + z**2) - 0.3
+    hollow = np.maximum(ball, 0.25 - r2)
+    torus = (np.sqrt(x**2 + y**2) - 0.9) ** 2 + z**2 - 0.1
+    cut = r2 - 4.0  # the ball reaches beyond the box: capped, one piece
+    with_nan = ball.copy()
+    with_nan[20, 20, 20] = np.nan  # a non-finite sample inside: outside for the mesher
+    assert [pieces(v) for v in (ball, two, hollow, torus, cut, with_nan)] == [1, 2, 2, 1, 1, 2]
+    assert pieces(np.ones_like(ball)) == 0 and pieces(-np.ones_like(ball)) == 0
+    crumbs = np.sin(9 * x) * np.sin(9 * y) * np.sin(9 * z) - 0.5
+    assert pieces(crumbs) > 60
+
+
+def test_pieces_never_exceed_the_capped_meshes_components() -> None:
+    """The count is a lower bound of the marching-cubes mesh's components (and equal on most
+    shapes): sculptures, lattices and free draws of seed 7 at 24^3."""
+    from surfgen.filters.verdict import quick_metrics
+    from surfgen.generator.families import pieces
+    from surfgen.generator.mesh import EmptySurface, extract_mesh
+
+    equal = total = 0
+    for name in ("sculpture", "lattice", "free"):
+        for index in range(10):
+            draw = draw_equation(7, index, family(name))
+            grid = Grid(draw.box, (24, 24, 24))
+            values = evaluate(draw.equation.with_d(draw.d or 0.0).to_tree(), grid).values
+            try:
+                mesh = extract_mesh(
+                    evaluate(draw.equation.with_d(draw.d or 0.0).to_tree(), grid), 0.0, cap=True
+                )
+            except EmptySurface:
+                continue
+            components = quick_metrics(mesh, draw.box.bounds())["components"]
+            assert pieces(values) <= components, (name, index)
+            equal += pieces(values) == components
+            total += 1
+    assert total >= 20 and equal >= total // 2
