@@ -283,7 +283,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, checks, tries = _coarse_ornament(
+    ornament, freq, products, unit, checks, strength_d, tries = _coarse_ornament(
         rng,
         cfg,
         envelope if extent is not None else None,
@@ -311,7 +311,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
         )
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
         return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
-    strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
+    strength, d = strength_d
     structure["ornament"].update(strength=strength)
     structure["extent"] = round(extent, 4)
     return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
@@ -326,7 +326,15 @@ def _coarse_ornament(
     mirror: bool,
     k: int,
     depth: float,
-) -> tuple[Factor, float, list, Expr, tuple[float, float, float, int] | None, int]:
+) -> tuple[
+    Factor,
+    float,
+    list,
+    Expr,
+    tuple[float, float, float, int] | None,
+    tuple[float, float | None],
+    int,
+]:
     """Draw ornaments until one carves cleanly: features at least ``sculpture_min_feature`` of
     the box, at most ``sculpture_max_stray`` of its surface far from the envelope, a departure
     from the envelope of at least ``sculpture_min_departure``, and a carved body in at most
@@ -336,20 +344,25 @@ def _coarse_ornament(
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
     balls (README, Families). Returns the ornament, its frequency, the expanded products, their
     sum as a tree, its checks ``(feature, stray, departure, pieces)`` (None without an
-    envelope) and the number of ornaments drawn."""
+    envelope), its strength and d (:func:`_strength` on the ``d_grid``: the checks judge the
+    surface the draw will be) and the number of ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
-    # the envelope's slope: the same for every ornament tried
+    # the envelope's samples and slope on both grids: the same for every ornament tried
     ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
+    step_d = (box.hi[0] - box.lo[0]) / (cfg.d_grid - 1)
+    e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
+    ge_d = None if e_d is None else _slope(e_d, step_d)
     best, best_score = None, -math.inf
     for tries in range(1, cfg.sculpture_ornament_tries + 1):
         ornament, freq = _draw_ornament(rng, cfg)
         products = _ornament_terms(ornament, perms, mirror, k)
         unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, tries
+            return ornament, freq, products, unit, None, (0.0, None), tries
         o = _eval(unit, box, FEATURE_GRID)
         feature = _feature_size(e, o, box, ge)
-        stray, departure, pieces = _carved(e, o, box, depth, ge)
+        strength_d = _strength_on(e_d, _eval(unit, box, cfg.d_grid), step_d, depth, ge_d)
+        stray, departure, pieces = _carved(e, o, box, depth, ge, strength_d)
         clean = (
             feature >= cfg.sculpture_min_feature
             and stray <= cfg.sculpture_max_stray
@@ -364,7 +377,7 @@ def _coarse_ornament(
         )
         if best is None or score > best_score:
             checks = (feature, stray, departure, pieces)
-            best, best_score = (ornament, freq, products, unit, checks), score
+            best, best_score = (ornament, freq, products, unit, checks, strength_d), score
         if clean:
             break
     assert best is not None
@@ -379,16 +392,22 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
 
 
 def _carved(
-    e: np.ndarray, o: np.ndarray, box: Box, depth: float, ge: np.ndarray | None = None
+    e: np.ndarray,
+    o: np.ndarray,
+    box: Box,
+    depth: float,
+    ge: np.ndarray | None = None,
+    strength_d: tuple[float, float | None] | None = None,
 ) -> tuple[float, float, int]:
     """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
     sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
     :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
-    the full grid, and its :func:`pieces` (0 when it cannot tell)."""
+    the full grid, and its :func:`pieces` (0 when it cannot tell). ``strength_d``: s and d
+    if already chosen (else :func:`_strength_on` these samples)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
     ge = _slope(e, step) if ge is None else ge
-    s, d = _strength_on(e, o, step, depth, ge)
+    s, d = _strength_on(e, o, step, depth, ge) if strength_d is None else strength_d
     if d is None:
         return 1.0, 0.0, 0
     with np.errstate(invalid="ignore", over="ignore"):

@@ -182,14 +182,15 @@ def test_stray_share_sees_debris_away_from_the_envelope() -> None:
 
 
 def test_sculptures_redraw_fine_ornaments() -> None:
-    strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
     loose = replace(
-        strict,
+        family("sculpture"),
         sculpture_min_feature=0.0,
         sculpture_max_stray=1.0,
         sculpture_min_departure=0.0,
         sculpture_max_pieces=100000,
+        sculpture_ornament_tries=6,
     )
+    strict = replace(loose, sculpture_min_feature=0.3)  # the feature size alone
     kept = []
     for i in range(12):
         s = draw_equation(7, i, strict).structure["ornament"]
@@ -199,6 +200,22 @@ def test_sculptures_redraw_fine_ornaments() -> None:
             kept.append(s["feature"])
         assert draw_equation(7, i, loose).structure["ornament"].get("tries", 1) == 1
     assert kept and np.mean(np.array(kept) >= 0.3) > 0.7
+
+
+def test_sculptures_redraw_crumbling_ornaments() -> None:
+    """With sculpture_max_pieces, an ornament that breaks the body into more pieces (on the
+    feature grid, with the strength and d the draw keeps) is redrawn."""
+    loose = replace(family("sculpture"), sculpture_max_pieces=100000)
+    strict = replace(family("sculpture"), sculpture_max_pieces=1)
+    crumbly = redrawn = 0
+    for i in range(16):
+        before = draw_equation(7, i, loose).structure["ornament"]
+        if before.get("pieces", 0) > 1:
+            crumbly += 1
+            after = draw_equation(7, i, strict).structure["ornament"]
+            assert after["tries"] > before["tries"] or before["tries"] == 6
+            redrawn += after["pieces"] <= 1
+    assert crumbly >= 2 and redrawn >= crumbly // 2
 
 
 def test_mix_weights_decide_the_share_of_each_family() -> None:
