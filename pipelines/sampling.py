@@ -70,6 +70,7 @@ from surfgen.pipelines.catalogue import DB_NAME, Catalogue, CatalogueError, open
 from surfgen.pipelines.config import Config
 from surfgen.pipelines.curation import ensure_descriptors
 from surfgen.pipelines.executor import Executor, KillablePool
+from surfgen.pipelines.warmup import warm_shape_kernels
 
 log = logging.getLogger(__name__)
 
@@ -409,6 +410,9 @@ def open_executor(
             pictures=pictures,
             duplicates=duplicates,
         )
+        # Compile (fresh checkout) or load numba's kernels once, here: the forked workers
+        # inherit them, and no shape's timeout is spent compiling.
+        warm_shape_kernels()
         return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
     if executor == "dask":
         from surfgen.pipelines.cluster import DaskPool
