@@ -142,6 +142,31 @@ def test_output_is_deterministic(gyroid: Mesh, tmp_path: Path) -> None:
     assert np.array_equal(render_image(gyroid, azimuth=77.0), render_image(gyroid, azimuth=77.0))
 
 
+def test_highlight_by_squarings_is_pow_to_rounding() -> None:
+    from surfgen.pipelines import pictures
+
+    assert pictures._SPECULAR_EXPONENT == 24
+    for x in np.random.default_rng(2).uniform(0.0, 1.0, 2000):
+        want = pictures._SPECULAR_STRENGTH * float(x) ** 24.0
+        assert abs(pictures._highlight(float(x)) - want) <= 1e-14 * want
+
+
+def test_buffers_left_unset_are_never_read(gyroid: Mesh, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The renderer skips clearing the colour and barycentric buffers (only pixels a face covers
+    # are read): garbage in fresh memory must not change a pixel.
+    clean = [render_image(gyroid, size=64), render_image(gyroid, size=64, background=None)]
+    empty = np.empty
+
+    def garbage(shape, dtype=float):
+        out = empty(shape, dtype=dtype)
+        out.fill(np.nan if np.dtype(dtype).kind == "f" else 7)
+        return out
+
+    monkeypatch.setattr(np, "empty", garbage)
+    assert np.array_equal(render_image(gyroid, size=64), clean[0])
+    assert np.array_equal(render_image(gyroid, size=64, background=None), clean[1])
+
+
 def test_same_framing_whatever_the_scale_and_position(sphere: Mesh) -> None:
     moved = Mesh(sphere.vertices * 37.0 + np.array([5.0, -3.0, 100.0]), sphere.faces)
     a = render_image(sphere).astype(int)
