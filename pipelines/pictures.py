@@ -432,6 +432,10 @@ def _corner_normals(
     whose normals are within the crease angle of face t's (``cos_crease``), so smooth parts are
     smooth and box edges or cone rims stay crisp. Around a vertex with more than ``max_fan``
     faces every face counts (bounds the quadratic cost of a huge fan).
+
+    Vertex by vertex: where every pair of the fan is within the crease angle (most vertices of
+    a marching-cubes surface) all its corners take the one sum over the whole fan, added once in
+    fan order — the same additions, hence the same bits, as summing it per corner.
     """
     start = np.zeros(n_vertices + 1, dtype=np.int64)
     for t in range(faces.shape[0]):
@@ -441,27 +445,63 @@ def _corner_normals(
         start[i + 1] += start[i]
     fill = start[:-1].copy()
     incident = np.empty(3 * faces.shape[0], dtype=np.int64)  # faces around each vertex
+    corner = np.empty(3 * faces.shape[0], dtype=np.int64)  # and which corner is the vertex
     for t in range(faces.shape[0]):
         for k in range(3):
             i = faces[t, k]
             incident[fill[i]] = t
+            corner[fill[i]] = k
             fill[i] += 1
-    for t in range(faces.shape[0]):
-        for k in range(3):
-            i = faces[t, k]
-            crisp = start[i + 1] - start[i] <= max_fan
+    for i in range(n_vertices):
+        s = start[i]
+        e = start[i + 1]
+        smooth = True
+        if e - s <= max_fan:
+            for a in range(s, e):
+                t = incident[a]
+                for b in range(a + 1, e):
+                    g = incident[b]
+                    cos = (
+                        unit[g, 0] * unit[t, 0] + unit[g, 1] * unit[t, 1] + unit[g, 2] * unit[t, 2]
+                    )
+                    if not cos >= cos_crease:
+                        smooth = False
+                        break
+                if not smooth:
+                    break
+        if smooth:
             sx = 0.0
             sy = 0.0
             sz = 0.0
-            for j in range(start[i], start[i + 1]):
-                g = incident[j]
+            for b in range(s, e):
+                g = incident[b]
+                sx += weighted[g, 0]
+                sy += weighted[g, 1]
+                sz += weighted[g, 2]
+            length = math.sqrt(sx * sx + sy * sy + sz * sz)
+            if length > 1e-300:
+                for a in range(s, e):
+                    t = incident[a]
+                    k = corner[a]
+                    out[t, k, 0] = sx / length
+                    out[t, k, 1] = sy / length
+                    out[t, k, 2] = sz / length
+            continue
+        for a in range(s, e):
+            t = incident[a]
+            sx = 0.0
+            sy = 0.0
+            sz = 0.0
+            for b in range(s, e):
+                g = incident[b]
                 cos = unit[g, 0] * unit[t, 0] + unit[g, 1] * unit[t, 1] + unit[g, 2] * unit[t, 2]
-                if cos >= cos_crease or not crisp:
+                if cos >= cos_crease:
                     sx += weighted[g, 0]
                     sy += weighted[g, 1]
                     sz += weighted[g, 2]
             length = math.sqrt(sx * sx + sy * sy + sz * sz)
             if length > 1e-300:
+                k = corner[a]
                 out[t, k, 0] = sx / length
                 out[t, k, 1] = sy / length
                 out[t, k, 2] = sz / length
