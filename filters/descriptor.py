@@ -189,9 +189,7 @@ def _relief(centres: np.ndarray, area_normals: np.ndarray, areas: np.ndarray) ->
     ``RELIEF_CELL`` lattice: ``sqrt(1 - |sum of area * normal| / area)`` per cell (0 where the
     surface is flat at that scale, larger where it is curved, carved or rough). Faces are
     assigned by their centres (``centres`` in RMS radii about the centroid)."""
-    cells = np.floor(centres / RELIEF_CELL).astype(np.int64)
-    cells -= cells.min(axis=0)
-    dims = cells.max(axis=0) + 1
+    cells, dims = _lattice_cells(centres, RELIEF_CELL)
     total, summed = _cell_sums(cells, dims, area_normals, areas)
     keep = total > 0
     spread = 1.0 - np.linalg.norm(summed[keep], axis=1) / total[keep]
@@ -199,6 +197,25 @@ def _relief(centres: np.ndarray, area_normals: np.ndarray, areas: np.ndarray) ->
         np.sqrt(np.clip(spread, 0.0, 1.0)), bins=RELIEF_BINS, range=(0, 1), weights=total[keep]
     )
     return counts / counts.sum()
+
+
+@numba.njit(cache=True, nogil=True)
+def _lattice_cells(centres: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """``floor(centres / width)`` as int64 ``(F, 3)``, shifted so the lowest cell is 0 on each
+    axis, and the lattice's dimensions ``(3,)``."""
+    cells = np.empty(centres.shape, dtype=np.int64)
+    lo = np.full(3, np.iinfo(np.int64).max)
+    hi = np.full(3, np.iinfo(np.int64).min)
+    for t in range(centres.shape[0]):
+        for k in range(3):
+            c = np.int64(math.floor(centres[t, k] / width))
+            cells[t, k] = c
+            lo[k] = min(lo[k], c)
+            hi[k] = max(hi[k], c)
+    for t in range(centres.shape[0]):
+        for k in range(3):
+            cells[t, k] -= lo[k]
+    return cells, hi - lo + 1
 
 
 @numba.njit(cache=True, nogil=True)

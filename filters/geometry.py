@@ -173,3 +173,29 @@ def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool
                 oriented = False
             p = q
     return count, boundary, nonmanifold, oriented
+
+
+@numba.njit(cache=True, nogil=True)
+def column_bounds(a: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a[mask].min(axis=0)`` and ``.max(axis=0)`` of an ``(N, 3)`` array in one pass (numpy's
+    column reductions of a row-major array walk it three values at a time: 10x slower). NaN
+    propagates as in numpy; an empty selection gives ``+inf`` and ``-inf``."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    nan = np.zeros(3, dtype=np.bool_)
+    for i in range(a.shape[0]):
+        if not mask[i]:
+            continue
+        for k in range(3):
+            x = a[i, k]
+            if x < lo[k]:
+                lo[k] = x
+            if x > hi[k]:
+                hi[k] = x
+            if x != x:
+                nan[k] = True
+    for k in range(3):
+        if nan[k]:
+            lo[k] = np.nan
+            hi[k] = np.nan
+    return lo, hi

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from surfgen.filters import meshlab
-from surfgen.filters.geometry import edge_counts, used_mask, volume_terms
+from surfgen.filters.geometry import column_bounds, edge_counts, used_mask, volume_terms
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh, face_areas
 
@@ -80,9 +80,10 @@ def measure_mesh(mesh: Mesh) -> Metrics:
         # chi = 2c - 2g holds for closed orientable surfaces; chi is even there.
         genus = (2 * components - euler) // 2
         # Divergence theorem about the bbox centre, which keeps the sum well conditioned.
-        o = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        v_lo, v_hi = column_bounds(v, np.ones(len(v), dtype=np.bool_))
+        o = 0.5 * (v_lo + v_hi)
         volume = float(volume_terms(v, f, o).sum() / 6.0)
-    lo, hi = v[used].min(axis=0), v[used].max(axis=0)
+    lo, hi = column_bounds(v, used)
     return Metrics(
         vertices=mesh.n_vertices,
         faces=mesh.n_faces,

@@ -23,7 +23,12 @@ from typing import Any
 import numba
 import numpy as np
 
-from surfgen.filters.geometry import first_edge_lengths, used_mask, weighted_centres
+from surfgen.filters.geometry import (
+    column_bounds,
+    first_edge_lengths,
+    used_mask,
+    weighted_centres,
+)
 from surfgen.generator.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
@@ -105,8 +110,8 @@ def _cell_index(
     ``limit`` of a query lies in the query's cell or one of its 26 neighbours. Returns the
     cells' start offsets into ``order`` (points sorted by cell), the grid's origin, the cell
     width and the grid's dimensions."""
-    lo = cloud.min(axis=0)
-    extent = cloud.max(axis=0) - lo
+    lo, hi = column_bounds(cloud, np.ones(len(cloud), dtype=np.bool_))
+    extent = hi - lo
     # A little wider than the limit: rounding in the division cannot push a neighbour two
     # cells away.
     cell = limit * 1.001

@@ -218,3 +218,22 @@ def _descriptor_numpy(m: Mesh) -> np.ndarray:
 def test_descriptor_matches_the_numpy_version(meshes: list[Mesh]) -> None:
     for m in meshes[:2]:
         assert np.array_equal(fast_descriptor(m), _descriptor_numpy(m))
+
+
+def test_column_bounds_and_lattice_cells_match_numpy(meshes: list[Mesh]) -> None:
+    from surfgen.filters.descriptor import _lattice_cells
+
+    v = meshes[0].vertices
+    mask = np.arange(len(v)) % 3 != 0
+    lo, hi = geometry.column_bounds(v, mask)
+    assert np.array_equal(lo, v[mask].min(axis=0)) and np.array_equal(hi, v[mask].max(axis=0))
+    bad = v.copy()
+    bad[5, 1] = np.nan
+    lo, hi = geometry.column_bounds(bad, np.ones(len(v), dtype=bool))
+    assert np.array_equal(lo, bad.min(axis=0), equal_nan=True)
+    assert np.array_equal(hi, bad.max(axis=0), equal_nan=True)
+    centres = np.random.default_rng(4).normal(0, 1, (3000, 3))
+    cells, dims = _lattice_cells(centres, 0.2)
+    want = np.floor(centres / 0.2).astype(np.int64)
+    want -= want.min(axis=0)
+    assert np.array_equal(cells, want) and np.array_equal(dims, want.max(axis=0) + 1)
