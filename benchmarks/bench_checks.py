@@ -5,7 +5,8 @@ afterwards) pays four things in its worker: ``quality`` (:func:`quality_metrics`
 the 48 symmetry elements), ``shape`` (:func:`shape_metrics`: pymeshlab's topology, edges,
 volume, curvature), ``descriptor`` and ``thumbnail`` (render + PNG). This script times the
 library's versions against the previous ones, kept here as the baseline (numpy with a k-d tree,
-whole-array temporaries, ``pow`` in the shader, cleared buffers, PNG zlib level 6), on the same
+whole-array temporaries, corner normals summed per corner, ``pow`` in the shader, cleared
+buffers, PNG zlib level 6), on the same
 meshes in the same run, and checks that both give the same metrics, descriptors and pixels.
 
 Meshes: the accepted shapes among the first ``--n`` draws of ``--seed`` (default config, made
@@ -39,6 +40,7 @@ from surfgen.filters.descriptor import descriptor
 from surfgen.filters.metrics import Metrics
 from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import quick_metrics, shape_metrics
+from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh, face_areas, load_mesh
 from surfgen.pipelines import pictures as pic
 from surfgen.pipelines.pictures import (
@@ -314,9 +316,110 @@ def _old_shade(
                 out[r, c, ch] = base * diffuse + spec
 
 
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _old_corner_normals(
+    faces: np.ndarray,
+    weighted: np.ndarray,
+    unit: np.ndarray,
+    n_vertices: int,
+    cos_crease: float,
+    max_fan: int,
+    out: np.ndarray,
+) -> None:
+    """Smooth normals per face corner into ``out`` (F, 3, 3), keeping creases sharp.
+
+    The normal at corner k of face t is the area-weighted mean of the faces around that vertex
+    whose normals are within the crease angle of face t's (``cos_crease``), so smooth parts are
+    smooth and box edges or cone rims stay crisp. Around a vertex with more than ``max_fan``
+    faces every face counts (bounds the quadratic cost of a huge fan).
+    """
+    start = np.zeros(n_vertices + 1, dtype=np.int64)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            start[faces[t, k] + 1] += 1
+    for i in range(n_vertices):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    incident = np.empty(3 * faces.shape[0], dtype=np.int64)  # faces around each vertex
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            i = faces[t, k]
+            incident[fill[i]] = t
+            fill[i] += 1
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            i = faces[t, k]
+            crisp = start[i + 1] - start[i] <= max_fan
+            sx = 0.0
+            sy = 0.0
+            sz = 0.0
+            for j in range(start[i], start[i + 1]):
+                g = incident[j]
+                cos = unit[g, 0] * unit[t, 0] + unit[g, 1] * unit[t, 1] + unit[g, 2] * unit[t, 2]
+                if cos >= cos_crease or not crisp:
+                    sx += weighted[g, 0]
+                    sy += weighted[g, 1]
+                    sz += weighted[g, 2]
+            length = math.sqrt(sx * sx + sy * sy + sz * sz)
+            if length > 1e-300:
+                out[t, k, 0] = sx / length
+                out[t, k, 1] = sy / length
+                out[t, k, 2] = sz / length
+
+
+def old_prepare(mesh: Mesh) -> pic._Scene:
+    """pictures._prepare as it was: the same checks and scene, corner normals per corner."""
+    vertices = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+    if faces.shape[0] == 0 or vertices.shape[0] == 0:
+        raise MeshError(
+            f"cannot draw an empty mesh ({vertices.shape[0]} vertices, {faces.shape[0]} faces)"
+        )
+    if faces.min() < 0 or faces.max() >= vertices.shape[0]:
+        raise MeshError(f"face indices outside [0, {vertices.shape[0]}): cannot draw the mesh")
+    lo, hi = np.empty(3), np.empty(3)
+    if not pic._bounds(vertices, faces, lo, hi):
+        raise MeshError("mesh has non-finite vertex coordinates: cannot draw it")
+    longest = float(np.max(hi - lo))
+    if not longest > 0.0:
+        raise MeshError("degenerate mesh: all vertices coincide, nothing to draw")
+    unit = (vertices - 0.5 * (lo + hi)) / longest
+
+    weighted = np.zeros((faces.shape[0], 3), dtype=np.float64)
+    face_normals = np.zeros((faces.shape[0], 3), dtype=np.float64)
+    keep = pic._face_normals(unit, faces, weighted, face_normals)
+    if not keep.any():
+        raise MeshError("degenerate mesh: every triangle has zero area, nothing to draw")
+    wall = np.zeros(faces.shape[0], dtype=np.uint8)
+    if mesh.face_kinds is not None:  # poles (1) and jumps (2) are drawn in their own colours
+        kinds = np.asarray(mesh.face_kinds)
+        wall = np.where((kinds == 1) | (kinds == 2), kinds, 0).astype(np.uint8)
+    if not keep.all():
+        faces, weighted, face_normals = faces[keep], weighted[keep], face_normals[keep]
+        wall = wall[keep]
+    faces = np.ascontiguousarray(faces)
+    normals = np.zeros((faces.shape[0], 3, 3), dtype=np.float64)
+    cos_crease = math.cos(math.radians(pic._CREASE_ANGLE))
+    _old_corner_normals(
+        faces, weighted, face_normals, unit.shape[0], cos_crease, pic._MAX_FAN, normals
+    )
+    z = unit[:, 2]
+    z_lo, z_hi = (lo[2] - hi[2]) / (2.0 * longest), (hi[2] - lo[2]) / (2.0 * longest)
+    heights = (z - z_lo) / (z_hi - z_lo) if z_hi > z_lo else np.full_like(z, 0.5)
+    return pic._Scene(
+        vertices=unit,
+        faces=faces,
+        normals=normals,
+        face_normals=face_normals,
+        heights=np.clip(heights, 0.0, 1.0),
+        wall=np.ascontiguousarray(wall),
+    )
+
+
 def old_image(mesh: Mesh, size: int = 256) -> np.ndarray:
-    """render_image's default view with the previous shader (pow) and cleared buffers."""
-    scene = pic._prepare(mesh)
+    """render_image's default view with the previous corner normals, shader (pow) and cleared
+    buffers."""
+    scene = old_prepare(mesh)
     n = size * pic._SUPERSAMPLE
     rotation = pic._view_rotation(30.0, 25.0)
     count = scene.vertices.shape[0]
