@@ -30,6 +30,7 @@ second stream of the same index.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections import Counter
@@ -219,12 +220,7 @@ def _envelope_extent(tree: Expr) -> float | None:
 def _draw_ornament(rng: np.random.Generator, cfg: SamplerConfig) -> tuple[Factor, float]:
     """One factor of the free draw, with more constituent functions and a drawn frequency
     (the coefficients inside H and G scaled), never without a trigonometric/constituent part."""
-    ocfg = replace(
-        cfg,
-        constituent_prob=cfg.sculpture_constituent_prob,
-        omit_element_prob=cfg.sculpture_omit_element_prob,
-    )
-    f = draw_factor(rng, ocfg)
+    f = draw_factor(rng, _ornament_config(cfg))
     if f.h.name in ("tan", "cot", "sec", "csc") and rng.random() < cfg.sculpture_bounded_prob:
         # Poles throw debris far from the envelope: mostly keep H to sin and cos.
         f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
@@ -246,6 +242,16 @@ def _draw_ornament(rng: np.random.Generator, cfg: SamplerConfig) -> tuple[Factor
         if mu and lambdas[k] == 0:
             lambdas[k] = 1.0
     return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+@functools.lru_cache(maxsize=8)
+def _ornament_config(cfg: SamplerConfig) -> SamplerConfig:
+    """The free draw's settings for ornaments (made once per config: it is checked again)."""
+    return replace(
+        cfg,
+        constituent_prob=cfg.sculpture_constituent_prob,
+        omit_element_prob=cfg.sculpture_omit_element_prob,
+    )
 
 
 def _scale(a: float, freq: float) -> float:

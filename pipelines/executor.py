@@ -93,6 +93,7 @@ def _close_inherited(fds: Iterable[int], keep: int) -> None:
 
 
 _PR_SET_PDEATHSIG = 1
+_HELD = {signal.SIGINT, signal.SIGTERM}  # held while a worker is forked
 _DATABASE_SUFFIXES = (".sqlite", ".sqlite-wal", ".sqlite-shm", ".sqlite-journal", ".db")
 
 
@@ -106,6 +107,7 @@ def _worker_main(
     # it kills them (so no worker prints a KeyboardInterrupt traceback of its own).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler: just end
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD)  # blocked by the parent across the fork
     if parent_pid is not None:
         _die_with_parent(parent_pid)
         _close_inherited(inherited, conn.fileno())
@@ -146,7 +148,13 @@ class _Worker:
         self.proc = ctx.Process(
             target=_worker_main, args=(child, fn, parent, inherited), daemon=True
         )
-        self.proc.start()
+        # A Ctrl-C during the fork would land in an at-fork handler (logging's), where Python
+        # ignores exceptions, and be lost: hold it until the child exists, then deliver it.
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+        try:
+            self.proc.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
         child.close()
         self.task: Any = None
         self.deadline = 0.0
