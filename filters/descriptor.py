@@ -38,12 +38,16 @@ rounded boxes with one groove, rough balls of one envelope — to the eye the sa
 from __future__ import annotations
 
 import base64
+import functools
 import json
 import logging
+import math
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from surfgen.filters.geometry import weighted_centres
 from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh import Mesh
 
@@ -85,42 +89,95 @@ def descriptor(mesh: Mesh) -> np.ndarray:
     Deterministic given the mesh (same vertices and faces, same vector); invariant to
     translation and uniform scale. Raises :class:`MeshError` if the mesh has no area.
     """
-    tri = mesh.vertices[mesh.faces]  # (F, 3, 3)
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    doubled = np.linalg.norm(cross, axis=1)
+    v = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    f = np.ascontiguousarray(mesh.faces)
+    # One pass over the faces (numba, module geometry's arithmetic: the numbers numpy gave).
+    cross, doubled = _cross_products(v, f)
     areas = 0.5 * doubled
     total = float(areas.sum())
     if mesh.n_faces == 0 or not np.isfinite(total) or total <= 0.0:
         raise MeshError("cannot describe a mesh without area")
     rng = np.random.default_rng(SEED)
-    points = _surface_points(tri, areas, total, rng)
-    centroid = (areas[:, None] * tri.mean(axis=1)).sum(axis=0) / total
+    points = _surface_points(v, f, areas, total, rng)
+    centroid = weighted_centres(v, f, areas).sum(axis=0) / total
     i, j = rng.integers(0, POINTS, size=(2, PAIRS))
-    d2 = np.linalg.norm(points[i] - points[j], axis=1)
+    d2 = _pair_distances(points, i, j)
     d1 = np.linalg.norm(points - centroid, axis=1)
-    normals = cross / np.maximum(doubled, np.finfo(np.float64).tiny)[:, None]
     parts = [_histogram(d2, D2_BINS), _histogram(d1, D1_BINS)]
+    scale = np.maximum(doubled, np.finfo(np.float64).tiny)
     for k in range(3):
         counts, _ = np.histogram(
-            np.abs(normals[:, k]), bins=NORMAL_BINS, range=(0.0, 1.0), weights=areas
+            np.abs(cross[:, k] / scale), bins=NORMAL_BINS, range=(0.0, 1.0), weights=areas
         )
         parts.append(counts / total)
     radius = float(np.sqrt(np.mean(d1**2)))
     if not radius > 0:
         raise MeshError("cannot describe a mesh without extent")
     parts.append(_placement(cKDTree((points - centroid) / radius)))
-    centres = (tri.mean(axis=1) - centroid) / radius
+    centres = _centres(v, f, centroid, radius)
     parts.append(_relief(centres, 0.5 * cross, areas))
     return np.concatenate(parts)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cross_products(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.cross(v1 - v0, v2 - v0)`` per face ``(F, 3)`` and its norm ``(F,)``."""
+    cross = np.empty((f.shape[0], 3))
+    norm = np.empty(f.shape[0])
+    for t in range(f.shape[0]):
+        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
+        b0 = v[i1, 0] - v[i0, 0]
+        b1 = v[i1, 1] - v[i0, 1]
+        b2 = v[i1, 2] - v[i0, 2]
+        c0 = v[i2, 0] - v[i0, 0]
+        c1 = v[i2, 1] - v[i0, 1]
+        c2 = v[i2, 2] - v[i0, 2]
+        x = b1 * c2 - b2 * c1
+        y = b2 * c0 - b0 * c2
+        z = b0 * c1 - b1 * c0
+        cross[t, 0] = x
+        cross[t, 1] = y
+        cross[t, 2] = z
+        norm[t] = math.sqrt(x * x + y * y + z * z)
+    return cross, norm
+
+
+@numba.njit(cache=True, nogil=True)
+def _centres(v: np.ndarray, f: np.ndarray, centroid: np.ndarray, radius: float) -> np.ndarray:
+    """``(v[f].mean(axis=1) - centroid) / radius``: face centres in RMS radii."""
+    out = np.empty((f.shape[0], 3))
+    for t in range(f.shape[0]):
+        for k in range(3):
+            mean = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+            out[t, k] = (mean - centroid[k]) / radius
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_distances(points: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(points[i] - points[j], axis=1)`` without the two gathered copies."""
+    out = np.empty(i.shape[0])
+    for n in range(i.shape[0]):
+        x = points[i[n], 0] - points[j[n], 0]
+        y = points[i[n], 1] - points[j[n], 1]
+        z = points[i[n], 2] - points[j[n], 2]
+        out[n] = math.sqrt(x * x + y * y + z * z)
+    return out
 
 
 def _placement(tree: cKDTree) -> np.ndarray:
     """Distances from the nodes of the placement lattice to the nearest point, clipped and
     rounded to 8 bits (what the catalogue stores, so a stored descriptor equals a fresh one)."""
-    axis = np.linspace(-PLACE_EXTENT, PLACE_EXTENT, PLACE_GRID)
-    nodes = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    dist, _ = tree.query(nodes)
+    # Nodes farther than the clip come back as inf (then clipped): the same values, and the
+    # search around empty space stops early.
+    dist, _ = tree.query(_placement_nodes(), distance_upper_bound=PLACE_CLIP)
     return _quantise(np.minimum(dist, PLACE_CLIP))
+
+
+@functools.cache
+def _placement_nodes() -> np.ndarray:
+    axis = np.linspace(-PLACE_EXTENT, PLACE_EXTENT, PLACE_GRID)
+    return np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
 def _quantise(place: np.ndarray) -> np.ndarray:
@@ -132,13 +189,8 @@ def _relief(centres: np.ndarray, area_normals: np.ndarray, areas: np.ndarray) ->
     ``RELIEF_CELL`` lattice: ``sqrt(1 - |sum of area * normal| / area)`` per cell (0 where the
     surface is flat at that scale, larger where it is curved, carved or rough). Faces are
     assigned by their centres (``centres`` in RMS radii about the centroid)."""
-    cells = np.floor(centres / RELIEF_CELL).astype(np.int64)
-    cells -= cells.min(axis=0)
-    dims = cells.max(axis=0) + 1
-    flat = np.ravel_multi_index(cells.T, tuple(int(d) for d in dims))
-    _, cell = np.unique(flat, return_inverse=True)
-    total = np.bincount(cell, weights=areas)
-    summed = np.stack([np.bincount(cell, weights=area_normals[:, k]) for k in range(3)], axis=1)
+    cells, dims = _lattice_cells(centres, RELIEF_CELL)
+    total, summed = _cell_sums(cells, dims, area_normals, areas)
     keep = total > 0
     spread = 1.0 - np.linalg.norm(summed[keep], axis=1) / total[keep]
     counts, _ = np.histogram(
@@ -147,16 +199,66 @@ def _relief(centres: np.ndarray, area_normals: np.ndarray, areas: np.ndarray) ->
     return counts / counts.sum()
 
 
+@numba.njit(cache=True, nogil=True)
+def _lattice_cells(centres: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """``floor(centres / width)`` as int64 ``(F, 3)``, shifted so the lowest cell is 0 on each
+    axis, and the lattice's dimensions ``(3,)``."""
+    cells = np.empty(centres.shape, dtype=np.int64)
+    lo = np.full(3, np.iinfo(np.int64).max)
+    hi = np.full(3, np.iinfo(np.int64).min)
+    for t in range(centres.shape[0]):
+        for k in range(3):
+            c = np.int64(math.floor(centres[t, k] / width))
+            cells[t, k] = c
+            lo[k] = min(lo[k], c)
+            hi[k] = max(hi[k], c)
+    for t in range(centres.shape[0]):
+        for k in range(3):
+            cells[t, k] -= lo[k]
+    return cells, hi - lo + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_sums(
+    cells: np.ndarray, dims: np.ndarray, area_normals: np.ndarray, areas: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per occupied cell, in the order of its flat index (as ``np.unique`` numbers them), the
+    summed area ``(C,)`` and area normal ``(C, 3)``, added face by face as ``np.bincount``
+    does. A dense table of the lattice replaces the sort."""
+    size = dims[0] * dims[1] * dims[2]
+    n = cells.shape[0]
+    flat = np.empty(n, dtype=np.int64)
+    rank = np.zeros(size, dtype=np.int64)
+    for t in range(n):
+        flat[t] = (cells[t, 0] * dims[1] + cells[t, 1]) * dims[2] + cells[t, 2]
+        rank[flat[t]] = 1
+    count = 0
+    for c in range(size):
+        if rank[c]:
+            rank[c] = count
+            count += 1
+    total = np.zeros(count)
+    summed = np.zeros((count, 3))
+    for t in range(n):
+        c = rank[flat[t]]
+        total[c] += areas[t]
+    for k in range(3):  # bincount per component, as the numpy version did
+        for t in range(n):
+            summed[rank[flat[t]], k] += area_normals[t, k]
+    return total, summed
+
+
 def _surface_points(
-    tri: np.ndarray, areas: np.ndarray, total: float, rng: np.random.Generator
+    v: np.ndarray, f: np.ndarray, areas: np.ndarray, total: float, rng: np.random.Generator
 ) -> np.ndarray:
-    """``POINTS`` points uniform by area on the triangles ``tri`` (F, 3, 3): ``(POINTS, 3)``."""
+    """``POINTS`` points uniform by area on the faces ``f`` of ``v``: ``(POINTS, 3)``."""
     cumulative = np.cumsum(areas)
     faces = np.searchsorted(cumulative, rng.random(POINTS) * total, side="right")
     faces = np.minimum(faces, len(areas) - 1)
     r1, r2 = rng.random((2, POINTS))
     s = np.sqrt(r1)
-    a, b, c = tri[faces, 0], tri[faces, 1], tri[faces, 2]
+    corners = f[faces]
+    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
     return (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
 
 

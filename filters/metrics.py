@@ -1,7 +1,8 @@
 """What a mesh is like, in numbers: :class:`Metrics` and :func:`measure_mesh`.
 
-Edges, Euler characteristic, orientation, area, volume and bbox are counted with numpy (one sort
-of the ``3F`` half-edges); components and non-manifold vertices come from pymeshlab through
+Edges, Euler characteristic, orientation, area, volume and bbox are counted with numba kernels
+(:mod:`surfgen.filters.geometry`: one pass each, the same numbers as the numpy expressions they
+replaced); components and non-manifold vertices come from pymeshlab through
 :mod:`surfgen.filters.meshlab`.  About 1 s for 500k faces, most of it in pymeshlab.
 """
 
@@ -13,8 +14,9 @@ from typing import Any
 import numpy as np
 
 from surfgen.filters import meshlab
+from surfgen.filters.geometry import column_bounds, edge_counts, used_mask, volume_terms
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, face_areas
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,25 +63,27 @@ def measure_mesh(mesh: Mesh) -> Metrics:
     if mesh.n_faces == 0:
         raise MeshError("cannot measure an empty mesh (no faces)")
     v, f = mesh.vertices, mesh.faces
+    # The cheap numpy/numba counts first: pymeshlab's topology is the slow part.
     edges = _edge_counts(f, mesh.n_vertices)
     topo = meshlab.topology(mesh)
-    used = np.bincount(f.reshape(-1), minlength=mesh.n_vertices) > 0
+    used = used_mask(f, mesh.n_vertices)
     euler = int(np.count_nonzero(used)) - edges.count + mesh.n_faces
     components = int(topo["components"])  # type: ignore[arg-type]
     nonmanifold_vertices = int(topo["nonmanifold_vertices"])  # type: ignore[arg-type]
     watertight = edges.boundary == 0 and edges.nonmanifold == 0
     closed = watertight and nonmanifold_vertices == 0 and edges.oriented
 
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    area = float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    # Per-face terms from one-pass kernels, summed by numpy as before (module geometry).
+    area = float(face_areas(mesh).sum())
     genus = volume = None
     if closed:
         # chi = 2c - 2g holds for closed orientable surfaces; chi is even there.
         genus = (2 * components - euler) // 2
         # Divergence theorem about the bbox centre, which keeps the sum well conditioned.
-        o = 0.5 * (v.min(axis=0) + v.max(axis=0))
-        volume = float(np.einsum("ij,ij->i", a - o, np.cross(b - o, c - o)).sum() / 6.0)
-    lo, hi = v[used].min(axis=0), v[used].max(axis=0)
+        v_lo, v_hi = column_bounds(v, np.ones(len(v), dtype=np.bool_))
+        o = 0.5 * (v_lo + v_hi)
+        volume = float(volume_terms(v, f, o).sum() / 6.0)
+    lo, hi = column_bounds(v, used)
     return Metrics(
         vertices=mesh.n_vertices,
         faces=mesh.n_faces,
@@ -105,17 +109,11 @@ class _Edges:
 
 
 def _edge_counts(faces: np.ndarray, n_vertices: int) -> _Edges:
-    """Count edges from the ``3F`` half-edges with one sort (fast on 500k faces)."""
-    start = faces.reshape(-1)
-    end = faces[:, [1, 2, 0]].reshape(-1)
-    lo, hi = np.minimum(start, end), np.maximum(start, end)
-    key = lo * np.int64(n_vertices) + hi
-    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    forward = np.bincount(inverse.reshape(-1), weights=start < end, minlength=len(counts))
-    two = counts == 2
+    """Count edges from the ``3F`` half-edges (one pass, see :func:`geometry.edge_counts`)."""
+    count, boundary, nonmanifold, oriented = edge_counts(faces, n_vertices)
     return _Edges(
-        count=len(counts),
-        boundary=int(np.count_nonzero(counts == 1)),
-        nonmanifold=int(np.count_nonzero(counts > 2)),
-        oriented=bool(np.all(forward[two] == 1)),
+        count=int(count),
+        boundary=int(boundary),
+        nonmanifold=int(nonmanifold),
+        oriented=bool(oriented),
     )

@@ -17,10 +17,18 @@ how far does it depart from its envelope?
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Any
 
+import numba
 import numpy as np
 
+from surfgen.filters.geometry import (
+    column_bounds,
+    first_edge_lengths,
+    used_mask,
+    weighted_centres,
+)
 from surfgen.generator.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
@@ -43,17 +51,18 @@ def element_label(perm: tuple[int, ...], signs: tuple[int, ...]) -> str:
 
 def _surface_points(mesh: Mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
     """``n`` points uniform by area on the mesh and its area centroid."""
-    tri = mesh.vertices[mesh.faces]
+    v, f = mesh.vertices, mesh.faces
     areas = face_areas(mesh)
     total = float(areas.sum())
-    centroid = (areas[:, None] * tri.mean(axis=1)).sum(axis=0) / total
+    centroid = weighted_centres(v, f, areas).sum(axis=0) / total
     rng = np.random.default_rng(SYMMETRY_SEED)
     faces = np.minimum(
         np.searchsorted(np.cumsum(areas), rng.random(n) * total, side="right"), len(areas) - 1
     )
     r1, r2 = rng.random((2, n))
     s = np.sqrt(r1)
-    a, b, c = tri[faces, 0], tri[faces, 1], tri[faces, 2]
+    corners = f[faces]
+    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
     pts = (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
     return pts, centroid
 
@@ -64,31 +73,158 @@ def mesh_symmetries(
     """Labels of the signed axis permutations (about the area centroid) that map the mesh onto
     itself: a surface point's image must lie within ``tolerance`` mean edge lengths of a vertex,
     for ``share`` of the points. The identity ``xyz`` is always first."""
-    from scipy.spatial import cKDTree
-
     if mesh.n_faces == 0:
         return []
     pts, centroid = _surface_points(mesh, SYMMETRY_POINTS)
-    used = np.unique(mesh.faces)
-    tree = cKDTree(mesh.vertices[used] - centroid)
     v = mesh.vertices
     f = mesh.faces
-    edge = float(np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1).mean())
+    cloud = v[used_vertices(mesh)] - centroid
+    edge = float(first_edge_lengths(v, f).mean())
     limit = tolerance * max(edge, 1e-12)
-    pts = pts - centroid
-    found = []
+    pts = np.ascontiguousarray(pts - centroid)
     allowed = int((1.0 - share) * len(pts))  # misses allowed
-    for perm, signs in SIGNED_PERMUTATIONS:
-        image = pts[:, perm] * np.array(signs, dtype=np.float64)
-        # Most elements fail on the first points: test those first (same answer, less time).
-        dist, _ = tree.query(image[:128], k=1, distance_upper_bound=limit)
-        misses = int(np.count_nonzero(~np.isfinite(dist)))
-        if misses > allowed:
+    start, order, origin, cell, dims = _cell_index(cloud, limit)
+    ok = _symmetric(
+        pts, cloud, start, order, origin, cell, dims, limit * limit, _PERMS, _SIGNS, allowed
+    )
+    return [
+        element_label(perm, signs)
+        for (perm, signs), hit in zip(SIGNED_PERMUTATIONS, ok, strict=True)
+        if hit
+    ]
+
+
+_PERMS = np.array([perm for perm, _ in SIGNED_PERMUTATIONS], dtype=np.int64)
+_SIGNS = np.array([signs for _, signs in SIGNED_PERMUTATIONS], dtype=np.float64)
+
+
+def used_vertices(mesh: Mesh) -> np.ndarray:
+    """``(V,)`` bool: the vertices some face uses (``np.unique(faces)`` as a mask, same order)."""
+    return used_mask(mesh.faces, mesh.n_vertices)
+
+
+def _cell_index(
+    cloud: np.ndarray, limit: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
+    """Bucket ``cloud`` (N, 3) into cubic cells at least ``limit`` wide: every point within
+    ``limit`` of a query lies in the query's cell or one of its 26 neighbours. Returns the
+    cells' start offsets into ``order`` (points sorted by cell), the grid's origin, the cell
+    width and the grid's dimensions."""
+    lo, hi = column_bounds(cloud, np.ones(len(cloud), dtype=np.bool_))
+    extent = hi - lo
+    # A little wider than the limit: rounding in the division cannot push a neighbour two
+    # cells away.
+    cell = limit * 1.001
+    # A surface fills few of the cells: about as many cells as points keeps the table small
+    # (wider cells only add candidates, never lose one).
+    while np.prod(np.floor(extent / cell) + 1) > max(4 * len(cloud), 4096):
+        cell *= 1.25
+    dims = (np.floor(extent / cell) + 1).astype(np.int64)
+    start, order = _bucket(cloud, lo, cell, dims)
+    return start, order, lo, cell, dims
+
+
+@numba.njit(cache=True, nogil=True)
+def _bucket(
+    cloud: np.ndarray, lo: np.ndarray, cell: float, dims: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Counting sort of the points by cell: ``order[start[c]:start[c + 1]]`` are cell c's."""
+    n = cloud.shape[0]
+    ids = np.empty(n, dtype=np.int64)
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    for i in range(n):
+        cx = min(int((cloud[i, 0] - lo[0]) / cell), dims[0] - 1)
+        cy = min(int((cloud[i, 1] - lo[1]) / cell), dims[1] - 1)
+        cz = min(int((cloud[i, 2] - lo[2]) / cell), dims[2] - 1)
+        ids[i] = (cx * dims[1] + cy) * dims[2] + cz
+        start[ids[i] + 1] += 1
+    for c in range(start.shape[0] - 1):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[ids[i]]] = i
+        fill[ids[i]] += 1
+    return start, order
+
+
+@numba.njit(cache=True, nogil=True)
+def _near(
+    x: float,
+    y: float,
+    z: float,
+    cloud: np.ndarray,
+    start: np.ndarray,
+    order: np.ndarray,
+    lo: np.ndarray,
+    cell: float,
+    dims: np.ndarray,
+    limit2: float,
+) -> bool:
+    """Whether a point of ``cloud`` lies at squared distance < ``limit2`` from (x, y, z): the
+    test of scipy's ``cKDTree.query(..., distance_upper_bound=limit)`` (squares summed x, y, z)."""
+    fx = (x - lo[0]) / cell
+    fy = (y - lo[1]) / cell
+    fz = (z - lo[2]) / cell
+    # Beyond a cell outside the grid nothing is near (the negated test also rejects NaN).
+    if not (-2.0 < fx < dims[0] + 1.0 and -2.0 < fy < dims[1] + 1.0 and -2.0 < fz < dims[2] + 1.0):
+        return False
+    cx = int(math.floor(fx))
+    cy = int(math.floor(fy))
+    cz = int(math.floor(fz))
+    k0 = max(cz - 1, 0)
+    k1 = min(cz + 1, dims[2] - 1)
+    if k0 > k1:
+        return False
+    # The query's own column of cells first: a point that has a near vertex mostly has it there.
+    for a in range(3):
+        i = cx + (a + 1) % 3 - 1  # cx, cx + 1, cx - 1
+        if i < 0 or i >= dims[0]:
             continue
-        dist, _ = tree.query(image[128:], k=1, distance_upper_bound=limit)
-        if misses + int(np.count_nonzero(~np.isfinite(dist))) <= allowed:
-            found.append(element_label(perm, signs))
-    return found
+        for b in range(3):
+            j = cy + (b + 1) % 3 - 1
+            if j < 0 or j >= dims[1]:
+                continue
+            base = (i * dims[1] + j) * dims[2]
+            for s in range(start[base + k0], start[base + k1 + 1]):
+                p = order[s]
+                dx = x - cloud[p, 0]
+                dy = y - cloud[p, 1]
+                dz = z - cloud[p, 2]
+                if dx * dx + dy * dy + dz * dz < limit2:
+                    return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def _symmetric(
+    pts: np.ndarray,
+    cloud: np.ndarray,
+    start: np.ndarray,
+    order: np.ndarray,
+    lo: np.ndarray,
+    cell: float,
+    dims: np.ndarray,
+    limit2: float,
+    perms: np.ndarray,
+    signs: np.ndarray,
+    allowed: int,
+) -> np.ndarray:
+    """Per element (``perms``, ``signs`` (E, 3)): do at most ``allowed`` of the images of
+    ``pts`` miss the cloud? Stops counting an element as soon as it has failed."""
+    out = np.zeros(perms.shape[0], dtype=np.bool_)
+    for e in range(perms.shape[0]):
+        misses = 0
+        for i in range(pts.shape[0]):
+            x = pts[i, perms[e, 0]] * signs[e, 0]
+            y = pts[i, perms[e, 1]] * signs[e, 1]
+            z = pts[i, perms[e, 2]] * signs[e, 2]
+            if not _near(x, y, z, cloud, start, order, lo, cell, dims, limit2):
+                misses += 1
+                if misses > allowed:
+                    break
+        out[e] = misses <= allowed
+    return out
 
 
 def symmetry_metrics(mesh: Mesh) -> dict[str, Any]:
@@ -111,7 +247,7 @@ def solidity(mesh: Mesh, volume: float | None) -> float | None:
 
     if volume is None or mesh.n_faces == 0:
         return None
-    used = mesh.vertices[np.unique(mesh.faces)]
+    used = mesh.vertices[used_vertices(mesh)]
     try:
         hull = ConvexHull(used).volume
     except (QhullError, ValueError):  # flat or degenerate

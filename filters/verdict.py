@@ -18,6 +18,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from surfgen.filters.geometry import corner_cosines, corner_sums, used_mask
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
@@ -211,17 +212,11 @@ def shape_metrics(
 
 def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
     """Sum of |2 pi - sum of corner angles| over vertices (discrete Gauss-Bonnet)."""
-    # Each edge vector and its length are computed once: the corner at k sees edge k and the
-    # reversed edge k+2 (x - y == -(y - x) exactly, so the angles are bit for bit the same).
-    edges = [v[f[:, (k + 1) % 3]] - v[f[:, k]] for k in range(3)]
-    lengths = [np.linalg.norm(e, axis=1) for e in edges]
-    angles = np.empty(f.shape)
-    for k in range(3):
-        j = (k + 2) % 3
-        cos = -np.einsum("ij,ij->i", edges[k], edges[j]) / (lengths[k] * lengths[j] + 1e-300)
-        angles[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
-    angle_sum = np.bincount(f.ravel(), weights=angles.ravel(), minlength=len(v))
-    used = np.bincount(f.ravel(), minlength=len(v)) > 0
+    # Corner cosines and the per-vertex sums in numba (module geometry: the same operations as
+    # the numpy version, bit for bit); the arccos and the final sum stay numpy's.
+    angles = np.arccos(np.clip(corner_cosines(v, f), -1.0, 1.0))
+    angle_sum = corner_sums(f, angles, len(v))
+    used = used_mask(f, len(v))
     return float(np.abs(2 * math.pi - angle_sum[used]).sum())
 
 

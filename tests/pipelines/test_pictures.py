@@ -142,6 +142,69 @@ def test_output_is_deterministic(gyroid: Mesh, tmp_path: Path) -> None:
     assert np.array_equal(render_image(gyroid, azimuth=77.0), render_image(gyroid, azimuth=77.0))
 
 
+def test_highlight_by_squarings_is_pow_to_rounding() -> None:
+    from surfgen.pipelines import pictures
+
+    assert pictures._SPECULAR_EXPONENT == 24
+    for x in np.random.default_rng(2).uniform(0.0, 1.0, 2000):
+        want = pictures._SPECULAR_STRENGTH * float(x) ** 24.0
+        assert abs(pictures._highlight(float(x)) - want) <= 1e-14 * want
+
+
+def test_buffers_left_unset_are_never_read(gyroid: Mesh, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The renderer skips clearing the colour and barycentric buffers (only pixels a face covers
+    # are read): garbage in fresh memory must not change a pixel.
+    clean = [render_image(gyroid, size=64), render_image(gyroid, size=64, background=None)]
+    empty = np.empty
+
+    def garbage(shape, dtype=float):
+        out = empty(shape, dtype=dtype)
+        out.fill(np.nan if np.dtype(dtype).kind == "f" else 7)
+        return out
+
+    monkeypatch.setattr(np, "empty", garbage)
+    assert np.array_equal(render_image(gyroid, size=64), clean[0])
+    assert np.array_equal(render_image(gyroid, size=64, background=None), clean[1])
+
+
+def _corner_normals_reference(faces: np.ndarray, vertices: np.ndarray, crease: float) -> np.ndarray:
+    """Per corner, the sum of the fan's area normals within the crease angle (plain loops)."""
+    weighted = np.cross(
+        vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]]
+    )
+    unit = weighted / np.linalg.norm(weighted, axis=1)[:, None]
+    fans: dict[int, list[int]] = {}
+    for t, face in enumerate(faces):
+        for i in face:
+            fans.setdefault(int(i), []).append(t)
+    out = np.zeros((len(faces), 3, 3))
+    for t, face in enumerate(faces):
+        for k, i in enumerate(face):
+            s = np.zeros(3)
+            for g in fans[int(i)]:
+                if unit[g] @ unit[t] >= crease:
+                    s += weighted[g]
+            out[t, k] = s / np.linalg.norm(s)
+    return out
+
+
+def test_corner_normals_match_plain_loops() -> None:
+    from surfgen.pipelines import pictures
+
+    box = trimesh.creation.box(extents=(1.0, 1.4, 0.8)).subdivide().subdivide()
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    crease = float(np.cos(np.radians(60.0)))
+    for t in (box, ball):  # creases along the box's rims; smooth fans everywhere on the ball
+        vertices, faces = np.asarray(t.vertices, float), np.asarray(t.faces, np.int64)
+        weighted, unit = np.zeros((len(faces), 3)), np.zeros((len(faces), 3))
+        assert pictures._face_normals(vertices, faces, weighted, unit).all()
+        got = np.zeros((len(faces), 3, 3))
+        pictures._corner_normals(faces, weighted, unit, len(vertices), crease, 256, got)
+        assert np.allclose(got, _corner_normals_reference(faces, vertices, crease), atol=1e-12)
+        if t is box:  # flat sides, crisp rims: every corner keeps its face's normal
+            assert np.allclose(got, unit[:, None, :], atol=1e-12)
+
+
 def test_same_framing_whatever_the_scale_and_position(sphere: Mesh) -> None:
     moved = Mesh(sphere.vertices * 37.0 + np.array([5.0, -3.0, 100.0]), sphere.faces)
     a = render_image(sphere).astype(int)

@@ -1,0 +1,201 @@
+"""One-pass numba kernels behind the per-shape checks (metrics, curvature, symmetry, descriptor).
+
+Every accepted candidate of a sampling run is measured several ways; numpy did each measure with
+several whole-array temporaries (fancy-indexed ``(F, 3, 3)`` triangles, cross products, norms).
+These kernels compute the same per-face and per-corner numbers in one pass, with the *same
+floating-point operations in the same order* as the numpy expressions they replace, so every
+stored metric stays bit for bit what it was. What numpy sums (pairwise summation over faces) is
+still summed by numpy: the kernels hand it the per-face terms. The orders were checked against
+numpy on a million random rows each (``tests/filters/test_geometry.py`` keeps the comparison):
+
+- ``np.linalg.norm(e, axis=1)`` is ``sqrt((x*x + y*y) + z*z)``;
+- ``np.einsum("ij,ij->i", a, b)`` on rows of three is ``(a0*b0 + a2*b2) + a1*b1``;
+- ``np.cross`` is the textbook component formula; ``tri.mean(axis=1)`` is ``((a + b) + c) / 3``;
+- ``np.bincount(idx, weights)`` adds the weights in index order, one after the other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def _dot(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
+    """``np.einsum("ij,ij->i")`` on one row of three: its pairing, not left to right."""
+    return (ax * bx + az * bz) + ay * by
+
+
+@numba.njit(cache=True, nogil=True)
+def used_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """``(V,)`` bool: the vertices some face uses (``np.unique(faces)`` as a mask, same order)."""
+    out = np.zeros(n_vertices, dtype=np.bool_)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            out[faces[t, k]] = True
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def weighted_centres(v: np.ndarray, f: np.ndarray, areas: np.ndarray) -> np.ndarray:
+    """``areas[:, None] * v[f].mean(axis=1)`` ``(F, 3)``: summed over faces (by numpy) and
+    divided by the total area it is the area centroid."""
+    out = np.empty((f.shape[0], 3))
+    for t in range(f.shape[0]):
+        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
+        for k in range(3):
+            out[t, k] = areas[t] * ((v[i0, k] + v[i1, k] + v[i2, k]) / 3.0)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def first_edge_lengths(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)``."""
+    out = np.empty(f.shape[0])
+    for t in range(f.shape[0]):
+        x = v[f[t, 1], 0] - v[f[t, 0], 0]
+        y = v[f[t, 1], 1] - v[f[t, 0], 1]
+        z = v[f[t, 1], 2] - v[f[t, 0], 2]
+        out[t] = math.sqrt(x * x + y * y + z * z)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def volume_terms(v: np.ndarray, f: np.ndarray, o: np.ndarray) -> np.ndarray:
+    """``einsum("ij,ij->i", a - o, cross(b - o, c - o))`` per face (six times its signed cone
+    volume from ``o``)."""
+    out = np.empty(f.shape[0])
+    for t in range(f.shape[0]):
+        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
+        ax, ay, az = v[i0, 0] - o[0], v[i0, 1] - o[1], v[i0, 2] - o[2]
+        bx, by, bz = v[i1, 0] - o[0], v[i1, 1] - o[1], v[i1, 2] - o[2]
+        cx, cy, cz = v[i2, 0] - o[0], v[i2, 1] - o[1], v[i2, 2] - o[2]
+        nx = by * cz - bz * cy
+        ny = bz * cx - bx * cz
+        nz = bx * cy - by * cx
+        out[t] = _dot(ax, ay, az, nx, ny, nz)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def corner_cosines(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Cosine of the angle at each face corner ``(F, 3)``, unclipped: corner k sees edge
+    ``k -> k+1`` and the reversed edge ``k+2 -> k``, ``-(e_k . e_j) / (|e_k| |e_j| + 1e-300)``."""
+    out = np.empty((f.shape[0], 3))
+    e = np.empty((3, 3))
+    n = np.empty(3)
+    for t in range(f.shape[0]):
+        for k in range(3):
+            a = f[t, k]
+            b = f[t, (k + 1) % 3]
+            x = v[b, 0] - v[a, 0]
+            y = v[b, 1] - v[a, 1]
+            z = v[b, 2] - v[a, 2]
+            e[k, 0] = x
+            e[k, 1] = y
+            e[k, 2] = z
+            n[k] = math.sqrt(x * x + y * y + z * z)
+        for k in range(3):
+            j = (k + 2) % 3
+            d = _dot(e[k, 0], e[k, 1], e[k, 2], e[j, 0], e[j, 1], e[j, 2])
+            out[t, k] = -d / (n[k] * n[j] + 1e-300)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def corner_sums(f: np.ndarray, values: np.ndarray, n_vertices: int) -> np.ndarray:
+    """``np.bincount(f.ravel(), weights=values.ravel(), minlength=n_vertices)``."""
+    out = np.zeros(n_vertices)
+    for t in range(f.shape[0]):
+        for k in range(3):
+            out[f[t, k]] += values[t, k]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool]:
+    """Distinct undirected edges, edges with one face, edges with more than two, and whether
+    every two-face edge is walked once in each direction — by half-edges bucketed on their lower
+    vertex (a vertex has a handful: a short sort each), no global sort."""
+    m = faces.shape[0] * 3
+    start = np.zeros(n_vertices + 1, dtype=np.int64)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            a = faces[t, k]
+            b = faces[t, (k + 1) % 3]
+            start[min(a, b) + 1] += 1
+    for i in range(n_vertices):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    other = np.empty(m, dtype=np.int64)
+    forward = np.empty(m, dtype=np.bool_)
+    for t in range(faces.shape[0]):
+        for k in range(3):
+            a = faces[t, k]
+            b = faces[t, (k + 1) % 3]
+            lo = min(a, b)
+            other[fill[lo]] = max(a, b)
+            forward[fill[lo]] = a < b
+            fill[lo] += 1
+    count = 0
+    boundary = 0
+    nonmanifold = 0
+    oriented = True
+    for i in range(n_vertices):
+        s, e = start[i], start[i + 1]
+        # insertion sort of this vertex's few half-edges by their other end
+        for p in range(s + 1, e):
+            key = other[p]
+            fw = forward[p]
+            q = p - 1
+            while q >= s and other[q] > key:
+                other[q + 1] = other[q]
+                forward[q + 1] = forward[q]
+                q -= 1
+            other[q + 1] = key
+            forward[q + 1] = fw
+        p = s
+        while p < e:
+            q = p
+            fw = 0
+            while q < e and other[q] == other[p]:
+                fw += forward[q]
+                q += 1
+            c = q - p
+            count += 1
+            if c == 1:
+                boundary += 1
+            elif c > 2:
+                nonmanifold += 1
+            elif fw != 1:
+                oriented = False
+            p = q
+    return count, boundary, nonmanifold, oriented
+
+
+@numba.njit(cache=True, nogil=True)
+def column_bounds(a: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a[mask].min(axis=0)`` and ``.max(axis=0)`` of an ``(N, 3)`` array in one pass (numpy's
+    column reductions of a row-major array walk it three values at a time: 10x slower). NaN
+    propagates as in numpy; an empty selection gives ``+inf`` and ``-inf``."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    nan = np.zeros(3, dtype=np.bool_)
+    for i in range(a.shape[0]):
+        if not mask[i]:
+            continue
+        for k in range(3):
+            x = a[i, k]
+            if x < lo[k]:
+                lo[k] = x
+            if x > hi[k]:
+                hi[k] = x
+            if x != x:
+                nan[k] = True
+    for k in range(3):
+        if nan[k]:
+            lo[k] = np.nan
+            hi[k] = np.nan
+    return lo, hi
