@@ -13,7 +13,15 @@ from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.grid import Field
-from surfgen.generator.mesh import _CLIP, _MAX_ROUNDS, _RATIO, _TINY, SEPARATION, Mesh, _empty_message
+from surfgen.generator.mesh import (
+    _CLIP,
+    _MAX_ROUNDS,
+    _RATIO,
+    _TINY,
+    SEPARATION,
+    Mesh,
+    _empty_message,
+)
 
 
 def reference_extract_with_edges(
