@@ -48,7 +48,7 @@ from surfgen.generator import constituents as cf
 from surfgen.generator import elementary as E
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of, postorder, to_string
+from surfgen.generator.expr import Expr, params_of, to_string
 from surfgen.generator.functions import FUNCTIONS, match_rewrite
 
 # ----------------------------------------------------------------------------- the opcode table
@@ -164,7 +164,11 @@ class Program:
     rows: np.ndarray
     n_vector: int
     n_scalar: int
-    formula: str
+    tree: Expr  # what was compiled (printed by :attr:`formula` when asked for: printing costs)
+
+    @property
+    def formula(self) -> str:
+        return to_string(self.tree)
 
     def __post_init__(self) -> None:
         for name in ("code", "consts", "blocks", "loads", "stores", "rows"):
@@ -361,16 +365,17 @@ class _Lowerer:
     def __init__(self, params: Mapping[str, float]) -> None:
         self.dag = _Dag()
         self.params = params
-        self.memo: dict[int, int] = {}
-        self.keep: list[Expr] = []  # keeps ids in memo valid
+        # Keyed by the tree itself (hash cached per node, equality iterative): equal sub-trees
+        # built as separate objects (a sampled ornament's copies, each product's factors) are
+        # lowered once, as the DAG's hash-consing would merge them anyway.
+        self.memo: dict[Expr, int] = {}
 
     def lower(self, node: Expr) -> int:
-        hit = self.memo.get(id(node))
+        hit = self.memo.get(node)
         if hit is not None:
             return hit
         out = self._lower(node)
-        self.memo[id(node)] = out
-        self.keep.append(node)
+        self.memo[node] = out
         return out
 
     def _lower(self, node: Expr) -> int:
@@ -553,13 +558,13 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
             f"parameter '{missing[0]}' has no value (give it with --param {missing[0]}=...)"
         )
     low = _Lowerer(params)
-    for node in postorder(tree):  # children first, so lower() never recurses more than once
+    for node in _distinct_postorder(tree):  # children first: lower() recurses at most once
         low.lower(node)
     root = low.lower(tree)
-    return _schedule(low.dag, root, to_string(tree))
+    return _schedule(low.dag, root, tree)
 
 
-def _schedule(dag: _Dag, root: int, formula: str) -> Program:
+def _schedule(dag: _Dag, root: int, tree: Expr) -> Program:
     nodes = dag.nodes
     order = _postorder(nodes, root)
     level = {n: nodes[n].level for n in order}
@@ -619,8 +624,27 @@ def _schedule(dag: _Dag, root: int, formula: str) -> Program:
         rows=np.array(rows, np.int64),
         n_vector=n_vector,
         n_scalar=n_scalar,
-        formula=formula,
+        tree=tree,
     )
+
+
+def _distinct_postorder(tree: Expr) -> list[Expr]:
+    """:func:`~surfgen.generator.expr.postorder` with sub-trees told apart by value, not
+    identity: a copy of a sub-tree already listed is skipped whole (its root compared once)."""
+    out: list[Expr] = []
+    seen: set[Expr] = set()
+    stack: list[tuple[Expr, bool]] = [(tree, False)]
+    while stack:
+        node, done = stack.pop()
+        if done:
+            out.append(node)
+            continue
+        if node in seen:
+            continue
+        seen.add(node)
+        stack.append((node, True))
+        stack.extend((a, False) for a in reversed(node.args) if a not in seen)
+    return out
 
 
 def _postorder(nodes: list[_Node], root: int) -> list[int]:

@@ -209,7 +209,23 @@ class Factor:
         return self._p(top) if self._trivial(bottom) else self._p(top) / self._p(bottom)
 
     def to_tree(self) -> Expr:
-        """``(A/D * B/E) * C/F`` leaving out the elements that are identically 1."""
+        """``(A/D * B/E) * C/F`` leaving out the elements that are identically 1.
+
+        Built once per factor and kept: the copies of a factor in many products (a sampled
+        ornament under a power) are then one tree, which the compiler lowers once."""
+        tree = self.__dict__.get("_tree")
+        if tree is None:
+            tree = self._build_tree()
+            object.__setattr__(self, "_tree", tree)
+        return tree
+
+    def __getstate__(self) -> dict[str, Any]:  # the cached tree is rebuilt, not shipped
+        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+    def _build_tree(self) -> Expr:
         e = self.elements()
         out: Expr | None = None
         for top, bottom in (("A", "D"), ("B", "E"), ("C", "F")):

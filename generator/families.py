@@ -36,7 +36,9 @@ from collections import Counter
 from dataclasses import replace
 from typing import Any
 
+import numba
 import numpy as np
+from scipy import ndimage
 
 from surfgen.generator.equation13 import (
     Equation13,
@@ -281,7 +283,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, feature, stray, departure, tries = _coarse_ornament(
+    ornament, freq, products, unit, checks, strength_d, tries = _coarse_ornament(
         rng,
         cfg,
         envelope if extent is not None else None,
@@ -298,16 +300,18 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
         "k": k,
     }
     structure["ornament"].update(frequency=freq, depth=depth)
-    if feature is not None:
+    if checks is not None:
+        feature, stray, departure, pieces = checks
         structure["ornament"].update(
             feature=round(feature, 4),
             stray=round(stray, 4),
             departure=round(min(departure, 99.0), 4),
+            pieces=pieces,
             tries=tries,
         )
     if extent is None:  # an envelope that does not close: give it a box, it will be rejected
         return _sculpture_draw(env_terms, products, 0.0, half, None, structure, envelope)
-    strength, d = _strength(envelope, unit, box, cfg.d_grid, depth * extent)
+    strength, d = strength_d
     structure["ornament"].update(strength=strength)
     structure["extent"] = round(extent, 4)
     return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
@@ -322,39 +326,58 @@ def _coarse_ornament(
     mirror: bool,
     k: int,
     depth: float,
-) -> tuple[Factor, float, list, Expr, float | None, float | None, float | None, int]:
+) -> tuple[
+    Factor,
+    float,
+    list,
+    Expr,
+    tuple[float, float, float, int] | None,
+    tuple[float, float | None],
+    int,
+]:
     """Draw ornaments until one carves cleanly: features at least ``sculpture_min_feature`` of
-    the box, and at most ``sculpture_max_stray`` of its surface far from the envelope (at most ``sculpture_ornament_tries``; else
-    the best drawn). Finer ornaments carve noise, and ornaments that outgrow the envelope away
-    from its surface throw debris: the filters reject both, or the eye calls them rough balls
-    (README, Families). Returns the ornament, its frequency, the expanded products, their sum
-    as a tree, its feature size and stray share (None without an envelope) and the number of
-    ornaments drawn."""
+    the box, at most ``sculpture_max_stray`` of its surface far from the envelope, a departure
+    from the envelope of at least ``sculpture_min_departure``, and a carved body in at most
+    ``sculpture_max_pieces`` pieces (at most ``sculpture_ornament_tries``; else the best drawn).
+    Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
+    throw debris, and ornaments that break the body into crumbs make speckle: the filters
+    reject all three after evaluating and meshing the full grid, or the eye calls them rough
+    balls (README, Families). Returns the ornament, its frequency, the expanded products, their
+    sum as a tree, its checks ``(feature, stray, departure, pieces)`` (None without an
+    envelope), its strength and d (:func:`_strength` on the ``d_grid``: the checks judge the
+    surface the draw will be) and the number of ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
-    # the envelope's slope: the same for every ornament tried
+    # the envelope's samples and slope on both grids: the same for every ornament tried
     ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
+    step_d = (box.hi[0] - box.lo[0]) / (cfg.d_grid - 1)
+    e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
+    ge_d = None if e_d is None else _slope(e_d, step_d)
     best, best_score = None, -math.inf
     for tries in range(1, cfg.sculpture_ornament_tries + 1):
         ornament, freq = _draw_ornament(rng, cfg)
         products = _ornament_terms(ornament, perms, mirror, k)
         unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, None, None, tries
+            return ornament, freq, products, unit, None, (0.0, None), tries
         o = _eval(unit, box, FEATURE_GRID)
         feature = _feature_size(e, o, box, ge)
-        stray, departure = _carved(e, o, box, depth, ge)
+        strength_d = _strength_on(e_d, _eval(unit, box, cfg.d_grid), step_d, depth, ge_d)
+        stray, departure, pieces = _carved(e, o, box, depth, ge, strength_d)
         clean = (
             feature >= cfg.sculpture_min_feature
             and stray <= cfg.sculpture_max_stray
             and departure >= cfg.sculpture_min_departure
+            and pieces <= cfg.sculpture_max_pieces
         )
         score = (
             min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0)
             + min(departure / max(cfg.sculpture_min_departure, 1e-9), 1.0)
             - stray
+            - (pieces > cfg.sculpture_max_pieces)
         )
         if best is None or score > best_score:
-            best, best_score = (ornament, freq, products, unit, feature, stray, departure), score
+            checks = (feature, stray, departure, pieces)
+            best, best_score = (ornament, freq, products, unit, checks, strength_d), score
         if clean:
             break
     assert best is not None
@@ -369,18 +392,24 @@ def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
 
 
 def _carved(
-    e: np.ndarray, o: np.ndarray, box: Box, depth: float, ge: np.ndarray | None = None
-) -> tuple[float, float]:
+    e: np.ndarray,
+    o: np.ndarray,
+    box: Box,
+    depth: float,
+    ge: np.ndarray | None = None,
+    strength_d: tuple[float, float | None] | None = None,
+) -> tuple[float, float, int]:
     """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
-    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell) and its
+    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
     :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
-    the full grid."""
+    the full grid, and its :func:`pieces` (0 when it cannot tell). ``strength_d``: s and d
+    if already chosen (else :func:`_strength_on` these samples)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
     ge = _slope(e, step) if ge is None else ge
-    s, d = _strength_on(e, o, step, depth, ge)
+    s, d = _strength_on(e, o, step, depth, ge) if strength_d is None else strength_d
     if d is None:
-        return 1.0, 0.0
+        return 1.0, 0.0, 0
     with np.errstate(invalid="ignore", over="ignore"):
         f = e + s * o - d
         distance = np.abs(e) / np.where(ge > 0, ge, np.inf)
@@ -393,10 +422,34 @@ def _carved(
         crossing[tuple(lo)] |= change
     count = np.count_nonzero(crossing)
     if count == 0:
-        return 1.0, 0.0
+        return 1.0, 0.0, 0
     far = crossing & ~(distance <= 2 * depth + 2 * step)
     departure = envelope_departure(f, e)
-    return np.count_nonzero(far) / count, departure if math.isfinite(departure) else 0.0
+    stray = np.count_nonzero(far) / count
+    return stray, departure if math.isfinite(departure) else 0.0, pieces(f)
+
+
+_CUBE = np.ones((3, 3, 3), dtype=bool)
+
+
+def pieces(values: np.ndarray, level: float = 0.0) -> int:
+    """How many pieces the closed surface ``values = level`` has at least, from the samples
+    alone: (components of the solid) + (components of the rest, the outside of the box
+    included) - 1, both connected through the 26 neighbours of a sample.
+
+    A capped marching-cubes surface separates the solid's regions from the rest's, each of its
+    components exactly two of them, and the regions with the surfaces between them form a tree
+    (every closed surface in space splits it in two): surfaces = regions - 1. Marching cubes
+    joins samples only within a cell, where all are 26-neighbours, so it has at least as many
+    regions of each kind as this count: the count never exceeds the mesh's components. The
+    solid is the mesher's (finite samples below the level)."""
+    with np.errstate(invalid="ignore"):
+        solid = np.isfinite(values) & (values < level)
+    if not solid.any() or solid.all():
+        return 0
+    n_solid = ndimage.label(solid, structure=_CUBE)[1]
+    n_rest = ndimage.label(np.pad(~solid, 1, constant_values=True), structure=_CUBE)[1]
+    return int(n_solid + n_rest - 1)
 
 
 def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:
@@ -409,30 +462,87 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     The surface points are where the grid's edges cross the level, interpolated linearly (the
     marching-cubes vertices), so the measure does not see the grid's staircase. Returns
     ``inf`` when the envelope is empty on the grid or the surface has too few points.
+
+    ``|grad E|`` is ``numpy.gradient``'s (central differences inside, one-sided at the faces, in
+    grid steps), computed only at the ends of the crossing edges (:func:`_crossing_offsets`:
+    the same operations, so the same bits, without the three whole-grid gradient arrays).
     """
-    f = np.asarray(values, dtype=np.float64) - level
-    env = np.asarray(envelope, dtype=np.float64)
-    n_env = int(np.count_nonzero(np.isfinite(env) & (env < 0)))
+    f = np.ascontiguousarray(values, dtype=np.float64)
+    env = np.ascontiguousarray(envelope, dtype=np.float64)
+    if f.ndim != 3 or f.shape != env.shape or min(f.shape) < 2:
+        raise ValueError(f"values and envelope must be one 3-D grid, got {f.shape}, {env.shape}")
+    n_env, off = _crossing_offsets(f, float(level), env)
     if n_env == 0:
         return float("inf")
-    with np.errstate(all="ignore"):
-        grad = np.sqrt(sum(g * g for g in np.gradient(env)))  # per grid step
-        offsets = []
-        for axis in range(3):
-            fa, ea, ga = (np.moveaxis(a, axis, 0) for a in (f, env, grad))
-            f0, f1 = fa[:-1], fa[1:]
-            cross = np.isfinite(f0) & np.isfinite(f1) & ((f0 < 0) != (f1 < 0))
-            t = f0[cross] / (f0[cross] - f1[cross])
-            e = ea[:-1][cross] + t * (ea[1:][cross] - ea[:-1][cross])
-            g = ga[:-1][cross] + t * (ga[1:][cross] - ga[:-1][cross])
-            offsets.append(e / g)
-        off = np.concatenate(offsets)
     off = off[np.isfinite(off)]
     if off.size < 8:
         return float("inf")
     radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)  # in grid steps, like the offsets
     lo, hi = np.quantile(off, (0.05, 0.95))
     return float((hi - lo) / radius)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _gradient_norm(e: np.ndarray, i: int, j: int, k: int) -> float:
+    """``sqrt(gx² + gy² + gz²)`` of ``numpy.gradient(e)`` (unit spacing, edge order 1) at one
+    point, with numpy's operations: ``(e[i+1] - e[i-1]) / 2`` inside, a one-sided difference on
+    the faces, the squares summed in axis order."""
+    n0, n1, n2 = e.shape
+    if i == 0:
+        g0 = e[1, j, k] - e[0, j, k]
+    elif i == n0 - 1:
+        g0 = e[i, j, k] - e[i - 1, j, k]
+    else:
+        g0 = (e[i + 1, j, k] - e[i - 1, j, k]) / 2.0
+    if j == 0:
+        g1 = e[i, 1, k] - e[i, 0, k]
+    elif j == n1 - 1:
+        g1 = e[i, j, k] - e[i, j - 1, k]
+    else:
+        g1 = (e[i, j + 1, k] - e[i, j - 1, k]) / 2.0
+    if k == 0:
+        g2 = e[i, j, 1] - e[i, j, 0]
+    elif k == n2 - 1:
+        g2 = e[i, j, k] - e[i, j, k - 1]
+    else:
+        g2 = (e[i, j, k + 1] - e[i, j, k - 1]) / 2.0
+    return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _crossing_offsets(v: np.ndarray, level: float, e: np.ndarray) -> tuple[int, np.ndarray]:
+    """The envelope's cell count (finite and < 0) and, for every grid edge whose ends are
+    finite and on either side of ``level``, ``E / |grad E|`` interpolated linearly to the
+    crossing (axis by axis, in C order: the order does not change the percentiles)."""
+    n0, n1, n2 = v.shape
+    n_env = 0
+    for i in range(n0):
+        for j in range(n1):
+            for k in range(n2):
+                x = e[i, j, k]
+                if np.isfinite(x) and x < 0:
+                    n_env += 1
+    out = np.empty(3 * v.size, np.float64)
+    m = 0
+    for axis in range(3):
+        for i in range(n0 - (axis == 0)):
+            for j in range(n1 - (axis == 1)):
+                for k in range(n2 - (axis == 2)):
+                    i1 = i + (axis == 0)
+                    j1 = j + (axis == 1)
+                    k1 = k + (axis == 2)
+                    f0 = v[i, j, k] - level
+                    f1 = v[i1, j1, k1] - level
+                    if not (np.isfinite(f0) and np.isfinite(f1)) or (f0 < 0) == (f1 < 0):
+                        continue
+                    t = f0 / (f0 - f1)
+                    e0 = e[i, j, k]
+                    g0 = _gradient_norm(e, i, j, k)
+                    ee = e0 + t * (e[i1, j1, k1] - e0)
+                    g = g0 + t * (_gradient_norm(e, i1, j1, k1) - g0)
+                    out[m] = ee / g
+                    m += 1
+    return n_env, out[:m]
 
 
 def _slope(a: np.ndarray, step: float) -> np.ndarray:

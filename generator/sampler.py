@@ -43,7 +43,7 @@ from surfgen.generator.settings import (
     settings_to_dict,
 )
 
-SAMPLER_VERSION = 2  # 2: families (sculpture, lattice, free) and their mix
+SAMPLER_VERSION = 3  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces)
 FAMILIES = ("sculpture", "lattice", "free")
 FAMILY_CHOICES = (*FAMILIES, "mix")
 SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
@@ -116,6 +116,7 @@ class SamplerConfig:
     sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     sculpture_max_stray: float = 0.02  # share of the carved surface far from the envelope
     sculpture_min_departure: float = 0.12  # carved surface's departure from the envelope
+    sculpture_max_pieces: int = 6  # pieces of the carved surface on the feature grid
     sculpture_ornament_tries: int = 6  # ornaments drawn until one carves cleanly
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
     lattice_pattern_weights: tuple[float, ...] = (0.15, 0.2, 0.15, 0.2, 0.15, 0.15)
@@ -210,6 +211,7 @@ class SamplerConfig:
             ("sculpture_min_feature", 0, 10),
             ("sculpture_min_departure", 0, 10),
             ("sculpture_ornament_tries", 1, 50),
+            ("sculpture_max_pieces", 1, 100000),
             ("lattice_anisotropy", 0.1, 10),
         ):
             require_range(self, name, low, high, "sampler")

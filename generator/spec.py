@@ -44,13 +44,19 @@ class SurfaceSpec:
     provenance: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        self._settle(None)
+
+    def _settle(self, tree: Expr | None) -> None:
+        """Normalise and check the fields; the formula becomes ``tree`` printed (``None``: the
+        formula parsed)."""
         object.__setattr__(self, "params", _frozen({k: float(v) for k, v in self.params.items()}))
         object.__setattr__(self, "provenance", _frozen(self.provenance))
         object.__setattr__(self, "box", tuple(float(v) for v in self.box))
         object.__setattr__(self, "grid", tuple(int(v) for v in self.grid))
         if not math.isfinite(self.level):
             raise SpecError(f"level must be a finite number, got {self.level}")
-        tree = parse(self.formula, self.params.keys())  # raises FormulaSyntaxError
+        if tree is None:
+            tree = parse(self.formula, self.params.keys())  # raises FormulaSyntaxError
         used = params_of(tree)
         missing = sorted(used - self.params.keys())
         if missing:
@@ -65,8 +71,25 @@ class SurfaceSpec:
         self.to_grid()  # validates box and grid
 
     @classmethod
-    def from_tree(cls, tree: Expr, box, grid, **kw) -> SurfaceSpec:
-        return cls(formula=to_string(tree), box=tuple(box), grid=tuple(grid), **kw)
+    def from_tree(
+        cls,
+        tree: Expr,
+        box,
+        grid,
+        params: Mapping[str, float] | None = None,
+        level: float = 0.0,
+        provenance: Mapping[str, Any] | None = None,
+    ) -> SurfaceSpec:
+        """The spec of a tree built in code (the sampler's draws): the same spec as
+        ``SurfaceSpec(to_string(tree), ...)``, without parsing the printed formula back (the
+        printer is the parser's fixed point: tests/generator/test_parser.py)."""
+        spec = cls.__new__(cls)
+        fields = {"formula": "", "box": tuple(box), "grid": tuple(grid), "params": params or {}}
+        fields.update(level=level, provenance=provenance or {})
+        for name, value in fields.items():
+            object.__setattr__(spec, name, value)
+        spec._settle(tree)
+        return spec
 
     def tree(self) -> Expr:
         return parse(self.formula, self.params.keys())

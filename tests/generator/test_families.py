@@ -182,10 +182,15 @@ def test_stray_share_sees_debris_away_from_the_envelope() -> None:
 
 
 def test_sculptures_redraw_fine_ornaments() -> None:
-    strict = replace(family("sculpture"), sculpture_min_feature=0.3, sculpture_ornament_tries=6)
     loose = replace(
-        strict, sculpture_min_feature=0.0, sculpture_max_stray=1.0, sculpture_min_departure=0.0
+        family("sculpture"),
+        sculpture_min_feature=0.0,
+        sculpture_max_stray=1.0,
+        sculpture_min_departure=0.0,
+        sculpture_max_pieces=100000,
+        sculpture_ornament_tries=6,
     )
+    strict = replace(loose, sculpture_min_feature=0.3)  # the feature size alone
     kept = []
     for i in range(12):
         s = draw_equation(7, i, strict).structure["ornament"]
@@ -195,6 +200,22 @@ def test_sculptures_redraw_fine_ornaments() -> None:
             kept.append(s["feature"])
         assert draw_equation(7, i, loose).structure["ornament"].get("tries", 1) == 1
     assert kept and np.mean(np.array(kept) >= 0.3) > 0.7
+
+
+def test_sculptures_redraw_crumbling_ornaments() -> None:
+    """With sculpture_max_pieces, an ornament that breaks the body into more pieces (on the
+    feature grid, with the strength and d the draw keeps) is redrawn."""
+    loose = replace(family("sculpture"), sculpture_max_pieces=100000)
+    strict = replace(family("sculpture"), sculpture_max_pieces=1)
+    crumbly = redrawn = 0
+    for i in range(16):
+        before = draw_equation(7, i, loose).structure["ornament"]
+        if before.get("pieces", 0) > 1:
+            crumbly += 1
+            after = draw_equation(7, i, strict).structure["ornament"]
+            assert after["tries"] > before["tries"] or before["tries"] == 6
+            redrawn += after["pieces"] <= 1
+    assert crumbly >= 2 and redrawn >= crumbly // 2
 
 
 def test_mix_weights_decide_the_share_of_each_family() -> None:
@@ -260,3 +281,106 @@ def test_cli_refuses_bad_families_in_one_line(args, toml, message, tmp_path, cap
     err = capsys.readouterr().err.strip()
     assert code != 0 and err.startswith("error:") and "\n" not in err and message in err
     assert not (tmp_path / "cat").exists()  # nothing written
+
+
+def _departure_numpy(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:
+    """The whole-grid numpy form of envelope_departure (numpy.gradient over the grid)."""
+    f = np.asarray(values, dtype=np.float64) - level
+    env = np.asarray(envelope, dtype=np.float64)
+    n_env = int(np.count_nonzero(np.isfinite(env) & (env < 0)))
+    if n_env == 0:
+        return float("inf")
+    with np.errstate(all="ignore"):
+        grad = np.sqrt(sum(g * g for g in np.gradient(env)))
+        offsets = []
+        for axis in range(3):
+            fa, ea, ga = (np.moveaxis(a, axis, 0) for a in (f, env, grad))
+            f0, f1 = fa[:-1], fa[1:]
+            cross = np.isfinite(f0) & np.isfinite(f1) & ((f0 < 0) != (f1 < 0))
+            t = f0[cross] / (f0[cross] - f1[cross])
+            e = ea[:-1][cross] + t * (ea[1:][cross] - ea[:-1][cross])
+            g = ga[:-1][cross] + t * (ga[1:][cross] - ga[:-1][cross])
+            offsets.append(e / g)
+        off = np.concatenate(offsets)
+    off = off[np.isfinite(off)]
+    if off.size < 8:
+        return float("inf")
+    radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)
+    lo, hi = np.quantile(off, (0.05, 0.95))
+    return float((hi - lo) / radius)
+
+
+def test_envelope_departure_is_the_whole_grid_numpy_measure_bit_for_bit() -> None:
+    """The kernel computes the gradient only at crossing edges: the same bits as numpy's
+    whole-grid gradient, on sculptures of seed 7 (level 0 and not), on fields with poles and
+    NaN, on odd shapes and on the faces of the grid."""
+    from surfgen.generator.families import envelope_departure
+
+    cfg = family("sculpture")
+    cases = []
+    for index in range(6):
+        draw = draw_equation(7, index, cfg)
+        grid = Grid(draw.box, (23, 24, 25))
+        values = evaluate(draw.equation.with_d(draw.d or 0.0).to_tree(), grid).values
+        cases.append((values, evaluate(draw.envelope, grid).values, 0.0))
+        cases.append((values, evaluate(draw.envelope, grid).values, 0.37))
+    rng = np.random.default_rng(3)
+    noisy = rng.normal(size=(9, 10, 11))
+    noisy[2, 3, 4], noisy[5, 5, 5], noisy[0, 0, 0] = np.inf, np.nan, -np.inf
+    cases.append((noisy, rng.normal(size=(9, 10, 11)) - 0.5, 0.1))
+    cases.append((noisy, np.ones((9, 10, 11)), 0.0))  # empty envelope
+    cases.append((np.ones((4, 4, 4)), -np.ones((4, 4, 4)), 0.0))  # no surface
+    for values, envelope, level in cases:
+        got, want = (
+            envelope_departure(values, envelope, level),
+            _departure_numpy(values, envelope, level),
+        )
+        assert got == want or (np.isinf(got) and np.isinf(want)), (got, want)
+    assert any(np.isfinite(envelope_departure(v, e, lv)) for v, e, lv in cases)
+
+
+def test_pieces_counts_the_components_of_closed_surfaces() -> None:
+    """Regions of the solid and of the rest, minus one: a ball 1, two balls 2, a hollow ball
+    (a ball with a void) 2, a torus 1, a ball cut by the box 1 — as the capped mesh has."""
+    from surfgen.generator.families import pieces
+
+    box = Box.cube(1.5)
+    x, y, z = np.broadcast_arrays(*Grid(box, (40,) * 3).open_axes())
+    r2 = x**2 + y**2 + z**2
+    ball = r2 - 1.0
+    two = np.minimum((x - 0.8) ** 2 + y**2 + z**2, (x + 0.8) ** 2 + y**2 + z**2) - 0.3
+    hollow = np.maximum(ball, 0.25 - r2)
+    torus = (np.sqrt(x**2 + y**2) - 0.9) ** 2 + z**2 - 0.1
+    cut = r2 - 4.0  # the ball reaches beyond the box: capped, one piece
+    with_nan = ball.copy()
+    with_nan[20, 20, 20] = np.nan  # a non-finite sample inside: outside for the mesher
+    assert [pieces(v) for v in (ball, two, hollow, torus, cut, with_nan)] == [1, 2, 2, 1, 1, 2]
+    assert pieces(np.ones_like(ball)) == 0 and pieces(-np.ones_like(ball)) == 0
+    crumbs = np.sin(9 * x) * np.sin(9 * y) * np.sin(9 * z) - 0.5
+    assert pieces(crumbs) > 60
+
+
+def test_pieces_never_exceed_the_capped_meshes_components() -> None:
+    """The count is a lower bound of the marching-cubes mesh's components (and equal on most
+    shapes): sculptures, lattices and free draws of seed 7 at 24^3."""
+    from surfgen.filters.verdict import quick_metrics
+    from surfgen.generator.families import pieces
+    from surfgen.generator.mesh import EmptySurface, extract_mesh
+
+    equal = total = 0
+    for name in ("sculpture", "lattice", "free"):
+        for index in range(10):
+            draw = draw_equation(7, index, family(name))
+            grid = Grid(draw.box, (24, 24, 24))
+            values = evaluate(draw.equation.with_d(draw.d or 0.0).to_tree(), grid).values
+            try:
+                mesh = extract_mesh(
+                    evaluate(draw.equation.with_d(draw.d or 0.0).to_tree(), grid), 0.0, cap=True
+                )
+            except EmptySurface:
+                continue
+            components = quick_metrics(mesh, draw.box.bounds())["components"]
+            assert pieces(values) <= components, (name, index)
+            equal += pieces(values) == components
+            total += 1
+    assert total >= 20 and equal >= total // 2
