@@ -295,7 +295,8 @@ class PointsEvaluator:
         return self._prog, POINTS_TILE, self._active, self._rows
 
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
-        """Evaluate each level once per distinct value it needs (:func:`kernels.run_lattice`).
+        """Evaluate each level once per distinct value it needs (:func:`kernels.eval_points`
+        plans the lattice and runs :func:`kernels.run_lattice`).
 
         Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
         alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are
