@@ -24,7 +24,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from contextlib import ExitStack, nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -39,6 +39,7 @@ from surfgen.filters.descriptor import (
 )
 from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import (
+    ACCEPT,
     REASONS,
     Verdict,
     judge,
@@ -74,6 +75,7 @@ log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
 EXECUTORS = ("local", "dask")
+ACCEPTED_FILE = "accepted-descriptors.tsv"  # in the staging folder: see AcceptedDescriptors
 # Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
 FILE_FIELDS = (
     ("mesh_path", "mesh_file"),
@@ -96,6 +98,10 @@ class ShapeOutcome:
     turntable_file: Path | None = None
     data: tuple[tuple[str, bytes], ...] = ()
     write_error: str | None = None  # the shape's files could not be written (disk full...)
+    # The row at the near-duplicate check (the row a duplicate gets), and whether the worker
+    # stopped there because it already knew of an accepted shape near this one.
+    early_row: dict[str, Any] | None = None
+    early_stop: bool = False
 
 
 class SampleWriteError(SurfgenError):
@@ -163,10 +169,22 @@ class _Stopwatch:
 
 
 def make_shape(
-    index: int, *, seed: int, config: Config, staging: Path | None = None, pictures: bool = False
+    index: int,
+    *,
+    seed: int,
+    config: Config,
+    staging: Path | None = None,
+    pictures: bool = False,
+    duplicates: AcceptedDescriptors | None = None,
 ) -> ShapeOutcome:
     """Draw, evaluate, mesh, measure and judge shape ``index``: a pure function of its inputs
-    (timings aside). Known failures become a rejected verdict with its reason."""
+    (timings aside). Known failures become a rejected verdict with its reason.
+
+    With near-duplicate rejection on, a mesh that passes the cheap checks is described there
+    and the outcome carries that point's row (``early_row``): the parent rejects the shape as a
+    duplicate with that row if an accepted shape is near it (:func:`_drive`), so that verdict
+    does not depend on the later checks. ``duplicates`` (a worker's view of the shapes already
+    accepted) lets the worker stop there when it already knows; the row is the same."""
     watch = _Stopwatch()
     draw = draw_equation(seed, index, config.sampler)
     d = choose_d(draw, config.sampler, threads=1)  # one process per core: numba serial inside
@@ -177,29 +195,52 @@ def make_shape(
         tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
     )
     watch.lap("eval")
-    verdict, metrics, mesh = _judge(tree, spec, d, config, watch, draw)
-    row: dict[str, Any] = {
-        "key": spec.key,
-        "spec": spec.to_json(),
-        "formula": spec.formula,
-        "identity": spec.identity,
-        "d": d,
-        "model": _model_json(draw, equation),
-        **_metric_columns(_round_metrics(metrics)),
-        "verdict": "accepted" if verdict.accepted else "rejected",
-        "reasons": json.dumps(list(verdict.reasons)),
-    }
-    out = ShapeOutcome(index, row, verdict)
+    verdict, metrics, mesh, rest = _judge(tree, spec, d, config, watch, draw)
+
+    def row_for(verdict: Verdict) -> dict[str, Any]:
+        return {
+            "key": spec.key,
+            "spec": spec.to_json(),
+            "formula": spec.formula,
+            "identity": spec.identity,
+            "d": d,
+            "model": _model_json(draw, equation),
+            **_metric_columns(_round_metrics(metrics)),
+            "verdict": "accepted" if verdict.accepted else "rejected",
+            "reasons": json.dumps(list(verdict.reasons)),
+        }
+
+    early = described = None
+    if verdict.accepted and config.run.dedupe:  # where near duplicates are judged
+        described = descriptor_to_text(descriptor(mesh))
+        watch.lap("describe")
+        early = dict(row_for(DUPLICATE), descriptor=described)
+        if duplicates is not None and duplicates.near(descriptor_from_text(described)):
+            early["timings"] = _timings(watch)
+            return ShapeOutcome(index, dict(early), DUPLICATE, early_row=early, early_stop=True)
+    if verdict.accepted:
+        verdict = rest()
+    row = row_for(verdict)
+    out = ShapeOutcome(index, row, verdict, early_row=early)
     if verdict.accepted and mesh is not None:
-        row["descriptor"] = descriptor_to_text(descriptor(mesh))
+        row["descriptor"] = described or descriptor_to_text(descriptor(mesh))
         watch.lap("describe")
         if staging is not None:
             try:
                 out = _with_files(out, mesh, staging, pictures, watch)
             except OSError as exc:  # not a verdict on the shape: the run must stop
                 return ShapeOutcome(index, row, verdict, write_error=_write_error(exc, staging))
-    row["timings"] = json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
+    row["timings"] = _timings(watch)
+    if early is not None:
+        early["timings"] = row["timings"]
     return out
+
+
+DUPLICATE = Verdict.reject("duplicate")
+
+
+def _timings(watch: _Stopwatch) -> str:
+    return json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
 
 
 def _model_json(draw: Draw, equation) -> str:
@@ -213,20 +254,25 @@ def _judge(
     config: Config,
     watch: _Stopwatch,
     draw: Draw | None = None,
-) -> tuple[Verdict, dict[str, Any], Mesh | None]:
+) -> tuple[Verdict, dict[str, Any], Mesh | None, Callable[[], Verdict]]:
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
-    if any), mesh, cheap mesh checks, full mesh checks, then the shape-quality metrics of an
-    accepted mesh. Returns the verdict, the metrics measured so far and the mesh (if made)."""
+    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the full mesh
+    checks and the shape-quality metrics of an accepted mesh. Returns the cheap checks'
+    verdict, the metrics (``rest()`` adds to them), the mesh (if made) and ``rest``."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
+
+    def stop(verdict: Verdict, mesh: Mesh | None = None):
+        return verdict, metrics, mesh, lambda: verdict
+
     if d is None:
-        return Verdict.reject("no_crossing"), metrics, None
+        return stop(Verdict.reject("no_crossing"))
     box = Box.from_bounds(spec.box)
     coarse = evaluate(tree, Grid(box, (fcfg.coarse_grid,) * 3), threads=1)
     verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True, capped=run.cap)
     watch.lap("eval")
     if not verdict.accepted:
-        return verdict, metrics, None
+        return stop(verdict)
     field_ = evaluate(tree, spec.to_grid(), threads=1)
     metrics["nonfinite"] = field_.nonfinite
     verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
@@ -237,7 +283,7 @@ def _judge(
             verdict = Verdict.reject("plain")
     watch.lap("eval")
     if not verdict.accepted:
-        return verdict, metrics, None
+        return stop(verdict)
     # Without its walls a capped solid is open on purpose: do not ask it to be watertight.
     capped = run.cap and run.walls != "remove"
     try:
@@ -248,26 +294,32 @@ def _judge(
             )
             metrics["wall_fraction"] = crossings.wall_fraction
     except EmptySurface:
-        return Verdict.reject("empty"), metrics, None
+        return stop(Verdict.reject("empty"))
     finally:
         watch.lap("mesh")
     # Cheap checks first (most draws fail them)...
     quick = quick_metrics(mesh, spec.box)
     metrics.update(quick)
     verdict = judge(metrics, fcfg, capped=capped)
-    if verdict.accepted and "wall_fraction" not in metrics:
-        # ...then the walls (root, pole or jump for every crossing: refines with the formula)
-        _, crossings = label_walls(mesh, edges, field_, tree, {}, spec.level, run.cap, "keep")
-        metrics["wall_fraction"] = crossings.wall_fraction
-        watch.lap("walls")
-        verdict = judge(metrics, fcfg, capped=capped)
-    if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick ones reused)
-        metrics.update(shape_metrics(mesh, spec.box, quick=quick))
-        verdict = judge(metrics, fcfg, capped=capped)
-    if verdict.accepted:
-        metrics.update(quality_metrics(mesh, metrics))
     watch.lap("filters")
-    return verdict, metrics, mesh
+
+    def rest() -> Verdict:
+        verdict = ACCEPT
+        if "wall_fraction" not in metrics:
+            # ...then the walls (root, pole or jump for every crossing: refines with the formula)
+            _, crossings = label_walls(mesh, edges, field_, tree, {}, spec.level, run.cap, "keep")
+            metrics["wall_fraction"] = crossings.wall_fraction
+            watch.lap("walls")
+            verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
+            metrics.update(shape_metrics(mesh, spec.box, quick=quick))
+            verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted:
+            metrics.update(quality_metrics(mesh, metrics))
+        watch.lap("filters")
+        return verdict
+
+    return verdict, metrics, mesh, rest
 
 
 def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
@@ -296,7 +348,7 @@ def _with_files(
 
         thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
         watch.lap("pictures")
-    return ShapeOutcome(out.index, out.row, out.verdict, mesh_file, thumb)
+    return replace(out, mesh_file=mesh_file, thumb_file=thumb)
 
 
 def make_shape_packed(
@@ -311,7 +363,7 @@ def make_shape_packed(
             for _, name in FILE_FIELDS
             if getattr(out, name) is not None
         )
-    return ShapeOutcome(out.index, out.row, out.verdict, data=data)
+    return replace(out, mesh_file=None, thumb_file=None, data=data)
 
 
 def _stage(outcome: ShapeOutcome, staging: Path) -> ShapeOutcome:
@@ -326,10 +378,8 @@ def _stage(outcome: ShapeOutcome, staging: Path) -> ShapeOutcome:
             name: write_atomic(staging / f"{key}{suffix[name]}", b) for name, b in outcome.data
         }
     except OSError as exc:
-        return ShapeOutcome(
-            outcome.index, outcome.row, outcome.verdict, write_error=_write_error(exc, staging)
-        )
-    return ShapeOutcome(outcome.index, outcome.row, outcome.verdict, **files)
+        return replace(outcome, data=(), write_error=_write_error(exc, staging))
+    return replace(outcome, data=(), **files)
 
 
 def open_executor(
@@ -346,7 +396,19 @@ def open_executor(
     executor and ``ExecutorError`` when Dask is missing or unreachable."""
     pictures = config.run.thumbnails
     if executor == "local":
-        fn = partial(make_shape, seed=seed, config=config, staging=staging, pictures=pictures)
+        duplicates = (
+            AcceptedDescriptors(staging / ACCEPTED_FILE, config.run.dedupe_threshold)
+            if config.run.dedupe
+            else None
+        )
+        fn = partial(
+            make_shape,
+            seed=seed,
+            config=config,
+            staging=staging,
+            pictures=pictures,
+            duplicates=duplicates,
+        )
         return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
     if executor == "dask":
         from surfgen.pipelines.cluster import DaskPool
@@ -488,10 +550,16 @@ def _drive(
     stage: Counter[str] = Counter()
     staging = cat.root / ".staging"
     buffer: dict[int, Any] = {}
+    published: list[tuple[str, str]] = []
     known = DescriptorSet()
     if config.run.dedupe:
         for key, values in ensure_descriptors(cat)[0].items():
             known.add(key, values)
+        texts = cat.conn.execute(
+            "SELECT key, descriptor FROM shapes WHERE verdict = 'accepted' AND descriptor IS NOT NULL"
+        ).fetchall()
+        keys = set(known.keys)
+        _publish(staging / ACCEPTED_FILE, [(r[0], r[1]) for r in texts if r[0] in keys])
 
     def tasks():
         i = next_index
@@ -512,19 +580,38 @@ def _drive(
         buffer[result.task] = staged
         while next_index in buffer and accepted < n:
             outcome = buffer.pop(next_index)
-            if outcome.verdict.accepted:
+            for k, v in json.loads(outcome.row.get("timings", "{}")).items():
+                stage[k] += v  # the work done, whatever the row kept
+            if outcome.early_row is not None:  # near duplicates are judged at that point
+                dup = cat.has_accepted_identity(outcome.early_row["identity"])
+                if dup is None:
+                    dup = _near_duplicate(outcome.early_row, known, config.run.dedupe_threshold)
+                if dup is not None:
+                    row = dict(outcome.early_row, duplicate_of=dup)
+                    outcome = ShapeOutcome(outcome.index, row, DUPLICATE)
+                elif outcome.early_stop:  # cannot happen: the worker's shapes are ours
+                    log.warning("shape %d: stopped as a duplicate by its worker alone", next_index)
+                    outcome = make_shape(
+                        next_index,
+                        seed=seed,
+                        config=config,
+                        staging=staging,
+                        pictures=config.run.thumbnails,
+                    )
+                if outcome.verdict.accepted:
+                    key, text = outcome.row["key"], outcome.row["descriptor"]
+                    known.add(key, descriptor_from_text(text))
+                    published.append((key, text))
+            elif outcome.verdict.accepted:
                 dup = cat.has_accepted_identity(outcome.row["identity"])
-                if dup is None and config.run.dedupe:
-                    dup = _near_duplicate(outcome, known, config.run.dedupe_threshold)
                 if dup is not None:
                     outcome = _rejected(outcome, ("duplicate",))
                     outcome.row["duplicate_of"] = dup
-                elif config.run.dedupe:
-                    known.add(outcome.row["key"], descriptor_from_text(outcome.row["descriptor"]))
             _commit(cat, run_id, outcome, counts)
+            if published:  # once its row is in
+                _publish(staging / ACCEPTED_FILE, published)
+                published.clear()
             accepted += int(outcome.verdict.accepted)
-            for k, v in json.loads(outcome.row.get("timings", "{}")).items():
-                stage[k] += v
             next_index += 1
             if progress is not None:
                 progress(accepted, next_index, n)
@@ -545,10 +632,59 @@ def _stop_writing(error: str, index: int, accepted: int) -> None:
     )
 
 
-def _near_duplicate(outcome: ShapeOutcome, known: DescriptorSet, threshold: float) -> str | None:
-    """The key of the accepted shape nearest to this one if it is within ``threshold``."""
-    key, dist = known.nearest(descriptor_from_text(outcome.row["descriptor"]))
+def _near_duplicate(row: dict[str, Any], known: DescriptorSet, threshold: float) -> str | None:
+    """The key of the accepted shape nearest to ``row``'s if it is within ``threshold``."""
+    key, dist = known.nearest(descriptor_from_text(row["descriptor"]))
     return key if dist < threshold else None
+
+
+class AcceptedDescriptors:
+    """A worker's view of the accepted shapes' descriptors: the parent appends each one's
+    key and descriptor text to a file in the run's staging folder (:func:`_publish`), as it
+    commits them; :meth:`near` reads what was added since it last looked and says whether a
+    descriptor is within ``threshold`` of one of them, so the worker can stop at the
+    near-duplicate check.
+
+    Every shape it holds is in the parent's :class:`DescriptorSet` too, with the descriptor
+    stored with the row, so the parent, which checks against all of them, reaches the same
+    verdict: the worker only saves the later checks' time. (A file, not the catalogue: SQLite
+    connections do not survive the fork that starts the workers.)"""
+
+    def __init__(self, path: Path, threshold: float) -> None:
+        self.path, self.threshold = Path(path), float(threshold)
+        self._known = DescriptorSet()
+        self._offset = 0
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"path": self.path, "threshold": self.threshold}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["path"], state["threshold"])
+
+    def near(self, values: np.ndarray) -> bool:
+        try:
+            self._refresh()
+        except OSError as exc:  # no file yet, or gone: the parent decides alone
+            log.debug("accepted descriptors not read (%s)", exc)
+        return len(self._known) > 0 and self._known.nearest(values)[1] < self.threshold
+
+    def _refresh(self) -> None:
+        with open(self.path, "rb") as f:
+            f.seek(self._offset)
+            data = f.read()
+        end = data.rfind(b"\n") + 1  # whole lines only: the parent may be writing the next
+        for line in data[:end].decode("utf-8").splitlines():
+            key, _, text = line.partition("\t")
+            values = descriptor_from_text(text)
+            if values is not None:
+                self._known.add(key, values)
+        self._offset += end
+
+
+def _publish(path: Path, rows: list[tuple[str, str]]) -> None:
+    """Append accepted shapes' ``(key, descriptor text)`` for :class:`AcceptedDescriptors`."""
+    with open(path, "a", encoding="utf-8") as f:
+        f.write("".join(f"{key}\t{text}\n" for key, text in rows))
 
 
 def _rejected(outcome: ShapeOutcome, reasons: tuple[str, ...]) -> ShapeOutcome:

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
@@ -372,3 +373,42 @@ def test_sample_renders_thumbnails_and_leaves_turntables_for_first_view(tmp_path
     assert not any((cat / "turntables").iterdir())
     res = create_app(cat).test_client().get(f"/turntables/{key}.png")
     assert res.status_code == 200 and (cat / "turntables" / f"{key}.png").is_file()
+
+
+def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
+    reference_run: Path, tmp_path: Path
+) -> None:
+    """A second run of the reference's seed into a copy of its catalogue (another config hash,
+    the same shapes) meets only duplicates. Workers that know the accepted shapes stop at the
+    near-duplicate check; the rows are those a worker that went on to every check would give
+    (the parent judges duplicates at that point, from that point's row)."""
+    import shutil
+
+    from surfgen.pipelines.sampling import AcceptedDescriptors, _publish
+
+    cat = tmp_path / "cat"
+    shutil.copytree(reference_run, cat)
+    con = sqlite3.connect(cat / "catalogue.sqlite")
+    con.row_factory = sqlite3.Row
+    drawn = con.execute("SELECT count(*) FROM shapes").fetchone()[0]
+    config = small_config(tmp_path, "dedupe_threshold = 0.999\n")
+    summary = run_sample(n=1, seed=11, config=config, catalogue=cat, workers=2, max_draws=drawn)
+    # the workers knew run 1's shapes from the start: no duplicate got as far as its files
+    assert summary.accepted == 0 and "io" not in summary.stage_seconds
+    first = con.execute("SELECT * FROM shapes WHERE run = 1 AND verdict = 'accepted'").fetchall()
+    rows = con.execute("SELECT * FROM shapes WHERE run = 2 ORDER BY idx").fetchall()
+    dups = [r for r in rows if json.loads(r["reasons"]) == ["duplicate"]]
+    assert len(dups) == N
+    seen = AcceptedDescriptors(tmp_path / "accepted.tsv", config.run.dedupe_threshold)
+    assert not seen.near(np.zeros(10))  # no file: knows nothing
+    _publish(seen.path, [(r["key"], r["descriptor"]) for r in first])
+    compared = ("key", "spec", "d", "model", "verdict", "reasons", "metrics", "descriptor")
+    for r in dups:
+        assert r["duplicate_of"] == {f["identity"]: f["key"] for f in first}[r["identity"]]
+        assert r["faces"] and r["genus"] is None  # the cheap checks' metrics only
+        stopped = make_shape(r["idx"], seed=11, config=config, duplicates=seen)
+        went_on = make_shape(r["idx"], seed=11, config=config)
+        assert stopped.early_stop and not went_on.early_stop and went_on.verdict.accepted
+        for outcome in (stopped, went_on):
+            assert [outcome.early_row[c] for c in compared] == [r[c] for c in compared]
+    con.close()
