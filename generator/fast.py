@@ -265,6 +265,8 @@ class PointsEvaluator:
             raise AssertionError("a scalar-mode operation other than copy")  # pragma: no cover
         self.program = program
         self._prog = points_program(program)
+        self._active = np.ascontiguousarray(program.blocks[:, 1] > program.blocks[:, 0])
+        self._rows = np.ascontiguousarray(program.rows, dtype=np.int64)
 
     def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
         """F at the points ``(x[i], y[i], z[i])`` (1-D arrays of one length), float64."""
@@ -287,50 +289,21 @@ class PointsEvaluator:
             kernels.run_points(self._prog, POINTS_TILE, px, py, pz, out)
         return out
 
+    def kernel_args(self) -> tuple:
+        """``(prog, tile, active, rows)``: what :func:`kernels.eval_points` takes before the
+        points, for numba code that evaluates the formula itself (the walls' classification)."""
+        return self._prog, POINTS_TILE, self._active, self._rows
+
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
-        """Evaluate each level once per distinct value it needs (:func:`kernels.run_lattice`).
+        """Evaluate each level once per distinct value it needs (:func:`kernels.eval_points`
+        plans the lattice and runs :func:`kernels.run_lattice`).
 
         Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
         alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are
         told apart by their bits (-0.0 and +0.0 are distinct), so every entry is computed from
         exactly the bits of its points.
         """
-        blocks = self.program.blocks
-        active = blocks[:, 1] > blocks[:, 0]
-        ids, firsts = {}, {}
-        for bit, coords in ((1, px), (2, py), (4, pz)):
-            ids[bit], firsts[bit] = kernels.dedupe(coords.view(np.int64))
-        sizes = np.zeros(8, dtype=np.int64)
-        for bit in (1, 2, 4):
-            sizes[bit] = firsts[bit].size
-        sizes[7] = px.size
-        parts: dict[tuple[int, int], np.ndarray] = {}
-        for lv, (a, b) in ((3, (1, 2)), (5, (1, 4)), (6, (2, 4))):
-            if not active[lv]:
-                continue
-            ids[lv], first = kernels.dedupe(ids[a] * sizes[b] + ids[b])
-            sizes[lv] = first.size
-            parts[(lv, a)], parts[(lv, b)] = ids[a][first], ids[b][first]
-        for k in (1, 2, 4, 3, 5, 6):
-            if k in ids:
-                parts[(7, k)] = ids[k]
-        map_at = np.zeros((8, 8), dtype=np.int64)
-        chunks, at = [], 0
-        for (lv, k), part in parts.items():
-            map_at[lv, k] = at
-            chunks.append(part)
-            at += part.size
-        maps = np.concatenate(chunks) if chunks else np.zeros(1, dtype=np.int64)
-        rows = self.program.rows
-        offsets = np.zeros(8, dtype=np.int64)
-        total = 0
-        for k in (1, 2, 3, 4, 5, 6):
-            offsets[k] = total
-            total += int(rows[k] * sizes[k])
-        store = np.empty(max(total, 1))
-        for bit, coords in ((1, px), (2, py), (4, pz)):
-            store[offsets[bit] : offsets[bit] + sizes[bit]] = coords[firsts[bit]]
-        kernels.run_lattice(self._prog, POINTS_TILE, sizes, offsets, maps, map_at, store, out)
+        kernels.eval_points(self._prog, POINTS_TILE, self._active, self._rows, px, py, pz, out)
 
 
 def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> PointsEvaluator:

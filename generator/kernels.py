@@ -1029,3 +1029,79 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out):
                     base = offsets[kind] + row * sizes[kind] + e0
                     for k in range(n):
                         store[base + k] = W[slot, k]
+
+
+@njit(**_OPTS)
+def _gather(values, at):
+    out = np.empty(at.size, dtype=values.dtype)
+    for i in range(at.size):
+        out[i] = values[at[i]]
+    return out
+
+
+@njit(**_OPTS)
+def eval_points(prog, tile, active, rows, px, py, pz, out):
+    """Evaluate a points program at ``(px[p], py[p], pz[p])`` into ``out[p]``, each level once
+    per distinct value it needs (:func:`run_lattice`): its plan made here, in one call.
+
+    Level x runs over the distinct x values (told apart by their bits, so -0.0 and +0.0 are
+    distinct and every entry is computed from exactly the bits of its points), xy over the
+    distinct (x, y) pairs of the points (if ``active[3]``), likewise xz, yz; xyz over every
+    point.  ``rows[lv]``: the store rows of level ``lv`` (``Program.rows``)."""
+    n = px.size
+    ids = np.zeros((8, n), dtype=np.int64)
+    sizes = np.zeros(8, dtype=np.int64)
+    has = np.zeros(8, dtype=np.bool_)
+    firsts_x = dedupe(px.view(np.int64))
+    firsts_y = dedupe(py.view(np.int64))
+    firsts_z = dedupe(pz.view(np.int64))
+    ids[1] = firsts_x[0]
+    ids[2] = firsts_y[0]
+    ids[4] = firsts_z[0]
+    sizes[1], sizes[2], sizes[4] = firsts_x[1].size, firsts_y[1].size, firsts_z[1].size
+    has[1] = has[2] = has[4] = True
+    sizes[7] = n
+    # parts: (level, variable level) -> the entries of the variable's store it reads, in maps
+    map_at = np.zeros((8, 8), dtype=np.int64)
+    pair_parts = []
+    pair_keys = []
+    for lv, a, b in ((3, 1, 2), (5, 1, 4), (6, 2, 4)):
+        if not active[lv]:
+            continue
+        ids_lv, first = dedupe(ids[a] * sizes[b] + ids[b])
+        ids[lv] = ids_lv
+        sizes[lv] = first.size
+        has[lv] = True
+        pair_parts.append(_gather(ids[a], first))
+        pair_keys.append((lv, a))
+        pair_parts.append(_gather(ids[b], first))
+        pair_keys.append((lv, b))
+    total_maps = 0
+    for part in pair_parts:
+        total_maps += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            total_maps += n
+    maps = np.empty(max(total_maps, 1), dtype=np.int64)
+    at = 0
+    for q in range(len(pair_parts)):
+        lv, k = pair_keys[q]
+        map_at[lv, k] = at
+        part = pair_parts[q]
+        maps[at : at + part.size] = part
+        at += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            map_at[7, k] = at
+            maps[at : at + n] = ids[k]
+            at += n
+    offsets = np.zeros(8, dtype=np.int64)
+    total = 0
+    for k in (1, 2, 3, 4, 5, 6):
+        offsets[k] = total
+        total += rows[k] * sizes[k]
+    store = np.empty(max(total, 1))
+    store[offsets[1] : offsets[1] + sizes[1]] = _gather(px, firsts_x[1])
+    store[offsets[2] : offsets[2] + sizes[2]] = _gather(py, firsts_y[1])
+    store[offsets[4] : offsets[4] + sizes[4]] = _gather(pz, firsts_z[1])
+    run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out)

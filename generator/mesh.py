@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import trimesh
 from numba import njit
-from scipy.ndimage import maximum_filter
 from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface, MeshError
@@ -164,9 +163,14 @@ def extract_with_edges(
     edge from sample ``(i, j, k)`` to its neighbour one step along ``axis`` (0, 1, 2 for x, y,
     z); ``axis`` is -1 for vertices on no edge of the grid (cap vertices on box samples, and
     the few vertices marching cubes puts inside a cell to resolve ambiguous cases).
+
+    Everything around marching cubes runs in numba kernels, one pass each, and marching cubes
+    visits only the cells whose corners are on both sides (its ``mask``): the other cells make
+    no triangle, so vertices and faces are those of the step-by-step numpy version this
+    replaced, bit for bit (``tests/generator/test_mesh.py`` compares them).
     """
-    work, inside = _offsets(field.values, level)
-    n_inside = int(np.count_nonzero(inside))
+    values = np.ascontiguousarray(field.values, dtype=np.float64)
+    work, inside, n_inside = _offsets(values, level)
     if n_inside == 0:
         raise EmptySurface(_empty_message("outside", level, field))
     if n_inside == inside.size:
@@ -174,32 +178,33 @@ def extract_with_edges(
     if cap:
         work = _pad_outside(work)
     # 'descent' is skimage's winding for "values grow outward": normals towards F > level.
-    verts, faces, _normals, _values = marching_cubes(work, 0.0, gradient_direction="descent")
+    verts, faces, _normals, _values = marching_cubes(
+        work, 0.0, gradient_direction="descent", mask=_mixed_cells(work)
+    )
     grid = field.grid
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
-    index = verts.astype(np.float64) - (1.0 if cap else 0.0)
-    vertices = lo + index * np.asarray(grid.spacing, dtype=np.float64)
-    # Clamping puts the cap exactly on the box faces; without a cap it only removes rounding.
-    # lo + (N-1) * spacing may miss hi by an ulp: snap the last samples' coordinate onto hi, or
-    # a cap vertex clamped onto hi and one computed there would differ by an ulp (distinct
-    # here, one point in float32).
-    last = np.asarray(grid.shape, dtype=np.float64) - 1.0
-    vertices = np.where(index >= last, hi, np.where(index <= 0.0, lo, vertices))
-    faces = faces.astype(np.int64)
-    moved = np.any((index < 0.0) | (index > np.asarray(grid.shape) - 1.0), axis=1)
-    edges = _vertex_edges(index, moved)
-    inner = _keep_off_cell_faces(index, faces, edges, moved)
-    if inner is not None:
-        rows, index_rows = inner
-        vertices[rows] = lo + index_rows * np.asarray(grid.spacing, dtype=np.float64)
+    spacing = np.asarray(grid.spacing, dtype=np.float64)
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    verts = np.ascontiguousarray(verts, dtype=np.float32)
+    index, vertices, edges, moved, off_cell = _place(
+        verts, 1.0 if cap else 0.0, shape, lo, hi, spacing
+    )
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    if off_cell:
+        inner = _keep_off_cell_faces(index, faces, edges, moved)
+        if inner is not None:
+            rows, index_rows = inner
+            vertices[rows] = lo + index_rows * spacing
     # One point, one vertex: crossings towards the pad (cap) sit half a cell outside the box
     # and clamping put them on the box sample they came from, so a sample on a box edge
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
     # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
     # Give each such group one index and drop the triangles that collapse.
-    vertices, faces, used = _merge_same(vertices, faces, index, edges, moved, grid.shape)
-    edges = edges[used]
+    target = _same_targets(index, edges, moved, shape)
+    if target is not None:
+        vertices, faces, used = _merge_same(vertices, faces, target)
+        edges = edges[used]
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),
@@ -210,22 +215,354 @@ def extract_with_edges(
     return Mesh(vertices, faces), edges
 
 
-def _vertex_edges(index: np.ndarray, moved: np.ndarray) -> np.ndarray:
-    """``(axis, i, j, k)`` of the grid edge under each vertex (see :func:`extract_with_edges`).
+_NB = {"cache": True, "nogil": True, "error_model": "numpy"}
+_CLIP64 = float(_CLIP)  # np.clip of float64 values against the float32 bound compares in float64
+_TINY32 = np.float32(_TINY)
+_EDGE_LO = 0.25 * SEPARATION  # a vertex coordinate this far from a whole number is fractional
+_EDGE_HI = 1.0 - 0.25 * SEPARATION
+_FACE_HI = 1.0 - SEPARATION
+_HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed int64
 
-    A vertex on an edge has exactly one fractional index coordinate, at least SEPARATION from
-    a whole number (float32 keeps ~1e-4 of it at index 2048); other vertices get axis -1.
+
+def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """float32 ``F - level`` with signs decided in float64, the boolean inside mask and its count.
+
+    Inside samples (``F < level``, finite) get a strictly negative offset, all others a strictly
+    positive one, so marching cubes never sees a sample on the level (where ``<`` vs ``<=``
+    would decide the topology): offsets rounded to 0 in float32 (below ~1e-45) and exact-level
+    samples get the smallest normal float32 with the sign decided in float64; magnitudes are
+    clipped to 1e30 to stay finite in float32.  A non-finite sample gets a positive value
+    mirroring the deepest inside sample in its 3x3x3 neighbourhood (at least the smallest
+    normal), so a crossing on an edge to it falls at mid-edge or nearer the inside sample (a
+    huge value would pile the crossings onto the inside samples, +inf exactly).  Magnitudes are
+    then raised where needed so every crossing lies at least SEPARATION of its edge from both
+    samples (:func:`_separate`).
     """
-    base = np.floor(index)
-    frac = index - base
-    fractional = (frac > 0.25 * SEPARATION) & (frac < 1.0 - 0.25 * SEPARATION)
-    on_edge = (np.count_nonzero(fractional, axis=1) == 1) & ~moved
-    out = np.full((len(index), 4), -1, dtype=np.int64)
-    axis = np.argmax(fractional, axis=1)
-    ijk = np.rint(np.where(fractional, base, index)).astype(np.int64)
-    out[on_edge, 0] = axis[on_edge]
-    out[on_edge, 1:] = ijk[on_edge]
-    return out
+    offset = np.empty(values.shape, dtype=np.float32)
+    inside = np.empty(values.shape, dtype=np.bool_)
+    n_inside, n_bad = _offsets_kernel(values, float(level), offset, inside)
+    if n_bad:
+        _mirror_nonfinite(values, offset, inside)
+    _separate(offset, inside)
+    return offset, inside, int(n_inside)
+
+
+@njit(**_NB)
+def _offsets_kernel(values, level, offset, inside):
+    """Fill ``offset`` and ``inside`` (see :func:`_offsets`; non-finite samples are left NaN or
+    clipped for :func:`_mirror_nonfinite`); returns the inside and non-finite counts."""
+    v = values.reshape(-1)
+    out = offset.reshape(-1)
+    ins = inside.reshape(-1)
+    n_inside = 0
+    n_bad = 0
+    for i in range(v.size):
+        x = v[i]
+        finite = np.isfinite(x)
+        d = x - level
+        d = -_CLIP64 if d < -_CLIP64 else (_CLIP64 if d > _CLIP64 else d)  # NaN stays NaN
+        o = np.float32(d)
+        is_in = finite and x < level
+        if is_in:
+            n_inside += 1
+            if o >= 0:
+                o = -_TINY32
+        elif o <= 0:
+            o = _TINY32
+        if not finite:
+            n_bad += 1
+        out[i] = o
+        ins[i] = is_in
+    return n_inside, n_bad
+
+
+@njit(**_NB)
+def _mirror_nonfinite(values, offset, inside):
+    """Each non-finite sample: the largest ``-offset`` of the inside samples in its 3x3x3
+    neighbourhood (inside the grid), at least the smallest normal float32."""
+    nx, ny, nz = values.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if np.isfinite(values[i, j, k]):
+                    continue
+                deepest = np.float32(0.0)
+                for a in range(max(i - 1, 0), min(i + 2, nx)):
+                    for b in range(max(j - 1, 0), min(j + 2, ny)):
+                        for c in range(max(k - 1, 0), min(k + 2, nz)):
+                            if inside[a, b, c] and -offset[a, b, c] > deepest:
+                                deepest = -offset[a, b, c]
+                offset[i, j, k] = max(deepest, _TINY32)
+
+
+def _crossing_edges(inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices ``(a, b)`` of the samples of every grid edge whose samples are on opposite
+    sides (numpy's vectorised comparisons of the flat mask shifted by each axis's stride; pairs
+    that would wrap from one row or plane to the next are dropped)."""
+    nx, ny, nz = inside.shape
+    flat = inside.reshape(-1)
+    ends = []
+    for stride in (ny * nz, nz, 1):
+        a = np.flatnonzero(flat[:-stride] != flat[stride:])
+        if stride == nz:
+            a = a[(a // nz) % ny != ny - 1]
+        elif stride == 1:
+            a = a[a % nz != nz - 1]
+        ends.append(a)
+    ia = np.concatenate(ends)
+    strides = np.repeat(np.array([ny * nz, nz, 1]), [len(e) for e in ends])
+    return ia, ia + strides
+
+
+def _separate(offset: np.ndarray, inside: np.ndarray) -> None:
+    """Keep every crossing SEPARATION of its edge from both samples (:func:`_raise_magnitudes`),
+    in place."""
+    ia, ib = _crossing_edges(inside)
+    if ia.size:
+        _raise_magnitudes(offset.reshape(-1), inside.reshape(-1), ia, ib)
+
+
+@njit(**_NB)
+def _raise_magnitudes(flat, ins, ia, ib):
+    """Raise ``|offset|`` (``flat``) in place until ``|a| >= _RATIO |b|`` for both samples of
+    every crossing edge ``(ia, ib)`` (``ins``: the samples whose offset is negative).
+
+    Marching cubes puts the crossing of edge (a, b) at ``t = a / (a - b)``; a sample at or near
+    the level next to a large opposite value (staircase plateaus at the level, exact zeros,
+    samples beside a pole) would put it on the sample itself, and several crossings would
+    coincide there once stored in float32.  Raising a magnitude never changes a sign, so the
+    same edges cross; it moves a crossing at most SEPARATION of the edge (in a locally linear
+    field the distance to the true surface grows by at most _RATIO of a cell).
+
+    The magnitudes (in float64) end as the least solution of ``m[a] >= _RATIO * m[b]`` on every
+    crossing edge above the samples' own: whatever order the edges are raised in (here: sweeps
+    over the edges, updating in place), each raise is ``_RATIO`` times a value no larger than
+    that solution, so the sweeps end exactly on it.  A raise can require a raise of the
+    sample's own opposite neighbours, each _RATIO smaller, so this ends after a few sweeps
+    (float32's range bounds it by ~40).
+    """
+    count = ia.size
+    mag = np.empty(flat.size)  # read only at the samples of crossing edges
+    for e in range(count):
+        mag[ia[e]] = abs(np.float64(flat[ia[e]]))
+        mag[ib[e]] = abs(np.float64(flat[ib[e]]))
+    changed = False
+    for _ in range(_MAX_ROUNDS):
+        grew = False
+        for e in range(count):
+            a, b = ia[e], ib[e]
+            need = _RATIO * mag[b]
+            if need > mag[a]:
+                mag[a] = need
+                grew = True
+            need = _RATIO * mag[a]
+            if need > mag[b]:
+                mag[b] = need
+                grew = True
+        if not grew:
+            break
+        changed = True
+    if changed:
+        for e in range(count):
+            a, b = ia[e], ib[e]
+            m = np.float32(mag[a])
+            flat[a] = -m if ins[a] else m
+            m = np.float32(mag[b])
+            flat[b] = -m if ins[b] else m
+
+
+def _pad_outside(work: np.ndarray) -> np.ndarray:
+    """Surround ``work`` with one layer of outside samples mirroring their box neighbour.
+
+    Mirroring (``|w|`` next to ``w``) puts every crossing towards the pad exactly half a cell
+    outside the box, where it is told apart from the crossings inside and clamped onto the box.
+    """
+    nx, ny, nz = work.shape
+    padded = np.empty((nx + 2, ny + 2, nz + 2), dtype=np.float32)
+    _pad_kernel(work, padded)
+    return padded
+
+
+@njit(**_NB)
+def _pad_kernel(work, padded):
+    nx, ny, nz = work.shape
+    for i in range(nx + 2):
+        ci = min(max(i - 1, 0), nx - 1)
+        for j in range(ny + 2):
+            cj = min(max(j - 1, 0), ny - 1)
+            border = i == 0 or i == nx + 1 or j == 0 or j == ny + 1
+            for k in range(nz + 2):
+                ck = min(max(k - 1, 0), nz - 1)
+                w = work[ci, cj, ck]
+                if border or k == 0 or k == nz + 1:
+                    w = abs(w)
+                padded[i, j, k] = w
+
+
+@njit(**_NB)
+def _mixed_cells(work):
+    """Marching cubes' mask: True at the far corner ``(i+1, j+1, k+1)`` of every cell ``(i, j,
+    k)`` whose corners are not all on one side (skimage reads a cell's mask there)."""
+    nx, ny, nz = work.shape
+    mask = np.zeros(work.shape, dtype=np.bool_)
+    for i in range(nx - 1):
+        for j in range(ny - 1):
+            for k in range(nz - 1):
+                neg = work[i, j, k] < 0
+                if (
+                    (work[i, j, k + 1] < 0) != neg
+                    or (work[i, j + 1, k] < 0) != neg
+                    or (work[i, j + 1, k + 1] < 0) != neg
+                    or (work[i + 1, j, k] < 0) != neg
+                    or (work[i + 1, j, k + 1] < 0) != neg
+                    or (work[i + 1, j + 1, k] < 0) != neg
+                    or (work[i + 1, j + 1, k + 1] < 0) != neg
+                ):
+                    mask[i + 1, j + 1, k + 1] = True
+    return mask
+
+
+@njit(**_NB)
+def _place(verts, shift, shape, lo, hi, spacing):
+    """Marching cubes' float32 vertices -> grid indices, box coordinates and edges.
+
+    ``index = verts - shift`` (1 with a cap's pad); ``lo + index * spacing``, clamped: on the
+    box's faces for indices at or past the first and last samples (the cap lies exactly on
+    them; ``lo + (N-1) * spacing`` may miss ``hi`` by an ulp, and a cap vertex clamped onto hi
+    and one computed there would differ by an ulp: distinct here, one point in float32).
+    ``moved``: outside the grid (cap crossings towards the pad).  Edges as
+    :func:`extract_with_edges` returns them: a vertex on an edge has exactly one fractional
+    index coordinate, at least SEPARATION from a whole number (float32 keeps ~1e-4 of it at
+    index 2048).  Also returns whether any vertex on no edge lies within SEPARATION of its
+    cell's faces (:func:`_keep_off_cell_faces`).
+    """
+    n = verts.shape[0]
+    index = np.empty((n, 3))
+    vertices = np.empty((n, 3))
+    edges = np.full((n, 4), -1, dtype=np.int64)
+    moved = np.zeros(n, dtype=np.bool_)
+    off_cell = False
+    for v in range(n):
+        n_frac = 0
+        axis = 0
+        near_face = False
+        out = False
+        for c in range(3):
+            x = np.float64(verts[v, c]) - shift
+            index[v, c] = x
+            last = np.float64(shape[c]) - 1.0
+            if x >= last:
+                vertices[v, c] = hi[c]
+            elif x <= 0.0:
+                vertices[v, c] = lo[c]
+            else:
+                vertices[v, c] = lo[c] + x * spacing[c]
+            if x < 0.0 or x > last:
+                out = True
+            frac = x - np.floor(x)
+            if frac > _EDGE_LO and frac < _EDGE_HI:
+                if n_frac == 0:
+                    axis = c
+                n_frac += 1
+            if frac < SEPARATION or frac > _FACE_HI:
+                near_face = True
+        moved[v] = out
+        if n_frac == 1 and not out:
+            edges[v, 0] = axis
+            for c in range(3):
+                x = index[v, c]
+                edges[v, 1 + c] = np.int64(np.rint(np.floor(x) if c == axis else x))
+        elif not out and near_face:
+            off_cell = True
+    return index, vertices, edges, moved, off_cell
+
+
+def _same_targets(
+    index: np.ndarray, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
+) -> np.ndarray | None:
+    """For each vertex, the first vertex of its group (:func:`_merge_same`), or None when every
+    vertex is alone."""
+    target = np.empty(len(index), dtype=np.int64)
+    if not _targets_kernel(index, edges, moved, shape, target):
+        return None
+    return target
+
+
+@njit(**_NB)
+def _targets_kernel(index, edges, moved, shape, target):
+    """The vertices of one grid edge form a group, and moved vertices clamped onto one box
+    sample; others are alone.  ``target[v]``: the first vertex of ``v``'s group (an open
+    addressing hash of the keys); returns whether any vertex is not its own target."""
+    n = index.shape[0]
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    size = 1
+    while size < 2 * n + 2:
+        size *= 2
+    keys = np.full(size, -1, dtype=np.int64)
+    firsts = np.empty(size, dtype=np.int64)
+    any_merge = False
+    for v in range(n):
+        target[v] = v
+        if edges[v, 0] >= 0:
+            key = ((edges[v, 0] * nx + edges[v, 1]) * ny + edges[v, 2]) * nz + edges[v, 3]
+        elif moved[v]:
+            # A moved vertex was clamped onto a box sample: the sample's number is its key.
+            s0 = min(max(np.int64(np.rint(index[v, 0])), 0), nx - 1)
+            s1 = min(max(np.int64(np.rint(index[v, 1])), 0), ny - 1)
+            s2 = min(max(np.int64(np.rint(index[v, 2])), 0), nz - 1)
+            key = 3 * nx * ny * nz + (s0 * ny + s1) * nz + s2
+        else:
+            continue
+        h = (key * _HASH) & (size - 1)
+        while True:
+            if keys[h] == -1:
+                keys[h] = key
+                firsts[h] = v
+                break
+            if keys[h] == key:
+                target[v] = firsts[h]
+                any_merge = True
+                break
+            h = (h + 1) & (size - 1)
+    return any_merge
+
+
+def _merge_same(
+    vertices: np.ndarray, faces: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
+
+    Other vertices keep theirs even where they are close (merging distinct crossings could
+    pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices (the
+    others keep their order).  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces,
+    ``(V,)`` targets (:func:`_same_targets`); also returns the ``(V,)`` bool mask of the
+    vertices kept.
+    """
+    faces, used, renumber = _merge_kernel(faces, target)
+    return vertices[used], renumber[faces], used
+
+
+@njit(**_NB)
+def _merge_kernel(faces, target):
+    """Faces on the targets without the collapsed ones, the used vertices and their new
+    numbers."""
+    n_faces = faces.shape[0]
+    out = np.empty((n_faces, 3), dtype=np.int64)
+    used = np.zeros(target.size, dtype=np.bool_)
+    m = 0
+    for f in range(n_faces):
+        a, b, c = target[faces[f, 0]], target[faces[f, 1]], target[faces[f, 2]]
+        if a != b and b != c and a != c:
+            out[m, 0], out[m, 1], out[m, 2] = a, b, c
+            used[a] = used[b] = used[c] = True
+            m += 1
+    renumber = np.empty(target.size, dtype=np.int64)
+    k = -1
+    for v in range(target.size):
+        if used[v]:
+            k += 1
+        renumber[v] = k
+    return out[:m], used, renumber
 
 
 def _keep_off_cell_faces(
@@ -281,130 +618,12 @@ def _keep_off_cell_faces(
     return rows, index[rows]
 
 
-def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
-    """float32 ``F - level`` with signs decided in float64, and the boolean inside mask.
-
-    Inside samples get a strictly negative offset, all others a strictly positive one, so
-    marching cubes never sees a sample on the level (where ``<`` vs ``<=`` would decide the
-    topology).  Magnitudes are then raised where needed so every crossing lies at least
-    SEPARATION of its edge from both samples (:func:`_separate`).  A non-finite sample gets a
-    positive value mirroring the deepest inside sample
-    in its 3x3x3 neighbourhood, so a crossing on an edge to it falls at mid-edge or nearer the
-    inside sample (a huge value would pile the crossings onto the inside samples, +inf exactly).
-    """
-    values = np.asarray(values, dtype=np.float64)
-    finite = np.isfinite(values)
-    with np.errstate(invalid="ignore", over="ignore"):
-        inside = finite & (values < level)
-        offset = np.clip(values - level, -_CLIP, _CLIP).astype(np.float32)
-    # Rounding to float32 turns offsets below ~1e-45 into 0 and exact-level samples are 0:
-    # give them the smallest normal float32 with the sign decided above in float64.
-    offset[inside & (offset >= 0)] = -_TINY
-    offset[~inside & (offset <= 0)] = _TINY
-    if not finite.all():
-        depth = np.where(inside, -offset, np.float32(0))
-        mirror = maximum_filter(depth, size=3, mode="constant", cval=0.0)
-        offset[~finite] = np.maximum(mirror[~finite], _TINY)
-    return _separate(offset), inside
-
-
-def _separate(offset: np.ndarray) -> np.ndarray:
-    """Raise ``|offset|`` until ``|a| >= _RATIO |b|`` for both samples of every crossing edge.
-
-    Marching cubes puts the crossing of edge (a, b) at ``t = a / (a - b)``; a sample at or near
-    the level next to a large opposite value (staircase plateaus at the level, exact zeros,
-    samples beside a pole) would put it on the sample itself, and several crossings would
-    coincide there once stored in float32.  Raising a magnitude never changes a sign, so the
-    same edges cross; it moves a crossing at most SEPARATION of the edge (in a locally linear
-    field the distance to the true surface grows by at most _RATIO of a cell).  A raise can
-    require a raise of the sample's own opposite neighbours, each _RATIO smaller, so the loop
-    ends after a few rounds (float32's range bounds it by ~40).
-    """
-    neg = offset < 0
-    shape = offset.shape
-    ends_a, ends_b = [], []
-    for axis in range(offset.ndim):
-        a = [slice(None)] * offset.ndim
-        b = [slice(None)] * offset.ndim
-        a[axis], b[axis] = slice(None, -1), slice(1, None)
-        crossing = np.nonzero(neg[tuple(a)] != neg[tuple(b)])
-        ends_a.append(np.ravel_multi_index(crossing, shape))
-        moved = list(crossing)
-        moved[axis] = moved[axis] + 1
-        ends_b.append(np.ravel_multi_index(tuple(moved), shape))
-    ia, ib = np.concatenate(ends_a), np.concatenate(ends_b)
-    mag = np.abs(offset).astype(np.float64).reshape(-1)
-    # Only samples on crossing edges matter: work on the (few) edges, not the whole grid.
-    for _ in range(_MAX_ROUNDS):
-        need_a, need_b = _RATIO * mag[ib], _RATIO * mag[ia]
-        grow_a, grow_b = need_a > mag[ia], need_b > mag[ib]
-        if not (grow_a.any() or grow_b.any()):
-            break
-        np.maximum.at(mag, ia[grow_a], need_a[grow_a])
-        np.maximum.at(mag, ib[grow_b], need_b[grow_b])
-    mag = mag.reshape(shape)
-    out = mag.astype(np.float32)
-    np.negative(out, out=out, where=neg)
-    return out
-
-
 def _empty_message(where: str, level: float, field: Field) -> str:
     n = field.values.size
     bad = field.nonfinite
     detail = f", {bad} of them non-finite (counted as outside)" if bad else ""
     rule = "F < level" if where == "inside" else "F >= level or non-finite"
     return f"no surface: all {n} samples are {where} ({rule}, level {level:g}){detail}"
-
-
-def _pad_outside(work: np.ndarray) -> np.ndarray:
-    """Surround ``work`` with one layer of outside samples mirroring their box neighbour.
-
-    Mirroring (``|w|`` next to ``w``) puts every crossing towards the pad exactly half a cell
-    outside the box, where it is told apart from the crossings inside and clamped onto the box.
-    """
-    padded = np.abs(np.pad(work, 1, mode="edge"))
-    padded[1:-1, 1:-1, 1:-1] = work
-    return padded
-
-
-def _merge_same(
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    index: np.ndarray,
-    edges: np.ndarray,
-    moved: np.ndarray,
-    shape: tuple[int, int, int],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
-
-    Other vertices keep theirs even where they are close (merging distinct crossings could
-    pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices.
-    Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, ``(V, 3)`` grid indices,
-    ``(V, 4)`` edges, ``(V,)`` bool moved; also returns the ``(V,)`` bool mask of the vertices kept.
-    """
-    n = len(vertices)
-    nx, ny, nz = shape
-    on_edge = edges[:, 0] >= 0
-    key = np.arange(n, dtype=np.int64) + 4 * nx * ny * nz  # unique unless grouped below
-    # (keys: edges below 3 N, box samples below 4 N, the others above; N = nx * ny * nz)
-    e = edges[on_edge]
-    key[on_edge] = ((e[:, 0] * nx + e[:, 1]) * ny + e[:, 2]) * nz + e[:, 3]
-    # A moved vertex was clamped onto a box sample: the sample's number is its key.
-    snapped = np.clip(np.rint(index[moved]).astype(np.int64), 0, np.asarray(shape) - 1)
-    key[moved] = 3 * nx * ny * nz + (snapped[:, 0] * ny + snapped[:, 1]) * nz + snapped[:, 2]
-    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    target = first[inverse.reshape(-1)]
-    if np.array_equal(target, np.arange(n)):
-        return vertices, faces, np.ones(n, dtype=bool)
-    faces = target[faces]
-    keep = (
-        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
-    )
-    faces = faces[keep]
-    used = np.zeros(n, dtype=bool)
-    used[faces.reshape(-1)] = True
-    renumber = np.cumsum(used) - 1
-    return vertices[used], renumber[faces], used
 
 
 # --- files ------------------------------------------------------------------------------------

@@ -46,6 +46,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
+from surfgen.generator.kernels import eval_points
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -214,40 +215,34 @@ def _classify_suspects(
     """Kinds of the suspect edges (sample ``ijk``, one step along ``axis``): the secant step,
     then the refinement of those it does not show to be roots (see the module's docstring).
 
-    The per-edge arithmetic runs in numba (:func:`_secant_points`, :func:`_secant_roots`,
-    :func:`_round_points`, :func:`_round_update`, :func:`_decide`), the formula in three batched
-    calls of the points kernel; each step does, edge by edge, the operations the numpy version
-    of this module did on arrays, so the kinds are the same.
+    One numba call (:func:`_classify_kernel`): the per-edge arithmetic (:func:`_secant_points`,
+    :func:`_secant_roots`, :func:`_round_points`, :func:`_round_update`, :func:`_decide`) and the
+    formula at the points of each step (:func:`surfgen.generator.kernels.eval_points`, the
+    points evaluator's kernel), so no step pays Python's overhead; each step does, edge by
+    edge, the operations the numpy version of this module did on arrays, so the kinds are the
+    same.
     """
-    axes = field.grid.axes()
+    prog, tile, active, rows = points.kernel_args()
+    ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64) for a in field.grid.axes())
     spacing = np.asarray(field.grid.spacing, dtype=np.float64)
-    origin = np.ascontiguousarray(np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1))
-    step = np.ascontiguousarray(np.eye(3)[axis] * spacing[axis][:, None])  # (n, 3)
-    fa = np.ascontiguousarray(fa, dtype=np.float64)
-    fb = np.ascontiguousarray(fb, dtype=np.float64)
-    xyz, finite = _secant_points(origin, step, fa, fb, SEPARATION_T)
-    f = points(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
-    rest = np.flatnonzero(~_secant_roots(f, finite, fa, fb, SECANT_ROOT))
-    out = np.full(len(fa), ROOT, dtype=np.uint8)
-    if rest.size == 0:
-        return out
-    origin, step, fa, fb = origin[rest], step[rest], fa[rest], fb[rest]
-    n = rest.size
-    # bracket: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); after round one and after the last
-    now = np.empty((n, 5))
-    now[:, 0], now[:, 1], now[:, 2], now[:, 3] = 0.0, 1.0, fa, fb
-    now[:, 4] = a_inside[rest]
-    mid = now
     frac = np.arange(1, POINTS + 1) / (POINTS + 1)
-    for rnd in range(ROUNDS):
-        xyz, s = _round_points(origin, step, now, frac)
-        flat = xyz.reshape(-1, 3)
-        vals = points(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(n, POINTS) - level
-        now = _round_update(now, s, vals)
-        if rnd == 0:
-            mid = now
-    out[rest] = _decide(mid, now, fa, fb)
-    return out
+    return _classify_kernel(
+        prog,
+        tile,
+        active,
+        rows,
+        float(level),
+        ax,
+        ay,
+        az,
+        spacing,
+        np.ascontiguousarray(ijk, dtype=np.int64),
+        np.ascontiguousarray(axis, dtype=np.int64),
+        np.ascontiguousarray(a_inside, dtype=np.bool_),
+        np.ascontiguousarray(fa, dtype=np.float64),
+        np.ascontiguousarray(fb, dtype=np.float64),
+        frac,
+    )
 
 
 _NB = {"cache": True, "error_model": "numpy", "nogil": True}
@@ -372,6 +367,62 @@ def _decide(mid, end, fa, fb):
         if root and np.isfinite(outside_end):
             kind = ROOT
         out[e] = kind
+    return out
+
+
+@njit(**_NB)
+def _points_minus_level(prog, tile, active, rows, xyz, level):
+    """F - level at the ``(n, 3)`` points ``xyz``."""
+    px = np.ascontiguousarray(xyz[:, 0])
+    py = np.ascontiguousarray(xyz[:, 1])
+    pz = np.ascontiguousarray(xyz[:, 2])
+    out = np.empty(px.size)
+    if px.size:
+        eval_points(prog, tile, active, rows, px, py, pz, out)
+    for p in range(out.size):
+        out[p] = out[p] - level
+    return out
+
+
+@njit(**_NB)
+def _classify_kernel(
+    prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb, frac
+):
+    """:func:`_classify_suspects` in one call."""
+    n = fa.size
+    origin = np.empty((n, 3))
+    step = np.empty((n, 3))
+    for e in range(n):
+        origin[e, 0] = ax[ijk[e, 0]]
+        origin[e, 1] = ay[ijk[e, 1]]
+        origin[e, 2] = az[ijk[e, 2]]
+        for k in range(3):  # a row of the identity times the spacing, as numpy did
+            step[e, k] = (1.0 if k == axis[e] else 0.0) * spacing[axis[e]]
+    xyz, finite = _secant_points(origin, step, fa, fb, SEPARATION_T)
+    f = _points_minus_level(prog, tile, active, rows, xyz, level)
+    roots = _secant_roots(f, finite, fa, fb, SECANT_ROOT)
+    out = np.full(n, ROOT, dtype=np.uint8)
+    rest = np.flatnonzero(~roots)
+    m = rest.size
+    if m == 0:
+        return out
+    origin, step = origin[rest], step[rest]
+    fa, fb = fa[rest], fb[rest]
+    # bracket: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); after round one and after the last
+    now = np.empty((m, 5))
+    for e in range(m):
+        now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, 1.0, fa[e], fb[e]
+        now[e, 4] = 1.0 if a_inside[rest[e]] else 0.0
+    mid = now
+    for rnd in range(ROUNDS):
+        xyz3, s = _round_points(origin, step, now, frac)
+        vals = _points_minus_level(prog, tile, active, rows, xyz3.reshape(m * POINTS, 3), level)
+        now = _round_update(now, s, vals.reshape(m, POINTS))
+        if rnd == 0:
+            mid = now
+    kinds = _decide(mid, now, fa, fb)
+    for e in range(m):
+        out[rest[e]] = kinds[e]
     return out
 
 

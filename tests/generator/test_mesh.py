@@ -328,3 +328,75 @@ def test_issue_catalogue_shapes_survive_merges(key):
     mesh = extract_mesh(evaluate(parse(ISSUE_SHAPES[key]), grid, threads=1), cap=True)
     assert_merge_robust(mesh)
     assert_vertices_apart(mesh, grid)
+
+
+# ----------------------------------------------------------------------------- fast path
+# extract_with_edges runs numba kernels around marching cubes and marching cubes only on the
+# cells with both signs; mesh_reference.py is the step-by-step numpy version it replaced.  Every
+# stored metric depends on the mesh, so the two must agree bit for bit.
+
+
+def assert_same_extraction(field: Field, level: float, cap: bool) -> None:
+    from mesh_reference import reference_extract_with_edges
+
+    from surfgen.generator.mesh import extract_with_edges
+
+    try:
+        want = reference_extract_with_edges(field, level, cap)
+    except EmptySurface as exc:
+        with pytest.raises(EmptySurface) as got:
+            extract_with_edges(field, level, cap)
+        assert str(got.value) == str(exc)
+        return
+    mesh, edges = extract_with_edges(field, level, cap)
+    assert mesh.vertices.tobytes() == want[0].vertices.tobytes()
+    assert np.array_equal(mesh.faces, want[0].faces)
+    assert np.array_equal(edges, want[1])
+
+
+@pytest.mark.parametrize(
+    ("formula", "half", "level"),
+    [
+        ("x^2+y^2+z^2-1", 1.3, 0.0),
+        ("sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0, 0.3),  # ambiguous cells
+        ("floor(2*x)*floor(2*y)-floor(2*z)", 1.5, 0.0),  # plateaus at the level: separation
+        ("x*y*z", 1.0, 0.0),  # exact zeros on grid planes
+        ("tan(x)+0.3*y", 3.0, 0.0),  # poles: huge magnitudes next to small ones
+        ("sqrt(1-x^2-y^2)-abs(z)-0.2", 1.2, 0.0),  # NaN outside a domain: the mirror
+        ("1/x+y+z", 2.0, 0.0),  # +-inf on a grid plane
+    ],
+)
+@pytest.mark.parametrize("cap", [False, True])
+def test_fast_path_is_the_numpy_reference(formula, half, level, cap):
+    grid = Grid(Box((-half, -half * 0.9, -half * 1.1), (half, half * 1.05, half)), (23, 26, 29))
+    assert_same_extraction(evaluate_reference(parse(formula), grid), level, cap)
+
+
+def test_fast_path_on_random_fields_is_the_numpy_reference():
+    # Integer fields (exact zeros, plateaus), tiny values beside huge ones (many separation
+    # rounds), non-finite samples; odd shapes, both caps, and fields with one side only.
+    rng = np.random.default_rng(17)
+    for trial in range(40):
+        grid = Grid(Box.cube(1), tuple(int(n) for n in rng.integers(4, 13, size=3)))
+        values = rng.integers(-2, 3, size=grid.shape).astype(np.float64)
+        values[rng.random(grid.shape) < 0.1] *= 10.0 ** rng.integers(-300, 300)
+        values[rng.random(grid.shape) < 0.05] = rng.choice([np.inf, -np.inf, np.nan])
+        if trial % 10 == 9:
+            values = np.abs(values) + 1.0  # all outside
+        assert_same_extraction(Field(grid, values), float(rng.choice([0.0, 0.5])), trial % 2 == 1)
+
+
+def test_separation_sweeps_reach_the_numpy_rounds_fixed_point():
+    # Chains of raises over many rounds: magnitudes spread over 60 decades along lines.
+    from mesh_reference import _separate as reference_separate
+
+    from surfgen.generator.mesh import _separate
+
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        offset = (10.0 ** rng.uniform(-37, 29, size=(9, 10, 11))).astype(np.float32)
+        offset *= rng.choice(np.array([-1, 1], dtype=np.float32), size=offset.shape)
+        want = reference_separate(offset.copy())
+        got = offset.copy()
+        _separate(got, got < 0)
+        assert got.tobytes() == want.tobytes()

@@ -131,3 +131,69 @@ def test_points_evaluator_is_the_reference():
     x, y, z = rng.uniform(-3, 3, size=(3, 500))
     got = points_evaluator(tree)(x, y, z)  # the walls' evaluator: the numba points kernel
     assert np.array_equal(got, evaluate_points(tree, x, y, z), equal_nan=True)
+
+
+# ----------------------------------------------------------------------------- fast path
+# classify_edges runs the secant step, both refinement rounds and the formula in one numba call
+# (the formula through kernels.eval_points, the points evaluator's lattice).  The reference
+# below takes the same steps one at a time from Python, the formula evaluated at every point
+# without sharing (PointsEvaluator.plain, kernels.run_points): the kinds must be the same.
+
+
+def reference_kinds(field, tree, level, edges):
+    from surfgen.generator import walls as w
+
+    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
+    shape = np.asarray(field.values.shape, dtype=np.int64)
+    kinds, idx, fa, fb, ina = w._crossings(values, shape, edges, level, w.SMOOTH_RATIO)
+    if idx.size == 0:
+        return kinds, 0
+    plain = points_evaluator(tree).plain
+    axes = field.grid.axes()
+    ijk, axis = edges[idx, 1:], edges[idx, 0]
+    origin = np.ascontiguousarray(np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1))
+    step = np.ascontiguousarray(np.eye(3)[axis] * np.asarray(field.grid.spacing)[axis][:, None])
+    xyz, finite = w._secant_points(origin, step, fa, fb, w.SEPARATION_T)
+    f = plain(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
+    rest = np.flatnonzero(~w._secant_roots(f, finite, fa, fb, w.SECANT_ROOT))
+    sub = np.full(idx.size, ROOT, dtype=np.uint8)
+    if rest.size:
+        now = np.stack([np.zeros(rest.size), np.ones(rest.size), fa[rest], fb[rest],
+                        ina[rest].astype(float)], axis=1)  # fmt: skip
+        frac = np.arange(1, w.POINTS + 1) / (w.POINTS + 1)
+        mids = []
+        for _ in range(w.ROUNDS):
+            pts, s = w._round_points(origin[rest], step[rest], now, frac)
+            flat = pts.reshape(-1, 3)
+            vals = plain(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(rest.size, w.POINTS) - level
+            now = w._round_update(now, s, vals)
+            mids.append(now)
+        sub[rest] = w._decide(mids[0], now, fa[rest], fb[rest])
+    kinds[idx] = sub
+    return kinds, int(idx.size)
+
+
+@pytest.mark.parametrize(
+    ("formula", "half"),
+    [
+        ("tan(x)*tan(y)-z", 3.0),
+        ("1/x+y+z", 2.0),
+        ("atan(tan(2*x))+0.5-0.3*y*z", 3.0),
+        ("stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),
+        ("saw1(x+y,0.6,4)-0.3*z^2", 2.0),
+        ("sqrt(1-x^2-y^2)-abs(z)-0.2+0.1/(x-0.3)", 1.2),  # NaN domain edges and a pole
+        ("sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
+    ],
+)
+@pytest.mark.parametrize("cap", [False, True])
+def test_fused_classification_is_the_stepwise_reference(formula, half, cap):
+    from surfgen.generator.mesh import extract_with_edges
+    from surfgen.generator.walls import classify_edges
+
+    tree = parse(formula)
+    field = evaluate_reference(tree, Grid(Box.cube(half), (27, 30, 25)))
+    _mesh, edges = extract_with_edges(field, 0.0, cap)
+    kinds, refined = classify_edges(field, tree, None, 0.0, edges)
+    want, want_refined = reference_kinds(field, tree, 0.0, np.ascontiguousarray(edges))
+    assert refined == want_refined
+    assert np.array_equal(kinds, want)
