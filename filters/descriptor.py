@@ -49,7 +49,7 @@ from scipy.spatial import cKDTree
 
 from surfgen.filters.geometry import weighted_centres
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh
+from surfgen.generator.mesh import Mesh, face_cross
 
 log = logging.getLogger(__name__)
 
@@ -125,16 +125,7 @@ def _cross_products(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarra
     cross = np.empty((f.shape[0], 3))
     norm = np.empty(f.shape[0])
     for t in range(f.shape[0]):
-        i0, i1, i2 = f[t, 0], f[t, 1], f[t, 2]
-        b0 = v[i1, 0] - v[i0, 0]
-        b1 = v[i1, 1] - v[i0, 1]
-        b2 = v[i1, 2] - v[i0, 2]
-        c0 = v[i2, 0] - v[i0, 0]
-        c1 = v[i2, 1] - v[i0, 1]
-        c2 = v[i2, 2] - v[i0, 2]
-        x = b1 * c2 - b2 * c1
-        y = b2 * c0 - b0 * c2
-        z = b0 * c1 - b1 * c0
+        x, y, z = face_cross(v, f[t, 0], f[t, 1], f[t, 2])
         cross[t, 0] = x
         cross[t, 1] = y
         cross[t, 2] = z

@@ -48,7 +48,7 @@ from surfgen.generator import constituents as cf
 from surfgen.generator import elementary as E
 from surfgen.generator import logic
 from surfgen.generator.errors import FormulaError
-from surfgen.generator.expr import Expr, params_of, to_string
+from surfgen.generator.expr import Expr, params_of, postorder, to_string
 from surfgen.generator.functions import FUNCTIONS, match_rewrite
 
 # ----------------------------------------------------------------------------- the opcode table
@@ -558,7 +558,7 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
             f"parameter '{missing[0]}' has no value (give it with --param {missing[0]}=...)"
         )
     low = _Lowerer(params)
-    for node in _distinct_postorder(tree):  # children first: lower() recurses at most once
+    for node in postorder(tree, by_value=True):  # children first: lower() recurses once
         low.lower(node)
     root = low.lower(tree)
     return _schedule(low.dag, root, tree)
@@ -626,25 +626,6 @@ def _schedule(dag: _Dag, root: int, tree: Expr) -> Program:
         n_scalar=n_scalar,
         tree=tree,
     )
-
-
-def _distinct_postorder(tree: Expr) -> list[Expr]:
-    """:func:`~surfgen.generator.expr.postorder` with sub-trees told apart by value, not
-    identity: a copy of a sub-tree already listed is skipped whole (its root compared once)."""
-    out: list[Expr] = []
-    seen: set[Expr] = set()
-    stack: list[tuple[Expr, bool]] = [(tree, False)]
-    while stack:
-        node, done = stack.pop()
-        if done:
-            out.append(node)
-            continue
-        if node in seen:
-            continue
-        seen.add(node)
-        stack.append((node, True))
-        stack.extend((a, False) for a in reversed(node.args) if a not in seen)
-    return out
 
 
 def _postorder(nodes: list[_Node], root: int) -> list[int]:

@@ -195,25 +195,28 @@ def walk(tree: Expr) -> Iterator[Expr]:
         stack.extend(reversed(node.args))
 
 
-def postorder(tree: Expr) -> list[Expr]:
-    """Each distinct node (by identity) once, children before parents, without recursion.
+def postorder(tree: Expr, by_value: bool = False) -> list[Expr]:
+    """Each distinct node once, children before parents, without recursion: distinct by
+    identity, or with ``by_value`` by value (a copy of a sub-tree already listed is skipped
+    whole, its root compared once).
 
     Consumers that memoise per node (the compiler, the reference evaluator) visit this list
     first, so their own recursion never goes deeper than one level.
     """
     out: list[Expr] = []
-    seen: set[int] = set()
+    seen: set = set()
+    key = (lambda node: node) if by_value else id
     stack: list[tuple[Expr, bool]] = [(tree, False)]
     while stack:
         node, done = stack.pop()
         if done:
             out.append(node)
             continue
-        if id(node) in seen:
+        if key(node) in seen:
             continue
-        seen.add(id(node))
+        seen.add(key(node))
         stack.append((node, True))
-        stack.extend((a, False) for a in reversed(node.args) if id(a) not in seen)
+        stack.extend((a, False) for a in reversed(node.args) if key(a) not in seen)
     return out
 
 

@@ -102,21 +102,25 @@ def face_areas(mesh: Mesh) -> np.ndarray:
     return out
 
 
+@njit(cache=True, nogil=True, inline="always")
+def face_cross(v, i0, i1, i2):
+    """``(v[i1] - v[i0]) x (v[i2] - v[i0])`` by components: the same operations in the same
+    order as numpy's ``np.cross`` on whole columns (for numba kernels, one face at a time)."""
+    b0 = v[i1, 0] - v[i0, 0]
+    b1 = v[i1, 1] - v[i0, 1]
+    b2 = v[i1, 2] - v[i0, 2]
+    c0 = v[i2, 0] - v[i0, 0]
+    c1 = v[i2, 1] - v[i0, 1]
+    c2 = v[i2, 2] - v[i0, 2]
+    return b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _face_areas(v, f, out):
-    """``0.5 |(v1 - v0) x (v2 - v0)|`` per face, the cross product by components (the same
-    operations in the same order as numpy on whole columns, one pass without temporaries)."""
+    """``0.5 |(v1 - v0) x (v2 - v0)|`` per face (:func:`face_cross`; one pass without
+    temporaries)."""
     for n in range(f.shape[0]):
-        i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
-        b0 = v[i1, 0] - v[i0, 0]
-        b1 = v[i1, 1] - v[i0, 1]
-        b2 = v[i1, 2] - v[i0, 2]
-        c0 = v[i2, 0] - v[i0, 0]
-        c1 = v[i2, 1] - v[i0, 1]
-        c2 = v[i2, 2] - v[i0, 2]
-        x = b1 * c2 - b2 * c1
-        y = b2 * c0 - b0 * c2
-        z = b0 * c1 - b1 * c0
+        x, y, z = face_cross(v, f[n, 0], f[n, 1], f[n, 2])
         out[n] = 0.5 * math.sqrt(x * x + y * y + z * z)
 
 
