@@ -677,7 +677,7 @@ class AcceptedDescriptors:
             f.seek(self._offset)
             data = f.read()
         end = data.rfind(b"\n") + 1  # whole lines only: the parent may be writing the next
-        for line in data[:end].decode("utf-8").splitlines():
+        for line in data[:end].decode("utf-8", errors="replace").splitlines():
             key, _, text = line.partition("\t")
             values = descriptor_from_text(text)
             if values is not None:
@@ -686,9 +686,16 @@ class AcceptedDescriptors:
 
 
 def _publish(path: Path, rows: list[tuple[str, str]]) -> None:
-    """Append accepted shapes' ``(key, descriptor text)`` for :class:`AcceptedDescriptors`."""
-    with open(path, "a", encoding="utf-8") as f:
-        f.write("".join(f"{key}\t{text}\n" for key, text in rows))
+    """Append accepted shapes' ``(key, descriptor text)`` for :class:`AcceptedDescriptors`.
+
+    Only an optimisation: if it cannot be written (a full disk), the workers know less and
+    the parent, which decides, goes on; a failed append leaves at most a partial last line,
+    which the readers skip until a newline ends it."""
+    try:
+        with open(path, "a", encoding="utf-8") as f:
+            f.write("".join(f"{key}\t{text}\n" for key, text in rows))
+    except OSError as exc:
+        log.debug("accepted descriptors not published (%s)", exc)
 
 
 def _rejected(outcome: ShapeOutcome, reasons: tuple[str, ...]) -> ShapeOutcome:

@@ -411,3 +411,30 @@ def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
         for outcome in (stopped, went_on):
             assert [outcome.early_row[c] for c in compared] == [r[c] for c in compared]
     con.close()
+
+
+def test_a_workers_view_of_accepted_shapes_skips_what_it_cannot_read(tmp_path: Path) -> None:
+    """Garbage, a record cut by a failed append and a last line still being written are
+    skipped; the whole records count."""
+    from surfgen.filters.descriptor import descriptor, descriptor_to_text
+    from surfgen.generator.evaluate import evaluate
+    from surfgen.generator.grid import Box, Grid
+    from surfgen.generator.mesh import extract_mesh
+    from surfgen.generator.parser import parse
+    from surfgen.pipelines.sampling import AcceptedDescriptors, _publish
+
+    mesh = extract_mesh(evaluate(parse("x^2+y^2+z^2-1"), Grid(Box.cube(1.5), (20,) * 3)))
+    values = descriptor(mesh)
+    text = descriptor_to_text(values)
+    path = tmp_path / "accepted.tsv"
+    path.write_bytes(b"\xff\xfegarbage\n" + b"cut\t" + text[:100].encode())  # a cut record
+    seen = AcceptedDescriptors(path, 1.0)
+    assert not seen.near(values)
+    _publish(path, [("ball", text)])  # lands on the cut record's line: that line is lost
+    assert not seen.near(values)
+    with open(path, "a") as f:
+        f.write(f"ball\t{text[:50]}")  # being written: not read yet
+    assert not seen.near(values)
+    with open(path, "a") as f:
+        f.write(f"{text[50:]}\n")
+    assert seen.near(values)
