@@ -350,7 +350,7 @@ def _coarse_ornament(
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
     balls (README, Families). Returns the ornament, its frequency, the expanded products, their
     sum as a tree, its checks ``(feature, stray, departure, pieces)`` (None without an
-    envelope), its strength and d (:func:`_strength` on the ``d_grid``: the checks judge the
+    envelope), its strength and d (:func:`_strength_on` the ``d_grid``: the checks judge the
     surface the draw will be) and the number of ornaments drawn."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
     # the envelope's samples and slope on both grids: the same for every ornament tried
@@ -392,7 +392,7 @@ def _coarse_ornament(
 
 def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
     """The share of the carved surface's crossings (on the feature grid, strength and d as
-    :func:`_strength` sets them) that lie farther from the envelope's surface than twice the
+    :func:`_strength_on` sets them) that lie farther from the envelope's surface than twice the
     carving depth plus two cells: debris thrown away from the body. 1 when it cannot tell."""
     return _carved(e, o, box, depth)[0]
 
@@ -405,8 +405,8 @@ def _carved(
     ge: np.ndarray | None = None,
     strength_d: tuple[float, float | None] | None = None,
 ) -> tuple[float, float, int]:
-    """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as :func:`_strength`
-    sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
+    """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as
+    :func:`_strength_on` sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
     :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
     the full grid, and its :func:`pieces` (0 when it cannot tell). ``strength_d``: s and d
     if already chosen (else :func:`_strength_on` these samples)."""
@@ -586,22 +586,14 @@ def _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
     return Draw(equation, Box.cube(half), None, "sculpture", structure, d, envelope)
 
 
-def _strength(
-    envelope: Expr, ornament: Expr, box: Box, n: int, depth: float
-) -> tuple[float, float | None]:
-    """The ornament's strength s that moves the envelope's surface by about ``depth`` where
-    the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
-    there, on an ``n``-cube of the box. d is None when the ornament is constant or non-finite
-    near the surface."""
-    step = (box.hi[0] - box.lo[0]) / (n - 1)
-    return _strength_on(_eval(envelope, box, n), _eval(ornament, box, n), step, depth)
-
-
 def _strength_on(
     e: np.ndarray, o: np.ndarray, step: float, depth: float, grad: np.ndarray | None = None
 ) -> tuple[float, float | None]:
-    """:func:`_strength` on sampled envelope ``e`` and ornament ``o`` (grid step ``step``;
-    ``grad``: ``e``'s :func:`_slope` if already known)."""
+    """The ornament's strength s that moves the envelope's surface by about ``depth`` where
+    the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
+    there, from the sampled envelope ``e`` and ornament ``o`` (grid step ``step``; ``grad``:
+    ``e``'s :func:`_slope` if already known). d is None when the ornament is constant or
+    non-finite near the surface."""
     grad = _slope(e, step) if grad is None else grad
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))

@@ -216,6 +216,7 @@ def make_shape(
         described = descriptor_to_text(descriptor(mesh))
         watch.lap("describe")
         early = dict(row_for(DUPLICATE), descriptor=described)
+        # compared as stored (rounded), as the parent compares it
         if duplicates is not None and duplicates.near(descriptor_from_text(described)):
             early["timings"] = _timings(watch)
             return ShapeOutcome(index, dict(early), DUPLICATE, early_row=early, early_stop=True)
