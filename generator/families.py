@@ -296,6 +296,8 @@ def _unit_samples(
     are the same coordinates), then multiplied and summed in numpy as
     :func:`_ornament_terms` writes them. A copy's samples may differ from the evaluation of its
     own formula in the last bits, where the formula adds its terms in another order."""
+    if len(set(box.lo)) != 1 or len(set(box.hi)) != 1:
+        raise ValueError(f"the ornament's copies are transposed samples: {box} must be a cube")
     base = _eval(permute_factor(ornament, (0, 1, 2), mirror).to_tree(), box, n)
     # O∘perm(x) = O(x[perm[0]], x[perm[1]], x[perm[2]]): sample i of the copy is sample
     # (i[perm[0]], ...) of O, which is O's array with its axes put in the inverse order.
