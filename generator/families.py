@@ -258,19 +258,58 @@ def _scale(a: float, freq: float) -> float:
     return round_significant(a * freq, 4)
 
 
+def _ornament_combos(copies: int, k: int) -> list[tuple[float, tuple[int, ...]]]:
+    """``(Σ_c O_c)^k`` expanded: (multinomial coefficient, copy indices) per product."""
+    out = []
+    for combo in itertools.combinations_with_replacement(range(copies), k):
+        counts = Counter(combo)
+        coef = math.factorial(k)
+        for c in counts.values():
+            coef //= math.factorial(c)
+        out.append((float(coef), combo))
+    return out
+
+
 def _ornament_terms(
     ornament: Factor, perms: tuple[tuple[int, ...], ...], mirror: bool, k: int
 ) -> list[tuple[float, tuple[Factor, ...]]]:
     """``(Σ_perms O∘perm)^k`` expanded: (multinomial coefficient, factors) per product."""
     copies = [permute_factor(ornament, p, mirror) for p in perms]
-    out = []
-    for combo in itertools.combinations_with_replacement(range(len(copies)), k):
-        counts = Counter(combo)
-        coef = math.factorial(k)
-        for c in counts.values():
-            coef //= math.factorial(c)
-        out.append((float(coef), tuple(copies[i] for i in combo)))
-    return out
+    return [
+        (coef, tuple(copies[i] for i in combo)) for coef, combo in _ornament_combos(len(copies), k)
+    ]
+
+
+def _inverse(perm: tuple[int, ...]) -> tuple[int, ...]:
+    out = [0] * len(perm)
+    for k, v in enumerate(perm):
+        out[v] = k
+    return tuple(out)
+
+
+def _unit_samples(
+    ornament: Factor, perms: tuple[tuple[int, ...], ...], mirror: bool, k: int, box: Box, n: int
+) -> np.ndarray:
+    """The ornament's unit ``(Σ_perms O∘perm)^k`` sampled on the cube ``box`` (``n`` per axis),
+    for the checks: the ornament (with ``|x|, |y|, |z|`` when ``mirror``) is evaluated once, and
+    its permuted copies are the same samples with the axes transposed (the cube's three axes
+    are the same coordinates), then multiplied and summed in numpy as
+    :func:`_ornament_terms` writes them. A copy's samples may differ from the evaluation of its
+    own formula in the last bits, where the formula adds its terms in another order."""
+    base = _eval(permute_factor(ornament, (0, 1, 2), mirror).to_tree(), box, n)
+    # O∘perm(x) = O(x[perm[0]], x[perm[1]], x[perm[2]]): sample i of the copy is sample
+    # (i[perm[0]], ...) of O, which is O's array with its axes put in the inverse order.
+    copies = [np.transpose(base, _inverse(p)) for p in perms]
+    total = None
+    with np.errstate(invalid="ignore", over="ignore"):
+        for coef, combo in _ornament_combos(len(perms), k):
+            product = copies[combo[0]]
+            for i in combo[1:]:
+                product = product * copies[i]
+            product = product * coef
+            total = product if total is None else total + product
+    assert total is not None
+    return np.ascontiguousarray(total)
 
 
 def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
@@ -289,7 +328,7 @@ def draw_sculpture(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     extent = _envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, unit, checks, strength_d, tries = _coarse_ornament(
+    ornament, freq, products, checks, strength_d, tries = _coarse_ornament(
         rng,
         cfg,
         envelope if extent is not None else None,
@@ -336,7 +375,6 @@ def _coarse_ornament(
     Factor,
     float,
     list,
-    Expr,
     tuple[float, float, float, int] | None,
     tuple[float, float | None],
     int,
@@ -348,10 +386,10 @@ def _coarse_ornament(
     Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
     throw debris, and ornaments that break the body into crumbs make speckle: the filters
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
-    balls (README, Families). Returns the ornament, its frequency, the expanded products, their
-    sum as a tree, its checks ``(feature, stray, departure, pieces)`` (None without an
-    envelope), its strength and d (:func:`_strength_on` the ``d_grid``: the checks judge the
-    surface the draw will be) and the number of ornaments drawn."""
+    balls (README, Families). Returns the ornament, its frequency, the expanded products, its
+    checks ``(feature, stray, departure, pieces)`` (None without an envelope), its strength
+    and d (:func:`_strength_on` the ``d_grid``: the checks judge the surface the draw will be)
+    and the number of ornaments drawn. The unit is sampled by :func:`_unit_samples`."""
     e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
     # the envelope's samples and slope on both grids: the same for every ornament tried
     ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
@@ -361,33 +399,37 @@ def _coarse_ornament(
     best, best_score = None, -math.inf
     for tries in range(1, cfg.sculpture_ornament_tries + 1):
         ornament, freq = _draw_ornament(rng, cfg)
-        products = _ornament_terms(ornament, perms, mirror, k)
-        unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in products])
         if e is None:
-            return ornament, freq, products, unit, None, (0.0, None), tries
-        o = _eval(unit, box, FEATURE_GRID)
+            products = _ornament_terms(ornament, perms, mirror, k)
+            return ornament, freq, products, None, (0.0, None), tries
+        o = _unit_samples(ornament, perms, mirror, k, box, FEATURE_GRID)
         feature = _feature_size(e, o, box, ge)
-        strength_d = _strength_on(e_d, _eval(unit, box, cfg.d_grid), step_d, depth, ge_d)
-        stray, departure, pieces = _carved(e, o, box, depth, ge, strength_d)
-        clean = (
+        o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid)
+        strength_d = _strength_on(e_d, o_d, step_d, depth, ge_d)
+        stray, departure, f = _carved(e, o, box, depth, ge, strength_d)
+        shaped = (
             feature >= cfg.sculpture_min_feature
             and stray <= cfg.sculpture_max_stray
             and departure >= cfg.sculpture_min_departure
-            and pieces <= cfg.sculpture_max_pieces
         )
         score = (
             min(feature / max(cfg.sculpture_min_feature, 1e-9), 1.0)
             + min(departure / max(cfg.sculpture_min_departure, 1e-9), 1.0)
             - stray
-            - (pieces > cfg.sculpture_max_pieces)
         )
+        if not shaped and best is not None and score <= best_score:
+            continue  # neither clean nor the best, whatever its pieces: no need to count them
+        n_pieces = 0 if f is None else pieces(f)
+        score -= n_pieces > cfg.sculpture_max_pieces
         if best is None or score > best_score:
-            checks = (feature, stray, departure, pieces)
-            best, best_score = (ornament, freq, products, unit, checks, strength_d), score
-        if clean:
+            checks = (feature, stray, departure, n_pieces)
+            best, best_score = (ornament, freq, checks, strength_d), score
+        if shaped and n_pieces <= cfg.sculpture_max_pieces:
             break
     assert best is not None
-    return (*best, tries)
+    ornament, freq, checks, strength_d = best
+    products = _ornament_terms(ornament, perms, mirror, k)
+    return ornament, freq, products, checks, strength_d, tries
 
 
 def _stray_share(e: np.ndarray, o: np.ndarray, box: Box, depth: float) -> float:
@@ -404,18 +446,19 @@ def _carved(
     depth: float,
     ge: np.ndarray | None = None,
     strength_d: tuple[float, float | None] | None = None,
-) -> tuple[float, float, int]:
+) -> tuple[float, float, np.ndarray | None]:
     """The carved surface ``e + s o - d = 0`` on the feature grid (s and d as
-    :func:`_strength_on` sets them): its stray share (see :func:`_stray_share`; 1 when it cannot tell), its
-    :func:`envelope_departure` (0 when it cannot tell), which the ``plain`` filter judges on
-    the full grid, and its :func:`pieces` (0 when it cannot tell). ``strength_d``: s and d
-    if already chosen (else :func:`_strength_on` these samples)."""
+    :func:`_strength_on` sets them): its stray share (see :func:`_stray_share`; 1 when it
+    cannot tell), its :func:`envelope_departure` (0 when it cannot tell), which the ``plain``
+    filter judges on the full grid, and its samples ``e + s o - d`` (None when it cannot tell;
+    :func:`pieces` counts its pieces). ``strength_d``: s and d if already chosen (else
+    :func:`_strength_on` these samples)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
     ge = _slope(e, step) if ge is None else ge
     s, d = _strength_on(e, o, step, depth, ge) if strength_d is None else strength_d
     if d is None:
-        return 1.0, 0.0, 0
+        return 1.0, 0.0, None
     with np.errstate(invalid="ignore", over="ignore"):
         f = e + s * o - d
         distance = np.abs(e) / np.where(ge > 0, ge, np.inf)
@@ -428,11 +471,11 @@ def _carved(
         crossing[tuple(lo)] |= change
     count = np.count_nonzero(crossing)
     if count == 0:
-        return 1.0, 0.0, 0
+        return 1.0, 0.0, None
     far = crossing & ~(distance <= 2 * depth + 2 * step)
     departure = envelope_departure(f, e)
     stray = np.count_nonzero(far) / count
-    return stray, departure if math.isfinite(departure) else 0.0, pieces(f)
+    return stray, departure if math.isfinite(departure) else 0.0, f
 
 
 _CUBE = np.ones((3, 3, 3), dtype=bool)

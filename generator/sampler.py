@@ -15,6 +15,7 @@ digits (so the printed formula is short and the key is stable to the last bit of
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -43,7 +44,7 @@ from surfgen.generator.settings import (
     settings_to_dict,
 )
 
-SAMPLER_VERSION = 3  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces)
+SAMPLER_VERSION = 4  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies, sculpture_min_departure 0.2
 FAMILIES = ("sculpture", "lattice", "free")
 FAMILY_CHOICES = (*FAMILIES, "mix")
 SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
@@ -115,7 +116,7 @@ class SamplerConfig:
     sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
     sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     sculpture_max_stray: float = 0.02  # share of the carved surface far from the envelope
-    sculpture_min_departure: float = 0.12  # carved surface's departure from the envelope
+    sculpture_min_departure: float = 0.2  # carved surface's departure from the envelope
     sculpture_max_pieces: int = 6  # pieces of the carved surface on the feature grid
     sculpture_ornament_tries: int = 6  # ornaments drawn until one carves cleanly
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
@@ -273,8 +274,18 @@ def rng_for(seed: int, index: int) -> np.random.Generator:
 
 
 def _choice(rng: np.random.Generator, values, weights) -> Any:
+    """``values[rng.choice(len(values), p=weights / sum)]``: the same index from the same one
+    uniform draw as numpy's ``Generator.choice`` (the normalised cumulative sum searched from
+    the right, tested), without its per-call checks and conversions (12 calls per factor)."""
+    return values[int(_cdf(tuple(weights)).searchsorted(rng.random(), side="right"))]
+
+
+@functools.lru_cache(maxsize=64)
+def _cdf(weights: tuple[float, ...]) -> np.ndarray:
     w = np.asarray(weights, dtype=np.float64)
-    return values[int(rng.choice(len(values), p=w / w.sum()))]
+    cdf = (w / w.sum()).cumsum()
+    cdf /= cdf[-1]
+    return cdf
 
 
 def _round(v: float, digits: int = 2) -> float:

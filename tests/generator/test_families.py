@@ -14,7 +14,13 @@ from surfgen.generator.errors import SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.families import _feature_size, _stray_share, pick_family
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.sampler import LATTICE_PATTERNS, SamplerConfig, choose_d, draw_equation
+from surfgen.generator.sampler import (
+    LATTICE_PATTERNS,
+    SamplerConfig,
+    _choice,
+    choose_d,
+    draw_equation,
+)
 
 # sha256 (16 hex digits) of {"model", "box", "q"} of shapes 0..29 of seed 7, recorded from the
 # sampler before families existed: family = "free" must keep drawing exactly these models.
@@ -41,6 +47,18 @@ def model_hash(draw) -> str:
         separators=(",", ":"),
     )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def test_choice_is_numpys_weighted_choice() -> None:
+    """The sampler's weighted choice takes the same index from the same stream as numpy's."""
+    for seed in range(200):
+        for weights in ([0.6, 0.3, 0.1], [0.85, 0.15], [0.8, 0.08, 0.12], [1, 0, 2, 5, 0.5], [3]):
+            ours, numpys = np.random.default_rng(seed), np.random.default_rng(seed)
+            values = list(range(len(weights)))
+            p = np.asarray(weights, dtype=np.float64)
+            for _ in range(5):
+                assert _choice(ours, values, weights) == numpys.choice(len(values), p=p / p.sum())
+            assert ours.random() == numpys.random()
 
 
 def test_free_family_keeps_todays_models() -> None:
@@ -384,3 +402,37 @@ def test_pieces_never_exceed_the_capped_meshes_components() -> None:
             equal += pieces(values) == components
             total += 1
     assert total >= 20 and equal >= total // 2
+
+
+def test_unit_samples_are_the_units_formula_on_the_grid() -> None:
+    """The checks' unit (one evaluation of the ornament, its copies by transposing the cube's
+    axes) is the expanded formula sampled on the grid, up to the order of additions."""
+    from surfgen.generator.expr import add_all, mul_all
+    from surfgen.generator.families import (
+        GROUP_PERMUTATIONS,
+        _draw_ornament,
+        _eval,
+        _ornament_terms,
+        _unit_samples,
+    )
+    from surfgen.generator.sampler import rng_for
+
+    cfg = family("sculpture")
+    box, n = Box.cube(1.7), 12
+    shares = []
+    for i in range(12):
+        ornament, _ = _draw_ornament(rng_for(7, i), cfg)
+        for group in ("none", "mirror", "cyclic", "full_mirror"):
+            perms, mirror = GROUP_PERMUTATIONS[group], group.endswith("mirror")
+            k = 2 if len(perms) == 3 else 1
+            terms = _ornament_terms(ornament, perms, mirror, k)
+            unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in terms])
+            want = _eval(unit, box, n)
+            got = _unit_samples(ornament, perms, mirror, k, box, n)
+            if len(perms) == 1:  # one copy: the same operations, the same bits
+                assert np.array_equal(got, want, equal_nan=True), (i, group)
+            with np.errstate(invalid="ignore"):
+                off = ~((got == want) | np.isnan(got) & np.isnan(want))
+                off &= ~(np.abs(got - want) <= 1e-9 * np.abs(want))
+            shares.append(off.mean())
+    assert np.median(shares) == 0 and max(shares) < 0.25
