@@ -54,6 +54,8 @@ def test_tan_keep_has_three_sheets_remove_keeps_the_root(n):
 def test_the_pole_of_one_over_x_is_not_a_surface():
     marked, report = labelled("1/x", 3.0, 32)
     assert report.roots == 0 and report.poles == report.edges > 0
+    # a wall costs three points of the formula, five next to a sample (the secant, bisections)
+    assert 3 * report.refined <= report.points <= 5 * report.refined
     assert wall_fraction(marked) == 1.0
     with pytest.raises(EmptySurface, match="no root") as err:
         labelled("1/x", 3.0, 32, walls="remove")
