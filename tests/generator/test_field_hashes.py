@@ -158,6 +158,41 @@ def test_same_hashes_with_vectorisation_disabled():
     assert not bad, f"{len(bad)} fields differ without vectorisation: {bad[:5]}"
 
 
+_NUMPY_SUBPROCESS = """
+import json, sys
+sys.path.insert(0, {here!r})
+from numpy._core._multiarray_umath import __cpu_features__ as features
+from test_field_hashes import cases, field_hash
+from surfgen.generator.reference import evaluate_reference
+print(json.dumps({{
+    "x86_v3": bool(features.get("X86_V3")),
+    "hashes": {{key: field_hash(evaluate_reference(tree, grid, params).values)
+               for key, tree, grid, params in cases()}},
+}}))
+"""
+
+
+def test_the_reference_ignores_numpys_simd_dispatch():
+    """numpy picks its kernels by CPU (SSE4.2, AVX2, AVX-512 ...); the reference only uses
+    operations that are exactly rounded on every path, so its fields keep their bits with
+    numpy's AVX2/AVX-512 kernels switched off (``NPY_DISABLE_CPU_FEATURES``: numpy then runs
+    its x86-64-v2 baseline, another code path for every ufunc the reference calls)."""
+    import platform
+
+    if platform.machine() not in ("x86_64", "AMD64"):
+        raise AssertionError(f"this test names x86 features; add {platform.machine()}'s")
+    env = dict(os.environ, NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR")
+    code = _NUMPY_SUBPROCESS.format(here=str(Path(__file__).parent))
+    proc = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["x86_v3"] is False, "numpy still dispatches its AVX2 kernels"
+    bad = _diff(result["hashes"], _pinned())
+    assert not bad, f"{len(bad)} reference fields differ on numpy's baseline kernels: {bad[:5]}"
+
+
 def _update() -> None:
     import platform
 
