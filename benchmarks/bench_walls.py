@@ -13,20 +13,20 @@ On each, in the same run, best of ``--repeat``:
 - ``old mesh``: the numpy mesh stage before issue 13 (``tests/generator/mesh_reference.py``);
 - ``mesh``: ``extract_mesh`` (robust placement, numba around marching cubes: the mesh stage
   now; capped, as the sampler);
-- ``walls``: ``extract_labelled(..., walls="mark")``: the mesh plus the root/pole/jump
-  classification of every crossing, in one numba call (secant, rounds and the formula);
-- ``stepwise``: the same with the classification as it was before issue 13 (:class:`Stepwise`:
-  each step called from Python, the formula through ``PointsEvaluator.__call__``), which also
-  counts the points evaluated;
-- ``numpy`` (with ``--numpy``): the stepwise classification with the points evaluated by the
-  reference's numpy functions node by node (the evaluator before the points kernel).
+- ``walls``: what ``extract_labelled(..., walls="mark")`` adds to it: ``label_walls`` on the
+  mesh and edges (the root/pole/jump classification of every crossing: secant point and
+  bisections, one numba call; the faces' kinds and the wall fraction), timed by itself;
+- ``previous``: the same with the classification before its cost work
+  (``tests/generator/walls_reference.py``: secant point and two rounds of three points over
+  the whole edge).
 
-Prints per shape the extra time of the classification over the mesh stage now (the target: at
-most +20 %) and over the old mesh stage, the stepwise one's, the points evaluated, then the
-median, 90th percentile and maximum per set, and how many shapes stay within +20 %.  Shared
-machines are noisy: ratios measured in one run are what to quote.
+Prints per shape the extra time of the classification over the mesh stage (the target: at
+most +20 %) and the previous classification's, the suspects and points evaluated, and where
+the two classifications differ (share of the area whose kind changed, wall_fraction before and
+after); then the median, 90th percentile and maximum per set, over the shapes with walls too.
+Shared machines are noisy: ratios measured in one run are what to quote.
 
-    python benchmarks/bench_walls.py [--n 24] [--seed 7] [--grid 64] [--repeat 3] [--numpy]
+    python benchmarks/bench_walls.py [--n 24] [--seed 7] [--grid 64] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -45,16 +45,15 @@ import surfgen.generator.walls as walls_module
 from surfgen.filters.verdict import screen_field
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.expr import postorder
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.parser import parse
-from surfgen.generator.reference import apply_node
 from surfgen.generator.sampler import choose_d, draw_equation
-from surfgen.generator.walls import ROOT, extract_labelled
+from surfgen.generator.walls import extract_labelled, label_walls
 from surfgen.pipelines.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
 from mesh_reference import reference_extract_with_edges  # noqa: E402
+from walls_reference import reference_classify_edges  # noqa: E402
 
 NAMED = [
     # (name, formula, half side of the box); walls first
@@ -69,75 +68,6 @@ NAMED = [
     ("torus", "(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.5),
     ("gyroid", "sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
 ]
-
-
-class NumpyPoints:
-    """The formula at points with the reference's numpy functions, node by node (the walls'
-    points evaluator before the numba kernel)."""
-
-    def __init__(self, tree, params):
-        self.order = postorder(tree)
-        self.slot = {id(node): i for i, node in enumerate(self.order)}
-        self.params = dict(params or {})
-
-    def __call__(self, x, y, z):
-        env = {"x": np.asarray(x, np.float64), "y": np.asarray(y, np.float64)}
-        env["z"] = np.asarray(z, np.float64)
-        values = []
-        with np.errstate(all="ignore"):
-            for node in self.order:
-                values.append(
-                    apply_node(node, lambda n: values[self.slot[id(n)]], env, self.params)
-                )
-        return np.array(np.broadcast_to(values[-1], env["x"].shape), dtype=np.float64)
-
-
-class Stepwise:
-    """``walls._classify_suspects`` as it was before issue 13: the per-edge steps are numba
-    kernels, but each is called from Python, and the formula through ``points(x, y, z)``
-    (:meth:`PointsEvaluator.__call__`) three times; counts the points it evaluates."""
-
-    def __init__(self, make_points=None):
-        self.make_points = make_points
-        self.points = 0
-
-    def __call__(self, points, level, field, ijk, axis, a_inside, fa, fb):
-        w = walls_module
-        if self.make_points is not None:
-            points = self.make_points(points.program)
-
-        def run(x, y, z):
-            self.points += np.size(x)
-            return points(x, y, z)
-
-        axes = field.grid.axes()
-        spacing = np.asarray(field.grid.spacing, dtype=np.float64)
-        origin = np.ascontiguousarray(np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1))
-        step = np.ascontiguousarray(np.eye(3)[axis] * spacing[axis][:, None])
-        fa = np.ascontiguousarray(fa, dtype=np.float64)
-        fb = np.ascontiguousarray(fb, dtype=np.float64)
-        xyz, finite = w._secant_points(origin, step, fa, fb, w.SEPARATION_T)
-        f = run(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
-        rest = np.flatnonzero(~w._secant_roots(f, finite, fa, fb, w.SECANT_ROOT))
-        out = np.full(len(fa), ROOT, dtype=np.uint8)
-        if rest.size == 0:
-            return out
-        origin, step, fa, fb = origin[rest], step[rest], fa[rest], fb[rest]
-        n = rest.size
-        now = np.empty((n, 5))
-        now[:, 0], now[:, 1], now[:, 2], now[:, 3] = 0.0, 1.0, fa, fb
-        now[:, 4] = a_inside[rest]
-        mid = now
-        frac = np.arange(1, w.POINTS + 1) / (w.POINTS + 1)
-        for rnd in range(w.ROUNDS):
-            xyz, s = w._round_points(origin, step, now, frac)
-            flat = xyz.reshape(-1, 3)
-            vals = run(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(n, w.POINTS) - level
-            now = w._round_update(now, s, vals)
-            if rnd == 0:
-                mid = now
-        out[rest] = w._decide(mid, now, fa, fb)
-        return out
 
 
 def best(fn: Callable[[], object], repeat: int) -> float:
@@ -158,73 +88,103 @@ def old_placement(field, level):
         mesh_module._separate = keep
 
 
+def previous(field, tree, params, level, edges):
+    """``walls._classify`` with the previous classification (points not counted)."""
+    kinds, refined = reference_classify_edges(field, tree, params, level, edges)
+    return kinds, refined, 0
+
+
 def labelled_with(classify, field, tree):
-    """``extract_labelled`` (mark, capped) with ``classify`` as ``walls._classify_suspects``."""
-    keep = walls_module._classify_suspects
-    walls_module._classify_suspects = classify
+    """``extract_labelled`` (mark, capped) with ``classify`` as ``walls._classify``."""
+    keep = walls_module._classify
+    walls_module._classify = classify
     try:
         return extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
     finally:
-        walls_module._classify_suspects = keep
+        walls_module._classify = keep
 
 
-def measure(name, tree, field, repeat, numpy_too):
-    """One row: times, ratios, and the classification's point count."""
+def measure(name, tree, field, repeat):
+    """One row: times, ratios, points, and the change from the previous classification."""
     mesh, report = extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
-    stepwise = Stepwise()
-    stepped, _ = labelled_with(stepwise, field, tree)
-    if not np.array_equal(stepped.face_kinds, mesh.face_kinds):
-        raise AssertionError(f"{name}: the classification differs from the stepwise one")
-    n_points = stepwise.points
+    before, before_report = labelled_with(previous, field, tree)
+    areas = mesh_module.face_areas(mesh)
+    changed = float(areas[mesh.face_kinds != before.face_kinds].sum() / areas.sum())
     t_old = best(lambda: old_placement(field, 0.0), repeat)
     t_old_mesh = best(lambda: reference_extract_with_edges(field, 0.0, True), repeat)
-    t_mesh = best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), repeat)
-    t_walls = best(lambda: extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark"), repeat)
-    t_step = best(lambda: labelled_with(Stepwise(), field, tree), repeat)
-    t_numpy = float("nan")
-    if numpy_too:
-        numpy_points = Stepwise(lambda _program: NumpyPoints(tree, {}))
-        t_numpy = best(lambda: labelled_with(numpy_points, field, tree), repeat)
-    extra = t_walls - t_mesh
+    capped, edges = mesh_module.extract_with_edges(field, 0.0, True)
+
+    def label(classify=None):
+        keep = walls_module._classify
+        walls_module._classify = classify or keep
+        try:
+            return label_walls(capped, edges, field, tree, {}, 0.0, True, "mark")
+        finally:
+            walls_module._classify = keep
+
+    # extract_labelled is extract_with_edges then label_walls: time the two parts (a
+    # difference of two noisy totals would be noisier), interleaved, so a busy moment hits
+    # all three alike
+    t_mesh = t_walls = t_prev = float("inf")
+    for _ in range(repeat):
+        t_mesh = min(t_mesh, best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), 1))
+        t_walls = min(t_walls, best(label, 1))
+        t_prev = min(t_prev, best(lambda: label(previous), 1))
+    extra, extra_prev = t_walls, t_prev
     print(
-        f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} {report.refined:>7} "
-        f"{n_points:>7} {1000 * t_old_mesh:>7.1f} {1000 * t_mesh:>7.1f} {1000 * extra:>7.1f} "
-        f"{1000 * (t_step - t_mesh):>7.1f} {1000 * (t_numpy - t_mesh):>7.1f} "
-        f"{extra / t_mesh:>+7.0%} {extra / t_old_mesh:>+7.0%} {(t_step - t_mesh) / t_mesh:>+7.0%}",
+        f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} "
+        f"{100 * before_report.wall_fraction:>6.1f} {100 * changed:>6.2f} {report.refined:>7} "
+        f"{report.points:>7} {1000 * t_mesh:>7.1f} {1000 * extra:>7.1f} {1000 * extra_prev:>7.1f} "
+        f"{extra / t_mesh:>+7.0%} {extra_prev / t_mesh:>+7.0%} {extra / t_old_mesh:>+7.0%}",
         flush=True,
     )
+    return {
+        "placement": t_mesh / t_old,
+        "extra": extra / t_mesh,
+        "previous": extra_prev / t_mesh,
+        "walls": report.wall_fraction > 0.0 or before_report.wall_fraction > 0.0,
+        "changed": changed,
+        "wf_change": abs(report.wall_fraction - before_report.wall_fraction),
+        "over_old": extra / t_old_mesh,
+    }
+
+
+def _stats(values: np.ndarray) -> str:
     return (
-        t_mesh / t_old,
-        extra / t_mesh,
-        report.wall_fraction,
-        extra / t_old_mesh,
-        (t_step - t_mesh) / t_mesh,
-        t_old_mesh / t_mesh,
+        f"median {statistics.median(values):+.0%}, p90 {np.percentile(values, 90):+.0%}, "
+        f"max {values.max():+.0%}"
     )
 
 
 def summary(title, rows):
     if not rows:
         return
-    extra = np.array([r[1] for r in rows])
-    walls = np.array([r[2] > 0.0 for r in rows])
+    pad = " " * len(title)
+    extra = np.array([r["extra"] for r in rows])
+    prev = np.array([r["previous"] for r in rows])
+    walls = np.array([r["walls"] for r in rows])
     print(
-        f"{title}: {len(rows)} shapes; walls extra over the mesh stage: median "
-        f"{statistics.median(extra):+.0%}, p90 {np.percentile(extra, 90):+.0%}, max "
-        f"{extra.max():+.0%}; within +20 %: {np.count_nonzero(extra <= 0.2)} of {len(rows)} "
-        f"({np.count_nonzero(extra[~walls] <= 0.2)} of {np.count_nonzero(~walls)} without walls, "
-        f"{np.count_nonzero(extra[walls] <= 0.2)} of {np.count_nonzero(walls)} with walls)"
+        f"{title}: {len(rows)} shapes; classification over the mesh stage: {_stats(extra)}; "
+        f"within +20 %: {np.count_nonzero(extra <= 0.2)} of {len(rows)}"
     )
     if walls.any():
-        print(f"{'':>{len(title)}}  with walls: median {statistics.median(extra[walls]):+.0%}")
-    over_old = np.array([r[3] for r in rows])
-    stepped = np.array([r[4] for r in rows])
-    speed = np.array([r[5] for r in rows])
+        print(
+            f"{pad}  with walls ({np.count_nonzero(walls)}): {_stats(extra[walls])}; within +20 %: "
+            f"{np.count_nonzero(extra[walls] <= 0.2)}; previous classification: "
+            f"{_stats(prev[walls])}"
+        )
+    if (~walls).any():
+        print(f"{pad}  without walls ({np.count_nonzero(~walls)}): {_stats(extra[~walls])}")
+    print(f"{pad}  previous classification, all: {_stats(prev)}")
+    changed = np.array([r["changed"] for r in rows])
+    wf = np.array([r["wf_change"] for r in rows])
+    over_old = np.array([r["over_old"] for r in rows])
     print(
-        f"{'':>{len(title)}}  over the old mesh stage: median {statistics.median(over_old):+.0%}"
-        f", max {over_old.max():+.0%}, within +20 %: {np.count_nonzero(over_old <= 0.2)}; "
-        f"stepwise classification over the mesh now: median {statistics.median(stepped):+.0%}, "
-        f"max {stepped.max():+.0%}; old mesh / mesh now: median {statistics.median(speed):.2f}"
+        f"{pad}  area whose kind changed: median {statistics.median(changed):.2%}, p90 "
+        f"{np.percentile(changed, 90):.2%}, max {changed.max():.2%}; |wall_fraction change| "
+        f"median {statistics.median(wf):.4f}, p90 {np.percentile(wf, 90):.4f}, max "
+        f"{wf.max():.4f}; over the numpy mesh stage before issue 13: median "
+        f"{statistics.median(over_old):+.0%}"
     )
 
 
@@ -233,19 +193,18 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--grid", type=int, default=64)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--numpy", action="store_true", help="also time the numpy points path")
+    parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-named", action="store_true")
     args = parser.parse_args()
-    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'refined':>7} {'points':>7} "
-          f"{'oldmesh':>7} {'mesh ms':>7} {'walls':>7} {'stepw.':>7} {'numpy':>7} "
-          f"{'+walls':>7} {'/oldm':>7} {'+stepw':>7}")  # fmt: skip
+    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'prev%':>6} {'chg%':>6} {'suspect':>7} "
+          f"{'points':>7} {'mesh ms':>7} {'walls':>7} {'prev.':>7} "
+          f"{'+walls':>7} {'+prev':>7} {'/oldm':>7}")  # fmt: skip
     named = []
     if not args.no_named:
         for name, formula, half in NAMED:
             tree = parse(formula)
             field = evaluate(tree, Grid(Box.cube(half), (args.grid,) * 3), threads=1)
-            named.append(measure(name, tree, field, args.repeat, args.numpy))
+            named.append(measure(name, tree, field, args.repeat))
     config = load_config()
     rows = []
     index = 0
@@ -264,11 +223,11 @@ def main() -> None:
             mesh_module.extract_mesh(field, 0.0, cap=True)
         except EmptySurface:
             continue
-        rows.append(measure(f"#{index - 1}", tree, field, args.repeat, args.numpy))
+        rows.append(measure(f"#{index - 1}", tree, field, args.repeat))
     print(f"\nat {args.grid}^3, best of {args.repeat}")
     summary("named", named)
     summary(f"sampled (seed {args.seed})", rows)
-    placement = np.array([r[0] for r in named + rows])
+    placement = np.array([r["placement"] for r in named + rows])
     print(
         f"robust placement / the same without separation: median {statistics.median(placement):.2f}, "
         f"p90 {np.percentile(placement, 90):.2f}, max {placement.max():.2f}"

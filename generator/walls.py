@@ -9,28 +9,39 @@ the zero set.
 
 :func:`classify_edges` tells them apart in three steps, cheapest first:
 
-1. *Samples.*  A crossing whose secant slope has the sign of both neighbouring secants along
-   the same grid line, and is at most ``SMOOTH_RATIO`` times the larger of them, looks like a
-   smooth root and is taken as one.  Everything else (opposite slopes: poles and downward
-   resets; steep steps; non-finite neighbours; edges at the grid's border) is *suspect*.
-2. *Secant.*  F at the secant point ``t* = fa / (fa - fb)``: a root when
-   ``|F(t*)| < SECANT_ROOT * min(|fa|, |fb|)`` (a pole or a jump keeps |F| of the order of its
-   samples' there; a sample exactly at the level never certifies, min being 0).
-3. *Refinement.*  Two rounds of three points shrink the bracket around the side change to 1/4,
-   then 1/16 of the edge.  ``M`` is the largest ``|F - level|`` at the bracket's ends, leaving
-   out an end that is still an original sample; ``M4``, ``M16`` after each round:
+1. *Samples.*  A crossing looks like a smooth root, and is taken as one, when the secants of
+   its grid line around it (``dm``, ``d``, ``dp``: the edge's and its two neighbours') are
+   finite and either have one sign with ``|d|`` at most ``SMOOTH_RATIO`` times the larger
+   neighbour, or change so little that the third difference ``|dp - 2 d + dm|`` is at most
+   ``SMOOTH_THIRD`` times ``|dm| + |dp|`` (F bends smoothly through an extremum: a pole or a
+   jump on the edge makes it about twice the pole's or the jump's size).  Everything else
+   (poles and resets against the neighbours' slopes, steep steps, non-finite neighbours, edges
+   at the grid's border) is *suspect*.
+2. *Secant.*  F at the secant point ``t* = fa / (fa - fb)`` (kept 1 % of the edge from the
+   samples): a root when ``|F(t*)| < SECANT_ROOT * min(|fa|, |fb|)`` (a pole or a jump keeps
+   |F| of the order of its samples' there; a sample exactly at the level never certifies, min
+   being 0).
+3. *Bisection.*  ``t*`` splits the edge; the part where the side changes is bisected twice
+   (to a quarter of it), and twice more where that quarter still ends at a sample (the
+   samples' own |F| says nothing about a root, pole or jump right next to them).  ``M`` is
+   the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
+   sample; ``M1`` before and ``M2`` after the last two bisections (the bracket 4x narrower):
 
-   - root: ``M16 <= ROOT_SHRINK * M4`` (|F| keeps shrinking towards 0: 4x for a simple root)
-     or ``M16`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
+   - root: ``M2 <= ROOT_SHRINK * M1`` (|F| keeps shrinking towards 0: 4x for a simple root)
+     or ``M2`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
      root); a sample kept as an end must itself be within ``ROOT_KEPT`` of that scale;
-   - pole: F is infinite at the bracket, ``M16 >= POLE_GROWTH * M4`` (|F| grows: 4x for 1/u),
-     or an end ``POLE_SCALE`` times the samples' scale (a pole a round hit early, or one next
-     to a sample);
+   - pole: F is infinite at the bracket, ``M2 >= POLE_GROWTH * M1`` (|F| grows: 4x for 1/u),
+     or an end ``POLE_SCALE`` times the samples' scale (a pole a bisection hit early, or one
+     next to a sample);
    - jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN: the edge
      of a domain).
 
-Jumps smaller than about half the change of F across one cell look like roots at this
-resolution and are counted as roots.
+   A suspect costs one point when the secant shows a root, else three, or five when the
+   crossing lies within a quarter of the secant's part from a sample.
+
+Jumps smaller than about the change of F across one cell look like roots at this resolution
+and are counted as roots.  Where F oscillates faster than the grid resolves (a bracket with
+several side changes), bisection follows one of them, so kinds there are a guess.
 """
 
 from __future__ import annotations
@@ -44,7 +55,7 @@ from numba import njit
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
-from surfgen.generator.fast import PointsEvaluator, points_evaluator
+from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.kernels import eval_points
 from surfgen.generator.mesh import (
@@ -63,16 +74,16 @@ log = logging.getLogger(__name__)
 
 WALL_MODES = ("keep", "remove", "mark")
 
-ROUNDS = 2  # refinement rounds ...
-POINTS = 3  # ... of this many points each: the bracket shrinks 4x per round
 ROOT_SHRINK = 0.6
 ROOT_FLOOR = 1e-9
 ROOT_KEPT = 0.25
 POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
+SMOOTH_THIRD = 1.0
 SECANT_ROOT = 0.25
 SEPARATION_T = 0.01
+BISECTIONS = 2  # after the secant point; as many again where the bracket still ends at a sample
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
 
@@ -81,12 +92,14 @@ class WallReport:
     """How the crossings of one mesh were classified.
 
     ``edges``: crossing edges under vertices; ``refined``: how many of them were looked at
-    with the formula (a secant step, then the refinement if needed); ``roots``, ``poles``, ``jumps``: the result; ``wall_fraction``: share of the
-    mesh's area on wall faces.
+    with the formula (a secant step, then the bisections if needed); ``points``: how many
+    points the formula was evaluated at; ``roots``, ``poles``, ``jumps``: the result;
+    ``wall_fraction``: share of the mesh's area on wall faces.
     """
 
     edges: int
     refined: int
+    points: int
     roots: int
     poles: int
     jumps: int
@@ -96,6 +109,7 @@ class WallReport:
         return {
             "edges": self.edges,
             "refined": self.refined,
+            "points": self.points,
             "roots": self.roots,
             "poles": self.poles,
             "jumps": self.jumps,
@@ -150,13 +164,14 @@ def label_walls(
     :func:`~surfgen.generator.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
     lets a caller look at the mesh before paying for the classification."""
     check_walls_mode(walls)
-    kinds, refined = classify_edges(field, tree, params, level, edges)
+    kinds, refined, points = _classify(field, tree, params, level, edges)
     face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
     labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
     known = kinds[kinds != UNKNOWN]
     report = WallReport(
         edges=int(known.size),
         refined=refined,
+        points=points,
         roots=int(np.count_nonzero(known == ROOT)),
         poles=int(np.count_nonzero(known == POLE)),
         jumps=int(np.count_nonzero(known == JUMP)),
@@ -187,46 +202,31 @@ def classify_edges(
     """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each ``(axis, i, j, k)`` edge of ``edges`` (V, 4).
 
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
-    ``(V,)`` kinds and the number of edges refined with the formula.
+    ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
+    One numba call for the suspects (:func:`_bisect_kernel`: the secant point, the
+    bisections and the decision, the formula through :func:`kernels.eval_points`).
     """
+    kinds, refined, _points = _classify(field, tree, params, level, edges)
+    return kinds, refined
+
+
+def _classify(
+    field: Field,
+    tree: Expr,
+    params: Mapping[str, float] | None,
+    level: float,
+    edges: np.ndarray,
+) -> tuple[np.ndarray, int, int]:
+    """:func:`classify_edges`, and how many points the formula was evaluated at."""
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
     if idx.size == 0:
-        return kinds, 0
-    points = points_evaluator(tree, params)
-    kinds[idx] = _classify_suspects(
-        points, level, field, edges[idx, 1:], edges[idx, 0], ina, fa, fb
-    )
-    return kinds, int(idx.size)
-
-
-def _classify_suspects(
-    points: PointsEvaluator,
-    level: float,
-    field: Field,
-    ijk: np.ndarray,
-    axis: np.ndarray,
-    a_inside: np.ndarray,
-    fa: np.ndarray,
-    fb: np.ndarray,
-) -> np.ndarray:
-    """Kinds of the suspect edges (sample ``ijk``, one step along ``axis``): the secant step,
-    then the refinement of those it does not show to be roots (see the module's docstring).
-
-    One numba call (:func:`_classify_kernel`): the per-edge arithmetic (:func:`_secant_points`,
-    :func:`_secant_roots`, :func:`_round_points`, :func:`_round_update`, :func:`_decide`) and the
-    formula at the points of each step (:func:`surfgen.generator.kernels.eval_points`, the
-    points evaluator's kernel), so no step pays Python's overhead; each step does, edge by
-    edge, the operations the numpy version of this module did on arrays, so the kinds are the
-    same.
-    """
-    prog, tile, active, rows = points.kernel_args()
+        return kinds, 0, 0
+    prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
     ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64) for a in field.grid.axes())
-    spacing = np.asarray(field.grid.spacing, dtype=np.float64)
-    frac = np.arange(1, POINTS + 1) / (POINTS + 1)
-    return _classify_kernel(
+    kinds[idx], points = _bisect_kernel(
         prog,
         tile,
         active,
@@ -235,97 +235,17 @@ def _classify_suspects(
         ax,
         ay,
         az,
-        spacing,
-        np.ascontiguousarray(ijk, dtype=np.int64),
-        np.ascontiguousarray(axis, dtype=np.int64),
-        np.ascontiguousarray(a_inside, dtype=np.bool_),
-        np.ascontiguousarray(fa, dtype=np.float64),
-        np.ascontiguousarray(fb, dtype=np.float64),
-        frac,
+        np.asarray(field.grid.spacing, dtype=np.float64),
+        np.ascontiguousarray(edges[idx, 1:]),
+        np.ascontiguousarray(edges[idx, 0]),
+        ina,
+        fa,
+        fb,
     )
+    return kinds, int(idx.size), int(points)
 
 
 _NB = {"cache": True, "error_model": "numpy", "nogil": True}
-
-
-@njit(**_NB)
-def _secant_points(origin, step, fa, fb, sep):
-    """The secant point ``t* = fa / (fa - fb)`` of each edge, clipped to [sep, 1 - sep], mid-edge
-    where it is NaN; returns the ``(n, 3)`` points and whether t* was a number."""
-    n = fa.size
-    xyz = np.empty((n, 3))
-    finite = np.empty(n, dtype=np.bool_)
-    for e in range(n):
-        t = fa[e] / (fa[e] - fb[e])
-        finite[e] = t == t  # np.clip keeps NaN and takes +-inf to the bounds
-        if not finite[e]:
-            t = 0.5
-        elif t < sep:
-            t = sep
-        elif t > 1.0 - sep:
-            t = 1.0 - sep
-        for k in range(3):
-            xyz[e, k] = origin[e, k] + t * step[e, k]
-    return xyz, finite
-
-
-@njit(**_NB)
-def _secant_roots(f, finite, fa, fb, ratio):
-    """``|F(t*)| < ratio * min(|fa|, |fb|)`` (a NaN anywhere: not a root)."""
-    n = f.size
-    out = np.zeros(n, dtype=np.bool_)
-    for e in range(n):
-        a, b = abs(fa[e]), abs(fb[e])
-        if a != a or b != b:
-            continue
-        out[e] = finite[e] and abs(f[e]) < ratio * min(a, b)
-    return out
-
-
-@njit(**_NB)
-def _round_points(origin, step, now, frac):
-    """The points at fractions ``lo + (hi - lo) * frac`` of each bracket: ``(n, m, 3)`` points
-    and ``(n, m)`` fractions."""
-    n = origin.shape[0]
-    m = frac.size
-    s = np.empty((n, m))
-    xyz = np.empty((n, m, 3))
-    for e in range(n):
-        lo = now[e, 0]
-        width = now[e, 1] - lo
-        for q in range(m):
-            s[e, q] = lo + width * frac[q]
-            for k in range(3):
-                xyz[e, q, k] = origin[e, k] + s[e, q] * step[e, k]
-    return xyz, s
-
-
-@njit(**_NB)
-def _round_update(now, s, vals):
-    """The new bracket of each edge: the first side change along ``[lo, s..., hi]``."""
-    n, m = vals.shape
-    out = np.empty_like(now)
-    for e in range(n):
-        prev_s, prev_f = now[e, 0], now[e, 2]
-        prev_in = np.isfinite(prev_f) and prev_f < 0.0
-        found = False
-        for q in range(m + 1):
-            if q < m:
-                cur_s, cur_f = s[e, q], vals[e, q]
-            else:
-                cur_s, cur_f = now[e, 1], now[e, 3]
-            cur_in = np.isfinite(cur_f) and cur_f < 0.0
-            if cur_in != prev_in:
-                out[e, 0], out[e, 1], out[e, 2], out[e, 3] = prev_s, cur_s, prev_f, cur_f
-                out[e, 4] = 1.0 if prev_in else 0.0
-                found = True
-                break
-            prev_s, prev_f, prev_in = cur_s, cur_f, cur_in
-        if not found:  # cannot happen: the ends are on opposite sides (argmax would take 0)
-            out[e, 0], out[e, 1], out[e, 2] = now[e, 0], s[e, 0], now[e, 2]
-            out[e, 3] = vals[e, 0]
-            out[e, 4] = 1.0 if np.isfinite(now[e, 2]) and now[e, 2] < 0.0 else 0.0
-    return out
 
 
 @njit(inline="always", **_NB)
@@ -385,45 +305,95 @@ def _points_minus_level(prog, tile, active, rows, xyz, level):
 
 
 @njit(**_NB)
-def _classify_kernel(
-    prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb, frac
+def _bisect(prog, tile, active, rows, level, origin, step, now, sel, times):
+    """``times`` bisections of the brackets ``now[sel]`` (lo, hi, f_lo, f_hi, lo_inside), in
+    place: each keeps the half where the side changes; one batch of points per bisection."""
+    m = sel.size
+    xyz = np.empty((m, 3))
+    for _ in range(times):
+        for r in range(m):
+            e = sel[r]
+            s = 0.5 * (now[e, 0] + now[e, 1])
+            for k in range(3):
+                xyz[r, k] = origin[e, k] + s * step[e, k]
+        fm = _points_minus_level(prog, tile, active, rows, xyz, level)
+        for r in range(m):
+            e = sel[r]
+            s = 0.5 * (now[e, 0] + now[e, 1])
+            inside_m = np.isfinite(fm[r]) and fm[r] < 0.0
+            if (now[e, 4] != 0.0) != inside_m:  # the side changes in the lower half
+                now[e, 1], now[e, 3] = s, fm[r]
+            else:
+                now[e, 0], now[e, 2] = s, fm[r]
+                now[e, 4] = 1.0 if inside_m else 0.0
+    return m * times
+
+
+@njit(**_NB)
+def _bisect_kernel(
+    prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb
 ):
-    """:func:`_classify_suspects` in one call."""
+    """Kinds of suspect edges (steps 2 and 3 of the module's docstring): the secant point,
+    two bisections of the part of the edge where the side changes, two more where that part
+    still ends at a sample.  Returns the kinds and the number of points evaluated."""
     n = fa.size
     origin = np.empty((n, 3))
-    step = np.empty((n, 3))
+    step = np.zeros((n, 3))
+    t = np.empty(n)
+    xyz = np.empty((n, 3))
     for e in range(n):
         origin[e, 0] = ax[ijk[e, 0]]
         origin[e, 1] = ay[ijk[e, 1]]
         origin[e, 2] = az[ijk[e, 2]]
-        for k in range(3):  # a row of the identity times the spacing, as numpy did
-            step[e, k] = (1.0 if k == axis[e] else 0.0) * spacing[axis[e]]
-    xyz, finite = _secant_points(origin, step, fa, fb, SEPARATION_T)
-    f = _points_minus_level(prog, tile, active, rows, xyz, level)
-    roots = _secant_roots(f, finite, fa, fb, SECANT_ROOT)
+        step[e, axis[e]] = spacing[axis[e]]
+        u = fa[e] / (fa[e] - fb[e])
+        if u != u:
+            u = 0.5
+        t[e] = min(max(u, SEPARATION_T), 1.0 - SEPARATION_T)
+        for k in range(3):
+            xyz[e, k] = origin[e, k] + t[e] * step[e, k]
+    fs = _points_minus_level(prog, tile, active, rows, xyz, level)
     out = np.full(n, ROOT, dtype=np.uint8)
-    rest = np.flatnonzero(~roots)
-    m = rest.size
-    if m == 0:
-        return out
-    origin, step = origin[rest], step[rest]
-    fa, fb = fa[rest], fb[rest]
-    # bracket: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); after round one and after the last
-    now = np.empty((m, 5))
-    for e in range(m):
-        now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, 1.0, fa[e], fb[e]
-        now[e, 4] = 1.0 if a_inside[rest[e]] else 0.0
-    mid = now
-    for rnd in range(ROUNDS):
-        xyz3, s = _round_points(origin, step, now, frac)
-        vals = _points_minus_level(prog, tile, active, rows, xyz3.reshape(m * POINTS, 3), level)
-        now = _round_update(now, s, vals.reshape(m, POINTS))
-        if rnd == 0:
-            mid = now
-    kinds = _decide(mid, now, fa, fb)
-    for e in range(m):
-        out[rest[e]] = kinds[e]
-    return out
+    points = n
+    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the secant point splits the edge
+    now = np.empty((n, 5))
+    rest = np.empty(n, dtype=np.int64)
+    m = 0
+    for e in range(n):
+        a, b = abs(fa[e]), abs(fb[e])
+        finite = (
+            fa[e] == fa[e]
+            and fb[e] == fb[e]
+            and (fa[e] / (fa[e] - fb[e])) == (fa[e] / (fa[e] - fb[e]))
+        )
+        if finite and abs(fs[e]) < SECANT_ROOT * min(a, b):
+            continue  # a root
+        inside_s = np.isfinite(fs[e]) and fs[e] < 0.0
+        if a_inside[e] != inside_s:
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], fs[e]
+            now[e, 4] = 1.0 if a_inside[e] else 0.0
+        else:
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, fs[e], fb[e]
+            now[e, 4] = 1.0 if inside_s else 0.0
+        rest[m] = e
+        m += 1
+    rest = rest[:m]
+    before = now.copy()
+    points += _bisect(prog, tile, active, rows, level, origin, step, now, rest, BISECTIONS)
+    held = np.empty(m, dtype=np.int64)
+    n_held = 0
+    for r in range(m):
+        e = rest[r]
+        if now[e, 0] == 0.0 or now[e, 1] == 1.0:
+            held[n_held] = e
+            n_held += 1
+            for k in range(5):
+                before[e, k] = now[e, k]
+    points += _bisect(prog, tile, active, rows, level, origin, step, now, held[:n_held], BISECTIONS)
+    kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+    for r in range(m):
+        out[rest[r]] = kinds[r]
+    return out, points
 
 
 @njit(inline="always", **_NB)
@@ -479,11 +449,13 @@ def _crossings(values, shape, edges, level, ratio):
             d = fb - fa
             dm = fa - fm
             dp = fp - fb
-            smooth = (
-                np.isfinite(dm + d + dp)
-                and _sign(dm) == _sign(d)
-                and _sign(dp) == _sign(d)
-                and abs(d) <= ratio * max(abs(dm), abs(dp))
+            smooth = np.isfinite(dm + d + dp) and (
+                (
+                    _sign(dm) == _sign(d)
+                    and _sign(dp) == _sign(d)
+                    and abs(d) <= ratio * max(abs(dm), abs(dp))
+                )
+                or abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp))
             )
         if not smooth:
             rows[count] = v

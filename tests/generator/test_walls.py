@@ -54,6 +54,8 @@ def test_tan_keep_has_three_sheets_remove_keeps_the_root(n):
 def test_the_pole_of_one_over_x_is_not_a_surface():
     marked, report = labelled("1/x", 3.0, 32)
     assert report.roots == 0 and report.poles == report.edges > 0
+    # a wall costs three points of the formula, five next to a sample (the secant, bisections)
+    assert 3 * report.refined <= report.points <= 5 * report.refined
     assert wall_fraction(marked) == 1.0
     with pytest.raises(EmptySurface, match="no root") as err:
         labelled("1/x", 3.0, 32, walls="remove")
@@ -105,6 +107,19 @@ def test_domain_edges_are_jumps_and_their_roots_stay():
     assert report.poles == 0 and report.jumps == report.roots
 
 
+@pytest.mark.parametrize("c", [0.302, 0.35, 0.398, 0.4])  # the pole near a sample, or on it
+def test_poles_next_to_a_sample_are_poles(c):
+    _mesh, report = labelled(f"1/(x-{c})+0.3*y", 1.0, 21)
+    assert report.roots == 0 and report.poles == report.edges > 0
+
+
+@pytest.mark.parametrize("c", [0.9985, 0.95, 0.9015])  # a root in a border edge, near a sample
+def test_roots_next_to_a_sample_at_the_border_are_roots(c):
+    mesh, report = labelled(f"x+{c}+0.01*y*z", 1.0, 21)
+    assert report.refined > 0  # border edges are looked at with the formula
+    assert report.poles == report.jumps == 0 and wall_fraction(mesh) == 0.0
+
+
 def test_marked_files_keep_their_labels(tmp_path):
     mesh, report = labelled("tan(x)", 3.0, 24, cap=True)
     for suffix in (".ply", ".glb"):
@@ -134,10 +149,10 @@ def test_points_evaluator_is_the_reference():
 
 
 # ----------------------------------------------------------------------------- fast path
-# classify_edges runs the secant step, both refinement rounds and the formula in one numba call
-# (the formula through kernels.eval_points, the points evaluator's lattice).  The reference
-# below takes the same steps one at a time from Python, the formula evaluated at every point
-# without sharing (PointsEvaluator.plain, kernels.run_points): the kinds must be the same.
+# classify_edges runs the secant step, the bisections and the decision in one numba call (the
+# formula through kernels.eval_points, the points evaluator's lattice).  The reference below
+# takes the same steps on arrays from Python, the formula evaluated at every point without
+# sharing (PointsEvaluator.plain, kernels.run_points): the kinds must be the same.
 
 
 def reference_kinds(field, tree, level, edges):
@@ -151,24 +166,47 @@ def reference_kinds(field, tree, level, edges):
     plain = points_evaluator(tree).plain
     axes = field.grid.axes()
     ijk, axis = edges[idx, 1:], edges[idx, 0]
-    origin = np.ascontiguousarray(np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1))
-    step = np.ascontiguousarray(np.eye(3)[axis] * np.asarray(field.grid.spacing)[axis][:, None])
-    xyz, finite = w._secant_points(origin, step, fa, fb, w.SEPARATION_T)
-    f = plain(xyz[:, 0], xyz[:, 1], xyz[:, 2]) - level
-    rest = np.flatnonzero(~w._secant_roots(f, finite, fa, fb, w.SECANT_ROOT))
+    origin = np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1)
+    step = np.eye(3)[axis] * np.asarray(field.grid.spacing)[axis][:, None]
+
+    def f_at(t, rows):
+        p = origin[rows] + t[:, None] * step[rows]
+        return plain(p[:, 0], p[:, 1], p[:, 2]) - level
+
+    with np.errstate(all="ignore"):
+        t = fa / (fa - fb)
+        finite = ~np.isnan(t) & ~np.isnan(fa) & ~np.isnan(fb)
+        t = np.clip(np.where(np.isnan(t), 0.5, t), w.SEPARATION_T, 1 - w.SEPARATION_T)
+        everyone = np.arange(idx.size)
+        fs = f_at(t, everyone)
+        root = finite & (np.abs(fs) < w.SECANT_ROOT * np.minimum(np.abs(fa), np.abs(fb)))
     sub = np.full(idx.size, ROOT, dtype=np.uint8)
+    rest = np.flatnonzero(~root)
     if rest.size:
-        now = np.stack([np.zeros(rest.size), np.ones(rest.size), fa[rest], fb[rest],
-                        ina[rest].astype(float)], axis=1)  # fmt: skip
-        frac = np.arange(1, w.POINTS + 1) / (w.POINTS + 1)
-        mids = []
-        for _ in range(w.ROUNDS):
-            pts, s = w._round_points(origin[rest], step[rest], now, frac)
-            flat = pts.reshape(-1, 3)
-            vals = plain(flat[:, 0], flat[:, 1], flat[:, 2]).reshape(rest.size, w.POINTS) - level
-            now = w._round_update(now, s, vals)
-            mids.append(now)
-        sub[rest] = w._decide(mids[0], now, fa[rest], fb[rest])
+        inside_s = np.isfinite(fs) & (fs < 0)
+        low = ina != inside_s  # the side changes between sample a and t*
+        now = np.stack(
+            [np.where(low, 0.0, t), np.where(low, t, 1.0), np.where(low, fa, fs),
+             np.where(low, fs, fb), np.where(low, ina, inside_s).astype(float)], axis=1
+        )[rest]  # fmt: skip
+
+        def bisect(rows):  # rows of `now`
+            for _ in range(w.BISECTIONS):
+                s = 0.5 * (now[rows, 0] + now[rows, 1])
+                with np.errstate(all="ignore"):
+                    fm = f_at(s, rest[rows])
+                inside_m = np.isfinite(fm) & (fm < 0)
+                lower = (now[rows, 4] != 0) != inside_m
+                now[rows[lower], 1], now[rows[lower], 3] = s[lower], fm[lower]
+                up = rows[~lower]
+                now[up, 0], now[up, 2], now[up, 4] = s[~lower], fm[~lower], inside_m[~lower]
+
+        before = now.copy()
+        bisect(np.arange(rest.size))
+        held = np.flatnonzero((now[:, 0] == 0.0) | (now[:, 1] == 1.0))
+        before[held] = now[held]
+        bisect(held)
+        sub[rest] = w._decide(before, now, fa[rest], fb[rest])
     kinds[idx] = sub
     return kinds, int(idx.size)
 
