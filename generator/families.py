@@ -74,7 +74,6 @@ GROUP_PERMUTATIONS = {
 }
 EXTENT_GRID = 33  # samples per axis of the search box used to measure an envelope's extent
 EXTENT_BOX = 2.5
-FEATURE_GRID = 32  # samples per axis on which an ornament's feature size is measured
 # Continuous and pulse constituents for lattices (saw teeth would draw walls at every jump).
 LATTICE_CONSTITUENTS = ("tri2", "tri3", "rect2")
 
@@ -392,9 +391,11 @@ def _coarse_ornament(
     checks ``(feature, stray, departure, pieces)`` (None without an envelope), its strength
     and d (:func:`_strength_on` the ``d_grid``: the checks judge the surface the draw will be)
     and the number of ornaments drawn. The unit is sampled by :func:`_unit_samples`."""
-    e = None if envelope is None else _eval(envelope, box, FEATURE_GRID)
+    e = None if envelope is None else _eval(envelope, box, cfg.sculpture_feature_grid)
     # the envelope's samples and slope on both grids: the same for every ornament tried
-    ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (FEATURE_GRID - 1))
+    ge = (
+        None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (cfg.sculpture_feature_grid - 1))
+    )
     step_d = (box.hi[0] - box.lo[0]) / (cfg.d_grid - 1)
     e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
     ge_d = None if e_d is None else _slope(e_d, step_d)
@@ -404,7 +405,7 @@ def _coarse_ornament(
         if e is None:
             products = _ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
-        o = _unit_samples(ornament, perms, mirror, k, box, FEATURE_GRID)
+        o = _unit_samples(ornament, perms, mirror, k, box, cfg.sculpture_feature_grid)
         feature = _feature_size(e, o, box, ge)
         o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid)
         strength_d = _strength_on(e_d, o_d, step_d, depth, ge_d)

@@ -44,7 +44,7 @@ from surfgen.generator.settings import (
     settings_to_dict,
 )
 
-SAMPLER_VERSION = 4  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction)
+SAMPLER_VERSION = 4  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction)
 FAMILIES = ("sculpture", "lattice", "free")
 FAMILY_CHOICES = (*FAMILIES, "mix")
 SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
@@ -119,6 +119,7 @@ class SamplerConfig:
     sculpture_min_departure: float = 0.2  # carved surface's departure from the envelope
     sculpture_max_pieces: int = 6  # pieces of the carved surface on the feature grid
     sculpture_ornament_tries: int = 6  # ornaments drawn until one carves cleanly
+    sculpture_feature_grid: int = 24  # samples per axis of the grid the ornament checks use
     lattice_patterns: tuple[str, ...] = LATTICE_PATTERNS
     lattice_pattern_weights: tuple[float, ...] = (0.15, 0.2, 0.15, 0.2, 0.15, 0.15)
     lattice_periods: tuple[float, float] = (1.0, 2.5)  # periods across the box
@@ -198,6 +199,8 @@ class SamplerConfig:
             raise SpecError("config [sampler]: integer_exponent_max must be >= 1")
         if not 4 <= self.d_grid <= 128:
             raise SpecError("config [sampler]: d_grid must be from 4 to 128")
+        if not 8 <= self.sculpture_feature_grid <= 128:
+            raise SpecError("config [sampler]: sculpture_feature_grid must be from 8 to 128")
         # Upper bounds: a formula grows with these, and a huge one only makes every shape crash.
         for name, low, high in (
             ("sum_terms", 1, 10),
