@@ -14,15 +14,12 @@ other indices first. Shared machines are noisy: the ratios of one run are the fi
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sample_grids import ROOT, export_revision  # noqa: E402
+from bench_sample_grids import export_revision, run_code  # noqa: E402
 
 _CHILD = """
 import json, sys, time
@@ -44,22 +41,7 @@ print(json.dumps({"code": families.__file__, "wall": wall, "n": n, "tries": trie
 
 
 def run_child(path: Path | None, n: int, seed: int) -> dict:
-    env = dict(os.environ)
-    if path is not None:  # the baseline's packages shadow the installed ones
-        env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
-    out = subprocess.run(
-        [sys.executable, "-c", _CHILD, str(n), str(seed)],
-        check=True,
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tempfile.gettempdir(),
-    ).stdout
-    result = json.loads(out.strip().splitlines()[-1])
-    expected = str(path) if path is not None else str(ROOT)
-    if not result["code"].startswith(expected):
-        raise SystemExit(f"error: ran {result['code']}, expected code under {expected}")
-    return result
+    return run_code(path, _CHILD, n, seed)
 
 
 def main() -> None:

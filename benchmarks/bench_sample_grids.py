@@ -64,11 +64,17 @@ def export_revision(rev: str, into: Path) -> Path:
 
 
 def run_child(path: Path | None, n: int, seed: int, grid: int, workers: int) -> dict:
+    return run_code(path, _CHILD, n, seed, grid, workers)
+
+
+def run_code(path: Path | None, code: str, *args: object) -> dict:
+    """Run ``code`` with ``args`` in a child Python with the checkout at ``path`` (None: this
+    one) and return the JSON its last line prints; it must report its ``code`` file."""
     env = dict(os.environ)
     if path is not None:  # the baseline's packages shadow the installed ones
         env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run(
-        [sys.executable, "-c", _CHILD, str(n), str(seed), str(grid), str(workers)],
+        [sys.executable, "-c", code, *map(str, args)],
         check=True,
         capture_output=True,
         text=True,
