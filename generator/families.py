@@ -391,11 +391,10 @@ def _coarse_ornament(
     checks ``(feature, stray, departure, pieces)`` (None without an envelope), its strength
     and d (:func:`_strength_on` the ``d_grid``: the checks judge the surface the draw will be)
     and the number of ornaments drawn. The unit is sampled by :func:`_unit_samples`."""
-    e = None if envelope is None else _eval(envelope, box, cfg.sculpture_feature_grid)
+    n = cfg.sculpture_feature_grid
+    e = None if envelope is None else _eval(envelope, box, n)
     # the envelope's samples and slope on both grids: the same for every ornament tried
-    ge = (
-        None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (cfg.sculpture_feature_grid - 1))
-    )
+    ge = None if e is None else _slope(e, (box.hi[0] - box.lo[0]) / (n - 1))
     step_d = (box.hi[0] - box.lo[0]) / (cfg.d_grid - 1)
     e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
     ge_d = None if e_d is None else _slope(e_d, step_d)
@@ -405,7 +404,7 @@ def _coarse_ornament(
         if e is None:
             products = _ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
-        o = _unit_samples(ornament, perms, mirror, k, box, cfg.sculpture_feature_grid)
+        o = _unit_samples(ornament, perms, mirror, k, box, n)
         feature = _feature_size(e, o, box, ge)
         o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid)
         strength_d = _strength_on(e_d, o_d, step_d, depth, ge_d)
