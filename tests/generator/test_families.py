@@ -254,6 +254,9 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
         ({"mix_weights": ("a", 1, 1)}, "mix_weights must be a list of finite numbers"),
         ({"sculpture_groups": ("none", "tetra")}, "sculpture_groups has unknown 'tetra'"),
         ({"sculpture_powers": (1, 4)}, "sculpture_powers must be whole numbers 1..3"),
+        ({"sculpture_feature_grid": 4}, "sculpture_feature_grid must be from 8 to 128"),
+        ({"sculpture_feature_grid": 500}, "sculpture_feature_grid must be from 8 to 128"),
+        ({"sculpture_feature_grid": 2.5}, "sculpture_feature_grid must be a whole number"),
     ],
 )
 def test_bad_families_and_weights_are_one_line_errors(change: dict, message: str) -> None:
@@ -436,3 +439,20 @@ def test_unit_samples_are_the_units_formula_on_the_grid() -> None:
                 off &= ~(np.abs(got - want) <= 1e-9 * np.abs(want))
             shares.append(off.mean())
     assert np.median(shares) == 0 and max(shares) < 0.25
+
+
+def test_ornament_checks_use_the_configured_feature_grid(monkeypatch) -> None:
+    import surfgen.generator.families as families
+
+    sizes = []
+    original = families._unit_samples
+
+    def recording(ornament, perms, mirror, k, box, n):
+        sizes.append(n)
+        return original(ornament, perms, mirror, k, box, n)
+
+    monkeypatch.setattr(families, "_unit_samples", recording)
+    cfg = replace(family("sculpture"), sculpture_feature_grid=16)
+    for i in range(3):
+        families.draw_sculpture(7, i, cfg)
+    assert sizes and set(sizes) == {16, cfg.d_grid}
