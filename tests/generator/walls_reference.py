@@ -16,7 +16,6 @@ from numba import njit
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import eval_points
 from surfgen.generator.mesh import ROOT
 from surfgen.generator.walls import (
     SECANT_ROOT,
@@ -24,6 +23,8 @@ from surfgen.generator.walls import (
     SMOOTH_RATIO,
     UNKNOWN,
     _decide,
+    _points_minus_level,
+    _sign,
 )
 
 ROUNDS = 2  # refinement rounds ...
@@ -182,20 +183,6 @@ def _round_update(now, s, vals):
 
 
 @njit(**_NB)
-def _points_minus_level(prog, tile, active, rows, xyz, level):
-    """F - level at the ``(n, 3)`` points ``xyz``."""
-    px = np.ascontiguousarray(xyz[:, 0])
-    py = np.ascontiguousarray(xyz[:, 1])
-    pz = np.ascontiguousarray(xyz[:, 2])
-    out = np.empty(px.size)
-    if px.size:
-        eval_points(prog, tile, active, rows, px, py, pz, out)
-    for p in range(out.size):
-        out[p] = out[p] - level
-    return out
-
-
-@njit(**_NB)
 def _classify_kernel(
     prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb, frac
 ):
@@ -235,16 +222,6 @@ def _classify_kernel(
     for e in range(m):
         out[rest[e]] = kinds[e]
     return out
-
-
-@njit(inline="always", **_NB)
-def _sign(u):
-    """np.sign (NaN stays NaN; the callers have only finite values)."""
-    if u > 0.0:
-        return 1.0
-    if u < 0.0:
-        return -1.0
-    return u
 
 
 @njit(**_NB)
