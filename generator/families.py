@@ -48,7 +48,9 @@ from surfgen.generator.equation13 import (
     PowerTerm,
     Transform,
 )
+from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.evaluate import evaluate
+from surfgen.generator.fast import evaluate_program
 from surfgen.generator.expr import Expr, add_all, mul_all
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.sampler import (
@@ -286,8 +288,20 @@ def _inverse(perm: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(out)
 
 
+def _ornament_program(ornament: Factor, mirror: bool) -> Program:
+    """The ornament's unit copy (with ``|x|, |y|, |z|`` when ``mirror``) compiled once: a try
+    samples it on the feature grid and on the d grid."""
+    return compile_tree(permute_factor(ornament, (0, 1, 2), mirror).to_tree())
+
+
 def _unit_samples(
-    ornament: Factor, perms: tuple[tuple[int, ...], ...], mirror: bool, k: int, box: Box, n: int
+    ornament: Factor,
+    perms: tuple[tuple[int, ...], ...],
+    mirror: bool,
+    k: int,
+    box: Box,
+    n: int,
+    program: Program | None = None,
 ) -> np.ndarray:
     """The ornament's unit ``(Σ_perms O∘perm)^k`` sampled on the cube ``box`` (``n`` per axis),
     for the checks: the ornament (with ``|x|, |y|, |z|`` when ``mirror``) is evaluated once, and
@@ -297,7 +311,9 @@ def _unit_samples(
     own formula in the last bits, where the formula adds its terms in another order."""
     if len(set(box.lo)) != 1 or len(set(box.hi)) != 1:
         raise ValueError(f"the ornament's copies are transposed samples: {box} must be a cube")
-    base = _eval(permute_factor(ornament, (0, 1, 2), mirror).to_tree(), box, n)
+    if program is None:
+        program = _ornament_program(ornament, mirror)
+    base = evaluate_program(program, Grid(box, (n,) * 3), threads=1).values
     # O∘perm(x) = O(x[perm[0]], x[perm[1]], x[perm[2]]): sample i of the copy is sample
     # (i[perm[0]], ...) of O, which is O's array with its axes put in the inverse order.
     copies = [np.transpose(base, _inverse(p)) for p in perms]
@@ -404,9 +420,10 @@ def _coarse_ornament(
         if e is None:
             products = _ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
-        o = _unit_samples(ornament, perms, mirror, k, box, n)
+        program = _ornament_program(ornament, mirror)
+        o = _unit_samples(ornament, perms, mirror, k, box, n, program)
         feature = _feature_size(e, o, box, ge)
-        o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid)
+        o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid, program)
         strength_d = _strength_on(e_d, o_d, step_d, depth, ge_d)
         stray, departure, f = _carved(e, o, box, depth, ge, strength_d)
         shaped = (

@@ -447,9 +447,9 @@ def test_ornament_checks_use_the_configured_feature_grid(monkeypatch) -> None:
     sizes = []
     original = families._unit_samples
 
-    def recording(ornament, perms, mirror, k, box, n):
+    def recording(ornament, perms, mirror, k, box, n, program=None):
         sizes.append(n)
-        return original(ornament, perms, mirror, k, box, n)
+        return original(ornament, perms, mirror, k, box, n, program)
 
     monkeypatch.setattr(families, "_unit_samples", recording)
     cfg = replace(family("sculpture"), sculpture_feature_grid=16)
