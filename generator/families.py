@@ -239,10 +239,36 @@ def _draw_ornament(rng: np.random.Generator, cfg: SamplerConfig) -> tuple[Factor
         for k, p in enumerate(f.powers)
     )
     lambdas = list(f.lambdas)
+    if cfg.sculpture_pole_free_prob > 0 and rng.random() < cfg.sculpture_pole_free_prob:
+        f, powers = _pole_free(rng, f, powers, lambdas, mus)
     for k, mu in zip((2, 3, 4, 6), mus, strict=True):
         if mu and lambdas[k] == 0:
             lambdas[k] = 1.0
     return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+def _pole_free(
+    rng: np.random.Generator,
+    f: Factor,
+    powers: tuple[PowerFunction, ...],
+    lambdas: list[float],
+    mus: list[float],
+) -> tuple[Factor, tuple[PowerFunction, ...]]:
+    """The ornament with nothing that divides: D, E and F left out, P6 and P8 (which divide
+    the arguments of C's and F's H) the constant 1, and an H with poles (tan, cot, sec, csc)
+    made sin or cos. Where a divisor vanishes, F passes through infinity or its argument
+    oscillates without bound: dust, voids and walls finer than any check grid, most of the
+    speckle rejections (README, Families). ``lambdas`` and ``mus`` are changed in place; B or C
+    is kept (an ornament always has a trigonometric or constituent part)."""
+    lambdas[1] = 0.0  # D = P2^l2
+    mus[1] = mus[3] = 0.0  # E = H(P4)^mu2, F = G(H(P7/P8))^mu4
+    if not (mus[0] or mus[2]):
+        mus[0 if rng.random() < 0.5 else 2] = 1.0
+    one = PowerFunction.constant(1.0)
+    powers = tuple(one if k in (5, 7) else p for k, p in enumerate(powers))
+    if f.h.name in ("tan", "cot", "sec", "csc"):
+        f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
+    return f, powers
 
 
 @functools.lru_cache(maxsize=8)
