@@ -41,6 +41,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.equation13 import (
     Equation13,
     Factor,
@@ -48,10 +49,9 @@ from surfgen.generator.equation13 import (
     PowerTerm,
     Transform,
 )
-from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.evaluate import evaluate
-from surfgen.generator.fast import evaluate_program
 from surfgen.generator.expr import Expr, add_all, mul_all
+from surfgen.generator.fast import evaluate_program
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.sampler import (
     Draw,
@@ -264,8 +264,7 @@ def _pole_free(
     mus[1] = mus[3] = 0.0  # E = H(P4)^mu2, F = G(H(P7/P8))^mu4
     if not (mus[0] or mus[2]):
         mus[0 if rng.random() < 0.5 else 2] = 1.0
-    one = PowerFunction.constant(1.0)
-    powers = tuple(one if k in (5, 7) else p for k, p in enumerate(powers))
+    powers = tuple(ONE if k in (5, 7) else p for k, p in enumerate(powers))
     if f.h.name in ("tan", "cot", "sec", "csc"):
         f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
     return f, powers
