@@ -57,7 +57,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import eval_points
+from surfgen.generator.kernels import edge_lattice, eval_edges, eval_points
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -67,7 +67,7 @@ from surfgen.generator.mesh import (
     Mesh,
     compact_mesh,
     extract_with_edges,
-    wall_fraction,
+    wall_share,
 )
 
 log = logging.getLogger(__name__)
@@ -83,6 +83,8 @@ SMOOTH_RATIO = 2.0
 SMOOTH_THIRD = 1.0
 SECANT_ROOT = 0.25
 SEPARATION_T = 0.01
+SECANT_GRID = 16.0
+NEAR_ROOT = 0.25
 BISECTIONS = 2  # after the secant point; as many again where the bracket still ends at a sample
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
@@ -167,15 +169,15 @@ def label_walls(
     kinds, refined, points = _classify(field, tree, params, level, edges)
     face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
     labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
-    known = kinds[kinds != UNKNOWN]
+    counts = np.bincount(kinds, minlength=256)
     report = WallReport(
-        edges=int(known.size),
+        edges=int(counts[ROOT] + counts[POLE] + counts[JUMP]),
         refined=refined,
         points=points,
-        roots=int(np.count_nonzero(known == ROOT)),
-        poles=int(np.count_nonzero(known == POLE)),
-        jumps=int(np.count_nonzero(known == JUMP)),
-        wall_fraction=float(wall_fraction(labelled)),
+        roots=int(counts[ROOT]),
+        poles=int(counts[POLE]),
+        jumps=int(counts[JUMP]),
+        wall_fraction=wall_share(labelled.vertices, labelled.faces, face_kinds),
     )
     log.debug("walls: %s", report)
     if walls == "keep":
@@ -232,9 +234,7 @@ def _classify(
         active,
         rows,
         float(level),
-        ax,
-        ay,
-        az,
+        (ax, ay, az),
         np.asarray(field.grid.spacing, dtype=np.float64),
         np.ascontiguousarray(edges[idx, 1:]),
         np.ascontiguousarray(edges[idx, 0]),
@@ -304,82 +304,134 @@ def _points_minus_level(prog, tile, active, rows, xyz, level):
     return out
 
 
+@njit(inline="always", **_NB)
+def _split(now, e, s, f):
+    """Keep the part of bracket ``now[e]`` (lo, hi, f_lo, f_hi, lo_inside) where the side
+    changes, given ``f = F(s) - level`` at a point ``s`` inside it."""
+    inside = np.isfinite(f) and f < 0.0
+    if (now[e, 4] != 0.0) != inside:  # the side changes between lo and s
+        now[e, 1], now[e, 3] = s, f
+    else:
+        now[e, 0], now[e, 2] = s, f
+        now[e, 4] = 1.0 if inside else 0.0
+
+
 @njit(**_NB)
-def _bisect(prog, tile, active, rows, level, origin, step, now, sel, times):
-    """``times`` bisections of the brackets ``now[sel]`` (lo, hi, f_lo, f_hi, lo_inside), in
-    place: each keeps the half where the side changes; one batch of points per bisection."""
+def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
+    """One bisection of the brackets ``now[sel]`` in place (one batch of points)."""
     m = sel.size
-    xyz = np.empty((m, 3))
-    for _ in range(times):
-        for r in range(m):
-            e = sel[r]
-            s = 0.5 * (now[e, 0] + now[e, 1])
-            for k in range(3):
-                xyz[r, k] = origin[e, k] + s * step[e, k]
-        fm = _points_minus_level(prog, tile, active, rows, xyz, level)
-        for r in range(m):
-            e = sel[r]
-            s = 0.5 * (now[e, 0] + now[e, 1])
-            inside_m = np.isfinite(fm[r]) and fm[r] < 0.0
-            if (now[e, 4] != 0.0) != inside_m:  # the side changes in the lower half
-                now[e, 1], now[e, 3] = s, fm[r]
-            else:
-                now[e, 0], now[e, 2] = s, fm[r]
-                now[e, 4] = 1.0 if inside_m else 0.0
-    return m * times
+    u = np.empty(m)
+    fm = np.empty(m)
+    for r in range(m):
+        e = sel[r]
+        u[r] = u0[e] + 0.5 * (now[e, 0] + now[e, 1]) * h
+    eval_edges(prog, tile, active, rows, ctx, sel, u, fm)
+    for r in range(m):
+        e = sel[r]
+        _split(now, e, 0.5 * (now[e, 0] + now[e, 1]), fm[r] - level)
+    return m
 
 
 @njit(**_NB)
-def _bisect_kernel(
-    prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb
-):
-    """Kinds of suspect edges (steps 2 and 3 of the module's docstring): the secant point,
-    two bisections of the part of the edge where the side changes, two more where that part
-    still ends at a sample.  Returns the kinds and the number of points evaluated."""
+def _wider(now, sel, width):
+    """The rows of ``sel`` whose bracket is wider than ``width``."""
+    out = np.empty(sel.size, dtype=np.int64)
+    m = 0
+    for r in range(sel.size):
+        e = sel[r]
+        if now[e, 1] - now[e, 0] > width:
+            out[m] = e
+            m += 1
+    return out[:m]
+
+
+@njit(**_NB)
+def _secant_in(now, e):
+    """The secant estimate of the crossing in bracket ``now[e]``, rounded to a multiple of
+    ``1 / SECANT_GRID`` strictly inside it (its middle where the estimate is NaN)."""
+    lo, hi = now[e, 0], now[e, 1]
+    u = now[e, 2] / (now[e, 2] - now[e, 3])
+    if u != u:
+        u = 0.5
+    k = np.round((lo + u * (hi - lo)) * SECANT_GRID)
+    k = min(max(k, lo * SECANT_GRID + 1.0), hi * SECANT_GRID - 1.0)
+    return k / SECANT_GRID
+
+
+@njit(**_NB)
+def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb):
+    """Kinds of the suspect edges along one axis (steps 2 and 3 of the module's docstring),
+    ``u0``: their first samples' coordinate along it, ``h`` the spacing; returns the kinds
+    and the number of points evaluated."""
     n = fa.size
-    origin = np.empty((n, 3))
-    step = np.zeros((n, 3))
-    t = np.empty(n)
-    xyz = np.empty((n, 3))
+    u = np.empty(n)
     for e in range(n):
-        origin[e, 0] = ax[ijk[e, 0]]
-        origin[e, 1] = ay[ijk[e, 1]]
-        origin[e, 2] = az[ijk[e, 2]]
-        step[e, axis[e]] = spacing[axis[e]]
-        u = fa[e] / (fa[e] - fb[e])
-        if u != u:
-            u = 0.5
-        t[e] = min(max(u, SEPARATION_T), 1.0 - SEPARATION_T)
-        for k in range(3):
-            xyz[e, k] = origin[e, k] + t[e] * step[e, k]
-    fs = _points_minus_level(prog, tile, active, rows, xyz, level)
+        u[e] = u0[e] + 0.5 * h
+    fs = np.empty(n)
+    eval_edges(prog, tile, active, rows, ctx, np.arange(n), u, fs)
     out = np.full(n, ROOT, dtype=np.uint8)
     points = n
-    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the secant point splits the edge
+    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the midpoint splits the edge
     now = np.empty((n, 5))
     rest = np.empty(n, dtype=np.int64)
+    dips = np.empty(n, dtype=np.int64)
     m = 0
+    n_dips = 0
     for e in range(n):
+        f = fs[e] - level
         a, b = abs(fa[e]), abs(fb[e])
         finite = (
             fa[e] == fa[e]
             and fb[e] == fb[e]
             and (fa[e] / (fa[e] - fb[e])) == (fa[e] / (fa[e] - fb[e]))
         )
-        if finite and abs(fs[e]) < SECANT_ROOT * min(a, b):
+        inside = np.isfinite(f) and f < 0.0
+        far = a if a_inside[e] == inside else b  # the sample on the point's side
+        if finite and abs(f) < NEAR_ROOT * far:
             continue  # a root
-        inside_s = np.isfinite(fs[e]) and fs[e] < 0.0
-        if a_inside[e] != inside_s:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], fs[e]
-            now[e, 4] = 1.0 if a_inside[e] else 0.0
+        if inside == a_inside[e]:
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.5, 1.0, f, fb[e]
+            now[e, 4] = 1.0 if inside else 0.0
         else:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, fs[e], fb[e]
-            now[e, 4] = 1.0 if inside_s else 0.0
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, 0.5, fa[e], f
+            now[e, 4] = 1.0 if a_inside[e] else 0.0
         rest[m] = e
         m += 1
-    rest = rest[:m]
+        if finite and abs(f) < far:  # |F| dips below the sample: not a wall's profile
+            dips[n_dips] = e
+            n_dips += 1
     before = now.copy()
-    points += _bisect(prog, tile, active, rows, level, origin, step, now, rest, BISECTIONS)
+    # a secant step inside the half where |F| dipped: a root there shows in one more point
+    if n_dips:
+        sel = dips[:n_dips]
+        for r in range(n_dips):
+            u[r] = u0[sel[r]] + _secant_in(now, sel[r]) * h
+        f2 = np.empty(n_dips)
+        eval_edges(prog, tile, active, rows, ctx, sel, u[:n_dips], f2)
+        points += n_dips
+        for r in range(n_dips):
+            e = sel[r]
+            s = _secant_in(now, e)
+            f = f2[r] - level
+            inside = np.isfinite(f) and f < 0.0
+            lo_inside = now[e, 4] != 0.0
+            end = abs(now[e, 2]) if inside == lo_inside else abs(now[e, 3])
+            if abs(f) < NEAR_ROOT * end:
+                now[e, 0] = -1.0  # a root: dropped from rest below
+            else:
+                _split(now, e, s, f)
+        keep = 0
+        for r in range(m):
+            if now[rest[r], 0] >= 0.0:
+                rest[keep] = rest[r]
+                keep += 1
+        m = keep
+    rest = rest[:m]
+    # bisections until the bracket is 4x narrower than the half edge; twice more where it
+    # still ends at a sample
+    for _ in range(BISECTIONS):
+        sel = _wider(now, rest, 0.5 / 4)
+        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
     held = np.empty(m, dtype=np.int64)
     n_held = 0
     for r in range(m):
@@ -389,10 +441,46 @@ def _bisect_kernel(
             n_held += 1
             for k in range(5):
                 before[e, k] = now[e, k]
-    points += _bisect(prog, tile, active, rows, level, origin, step, now, held[:n_held], BISECTIONS)
+    for _ in range(BISECTIONS):
+        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
     kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
     for r in range(m):
         out[rest[r]] = kinds[r]
+    return out, points
+
+
+@njit(**_NB)
+def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_inside, fa, fb):
+    """Kinds of suspect edges, axis by axis (:func:`_classify_axis`; the formula's levels that
+    do not vary along an axis are computed once per edge, :func:`kernels.edge_lattice`).
+    Returns the kinds and the number of points evaluated."""
+    n = fa.size
+    out = np.empty(n, dtype=np.uint8)
+    points = 0
+    for a in range(3):
+        members = np.flatnonzero(axis == a)
+        if members.size == 0:
+            continue
+        sub = np.ascontiguousarray(ijk[members])
+        ctx = edge_lattice(prog, tile, active, rows, a, sub, axes)
+        u0 = np.empty(members.size)
+        for r in range(members.size):
+            u0[r] = axes[a][sub[r, a]]
+        kinds, pts = _classify_axis(
+            prog,
+            tile,
+            active,
+            rows,
+            ctx,
+            level,
+            u0,
+            spacing[a],
+            a_inside[members],
+            fa[members],
+            fb[members],
+        )
+        out[members] = kinds
+        points += pts
     return out, points
 
 
