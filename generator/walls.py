@@ -7,7 +7,7 @@ tan, cot, sec, csc, 1/u) or jump over the level without taking it (a *jump*: the
 becomes NaN).  Poles and jumps give *walls*: they bound the solid {F < level}, but they are not
 the zero set.
 
-:func:`classify_edges` tells them apart in three steps, cheapest first:
+:func:`classify_edges` tells them apart in four steps, cheapest first:
 
 1. *Samples.*  A crossing looks like a smooth root, and is taken as one, when the secants of
    its grid line around it (``dm``, ``d``, ``dp``: the edge's and its two neighbours') are
@@ -17,15 +17,19 @@ the zero set.
    jump on the edge makes it about twice the pole's or the jump's size).  Everything else
    (poles and resets against the neighbours' slopes, steep steps, non-finite neighbours, edges
    at the grid's border) is *suspect*.
-2. *Secant.*  F at the secant point ``t* = fa / (fa - fb)`` (kept 1 % of the edge from the
-   samples): a root when ``|F(t*)| < SECANT_ROOT * min(|fa|, |fb|)`` (a pole or a jump keeps
-   |F| of the order of its samples' there; a sample exactly at the level never certifies, min
-   being 0).
-3. *Bisection.*  ``t*`` splits the edge; the part where the side changes is bisected twice
-   (to a quarter of it), and twice more where that quarter still ends at a sample (the
-   samples' own |F| says nothing about a root, pole or jump right next to them).  ``M`` is
-   the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
-   sample; ``M1`` before and ``M2`` after the last two bisections (the bracket 4x narrower):
+2. *Midpoint.*  F at the edge's middle: a root when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the
+   sample on the same side of the level as the midpoint (a pole or a jump keeps |F| at least
+   as large as that sample's between it and the wall: |F| does not fall away from a wall; a
+   sample exactly at the level never certifies).  Else the half edge where the side changes
+   is the bracket.
+3. *Secant step.*  Where |F| at the midpoint is below that sample's (not a wall's profile),
+   F at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root
+   by the same test against the bracket's end on its side; else it narrows the bracket.
+4. *Bisection.*  The bracket is bisected until it is a quarter of the half edge (at most
+   twice); where it still ends at a sample and does not read as a root (below), twice more (a
+   steep root next to a sample shows only closer to it).  ``M`` is the largest
+   ``|F - level|`` at a bracket's ends, leaving out an end that is still a sample; ``M1``
+   before and ``M2`` after the last narrowing (a bracket at least 4x narrower):
 
    - root: ``M2 <= ROOT_SHRINK * M1`` (|F| keeps shrinking towards 0: 4x for a simple root)
      or ``M2`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
@@ -36,8 +40,15 @@ the zero set.
    - jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN: the edge
      of a domain).
 
-   A suspect costs one point when the secant shows a root, else three, or five when the
-   crossing lies within a quarter of the secant's part from a sample.
+   A suspect costs one point when the midpoint shows a root, two when the secant step does,
+   else three (five next to a sample), plus the secant step where |F| dipped.
+
+Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, ..., 1/256 at the finest),
+so the formula is
+evaluated axis by axis (:func:`kernels.eval_edges`): the parts of the formula that do not
+involve the edge's axis once per edge, the parts in that axis alone or with one other once per
+distinct value or pair (the midpoints of all edges of one grid slab share one x), only the
+part in all three variables once per point.
 
 Jumps smaller than about the change of F across one cell look like roots at this resolution
 and are counted as roots.  Where F oscillates faster than the grid resolves (a bracket with
@@ -57,7 +68,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import edge_lattice, eval_edges, eval_points
+from surfgen.generator.kernels import edge_lattice, eval_edges
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -81,11 +92,9 @@ POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
 SMOOTH_THIRD = 1.0
-SECANT_ROOT = 0.25
-SEPARATION_T = 0.01
-SECANT_GRID = 16.0
 NEAR_ROOT = 0.25
-BISECTIONS = 2  # after the secant point; as many again where the bracket still ends at a sample
+BISECTIONS = 2  # at most, after the midpoint; as many again where the bracket ends at a sample
+SECANT_GRID = 16.0  # the secant step's point: a multiple of 1/16 of the edge
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
 
@@ -205,8 +214,8 @@ def classify_edges(
 
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
-    One numba call for the suspects (:func:`_bisect_kernel`: the secant point, the
-    bisections and the decision, the formula through :func:`kernels.eval_points`).
+    One numba call for the suspects (:func:`_bisect_kernel`: the midpoint, the secant step,
+    the bisections and the decision, the formula through :func:`kernels.eval_edges`).
     """
     kinds, refined, _points = _classify(field, tree, params, level, edges)
     return kinds, refined
@@ -287,20 +296,6 @@ def _decide(mid, end, fa, fb):
         if root and np.isfinite(outside_end):
             kind = ROOT
         out[e] = kind
-    return out
-
-
-@njit(**_NB)
-def _points_minus_level(prog, tile, active, rows, xyz, level):
-    """F - level at the ``(n, 3)`` points ``xyz``."""
-    px = np.ascontiguousarray(xyz[:, 0])
-    py = np.ascontiguousarray(xyz[:, 1])
-    pz = np.ascontiguousarray(xyz[:, 2])
-    out = np.empty(px.size)
-    if px.size:
-        eval_points(prog, tile, active, rows, px, py, pz, out)
-    for p in range(out.size):
-        out[p] = out[p] - level
     return out
 
 
@@ -432,11 +427,14 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     for _ in range(BISECTIONS):
         sel = _wider(now, rest, 0.5 / 4)
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
+    # a bracket still ending at a sample that does not read as a root is bisected twice more
+    # (a steep root next to a sample shows only closer to it)
+    kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
     held = np.empty(m, dtype=np.int64)
     n_held = 0
     for r in range(m):
         e = rest[r]
-        if now[e, 0] == 0.0 or now[e, 1] == 1.0:
+        if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] != ROOT:
             held[n_held] = e
             n_held += 1
             for k in range(5):

@@ -219,7 +219,8 @@ def reference_kinds(field, tree, level, edges):
 
     for _ in range(w.BISECTIONS):
         bisect(rest[now[rest, 1] - now[rest, 0] > 0.5 / 4])
-    held = rest[(now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)]
+    first = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first != ROOT)]
     before[held] = now[held]
     for _ in range(w.BISECTIONS):
         bisect(held)
