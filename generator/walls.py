@@ -93,6 +93,7 @@ POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
 SMOOTH_THIRD = 1.0
 NEAR_ROOT = 0.25
+UNSURE = 0.9  # a jump whose M shrank below this share is bisected twice more
 BISECTIONS = 2  # at most, after the midpoint; as many again where the bracket ends at a sample
 SECANT_GRID = 16.0  # the secant step's point: a multiple of 1/16 of the edge
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
@@ -442,9 +443,36 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     for _ in range(BISECTIONS):
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
     kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+    # a jump whose M shrank, but by less than a root's: twice more (a root on the flank of a
+    # spike, or curved, shrinks as the bracket closes in; a jump's M stays)
+    unsure = np.empty(m, dtype=np.int64)
+    n_unsure = 0
+    for r in range(m):
+        e = rest[r]
+        if kinds[r] == JUMP and _shrink(before, now, e) < UNSURE:
+            unsure[n_unsure] = e
+            n_unsure += 1
+            for k in range(5):
+                before[e, k] = now[e, k]
+    if n_unsure:
+        for _ in range(BISECTIONS):
+            points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, unsure[:n_unsure])
+        kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
     for r in range(m):
         out[rest[r]] = kinds[r]
     return out, points
+
+
+@njit(**_NB)
+def _shrink(mid, end, e):
+    """``M2 / M1`` of row ``e`` as :func:`_decide` measures them (1 where M1 is 0 or NaN)."""
+    kept_lo = end[e, 0] == 0.0
+    kept_hi = end[e, 1] == 1.0
+    m2 = _nanmax(0.0 if kept_lo else abs(mid[e, 2]), 0.0 if kept_hi else abs(mid[e, 3]))
+    m4 = _nanmax(0.0 if kept_lo else abs(end[e, 2]), 0.0 if kept_hi else abs(end[e, 3]))
+    if not (m2 > 0.0) or m4 != m4:
+        return 1.0
+    return m4 / m2
 
 
 @njit(**_NB)

@@ -224,6 +224,18 @@ def reference_kinds(field, tree, level, edges):
     before[held] = now[held]
     for _ in range(w.BISECTIONS):
         bisect(held)
+    kinds_rest = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    with np.errstate(all="ignore"):  # M2 / M1 as _decide measures them
+        kept_lo, kept_hi = now[rest, 0] == 0.0, now[rest, 1] == 1.0
+        m1 = np.where(kept_lo, 0.0, np.abs(before[rest, 2]))
+        m1 = np.maximum(m1, np.where(kept_hi, 0.0, np.abs(before[rest, 3])))
+        m2 = np.maximum(np.where(kept_lo, 0.0, np.abs(now[rest, 2])),
+                        np.where(kept_hi, 0.0, np.abs(now[rest, 3])))  # fmt: skip
+        ratio = np.where((m1 > 0) & ~np.isnan(m2), m2 / m1, 1.0)
+    unsure = rest[(kinds_rest == JUMP) & (ratio < w.UNSURE)]
+    before[unsure] = now[unsure]
+    for _ in range(w.BISECTIONS):
+        bisect(unsure)
     sub = np.full(idx.size, ROOT, dtype=np.uint8)
     sub[rest] = w._decide(before[rest], now[rest], fa[rest], fb[rest])
     kinds[idx] = sub
