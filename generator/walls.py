@@ -329,16 +329,27 @@ def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
 
 
 @njit(**_NB)
-def _wider(now, sel, width):
-    """The rows of ``sel`` whose bracket is wider than ``width``."""
+def _wider(now, first, sel):
+    """The rows of ``sel`` whose bracket is wider than a quarter of the ``first`` one."""
     out = np.empty(sel.size, dtype=np.int64)
     m = 0
     for r in range(sel.size):
         e = sel[r]
-        if now[e, 1] - now[e, 0] > width:
+        if now[e, 1] - now[e, 0] > 0.25 * (first[e, 1] - first[e, 0]):
             out[m] = e
             m += 1
     return out[:m]
+
+
+@njit(**_NB)
+def _first_point(fa, fb):
+    """The first point on an edge at the grid's border (no neighbours tell its profile): the
+    secant estimate ``fa / (fa - fb)`` rounded to a multiple of ``1 / SECANT_GRID`` strictly
+    inside the edge (the middle where it is NaN)."""
+    u = fa / (fa - fb)
+    if u != u:
+        u = 0.5
+    return min(max(np.round(u * SECANT_GRID), 1.0), SECANT_GRID - 1.0) / SECANT_GRID
 
 
 @njit(**_NB)
@@ -355,19 +366,19 @@ def _secant_in(now, e):
 
 
 @njit(**_NB)
-def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb):
-    """Kinds of the suspect edges along one axis (steps 2 and 3 of the module's docstring),
-    ``u0``: their first samples' coordinate along it, ``h`` the spacing; returns the kinds
-    and the number of points evaluated."""
+def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb, t):
+    """Kinds of the suspect edges along one axis (steps 2 to 4 of the module's docstring),
+    ``u0``: their first samples' coordinate along it, ``h`` the spacing, ``t`` where the first
+    point goes on each; returns the kinds and the number of points evaluated."""
     n = fa.size
     u = np.empty(n)
     for e in range(n):
-        u[e] = u0[e] + 0.5 * h
+        u[e] = u0[e] + t[e] * h
     fs = np.empty(n)
     eval_edges(prog, tile, active, rows, ctx, np.arange(n), u, fs)
     out = np.full(n, ROOT, dtype=np.uint8)
     points = n
-    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the midpoint splits the edge
+    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the first point splits the edge
     now = np.empty((n, 5))
     rest = np.empty(n, dtype=np.int64)
     dips = np.empty(n, dtype=np.int64)
@@ -386,14 +397,15 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
         if finite and abs(f) < NEAR_ROOT * far:
             continue  # a root
         if inside == a_inside[e]:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.5, 1.0, f, fb[e]
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, f, fb[e]
             now[e, 4] = 1.0 if inside else 0.0
         else:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, 0.5, fa[e], f
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], f
             now[e, 4] = 1.0 if a_inside[e] else 0.0
         rest[m] = e
         m += 1
-        if finite and abs(f) < far:  # |F| dips below the sample: not a wall's profile
+        room = (now[e, 1] - now[e, 0]) * SECANT_GRID >= 2.0  # a point strictly inside
+        if finite and abs(f) < far and room:  # |F| dips below the sample: not a wall's
             dips[n_dips] = e
             n_dips += 1
     before = now.copy()
@@ -426,7 +438,7 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     # bisections until the bracket is 4x narrower than the half edge; twice more where it
     # still ends at a sample
     for _ in range(BISECTIONS):
-        sel = _wider(now, rest, 0.5 / 4)
+        sel = _wider(now, before, rest)
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
     # a bracket still ending at a sample that does not read as a root is bisected twice more
     # (a steep root next to a sample shows only closer to it)
@@ -490,8 +502,13 @@ def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_
         sub = np.ascontiguousarray(ijk[members])
         ctx = edge_lattice(prog, tile, active, rows, a, sub, axes)
         u0 = np.empty(members.size)
+        t = np.empty(members.size)
         for r in range(members.size):
             u0[r] = axes[a][sub[r, a]]
+            e = members[r]
+            pos = sub[r, a]
+            border = pos < 1 or pos + 2 >= axes[a].size  # no grid line to judge the profile
+            t[r] = _first_point(fa[e], fb[e]) if border else 0.5
         kinds, pts = _classify_axis(
             prog,
             tile,
@@ -504,6 +521,7 @@ def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_
             a_inside[members],
             fa[members],
             fb[members],
+            t,
         )
         out[members] = kinds
         points += pts

@@ -186,17 +186,23 @@ def reference_kinds(field, tree, level, edges):
     everyone = np.arange(idx.size)
     with np.errstate(all="ignore"):
         finite = ~np.isnan(fa) & ~np.isnan(fb) & ~np.isnan(fa / (fa - fb))
-        f1 = f_at(np.full(idx.size, 0.5), everyone)
+        pos = ijk[everyone, axis]
+        border = (pos < 1) | (pos + 2 >= np.asarray(field.values.shape)[axis])
+        q = w.SECANT_GRID
+        u = np.where(np.isnan(fa / (fa - fb)), 0.5, fa / (fa - fb))
+        t1 = np.where(border, np.minimum(np.maximum(np.round(u * q), 1.0), q - 1) / q, 0.5)
+        f1 = f_at(t1, everyone)
         in1 = np.isfinite(f1) & (f1 < 0)
         far = np.where(in1 == ina, np.abs(fa), np.abs(fb))
         root = finite & (np.abs(f1) < w.NEAR_ROOT * far)
         upper = in1 == ina  # the side changes between the midpoint and sample b
         now = np.stack(
-            [np.where(upper, 0.5, 0.0), np.where(upper, 1.0, 0.5), np.where(upper, f1, fa),
+            [np.where(upper, t1, 0.0), np.where(upper, 1.0, t1), np.where(upper, f1, fa),
              np.where(upper, fb, f1), np.where(upper, in1, ina).astype(float)], axis=1
         )  # fmt: skip
         before = now.copy()
-        dips = np.flatnonzero(~root & finite & (np.abs(f1) < far))
+        room = (now[:, 1] - now[:, 0]) * w.SECANT_GRID >= 2
+        dips = np.flatnonzero(~root & finite & (np.abs(f1) < far) & room)
         if dips.size:
             lo, hi, flo, fhi = now[dips, 0], now[dips, 1], now[dips, 2], now[dips, 3]
             u = flo / (flo - fhi)
@@ -218,7 +224,8 @@ def reference_kinds(field, tree, level, edges):
             split(now, rows, s, f_at(s, rows))
 
     for _ in range(w.BISECTIONS):
-        bisect(rest[now[rest, 1] - now[rest, 0] > 0.5 / 4])
+        wide = now[rest, 1] - now[rest, 0] > 0.25 * (before[rest, 1] - before[rest, 0])
+        bisect(rest[wide])
     first = w._decide(before[rest], now[rest], fa[rest], fb[rest])
     held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first != ROOT)]
     before[held] = now[held]
