@@ -17,19 +17,22 @@ the zero set.
    jump on the edge makes it about twice the pole's or the jump's size).  Everything else
    (poles and resets against the neighbours' slopes, steep steps, non-finite neighbours, edges
    at the grid's border) is *suspect*.
-2. *Midpoint.*  F at the edge's middle: a root when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the
-   sample on the same side of the level as the midpoint (a pole or a jump keeps |F| at least
-   as large as that sample's between it and the wall: |F| does not fall away from a wall; a
-   sample exactly at the level never certifies).  Else the half edge where the side changes
-   is the bracket.
-3. *Secant step.*  Where |F| at the midpoint is below that sample's (not a wall's profile),
-   F at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root
-   by the same test against the bracket's end on its side; else it narrows the bracket.
-4. *Bisection.*  The bracket is bisected until it is a quarter of the half edge (at most
+2. *Midpoint.*  F at the edge's middle (at an edge on the grid's border, which has no grid line
+   to judge its profile, at the secant estimate rounded to a sixteenth of the edge): a root
+   when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the sample on the same side of the level as the
+   midpoint (a pole or a jump keeps |F| at least as large as that sample's between it and the
+   wall: |F| does not fall away from a wall; a sample exactly at the level never certifies).
+   Else the half edge where the side changes is the bracket.
+3. *Secant step.*  Where |F| at the midpoint is below that sample's (not a wall's profile), F
+   at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root by
+   the same test against the bracket's end on its side; else it narrows the bracket.
+4. *Bisection.*  The bracket is bisected until it is a quarter of the first one (at most
    twice); where it still ends at a sample and does not read as a root (below), twice more (a
-   steep root next to a sample shows only closer to it).  ``M`` is the largest
-   ``|F - level|`` at a bracket's ends, leaving out an end that is still a sample; ``M1``
-   before and ``M2`` after the last narrowing (a bracket at least 4x narrower):
+   steep root next to a sample shows only closer to it); where it reads as a jump whose ``M``
+   shrank, but to more than ``ROOT_SHRINK`` and less than ``UNSURE`` of ``M1``, twice more (a
+   root on the flank of a spike, or a curved one, keeps shrinking; a jump's ``M`` stays).
+   ``M`` is the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
+   sample; ``M1`` before and ``M2`` after the last narrowing (a bracket at least 4x narrower):
 
    - root: ``M2 <= ROOT_SHRINK * M1`` (|F| keeps shrinking towards 0: 4x for a simple root)
      or ``M2`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
@@ -41,18 +44,18 @@ the zero set.
      of a domain).
 
    A suspect costs one point when the midpoint shows a root, two when the secant step does,
-   else three (five next to a sample), plus the secant step where |F| dipped.
+   else three (five next to a sample or where M shrank a little), plus the secant step where
+   |F| dipped.
 
-Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, ..., 1/256 at the finest),
-so the formula is
-evaluated axis by axis (:func:`kernels.eval_edges`): the parts of the formula that do not
+Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, 1/8, ...), so the formula
+is evaluated axis by axis (:func:`kernels.eval_edges`): the parts of the formula that do not
 involve the edge's axis once per edge, the parts in that axis alone or with one other once per
-distinct value or pair (the midpoints of all edges of one grid slab share one x), only the
-part in all three variables once per point.
+distinct value or pair (the midpoints of all edges of one grid slab share one x), only the part
+in all three variables once per point.
 
-Jumps smaller than about the change of F across one cell look like roots at this resolution
-and are counted as roots.  Where F oscillates faster than the grid resolves (a bracket with
-several side changes), bisection follows one of them, so kinds there are a guess.
+Jumps smaller than about the change of F across one cell look like roots at this resolution and
+are counted as roots. Where F oscillates faster than the grid resolves (a bracket with several
+side changes), bisection follows one of them, so kinds there are a guess.
 """
 
 from __future__ import annotations
@@ -435,8 +438,7 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
                 keep += 1
         m = keep
     rest = rest[:m]
-    # bisections until the bracket is 4x narrower than the half edge; twice more where it
-    # still ends at a sample
+    # bisections until the bracket is 4x narrower than the first one
     for _ in range(BISECTIONS):
         sel = _wider(now, before, rest)
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
