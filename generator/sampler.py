@@ -339,6 +339,10 @@ def draw_transform(
                 params.append(_round(rng.uniform(0.2, 2.0)))
             else:  # t: |t| < 1 and t/r, t not whole
                 params.append(_round(rng.uniform(0.1, 0.9)))
+        if name == "rect2" and float(params[1] / params[0]).is_integer():
+            # t = r (both rounded to 0.01) is not a rect2: half of r instead (t/r = 0.5
+            # exactly), without another random number, so no other draw changes
+            params[1] = params[0] / 2
         return Transform(name, tuple(params))
     return Transform(str(rng.choice(family)))
 

@@ -480,3 +480,20 @@ def test_pole_free_ornaments_divide_by_nothing() -> None:
         assert ornament.mus[0] or ornament.mus[2]  # a trigonometric/constituent part remains
         dividing += "/" in str(draw_equation(7, i, never).equation.to_tree())
     assert dividing >= 20  # otherwise the ornaments mostly divide
+
+
+def test_drawn_constituent_parameters_are_always_valid() -> None:
+    """rect2 needs t/r not whole: a drawn t equal to r (both rounded to 0.01) once stopped the
+    main job of sampler version 5 at its 1932nd draw. Every drawn H or G of many factors, with
+    r and t drawn from overlapping ranges so that t = r is frequent, compiles."""
+    from surfgen.generator.compiler import compile_tree
+    from surfgen.generator.expr import var
+    from surfgen.generator.sampler import draw_transform, rng_for
+
+    cfg = replace(SamplerConfig(), constituent_prob=1.0, constituent_r=(0.5, 0.6))
+    halves = 0
+    for i in range(600):
+        t = draw_transform(rng_for(3, i), cfg, ("sin",))
+        compile_tree(t.apply(var("x")))  # raises FormulaError for invalid parameters
+        halves += t.name == "rect2" and t.params[1] == t.params[0] / 2
+    assert halves >= 1  # the collision happened and was mended
