@@ -16,14 +16,17 @@ On each, in the same run, best of ``--repeat``:
 - ``walls``: what ``extract_labelled(..., walls="mark")`` adds to it: ``label_walls`` on the
   mesh and edges (the root/pole/jump classification of every crossing: secant point and
   bisections, one numba call; the faces' kinds and the wall fraction), timed by itself;
-- ``previous``: the same with the classification before its cost work
+- ``main``: the same with main's classification before the second cost work
+  (``tests/generator/walls_main.py``: the secant point, then bisections over the whole formula
+  at every point);
+- ``previous``: the same with the classification before any cost work
   (``tests/generator/walls_reference.py``: secant point and two rounds of three points over
   the whole edge).
 
-Prints per shape the extra time of the classification over the mesh stage (the target: at
-most +20 %) and the previous classification's, the suspects and points evaluated, and where
-the two classifications differ (share of the area whose kind changed, wall_fraction before and
-after); then the median, 90th percentile and maximum per set, over the shapes with walls too.
+Prints per shape the extra time of each classification over the mesh stage (the target: at
+most +20 %), the suspects and points evaluated (now and main's), and where the classification
+now differs from main's (share of the area whose kind changed, wall_fraction of both); then the
+median, 90th percentile and maximum per set, over the shapes with walls too.
 Shared machines are noisy: ratios measured in one run are what to quote.
 
     python benchmarks/bench_walls.py [--n 24] [--seed 7] [--grid 64] [--repeat 5]
@@ -53,6 +56,7 @@ from surfgen.pipelines.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
 from mesh_reference import reference_extract_with_edges  # noqa: E402
+from walls_main import main_classify  # noqa: E402
 from walls_reference import reference_classify_edges  # noqa: E402
 
 NAMED = [
@@ -105,9 +109,9 @@ def labelled_with(classify, field, tree):
 
 
 def measure(name, tree, field, repeat):
-    """One row: times, ratios, points, and the change from the previous classification."""
+    """One row: times, ratios, points, and the change from main's classification."""
     mesh, report = extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
-    before, before_report = labelled_with(previous, field, tree)
+    before, before_report = labelled_with(main_classify, field, tree)
     areas = mesh_module.face_areas(mesh)
     changed = float(areas[mesh.face_kinds != before.face_kinds].sum() / areas.sum())
     t_old = best(lambda: old_placement(field, 0.0), repeat)
@@ -124,28 +128,36 @@ def measure(name, tree, field, repeat):
 
     # extract_labelled is extract_with_edges then label_walls: time the two parts (a
     # difference of two noisy totals would be noisier), interleaved, so a busy moment hits
-    # all three alike
-    t_mesh = t_walls = t_prev = float("inf")
-    for _ in range(repeat):
+    # all four alike, and the three classifications in turns after the mesh stage (the
+    # first one after it finds the caches cold)
+    t_mesh = float("inf")
+    times = [float("inf")] * 3
+    runs = [label, lambda: label(main_classify), lambda: label(previous)]
+    for r in range(repeat):
         t_mesh = min(t_mesh, best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), 1))
-        t_walls = min(t_walls, best(label, 1))
-        t_prev = min(t_prev, best(lambda: label(previous), 1))
-    extra, extra_prev = t_walls, t_prev
+        for q in range(3):
+            k = (q + r) % 3
+            times[k] = min(times[k], best(runs[k], 1))
+    t_walls, t_main, t_prev = times
     print(
         f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} "
         f"{100 * before_report.wall_fraction:>6.1f} {100 * changed:>6.2f} {report.refined:>7} "
-        f"{report.points:>7} {1000 * t_mesh:>7.1f} {1000 * extra:>7.1f} {1000 * extra_prev:>7.1f} "
-        f"{extra / t_mesh:>+7.0%} {extra_prev / t_mesh:>+7.0%} {extra / t_old_mesh:>+7.0%}",
+        f"{report.points:>7} {before_report.points:>7} {1000 * t_mesh:>7.1f} "
+        f"{1000 * t_walls:>7.1f} {1000 * t_main:>7.1f} {1000 * t_prev:>7.1f} "
+        f"{t_walls / t_mesh:>+7.0%} {t_main / t_mesh:>+7.0%} {t_prev / t_mesh:>+7.0%} "
+        f"{t_walls / t_old_mesh:>+7.0%}",
         flush=True,
     )
     return {
         "placement": t_mesh / t_old,
-        "extra": extra / t_mesh,
-        "previous": extra_prev / t_mesh,
+        "extra": t_walls / t_mesh,
+        "main": t_main / t_mesh,
+        "previous": t_prev / t_mesh,
+        "speedup": t_main / t_walls,
         "walls": report.wall_fraction > 0.0 or before_report.wall_fraction > 0.0,
         "changed": changed,
         "wf_change": abs(report.wall_fraction - before_report.wall_fraction),
-        "over_old": extra / t_old_mesh,
+        "over_old": t_walls / t_old_mesh,
     }
 
 
@@ -161,28 +173,29 @@ def summary(title, rows):
         return
     pad = " " * len(title)
     extra = np.array([r["extra"] for r in rows])
+    main_ = np.array([r["main"] for r in rows])
     prev = np.array([r["previous"] for r in rows])
+    speedup = np.array([r["speedup"] for r in rows])
     walls = np.array([r["walls"] for r in rows])
     print(
         f"{title}: {len(rows)} shapes; classification over the mesh stage: {_stats(extra)}; "
         f"within +20 %: {np.count_nonzero(extra <= 0.2)} of {len(rows)}"
     )
-    if walls.any():
-        print(
-            f"{pad}  with walls ({np.count_nonzero(walls)}): {_stats(extra[walls])}; within +20 %: "
-            f"{np.count_nonzero(extra[walls] <= 0.2)}; previous classification: "
-            f"{_stats(prev[walls])}"
-        )
-    if (~walls).any():
-        print(f"{pad}  without walls ({np.count_nonzero(~walls)}): {_stats(extra[~walls])}")
-    print(f"{pad}  previous classification, all: {_stats(prev)}")
+    for label, mask in (("with walls", walls), ("without walls", ~walls)):
+        if mask.any():
+            print(
+                f"{pad}  {label} ({np.count_nonzero(mask)}): now {_stats(extra[mask])}, within "
+                f"+20 %: {np.count_nonzero(extra[mask] <= 0.2)}; main's: {_stats(main_[mask])}; "
+                f"before the cost work: {_stats(prev[mask])}; main's time / now: median "
+                f"x{statistics.median(speedup[mask]):.2f}"
+            )
     changed = np.array([r["changed"] for r in rows])
     wf = np.array([r["wf_change"] for r in rows])
     over_old = np.array([r["over_old"] for r in rows])
     print(
-        f"{pad}  area whose kind changed: median {statistics.median(changed):.2%}, p90 "
-        f"{np.percentile(changed, 90):.2%}, max {changed.max():.2%}; |wall_fraction change| "
-        f"median {statistics.median(wf):.4f}, p90 {np.percentile(wf, 90):.4f}, max "
+        f"{pad}  area whose kind changed from main's: median {statistics.median(changed):.2%}, "
+        f"p90 {np.percentile(changed, 90):.2%}, max {changed.max():.2%}; |wall_fraction "
+        f"change| median {statistics.median(wf):.4f}, p90 {np.percentile(wf, 90):.4f}, max "
         f"{wf.max():.4f}; over the numpy mesh stage before issue 13: median "
         f"{statistics.median(over_old):+.0%}"
     )
@@ -196,9 +209,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-named", action="store_true")
     args = parser.parse_args()
-    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'prev%':>6} {'chg%':>6} {'suspect':>7} "
-          f"{'points':>7} {'mesh ms':>7} {'walls':>7} {'prev.':>7} "
-          f"{'+walls':>7} {'+prev':>7} {'/oldm':>7}")  # fmt: skip
+    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'main%':>6} {'chg%':>6} {'suspect':>7} "
+          f"{'points':>7} {'p.main':>7} {'mesh ms':>7} {'walls':>7} {'main':>7} {'prev.':>7} "
+          f"{'+walls':>7} {'+main':>7} {'+prev':>7} {'/oldm':>7}")  # fmt: skip
     named = []
     if not args.no_named:
         for name, formula, half in NAMED:

@@ -977,7 +977,7 @@ def dedupe(keys):
 
 
 @njit(**_OPTS)
-def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out):
+def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None):
     """Evaluate a points program (see :func:`run_points`) level by level over the distinct
     values each level needs: level ``lv`` runs over ``sizes[lv]`` entries (distinct x values,
     distinct (x, y) pairs, ..., every point for xyz); a load of level ``K`` in level ``lv``'s
@@ -985,7 +985,8 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out):
     level's own variable, entry ``c``).  Stores live in ``store``: level K, row r, entry e at
     ``offsets[K] + r * sizes[K] + e``; rows 0 of levels x, y, z hold the coordinates (filled
     by the caller).  Every entry is computed from the same bits as at its points, so values
-    equal :func:`run_points`' bit for bit."""
+    equal :func:`run_points`' bit for bit.  ``skip[lv]``: level ``lv``'s store is already
+    filled (the edges' levels that do not vary along them, :func:`eval_edges`)."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
     n_rows = prog[6]
     W = np.empty((n_rows, tile))
@@ -995,7 +996,7 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out):
     for lv in (1, 2, 4, 6, 3, 5, 7):
         c0 = blocks[lv, 0]
         c1 = blocks[lv, 1]
-        if c0 == c1:
+        if c0 == c1 or (skip is not None and skip[lv]):
             continue
         total = sizes[lv]
         for e0 in range(0, total, tile):
@@ -1105,3 +1106,145 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     store[offsets[2] : offsets[2] + sizes[2]] = _gather(py, firsts_y[1])
     store[offsets[4] : offsets[4] + sizes[4]] = _gather(pz, firsts_z[1])
     run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out)
+
+
+# ----------------------------------------------------------------------------- points on grid edges
+
+
+@njit(**_OPTS)
+def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
+    """The part of a points program that does not vary along grid edges parallel to ``axis``
+    (0, 1, 2): for edges starting at grid indices ``ijk`` (n, 3), the two single-variable
+    levels of the other axes over their whole grid axis and their pair level over the edges'
+    distinct pairs, computed once (:func:`run_lattice`); :func:`eval_edges` then evaluates
+    points on these edges running only the levels that involve ``axis``.
+
+    ``axes``: the grid's three coordinate arrays.  Returns the context :func:`eval_edges` takes:
+    ``(axis, ijk, sizes, offsets, pair_ids, store, fixed_end, pair_first)``."""
+    va = 1 << axis
+    b = (axis + 1) % 3
+    c = (axis + 2) % 3
+    if b > c:
+        b, c = c, b
+    vb, vc = 1 << b, 1 << c
+    n = ijk.shape[0]
+    nb, nc = axes[b].size, axes[c].size
+    sizes = np.zeros(8, dtype=np.int64)
+    sizes[vb], sizes[vc] = nb, nc
+    pair_ids = np.zeros(n, dtype=np.int64)
+    pair_first = np.zeros(0, dtype=np.int64)
+    if active[vb | vc]:
+        keys = np.empty(n, dtype=np.int64)
+        for e in range(n):
+            keys[e] = ijk[e, b] * nc + ijk[e, c]
+        pair_ids, pair_first = dedupe(keys)
+        sizes[vb | vc] = pair_first.size
+    offsets = np.zeros(8, dtype=np.int64)
+    total = 0
+    for k in (vb, vc, vb | vc):
+        offsets[k] = total
+        total += rows[k] * sizes[k]
+    fixed_end = total
+    # room for the varying levels of a round of up to n points (one entry per point at most)
+    for k in (va, va | vb, va | vc):
+        total += rows[k] * n
+    store = np.empty(max(total, 1))
+    store[offsets[vb] : offsets[vb] + nb] = axes[b]
+    store[offsets[vc] : offsets[vc] + nc] = axes[c]
+    m = pair_first.size
+    maps = np.empty(max(2 * m, 1), dtype=np.int64)
+    for q in range(m):
+        e = pair_first[q]
+        maps[q] = ijk[e, b]
+        maps[m + q] = ijk[e, c]
+    map_at = np.zeros((8, 8), dtype=np.int64)
+    map_at[vb | vc, vb] = 0
+    map_at[vb | vc, vc] = m
+    skip = np.ones(8, dtype=np.bool_)
+    skip[vb] = skip[vc] = skip[vb | vc] = False
+    run_lattice(prog, tile, sizes, offsets, maps, map_at, store, np.empty(0), skip)
+    return axis, ijk, sizes, offsets, pair_ids, store, fixed_end, pair_first
+
+
+@njit(**_OPTS)
+def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
+    """Evaluate a points program at points on the edges of ``ctx`` (:func:`edge_lattice`):
+    point ``p`` on edge ``sel[p]`` with coordinate ``u[p]`` along the edges' axis, the others the
+    edge's grid values.  Levels that do not involve the axis come from ``ctx`` (computed once per
+    edge); the axis' level runs over the distinct values of ``u`` (by their bits), its pair levels
+    over the distinct (value, grid index) pairs, the xyz level over every point.  The values are
+    :func:`eval_points`' (and the reference's) bit for bit: every entry is computed from the bits
+    of the coordinates of its points."""
+    axis, ijk, sizes_fixed, offsets_fixed, pair_ids, store, fixed_end, _first = ctx
+    n = sel.size
+    if n == 0:
+        return
+    va = 1 << axis
+    b = (axis + 1) % 3
+    c = (axis + 2) % 3
+    if b > c:
+        b, c = c, b
+    vb, vc = 1 << b, 1 << c
+    sizes = sizes_fixed.copy()
+    offsets = offsets_fixed.copy()
+    uid, ufirst = dedupe(u.view(np.int64))
+    sizes[va] = ufirst.size
+    sizes[7] = n
+    has = np.zeros(8, dtype=np.bool_)
+    has[va] = has[vb] = has[vc] = True
+    has[vb | vc] = active[vb | vc]
+    map_at = np.zeros((8, 8), dtype=np.int64)
+    ids = np.zeros((8, n), dtype=np.int64)
+    ids[va] = uid
+    for p in range(n):
+        e = sel[p]
+        ids[vb, p] = ijk[e, b]
+        ids[vc, p] = ijk[e, c]
+        ids[vb | vc, p] = pair_ids[e]
+    # the pair levels with the axis: (value id, grid index) pairs
+    pair_parts = []
+    pair_keys = []
+    for other, nother in ((vb, sizes[vb]), (vc, sizes[vc])):
+        lv = va | other
+        if not active[lv]:
+            continue
+        pid, pfirst = dedupe(ids[va] * nother + ids[other])
+        ids[lv] = pid
+        sizes[lv] = pfirst.size
+        has[lv] = True
+        pair_parts.append(_gather(ids[va], pfirst))
+        pair_keys.append((lv, va))
+        pair_parts.append(_gather(ids[other], pfirst))
+        pair_keys.append((lv, other))
+    total_maps = 0
+    for part in pair_parts:
+        total_maps += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            total_maps += n
+    maps = np.empty(max(total_maps, 1), dtype=np.int64)
+    at = 0
+    for q in range(len(pair_parts)):
+        lv, k = pair_keys[q]
+        map_at[lv, k] = at
+        part = pair_parts[q]
+        maps[at : at + part.size] = part
+        at += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            map_at[7, k] = at
+            maps[at : at + n] = ids[k]
+            at += n
+    total = fixed_end
+    for k in (va, va | vb, va | vc):
+        offsets[k] = total
+        total += rows[k] * sizes[k]
+    if total > store.size:  # more points than edges: a larger store with the fixed levels
+        grown = np.empty(total)
+        grown[:fixed_end] = store[:fixed_end]
+        store = grown
+    for q in range(ufirst.size):
+        store[offsets[va] + q] = u[ufirst[q]]
+    skip = np.zeros(8, dtype=np.bool_)
+    skip[vb] = skip[vc] = skip[vb | vc] = True
+    run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip)

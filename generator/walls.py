@@ -7,7 +7,7 @@ tan, cot, sec, csc, 1/u) or jump over the level without taking it (a *jump*: the
 becomes NaN).  Poles and jumps give *walls*: they bound the solid {F < level}, but they are not
 the zero set.
 
-:func:`classify_edges` tells them apart in three steps, cheapest first:
+:func:`classify_edges` tells them apart in four steps, cheapest first:
 
 1. *Samples.*  A crossing looks like a smooth root, and is taken as one, when the secants of
    its grid line around it (``dm``, ``d``, ``dp``: the edge's and its two neighbours') are
@@ -17,15 +17,22 @@ the zero set.
    jump on the edge makes it about twice the pole's or the jump's size).  Everything else
    (poles and resets against the neighbours' slopes, steep steps, non-finite neighbours, edges
    at the grid's border) is *suspect*.
-2. *Secant.*  F at the secant point ``t* = fa / (fa - fb)`` (kept 1 % of the edge from the
-   samples): a root when ``|F(t*)| < SECANT_ROOT * min(|fa|, |fb|)`` (a pole or a jump keeps
-   |F| of the order of its samples' there; a sample exactly at the level never certifies, min
-   being 0).
-3. *Bisection.*  ``t*`` splits the edge; the part where the side changes is bisected twice
-   (to a quarter of it), and twice more where that quarter still ends at a sample (the
-   samples' own |F| says nothing about a root, pole or jump right next to them).  ``M`` is
-   the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
-   sample; ``M1`` before and ``M2`` after the last two bisections (the bracket 4x narrower):
+2. *Midpoint.*  F at the edge's middle (at an edge on the grid's border, which has no grid line
+   to judge its profile, at the secant estimate rounded to a sixteenth of the edge): a root
+   when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the sample on the same side of the level as the
+   midpoint (a pole or a jump keeps |F| at least as large as that sample's between it and the
+   wall: |F| does not fall away from a wall; a sample exactly at the level never certifies).
+   Else the half edge where the side changes is the bracket.
+3. *Secant step.*  Where |F| at the midpoint is below that sample's (not a wall's profile), F
+   at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root by
+   the same test against the bracket's end on its side; else it narrows the bracket.
+4. *Bisection.*  The bracket is bisected until it is a quarter of the first one (at most
+   twice); where it still ends at a sample and does not read as a root (below), twice more (a
+   steep root next to a sample shows only closer to it); where it reads as a jump whose ``M``
+   shrank, but to more than ``ROOT_SHRINK`` and less than ``UNSURE`` of ``M1``, twice more (a
+   root on the flank of a spike, or a curved one, keeps shrinking; a jump's ``M`` stays).
+   ``M`` is the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
+   sample; ``M1`` before and ``M2`` after the last narrowing (a bracket at least 4x narrower):
 
    - root: ``M2 <= ROOT_SHRINK * M1`` (|F| keeps shrinking towards 0: 4x for a simple root)
      or ``M2`` below ``ROOT_FLOOR`` of the samples' ``|fa| + |fb|`` (rounding noise at a
@@ -36,12 +43,19 @@ the zero set.
    - jump: otherwise (|F| stays bounded away from 0 on both sides, or F becomes NaN: the edge
      of a domain).
 
-   A suspect costs one point when the secant shows a root, else three, or five when the
-   crossing lies within a quarter of the secant's part from a sample.
+   A suspect costs one point when the midpoint shows a root, two when the secant step does,
+   else three (five next to a sample or where M shrank a little), plus the secant step where
+   |F| dipped.
 
-Jumps smaller than about the change of F across one cell look like roots at this resolution
-and are counted as roots.  Where F oscillates faster than the grid resolves (a bracket with
-several side changes), bisection follows one of them, so kinds there are a guess.
+Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, 1/8, ...), so the formula
+is evaluated axis by axis (:func:`kernels.eval_edges`): the parts of the formula that do not
+involve the edge's axis once per edge, the parts in that axis alone or with one other once per
+distinct value or pair (the midpoints of all edges of one grid slab share one x), only the part
+in all three variables once per point.
+
+Jumps smaller than about the change of F across one cell look like roots at this resolution and
+are counted as roots. Where F oscillates faster than the grid resolves (a bracket with several
+side changes), bisection follows one of them, so kinds there are a guess.
 """
 
 from __future__ import annotations
@@ -57,7 +71,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import eval_points
+from surfgen.generator.kernels import edge_lattice, eval_edges
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -67,7 +81,7 @@ from surfgen.generator.mesh import (
     Mesh,
     compact_mesh,
     extract_with_edges,
-    wall_fraction,
+    wall_share,
 )
 
 log = logging.getLogger(__name__)
@@ -81,9 +95,10 @@ POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
 SMOOTH_THIRD = 1.0
-SECANT_ROOT = 0.25
-SEPARATION_T = 0.01
-BISECTIONS = 2  # after the secant point; as many again where the bracket still ends at a sample
+NEAR_ROOT = 0.25
+UNSURE = 0.9  # a jump whose M shrank below this share is bisected twice more
+BISECTIONS = 2  # at most, after the midpoint; as many again where the bracket ends at a sample
+SECANT_GRID = 16.0  # the secant step's point: a multiple of 1/16 of the edge
 UNKNOWN = 255  # a vertex on no crossing grid edge (cap vertices, cell-interior vertices)
 
 
@@ -167,15 +182,15 @@ def label_walls(
     kinds, refined, points = _classify(field, tree, params, level, edges)
     face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
     labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
-    known = kinds[kinds != UNKNOWN]
+    counts = np.bincount(kinds, minlength=256)
     report = WallReport(
-        edges=int(known.size),
+        edges=int(counts[ROOT] + counts[POLE] + counts[JUMP]),
         refined=refined,
         points=points,
-        roots=int(np.count_nonzero(known == ROOT)),
-        poles=int(np.count_nonzero(known == POLE)),
-        jumps=int(np.count_nonzero(known == JUMP)),
-        wall_fraction=float(wall_fraction(labelled)),
+        roots=int(counts[ROOT]),
+        poles=int(counts[POLE]),
+        jumps=int(counts[JUMP]),
+        wall_fraction=wall_share(labelled.vertices, labelled.faces, face_kinds),
     )
     log.debug("walls: %s", report)
     if walls == "keep":
@@ -203,8 +218,8 @@ def classify_edges(
 
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
-    One numba call for the suspects (:func:`_bisect_kernel`: the secant point, the
-    bisections and the decision, the formula through :func:`kernels.eval_points`).
+    One numba call for the suspects (:func:`_bisect_kernel`: the midpoint, the secant step,
+    the bisections and the decision, the formula through :func:`kernels.eval_edges`).
     """
     kinds, refined, _points = _classify(field, tree, params, level, edges)
     return kinds, refined
@@ -232,9 +247,7 @@ def _classify(
         active,
         rows,
         float(level),
-        ax,
-        ay,
-        az,
+        (ax, ay, az),
         np.asarray(field.grid.spacing, dtype=np.float64),
         np.ascontiguousarray(edges[idx, 1:]),
         np.ascontiguousarray(edges[idx, 0]),
@@ -290,109 +303,230 @@ def _decide(mid, end, fa, fb):
     return out
 
 
-@njit(**_NB)
-def _points_minus_level(prog, tile, active, rows, xyz, level):
-    """F - level at the ``(n, 3)`` points ``xyz``."""
-    px = np.ascontiguousarray(xyz[:, 0])
-    py = np.ascontiguousarray(xyz[:, 1])
-    pz = np.ascontiguousarray(xyz[:, 2])
-    out = np.empty(px.size)
-    if px.size:
-        eval_points(prog, tile, active, rows, px, py, pz, out)
-    for p in range(out.size):
-        out[p] = out[p] - level
-    return out
+@njit(inline="always", **_NB)
+def _split(now, e, s, f):
+    """Keep the part of bracket ``now[e]`` (lo, hi, f_lo, f_hi, lo_inside) where the side
+    changes, given ``f = F(s) - level`` at a point ``s`` inside it."""
+    inside = np.isfinite(f) and f < 0.0
+    if (now[e, 4] != 0.0) != inside:  # the side changes between lo and s
+        now[e, 1], now[e, 3] = s, f
+    else:
+        now[e, 0], now[e, 2] = s, f
+        now[e, 4] = 1.0 if inside else 0.0
 
 
 @njit(**_NB)
-def _bisect(prog, tile, active, rows, level, origin, step, now, sel, times):
-    """``times`` bisections of the brackets ``now[sel]`` (lo, hi, f_lo, f_hi, lo_inside), in
-    place: each keeps the half where the side changes; one batch of points per bisection."""
+def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
+    """One bisection of the brackets ``now[sel]`` in place (one batch of points)."""
     m = sel.size
-    xyz = np.empty((m, 3))
-    for _ in range(times):
-        for r in range(m):
-            e = sel[r]
-            s = 0.5 * (now[e, 0] + now[e, 1])
-            for k in range(3):
-                xyz[r, k] = origin[e, k] + s * step[e, k]
-        fm = _points_minus_level(prog, tile, active, rows, xyz, level)
-        for r in range(m):
-            e = sel[r]
-            s = 0.5 * (now[e, 0] + now[e, 1])
-            inside_m = np.isfinite(fm[r]) and fm[r] < 0.0
-            if (now[e, 4] != 0.0) != inside_m:  # the side changes in the lower half
-                now[e, 1], now[e, 3] = s, fm[r]
-            else:
-                now[e, 0], now[e, 2] = s, fm[r]
-                now[e, 4] = 1.0 if inside_m else 0.0
-    return m * times
+    u = np.empty(m)
+    fm = np.empty(m)
+    for r in range(m):
+        e = sel[r]
+        u[r] = u0[e] + 0.5 * (now[e, 0] + now[e, 1]) * h
+    eval_edges(prog, tile, active, rows, ctx, sel, u, fm)
+    for r in range(m):
+        e = sel[r]
+        _split(now, e, 0.5 * (now[e, 0] + now[e, 1]), fm[r] - level)
+    return m
 
 
 @njit(**_NB)
-def _bisect_kernel(
-    prog, tile, active, rows, level, ax, ay, az, spacing, ijk, axis, a_inside, fa, fb
-):
-    """Kinds of suspect edges (steps 2 and 3 of the module's docstring): the secant point,
-    two bisections of the part of the edge where the side changes, two more where that part
-    still ends at a sample.  Returns the kinds and the number of points evaluated."""
+def _wider(now, first, sel):
+    """The rows of ``sel`` whose bracket is wider than a quarter of the ``first`` one."""
+    out = np.empty(sel.size, dtype=np.int64)
+    m = 0
+    for r in range(sel.size):
+        e = sel[r]
+        if now[e, 1] - now[e, 0] > 0.25 * (first[e, 1] - first[e, 0]):
+            out[m] = e
+            m += 1
+    return out[:m]
+
+
+@njit(**_NB)
+def _first_point(fa, fb):
+    """The first point on an edge at the grid's border (no neighbours tell its profile): the
+    secant estimate ``fa / (fa - fb)`` rounded to a multiple of ``1 / SECANT_GRID`` strictly
+    inside the edge (the middle where it is NaN)."""
+    u = fa / (fa - fb)
+    if u != u:
+        u = 0.5
+    return min(max(np.round(u * SECANT_GRID), 1.0), SECANT_GRID - 1.0) / SECANT_GRID
+
+
+@njit(**_NB)
+def _secant_in(now, e):
+    """The secant estimate of the crossing in bracket ``now[e]``, rounded to a multiple of
+    ``1 / SECANT_GRID`` strictly inside it (its middle where the estimate is NaN)."""
+    lo, hi = now[e, 0], now[e, 1]
+    u = now[e, 2] / (now[e, 2] - now[e, 3])
+    if u != u:
+        u = 0.5
+    k = np.round((lo + u * (hi - lo)) * SECANT_GRID)
+    k = min(max(k, lo * SECANT_GRID + 1.0), hi * SECANT_GRID - 1.0)
+    return k / SECANT_GRID
+
+
+@njit(**_NB)
+def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb, t):
+    """Kinds of the suspect edges along one axis (steps 2 to 4 of the module's docstring),
+    ``u0``: their first samples' coordinate along it, ``h`` the spacing, ``t`` where the first
+    point goes on each; returns the kinds and the number of points evaluated."""
     n = fa.size
-    origin = np.empty((n, 3))
-    step = np.zeros((n, 3))
-    t = np.empty(n)
-    xyz = np.empty((n, 3))
+    u = np.empty(n)
     for e in range(n):
-        origin[e, 0] = ax[ijk[e, 0]]
-        origin[e, 1] = ay[ijk[e, 1]]
-        origin[e, 2] = az[ijk[e, 2]]
-        step[e, axis[e]] = spacing[axis[e]]
-        u = fa[e] / (fa[e] - fb[e])
-        if u != u:
-            u = 0.5
-        t[e] = min(max(u, SEPARATION_T), 1.0 - SEPARATION_T)
-        for k in range(3):
-            xyz[e, k] = origin[e, k] + t[e] * step[e, k]
-    fs = _points_minus_level(prog, tile, active, rows, xyz, level)
+        u[e] = u0[e] + t[e] * h
+    fs = np.empty(n)
+    eval_edges(prog, tile, active, rows, ctx, np.arange(n), u, fs)
     out = np.full(n, ROOT, dtype=np.uint8)
     points = n
-    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the secant point splits the edge
+    # the brackets: lo, hi, f_lo, f_hi, lo_inside (1.0/0.0); the first point splits the edge
     now = np.empty((n, 5))
     rest = np.empty(n, dtype=np.int64)
+    dips = np.empty(n, dtype=np.int64)
     m = 0
+    n_dips = 0
     for e in range(n):
+        f = fs[e] - level
         a, b = abs(fa[e]), abs(fb[e])
         finite = (
             fa[e] == fa[e]
             and fb[e] == fb[e]
             and (fa[e] / (fa[e] - fb[e])) == (fa[e] / (fa[e] - fb[e]))
         )
-        if finite and abs(fs[e]) < SECANT_ROOT * min(a, b):
+        inside = np.isfinite(f) and f < 0.0
+        far = a if a_inside[e] == inside else b  # the sample on the point's side
+        if finite and abs(f) < NEAR_ROOT * far:
             continue  # a root
-        inside_s = np.isfinite(fs[e]) and fs[e] < 0.0
-        if a_inside[e] != inside_s:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], fs[e]
-            now[e, 4] = 1.0 if a_inside[e] else 0.0
+        if inside == a_inside[e]:
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, f, fb[e]
+            now[e, 4] = 1.0 if inside else 0.0
         else:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, fs[e], fb[e]
-            now[e, 4] = 1.0 if inside_s else 0.0
+            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], f
+            now[e, 4] = 1.0 if a_inside[e] else 0.0
         rest[m] = e
         m += 1
-    rest = rest[:m]
+        room = (now[e, 1] - now[e, 0]) * SECANT_GRID >= 2.0  # a point strictly inside
+        if finite and abs(f) < far and room:  # |F| dips below the sample: not a wall's
+            dips[n_dips] = e
+            n_dips += 1
     before = now.copy()
-    points += _bisect(prog, tile, active, rows, level, origin, step, now, rest, BISECTIONS)
+    # a secant step inside the half where |F| dipped: a root there shows in one more point
+    if n_dips:
+        sel = dips[:n_dips]
+        for r in range(n_dips):
+            u[r] = u0[sel[r]] + _secant_in(now, sel[r]) * h
+        f2 = np.empty(n_dips)
+        eval_edges(prog, tile, active, rows, ctx, sel, u[:n_dips], f2)
+        points += n_dips
+        for r in range(n_dips):
+            e = sel[r]
+            s = _secant_in(now, e)
+            f = f2[r] - level
+            inside = np.isfinite(f) and f < 0.0
+            lo_inside = now[e, 4] != 0.0
+            end = abs(now[e, 2]) if inside == lo_inside else abs(now[e, 3])
+            if abs(f) < NEAR_ROOT * end:
+                now[e, 0] = -1.0  # a root: dropped from rest below
+            else:
+                _split(now, e, s, f)
+        keep = 0
+        for r in range(m):
+            if now[rest[r], 0] >= 0.0:
+                rest[keep] = rest[r]
+                keep += 1
+        m = keep
+    rest = rest[:m]
+    # bisections until the bracket is 4x narrower than the first one
+    for _ in range(BISECTIONS):
+        sel = _wider(now, before, rest)
+        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
+    # a bracket still ending at a sample that does not read as a root is bisected twice more
+    # (a steep root next to a sample shows only closer to it)
+    kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
     held = np.empty(m, dtype=np.int64)
     n_held = 0
     for r in range(m):
         e = rest[r]
-        if now[e, 0] == 0.0 or now[e, 1] == 1.0:
+        if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] != ROOT:
             held[n_held] = e
             n_held += 1
             for k in range(5):
                 before[e, k] = now[e, k]
-    points += _bisect(prog, tile, active, rows, level, origin, step, now, held[:n_held], BISECTIONS)
+    for _ in range(BISECTIONS):
+        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
     kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+    # a jump whose M shrank, but by less than a root's: twice more (a root on the flank of a
+    # spike, or curved, shrinks as the bracket closes in; a jump's M stays)
+    unsure = np.empty(m, dtype=np.int64)
+    n_unsure = 0
+    for r in range(m):
+        e = rest[r]
+        if kinds[r] == JUMP and _shrink(before, now, e) < UNSURE:
+            unsure[n_unsure] = e
+            n_unsure += 1
+            for k in range(5):
+                before[e, k] = now[e, k]
+    if n_unsure:
+        for _ in range(BISECTIONS):
+            points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, unsure[:n_unsure])
+        kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
     for r in range(m):
         out[rest[r]] = kinds[r]
+    return out, points
+
+
+@njit(**_NB)
+def _shrink(mid, end, e):
+    """``M2 / M1`` of row ``e`` as :func:`_decide` measures them (1 where M1 is 0 or NaN)."""
+    kept_lo = end[e, 0] == 0.0
+    kept_hi = end[e, 1] == 1.0
+    m2 = _nanmax(0.0 if kept_lo else abs(mid[e, 2]), 0.0 if kept_hi else abs(mid[e, 3]))
+    m4 = _nanmax(0.0 if kept_lo else abs(end[e, 2]), 0.0 if kept_hi else abs(end[e, 3]))
+    if not (m2 > 0.0) or m4 != m4:
+        return 1.0
+    return m4 / m2
+
+
+@njit(**_NB)
+def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_inside, fa, fb):
+    """Kinds of suspect edges, axis by axis (:func:`_classify_axis`; the formula's levels that
+    do not vary along an axis are computed once per edge, :func:`kernels.edge_lattice`).
+    Returns the kinds and the number of points evaluated."""
+    n = fa.size
+    out = np.empty(n, dtype=np.uint8)
+    points = 0
+    for a in range(3):
+        members = np.flatnonzero(axis == a)
+        if members.size == 0:
+            continue
+        sub = np.ascontiguousarray(ijk[members])
+        ctx = edge_lattice(prog, tile, active, rows, a, sub, axes)
+        u0 = np.empty(members.size)
+        t = np.empty(members.size)
+        for r in range(members.size):
+            u0[r] = axes[a][sub[r, a]]
+            e = members[r]
+            pos = sub[r, a]
+            border = pos < 1 or pos + 2 >= axes[a].size  # no grid line to judge the profile
+            t[r] = _first_point(fa[e], fb[e]) if border else 0.5
+        kinds, pts = _classify_axis(
+            prog,
+            tile,
+            active,
+            rows,
+            ctx,
+            level,
+            u0,
+            spacing[a],
+            a_inside[members],
+            fa[members],
+            fb[members],
+            t,
+        )
+        out[members] = kinds
+        points += pts
     return out, points
 
 

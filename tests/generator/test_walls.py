@@ -149,10 +149,11 @@ def test_points_evaluator_is_the_reference():
 
 
 # ----------------------------------------------------------------------------- fast path
-# classify_edges runs the secant step, the bisections and the decision in one numba call (the
-# formula through kernels.eval_points, the points evaluator's lattice).  The reference below
-# takes the same steps on arrays from Python, the formula evaluated at every point without
-# sharing (PointsEvaluator.plain, kernels.run_points): the kinds must be the same.
+# classify_edges runs the midpoint, the secant step, the bisections and the decision in one
+# numba call (the formula through kernels.eval_edges, the levels that do not vary along an
+# edge computed once per edge).  The reference below takes the same steps on arrays from
+# Python, the formula evaluated at every point without sharing (PointsEvaluator.plain,
+# kernels.run_points): the kinds must be the same.
 
 
 def reference_kinds(field, tree, level, edges):
@@ -166,47 +167,84 @@ def reference_kinds(field, tree, level, edges):
     plain = points_evaluator(tree).plain
     axes = field.grid.axes()
     ijk, axis = edges[idx, 1:], edges[idx, 0]
-    origin = np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1)
-    step = np.eye(3)[axis] * np.asarray(field.grid.spacing)[axis][:, None]
+    grid_point = np.stack([axes[k][ijk[:, k]] for k in range(3)], axis=1)
+    u0 = grid_point[np.arange(idx.size), axis]
+    h = np.asarray(field.grid.spacing)[axis]
 
-    def f_at(t, rows):
-        p = origin[rows] + t[:, None] * step[rows]
+    def f_at(t, rows):  # on the edge: its grid values, and u0 + t h along it
+        p = grid_point[rows].copy()
+        p[np.arange(rows.size), axis[rows]] = u0[rows] + t * h[rows]
         return plain(p[:, 0], p[:, 1], p[:, 2]) - level
 
+    def split(now, rows, s, f):  # keep the part where the side changes
+        inside = np.isfinite(f) & (f < 0)
+        lower = (now[rows, 4] != 0) != inside
+        now[rows[lower], 1], now[rows[lower], 3] = s[lower], f[lower]
+        up = rows[~lower]
+        now[up, 0], now[up, 2], now[up, 4] = s[~lower], f[~lower], inside[~lower]
+
+    everyone = np.arange(idx.size)
     with np.errstate(all="ignore"):
-        t = fa / (fa - fb)
-        finite = ~np.isnan(t) & ~np.isnan(fa) & ~np.isnan(fb)
-        t = np.clip(np.where(np.isnan(t), 0.5, t), w.SEPARATION_T, 1 - w.SEPARATION_T)
-        everyone = np.arange(idx.size)
-        fs = f_at(t, everyone)
-        root = finite & (np.abs(fs) < w.SECANT_ROOT * np.minimum(np.abs(fa), np.abs(fb)))
-    sub = np.full(idx.size, ROOT, dtype=np.uint8)
-    rest = np.flatnonzero(~root)
-    if rest.size:
-        inside_s = np.isfinite(fs) & (fs < 0)
-        low = ina != inside_s  # the side changes between sample a and t*
+        finite = ~np.isnan(fa) & ~np.isnan(fb) & ~np.isnan(fa / (fa - fb))
+        pos = ijk[everyone, axis]
+        border = (pos < 1) | (pos + 2 >= np.asarray(field.values.shape)[axis])
+        q = w.SECANT_GRID
+        u = np.where(np.isnan(fa / (fa - fb)), 0.5, fa / (fa - fb))
+        t1 = np.where(border, np.minimum(np.maximum(np.round(u * q), 1.0), q - 1) / q, 0.5)
+        f1 = f_at(t1, everyone)
+        in1 = np.isfinite(f1) & (f1 < 0)
+        far = np.where(in1 == ina, np.abs(fa), np.abs(fb))
+        root = finite & (np.abs(f1) < w.NEAR_ROOT * far)
+        upper = in1 == ina  # the side changes between the midpoint and sample b
         now = np.stack(
-            [np.where(low, 0.0, t), np.where(low, t, 1.0), np.where(low, fa, fs),
-             np.where(low, fs, fb), np.where(low, ina, inside_s).astype(float)], axis=1
-        )[rest]  # fmt: skip
-
-        def bisect(rows):  # rows of `now`
-            for _ in range(w.BISECTIONS):
-                s = 0.5 * (now[rows, 0] + now[rows, 1])
-                with np.errstate(all="ignore"):
-                    fm = f_at(s, rest[rows])
-                inside_m = np.isfinite(fm) & (fm < 0)
-                lower = (now[rows, 4] != 0) != inside_m
-                now[rows[lower], 1], now[rows[lower], 3] = s[lower], fm[lower]
-                up = rows[~lower]
-                now[up, 0], now[up, 2], now[up, 4] = s[~lower], fm[~lower], inside_m[~lower]
-
+            [np.where(upper, t1, 0.0), np.where(upper, 1.0, t1), np.where(upper, f1, fa),
+             np.where(upper, fb, f1), np.where(upper, in1, ina).astype(float)], axis=1
+        )  # fmt: skip
         before = now.copy()
-        bisect(np.arange(rest.size))
-        held = np.flatnonzero((now[:, 0] == 0.0) | (now[:, 1] == 1.0))
-        before[held] = now[held]
+        room = (now[:, 1] - now[:, 0]) * w.SECANT_GRID >= 2
+        dips = np.flatnonzero(~root & finite & (np.abs(f1) < far) & room)
+        if dips.size:
+            lo, hi, flo, fhi = now[dips, 0], now[dips, 1], now[dips, 2], now[dips, 3]
+            u = flo / (flo - fhi)
+            u = np.where(np.isnan(u), 0.5, u)
+            q = w.SECANT_GRID
+            s = np.minimum(np.maximum(np.round((lo + u * (hi - lo)) * q), lo * q + 1), hi * q - 1)
+            s = s / q
+            f2 = f_at(s, dips)
+            in2 = np.isfinite(f2) & (f2 < 0)
+            end = np.where(in2 == (now[dips, 4] != 0), np.abs(flo), np.abs(fhi))
+            near = np.abs(f2) < w.NEAR_ROOT * end
+            root[dips[near]] = True
+            split(now, dips[~near], s[~near], f2[~near])
+    rest = np.flatnonzero(~root)
+
+    def bisect(rows):
+        s = 0.5 * (now[rows, 0] + now[rows, 1])
+        with np.errstate(all="ignore"):
+            split(now, rows, s, f_at(s, rows))
+
+    for _ in range(w.BISECTIONS):
+        wide = now[rest, 1] - now[rest, 0] > 0.25 * (before[rest, 1] - before[rest, 0])
+        bisect(rest[wide])
+    first = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first != ROOT)]
+    before[held] = now[held]
+    for _ in range(w.BISECTIONS):
         bisect(held)
-        sub[rest] = w._decide(before, now, fa[rest], fb[rest])
+    kinds_rest = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    with np.errstate(all="ignore"):  # M2 / M1 as _decide measures them
+        kept_lo, kept_hi = now[rest, 0] == 0.0, now[rest, 1] == 1.0
+        m1 = np.where(kept_lo, 0.0, np.abs(before[rest, 2]))
+        m1 = np.maximum(m1, np.where(kept_hi, 0.0, np.abs(before[rest, 3])))
+        m2 = np.maximum(np.where(kept_lo, 0.0, np.abs(now[rest, 2])),
+                        np.where(kept_hi, 0.0, np.abs(now[rest, 3])))  # fmt: skip
+        ratio = np.where((m1 > 0) & ~np.isnan(m2), m2 / m1, 1.0)
+    unsure = rest[(kinds_rest == JUMP) & (ratio < w.UNSURE)]
+    before[unsure] = now[unsure]
+    for _ in range(w.BISECTIONS):
+        bisect(unsure)
+    sub = np.full(idx.size, ROOT, dtype=np.uint8)
+    sub[rest] = w._decide(before[rest], now[rest], fa[rest], fb[rest])
     kinds[idx] = sub
     return kinds, int(idx.size)
 

@@ -2,8 +2,9 @@
 
 Step 1 without the third-difference test, then for every suspect the secant point and two
 rounds of three points over the whole edge (seven points an edge the secant does not show to be
-a root), decided by :func:`surfgen.generator.walls._decide` as now.  ``benchmarks/bench_walls.py``
-times it against the classification now and reports where their kinds differ.
+a root), decided by ``_decide`` (from ``walls_main.py``, main's classifier before the second
+cost work).  ``benchmarks/bench_walls.py`` times both against the classification now and
+reports where their kinds differ.
 """
 
 from __future__ import annotations
@@ -12,12 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
-
-from surfgen.generator.expr import Expr
-from surfgen.generator.fast import PointsEvaluator, points_evaluator
-from surfgen.generator.grid import Field
-from surfgen.generator.mesh import ROOT
-from surfgen.generator.walls import (
+from walls_main import (  # the frozen copy of main's classifier before walls2
     SECANT_ROOT,
     SEPARATION_T,
     SMOOTH_RATIO,
@@ -26,6 +22,11 @@ from surfgen.generator.walls import (
     _points_minus_level,
     _sign,
 )
+
+from surfgen.generator.expr import Expr
+from surfgen.generator.fast import PointsEvaluator, points_evaluator
+from surfgen.generator.grid import Field
+from surfgen.generator.mesh import ROOT
 
 ROUNDS = 2  # refinement rounds ...
 POINTS = 3  # ... of this many points each: the bracket shrinks 4x per round
