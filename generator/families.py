@@ -41,6 +41,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from surfgen.generator.compiler import Program, compile_tree
 from surfgen.generator.equation13 import (
     Equation13,
     Factor,
@@ -50,6 +51,7 @@ from surfgen.generator.equation13 import (
 )
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.expr import Expr, add_all, mul_all
+from surfgen.generator.fast import evaluate_program
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.sampler import (
     Draw,
@@ -237,10 +239,35 @@ def _draw_ornament(rng: np.random.Generator, cfg: SamplerConfig) -> tuple[Factor
         for k, p in enumerate(f.powers)
     )
     lambdas = list(f.lambdas)
+    if cfg.sculpture_pole_free_prob > 0 and rng.random() < cfg.sculpture_pole_free_prob:
+        f, powers = _pole_free(rng, f, powers, lambdas, mus)
     for k, mu in zip((2, 3, 4, 6), mus, strict=True):
         if mu and lambdas[k] == 0:
             lambdas[k] = 1.0
     return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+def _pole_free(
+    rng: np.random.Generator,
+    f: Factor,
+    powers: tuple[PowerFunction, ...],
+    lambdas: list[float],
+    mus: list[float],
+) -> tuple[Factor, tuple[PowerFunction, ...]]:
+    """The ornament with nothing that divides: D, E and F left out, P6 and P8 (which divide
+    the arguments of C's and F's H) the constant 1, and an H with poles (tan, cot, sec, csc)
+    made sin or cos. Where a divisor vanishes, F passes through infinity or its argument
+    oscillates without bound: dust, voids and walls finer than any check grid, most of the
+    speckle rejections (README, Families). ``lambdas`` and ``mus`` are changed in place; B or C
+    is kept (an ornament always has a trigonometric or constituent part)."""
+    lambdas[1] = 0.0  # D = P2^l2
+    mus[1] = mus[3] = 0.0  # E = H(P4)^mu2, F = G(H(P7/P8))^mu4
+    if not (mus[0] or mus[2]):
+        mus[0 if rng.random() < 0.5 else 2] = 1.0
+    powers = tuple(ONE if k in (5, 7) else p for k, p in enumerate(powers))
+    if f.h.name in ("tan", "cot", "sec", "csc"):
+        f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
+    return f, powers
 
 
 @functools.lru_cache(maxsize=8)
@@ -286,8 +313,20 @@ def _inverse(perm: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(out)
 
 
+def _ornament_program(ornament: Factor, mirror: bool) -> Program:
+    """The ornament's unit copy (with ``|x|, |y|, |z|`` when ``mirror``) compiled once: a try
+    samples it on the feature grid and on the d grid."""
+    return compile_tree(permute_factor(ornament, (0, 1, 2), mirror).to_tree())
+
+
 def _unit_samples(
-    ornament: Factor, perms: tuple[tuple[int, ...], ...], mirror: bool, k: int, box: Box, n: int
+    ornament: Factor,
+    perms: tuple[tuple[int, ...], ...],
+    mirror: bool,
+    k: int,
+    box: Box,
+    n: int,
+    program: Program | None = None,
 ) -> np.ndarray:
     """The ornament's unit ``(Σ_perms O∘perm)^k`` sampled on the cube ``box`` (``n`` per axis),
     for the checks: the ornament (with ``|x|, |y|, |z|`` when ``mirror``) is evaluated once, and
@@ -297,7 +336,9 @@ def _unit_samples(
     own formula in the last bits, where the formula adds its terms in another order."""
     if len(set(box.lo)) != 1 or len(set(box.hi)) != 1:
         raise ValueError(f"the ornament's copies are transposed samples: {box} must be a cube")
-    base = _eval(permute_factor(ornament, (0, 1, 2), mirror).to_tree(), box, n)
+    if program is None:
+        program = _ornament_program(ornament, mirror)
+    base = evaluate_program(program, Grid(box, (n,) * 3), threads=1).values
     # O∘perm(x) = O(x[perm[0]], x[perm[1]], x[perm[2]]): sample i of the copy is sample
     # (i[perm[0]], ...) of O, which is O's array with its axes put in the inverse order.
     copies = [np.transpose(base, _inverse(p)) for p in perms]
@@ -404,9 +445,10 @@ def _coarse_ornament(
         if e is None:
             products = _ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
-        o = _unit_samples(ornament, perms, mirror, k, box, n)
+        program = _ornament_program(ornament, mirror)
+        o = _unit_samples(ornament, perms, mirror, k, box, n, program)
         feature = _feature_size(e, o, box, ge)
-        o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid)
+        o_d = _unit_samples(ornament, perms, mirror, k, box, cfg.d_grid, program)
         strength_d = _strength_on(e_d, o_d, step_d, depth, ge_d)
         stray, departure, f = _carved(e, o, box, depth, ge, strength_d)
         shaped = (

@@ -44,7 +44,7 @@ from surfgen.generator.settings import (
     settings_to_dict,
 )
 
-SAMPLER_VERSION = 4  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction)
+SAMPLER_VERSION = 5  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5)
 FAMILIES = ("sculpture", "lattice", "free")
 FAMILY_CHOICES = (*FAMILIES, "mix")
 SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
@@ -114,6 +114,7 @@ class SamplerConfig:
     sculpture_constituent_prob: float = 0.3  # the ornament's H or G is a constituent function
     sculpture_omit_element_prob: float = 0.55
     sculpture_bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
+    sculpture_pole_free_prob: float = 0.5  # an ornament without D, E, F, P6, P8 and poles of H
     sculpture_min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     sculpture_max_stray: float = 0.02  # share of the carved surface far from the envelope
     sculpture_min_departure: float = 0.2  # carved surface's departure from the envelope
@@ -162,6 +163,7 @@ class SamplerConfig:
             "sculpture_constituent_prob",
             "sculpture_omit_element_prob",
             "sculpture_bounded_prob",
+            "sculpture_pole_free_prob",
             "lattice_constituent_prob",
             "lattice_anisotropy_prob",
         )

@@ -257,6 +257,8 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
         ({"sculpture_feature_grid": 4}, "sculpture_feature_grid must be from 8 to 128"),
         ({"sculpture_feature_grid": 500}, "sculpture_feature_grid must be from 8 to 128"),
         ({"sculpture_feature_grid": 2.5}, "sculpture_feature_grid must be a whole number"),
+        ({"sculpture_pole_free_prob": 1.5}, "sculpture_pole_free_prob must be a probability"),
+        ({"sculpture_pole_free_prob": "half"}, "sculpture_pole_free_prob must be a finite number"),
     ],
 )
 def test_bad_families_and_weights_are_one_line_errors(change: dict, message: str) -> None:
@@ -447,12 +449,34 @@ def test_ornament_checks_use_the_configured_feature_grid(monkeypatch) -> None:
     sizes = []
     original = families._unit_samples
 
-    def recording(ornament, perms, mirror, k, box, n):
+    def recording(ornament, perms, mirror, k, box, n, program=None):
         sizes.append(n)
-        return original(ornament, perms, mirror, k, box, n)
+        return original(ornament, perms, mirror, k, box, n, program)
 
     monkeypatch.setattr(families, "_unit_samples", recording)
     cfg = replace(family("sculpture"), sculpture_feature_grid=16)
     for i in range(3):
         families.draw_sculpture(7, i, cfg)
     assert sizes and set(sizes) == {16, cfg.d_grid}
+
+
+def test_pole_free_ornaments_divide_by_nothing() -> None:
+    """With ``sculpture_pole_free_prob`` 1 no ornament has D, E, F, a quotient inside C or F,
+    or an H with poles: the sculptures' formulas divide by nothing and call no tan, cot, sec,
+    csc; with 0 most of them divide."""
+    import re
+
+    from surfgen.generator.families import _draw_ornament
+    from surfgen.generator.sampler import rng_for
+
+    free = replace(family("sculpture"), sculpture_pole_free_prob=1.0)
+    never = replace(family("sculpture"), sculpture_pole_free_prob=0.0)
+    dividing = 0
+    for i in range(40):
+        formula = str(draw_equation(7, i, free).equation.to_tree())
+        assert "/" not in formula and not re.search(r"\b(tan|cot|sec|csc)\(", formula), i
+        ornament, _ = _draw_ornament(rng_for(7, i), free)
+        assert ornament.lambdas[1] == 0 and ornament.mus[1] == ornament.mus[3] == 0
+        assert ornament.mus[0] or ornament.mus[2]  # a trigonometric/constituent part remains
+        dividing += "/" in str(draw_equation(7, i, never).equation.to_tree())
+    assert dividing >= 20  # otherwise the ornaments mostly divide
