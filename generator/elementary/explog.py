@@ -27,7 +27,9 @@ Algorithms (derived from the literature; coefficients from ``benchmarks/explog_c
   r = z - k ln2 with ln2 in 42 + 53 bits (the first product and difference are exact),
   e^r = 1 + r + r^2/2 + r^3 Q(r) (Q: degree 9) with r^2 exact, summed as a double-double,
   scaled by 2^k with two multiplications so that overflow and gradual underflow are IEEE's.
-- ``pow(x, y) = exp(y log|x|)`` with y*log|x| as an exact Dekker product plus tails.
+- ``pow(x, y) = exp(y log|x|)`` with y*log|x| as an exact Dekker product plus tails; for
+  y = 1.5 and y = 3 (the eq. (13) exponents left per point) exact products instead:
+  x^3 = x*x*x and x^1.5 = x*sqrt(x) as double-doubles, one final rounding (``_pow_exact``).
 - log10 = log * (1/ln10 as double-double); sinh, cosh, tanh from the double-double exp
   (odd polynomials near 0 for sinh and tanh); asinh, acosh, atanh as log of a double-double
   argument; cbrt = exp(log|x| / 3) with the division by 3 kept exact.
