@@ -38,6 +38,7 @@ from surfgen.generator.elementary import explog as E
 
 LD = np.longdouble
 UNARY = ("exp", "log", "log10", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "cbrt")
+CONST_POW = {"pow1.5": 1.5, "pow3": 3.0}  # pow_row_vs with these exponents: exact products
 ROWS = 1024
 
 # ----------------------------------------------------------------------------- arguments
@@ -75,6 +76,31 @@ def arguments(name: str, n: int, rng: np.random.Generator) -> tuple[np.ndarray, 
         edge = rng.choice([709.78, -708.4, -745.1], n - 3 * q) + rng.uniform(-1.0, 0.0, n - 3 * q)
         y[3 * q :] = edge / np.log(x[3 * q :])
         return x, y
+    if name in CONST_POW:
+        # pow with the constant exponents that take the exact-product path: every scale (the
+        # general path outside [2^-300, 2^300]), the main range, and hard cases: the edges of
+        # the exact path and their neighbours, perfect squares/cubes (exact results), near 1,
+        # near overflow and underflow, subnormals, negative bases.
+        edges = np.array([2.0**-300, 2.0**300])
+        near = np.concatenate(
+            [(edges * (1 + rng.uniform(-1e-12, 1e-12, (q // 8, 2)))).ravel(), edges, -edges]
+        )
+        top = 1024.0 / CONST_POW[name]
+        hard = np.concatenate(
+            [
+                near,
+                np.round(rng.uniform(1, 2**26, q // 4)) ** (2 if name == "pow1.5" else 1),
+                1.0 + rng.normal(0, 1e-6, q // 4),
+                2.0 ** rng.uniform(top - 2, top + 1, q // 8),
+                2.0
+                ** rng.uniform(-1074 / CONST_POW[name] - 2, -1074 / CONST_POW[name] + 2, q // 8),
+                rng.uniform(0, 2.3e-308, q // 8),
+                -rng.uniform(0, 4, q // 16),
+            ]
+        )
+        x = np.concatenate([_scales(rng, q), rng.uniform(0.0, 4.0, q), hard])
+        x = np.concatenate([x, rng.uniform(0.0, 4.0, max(0, n - x.size))])[:n]
+        return x, np.full(x.size, CONST_POW[name])
     every = _scales(rng, q)
     main = rng.uniform(-2.0, 2.0, q)
     hard = {
@@ -177,7 +203,15 @@ def _mp_ulps(job: tuple[str, list[float], list[float] | None, list[float]]) -> l
 
 def accuracy(name: str, n: int, pool, rng: np.random.Generator) -> dict:
     x, y = arguments(name, n, rng)
-    if name == "pow":
+    if name in CONST_POW:
+        c = CONST_POW[name]
+        got = E.pow_array(x, c)
+        W = np.vstack([x, np.zeros_like(x)])
+        E.pow_row_vs(W, 1, 0, c, x.size)
+        with np.errstate(all="ignore"):
+            ref = np.power(x.astype(LD), LD(c))
+            ref[(x < 0) & (c != np.floor(c))] = np.nan
+    elif name == "pow":
         got = E.pow_array(x, y)
         W = np.vstack([x, y, np.zeros_like(x)])
         E.pow_row_vv(W, 2, 0, 1, x.size)
@@ -203,7 +237,12 @@ def accuracy(name: str, n: int, pool, rng: np.random.Generator) -> dict:
     idx = np.unique(np.concatenate([flagged, sample]))
     chunks = np.array_split(idx, 16)
     jobs = [
-        (name, x[c].tolist(), None if y is None else y[c].tolist(), got[c].tolist())
+        (
+            "pow" if name in CONST_POW else name,
+            x[c].tolist(),
+            None if y is None else y[c].tolist(),
+            got[c].tolist(),
+        )
         for c in chunks
         if c.size
     ]
@@ -220,6 +259,11 @@ def accuracy(name: str, n: int, pool, rng: np.random.Generator) -> dict:
         "checked": int(idx.size),
         "stage1_dev": float(np.max(np.abs(est[sample][finite] - exact[sample][finite]))),
         "worst": (x[int(np.argmax(final))], None if y is None else y[int(np.argmax(final))]),
+        "max_exact": (
+            float(final[E._NP_GLOBALS["_pow_exact_lane"](x, y)].max())
+            if name in CONST_POW
+            else None
+        ),
     }
 
 
@@ -269,6 +313,8 @@ _UFUNC = {
 
 
 def speed(name: str, seconds: float) -> tuple[float, float, float]:
+    if name in CONST_POW:
+        return speed_pow_vs(seconds, CONST_POW[name])
     rng = np.random.default_rng(5)
     W = np.zeros((4, ROWS))
     if name == "pow":
@@ -310,14 +356,14 @@ def _libm_vs(W, d, a, s, n, reps):
             W[d, k] = W[a, k] ** s
 
 
-def speed_pow_vs(seconds: float) -> tuple[float, float, float]:
-    """pow with a constant exponent, the common case in eq. (13) formulas."""
+def speed_pow_vs(seconds: float, c: float = 2.5) -> tuple[float, float, float]:
+    """pow with a constant exponent c, the common case in eq. (13) formulas."""
     W = np.zeros((4, ROWS))
     W[0] = np.random.default_rng(6).uniform(0.0, 10.0, ROWS)
     fs = (
-        lambda reps: _ours_vs(W, 2, 0, 2.5, ROWS, reps),
-        lambda reps: _libm_vs(W, 3, 0, 2.5, ROWS, reps),
-        lambda reps: [np.power(W[0], 2.5, out=W[3]) for _ in range(reps)],
+        lambda reps: _ours_vs(W, 2, 0, c, ROWS, reps),
+        lambda reps: _libm_vs(W, 3, 0, c, ROWS, reps),
+        lambda reps: [np.power(W[0], c, out=W[3]) for _ in range(reps)],
     )
     best = [0.0, 0.0, 0.0]
     for f in fs:
@@ -338,7 +384,7 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", default=None, help="a subset of the functions")
     args = ap.parse_args()
     np.seterr(all="ignore")  # the hard ranges overflow on purpose
-    names = args.only or ["exp", "log", "pow", *UNARY[2:]]
+    names = args.only or ["exp", "log", "pow", *CONST_POW, *UNARY[2:]]
     rng = np.random.default_rng(20261201)
     rows = []
     with multiprocessing.get_context("fork").Pool(2) as pool:
@@ -350,13 +396,18 @@ def main() -> None:
             print(
                 f"# {name}: {acc['n']} args, row==array bits: {acc['same_bits']}, "
                 f"{acc['checked']} recomputed with mpmath, stage-1 deviation "
-                f"{acc['stage1_dev']:.4f} ulp, worst at {acc['worst']}, {time.time() - t:.0f} s",
+                f"{acc['stage1_dev']:.4f} ulp, worst at {acc['worst']}, {time.time() - t:.0f} s"
+                + (
+                    ""
+                    if acc["max_exact"] is None
+                    else f"; max on the exact-product path {acc['max_exact']:.4f} ulp"
+                ),
                 flush=True,
             )
     if "pow" in names:
         vs = speed_pow_vs(0.05 if args.quick else 0.3)
         print(
-            f"# pow with a scalar exponent (pow_row_vs, x^2.5): {vs[0]:.0f} M/s, "
+            f"# pow with a scalar exponent (pow_row_vs, x^2.5: the general path): {vs[0]:.0f} M/s, "
             f"numba x**2.5 loop {vs[1]:.0f} M/s, np.power(x, 2.5) {vs[2]:.0f} M/s"
         )
     print()

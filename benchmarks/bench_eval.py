@@ -439,6 +439,12 @@ def main() -> int:
     print(
         f"random eq. (13) at {rand_n}^3, median fast/numpy: 1 thread {med1:.1f}x, 2 threads {med2:.1f}x"
     )
+    q1, q3 = np.percentile([r.ratio1 for r in random_rows], [25, 75])
+    at3 = sum(r.ratio1 >= 3.0 for r in random_rows)
+    print(
+        f"random eq. (13) at {rand_n}^3, fast (1 thread)/numpy quartiles: {q1:.2f}x / {med1:.2f}x"
+        f" / {q3:.2f}x ({at3} of {len(random_rows)} at 3x or more)"
+    )
     dense = [r.ratio_dense for r in random_rows if r.ratio_dense is not None]
     if dense:
         print(

@@ -20,13 +20,20 @@ irrational, no other double lies on a jump: the closed forms decide every argume
 whereas the direct forms may land on either side within an ulp or two of a jump. Signs of zero:
 ``atan(tan(-0)) = asin(sin(-0)) = -0``.
 
-Accuracy: ``r`` is computed in double-double (Cody-Waite with pi as three doubles and exact
-Dekker products, no FMA) and rounded once, so the result is within 0.5 ulp plus about 2^-100
-absolute of the exact value for ``|u| <= LIMIT = 2^50``; ``acos(cos u)`` and ``pi + r`` add one
-more rounding of a double-double sum. The direct forms lose up to half the digits where ``asin``
+Accuracy: ``r`` is computed in double-double and rounded once, so the result is within 0.5 ulp
+plus about 2^-120 absolute of the exact value for ``|u| <= FAST = 2^24`` (Cody-Waite with pi in
+three 30-bit parts, exact products ``k*P_i`` for ``|k| < 2^23``, and a rounded fourth: the
+vectorised path) and within 0.5 ulp plus about 2^-100 absolute for ``2^24 < |u| <= LIMIT = 2^50``
+(pi as three doubles and exact Dekker products: a scalar path per lane, rare in formulas);
+``acos(cos u)`` and ``pi + r`` add one more rounding of a double-double sum. The direct forms lose up to half the digits where ``asin``
 and ``acos`` are ill-conditioned (``asin(sin u)`` near ``u = pi/2``: ``asin(1 - d)`` turns an
 ulp of ``sin`` into ``1e-8``) and a few ulp elsewhere. Beyond ``LIMIT`` (and for inf/NaN) the
 closed forms *are* the direct forms, computed with surfgen's elementary functions.
+
+Cost (issue 9's speed work): the vectorised reduction takes about 25 operations (no Dekker
+split of k) and the end adjustment compares ``(hi - pi/2) + (lo - pi_lo/2)`` with 0 (exact
+sign: hi and pi/2 differ by at least an ulp when they differ, more than the tails); ``acot(cot
+u)`` needs no adjustment at all (``r mod pi`` is the same whichever side k rounded to).
 
 Every function exists as a numba row ``NAME_row(W, d, a, n)`` (``d != a``), a numba scalar and a
 numpy twin ``NAME_array``, bit-identical (one shared arithmetic core, :func:`_reduce_py`).
@@ -44,6 +51,14 @@ _OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
 ROUND_TRIPS = ("atantan", "asinsin", "acoscos", "acotcot")
 
 LIMIT = 2.0**50  # |u| above this: the direct forms (k would not fit the exact products)
+FAST = 2.0**24  # |u| up to this: the vectorised Cody-Waite reduction (|k| < 2^23)
+
+# pi = _P1 + _P2 + _P3 + _P4 + 1e-44: three parts of 30 significant bits (k * _Pi is exact for
+# |k| < 2^23) and the rest rounded (mpmath, 120 digits).
+_P1 = 3.1415926553308964
+_P2 = -1.7411031384001463e-09
+_P3 = -7.006868793909636e-19
+_P4 = -2.2702237215044403e-28
 
 # pi = _C1 + _C2 + _C3 to about 160 bits; _C1 and _C2 split in halves of 26 bits for Dekker's
 # exact product (generated with mpmath at 60 digits).
@@ -62,8 +77,52 @@ _SPLIT = 134217729.0  # 2^27 + 1, Veltkamp's splitter
 _PI_2 = 1.5707963267948966  # the double np.pi / 2 (acot = pi/2 - atan in the direct form)
 
 
+def _reduce_cw_py(u):
+    """``u = k*pi + hi + lo`` for ``|u| <= FAST``, k = u/pi rounded in floating point (so
+    ``hi + lo`` may lie an ulp or so outside [-pi/2, pi/2]); ``(k, hi, lo)`` normalised.
+
+    ``u - k*_P1`` is exact: ``k*_P1`` has at most 53 bits and, when k != 0, lies within a
+    factor 2 of u (|u| >= 1), on the grid of ulp(u); the next two products are exact and summed
+    by two-sums, the fourth is rounded: error about 2^-105 |r| + 2^-121."""
+    k = (u * _INV_PI + _MAGIC) - _MAGIC
+    t1 = u - k * _P1
+    p2 = -(k * _P2)
+    s = t1 + p2
+    bs = s - t1
+    e = (t1 - (s - bs)) + (p2 - bs)  # two-sum
+    p3 = -(k * _P3)
+    s2 = s + p3
+    b2 = s2 - s
+    e2 = (s - (s2 - b2)) + (p3 - b2)  # two-sum
+    lo = (e + e2) - k * _P4
+    hi = s2 + lo
+    return k, hi, lo - (hi - s2)
+
+
+def _adjust_py(k, hi, lo):
+    """:func:`_reduce_cw_py`'s result moved into [-pi/2, pi/2).
+
+    k is off by one at the ends of the interval when u/pi rounds across a half-integer: the
+    sign of ``(hi + lo) - pi/2`` is that of ``(hi - H) + (lo - L)`` (pi/2 = H + L): when
+    hi != H they differ by an ulp of H or more, more than |lo - L|; then hi - pi is exact
+    (Sterbenz)."""
+    above = ((hi - _HALF_H) + (lo - _HALF_L)) >= 0.0
+    below = ((hi + _HALF_H) + (lo + _HALF_L)) < 0.0
+    adj = above * 1.0 - below * 1.0
+    h2 = hi - adj * _C1  # exact
+    l2 = lo - adj * _C2
+    hi2 = h2 + l2
+    return k + adj, hi2, l2 - (hi2 - h2)
+
+
 def _reduce_py(u):
-    """``u = k*pi + hi + lo`` with ``hi + lo`` in [-pi/2, pi/2): returns ``(k, hi, lo)``.
+    """``u = k*pi + hi + lo`` with ``hi + lo`` in [-pi/2, pi/2) for ``|u| <= FAST``."""
+    k, hi, lo = _reduce_cw_py(u)
+    return _adjust_py(k, hi, lo)
+
+
+def _reduce_dekker_py(u):
+    """``u = k*pi + hi + lo`` with ``hi + lo`` in [-pi/2, pi/2) for ``|u| <= LIMIT``: ``(k, hi, lo)``.
 
     Plain arithmetic and comparisons only, so the same source runs on floats (jitted by numba)
     and on numpy arrays, with the same IEEE operations in the same order."""
@@ -109,20 +168,28 @@ def _parity_py(k):
 def _pi_minus_py(hi, lo):
     """pi - (hi + lo) rounded once, for 0 <= hi <= pi/2 (a double-double difference)."""
     s = _C1 - hi
-    b = s - _C1
-    e = (_C1 - (s - b)) + (-hi - b)
+    e = (_C1 - s) - hi  # fast two-sum: exact, |pi| >= hi
     return s + (e + (_C2 - lo))
 
 
 def _pi_plus_py(hi, lo):
-    """pi + (hi + lo) rounded once, for -pi/2 <= hi < 0."""
+    """pi + (hi + lo) rounded once, for -pi/2 - 2^-40 <= hi < 0."""
     s = _C1 + hi
-    b = s - _C1
-    e = (_C1 - (s - b)) + (hi - b)
+    e = hi - (s - _C1)  # fast two-sum: exact, |hi| <= pi
     return s + (e + (_C2 + lo))
 
 
-_reduce = njit(inline="always", **_OPTS)(_reduce_py)
+_reduce_cw = njit(inline="always", **_OPTS)(_reduce_cw_py)
+_adjust = njit(inline="always", **_OPTS)(_adjust_py)
+
+
+@njit(inline="always", **_OPTS)
+def _reduce(u):
+    k, hi, lo = _reduce_cw(u)
+    return _adjust(k, hi, lo)
+
+
+_reduce_dekker = njit(inline="always", **_OPTS)(_reduce_dekker_py)
 _parity = njit(inline="always", **_OPTS)(_parity_py)
 _pi_minus = njit(inline="always", **_OPTS)(_pi_minus_py)
 _pi_plus = njit(inline="always", **_OPTS)(_pi_plus_py)
@@ -135,24 +202,23 @@ _acos = REGISTRY["acos"].scalar
 _atan = REGISTRY["atan"].scalar
 
 # ----------------------------------------------------------------------------- numba
+# Each round trip has a fast form (|u| <= FAST, vectorised) and a mid form (FAST < |u| <= LIMIT,
+# the Dekker reduction, per lane); beyond LIMIT the direct form.
 
 
 @njit(inline="always", **_OPTS)
-def _atantan_fast(u):
-    k, hi, lo = _reduce(u)
+def _atantan_of(u, k, hi, lo):
     return u if k == 0.0 else hi
 
 
 @njit(inline="always", **_OPTS)
-def _asinsin_fast(u):
-    k, hi, lo = _reduce(u)
+def _asinsin_of(u, k, hi, lo):
     r = -hi if _parity(k) != 0.0 else hi
     return u if k == 0.0 else r
 
 
 @njit(inline="always", **_OPTS)
-def _acoscos_fast(u):
-    k, hi, lo = _reduce(u)
+def _acoscos_of(u, k, hi, lo):
     ahi = abs(hi)
     alo = lo if hi >= 0.0 else -lo
     far = _pi_minus(ahi, alo)
@@ -160,37 +226,74 @@ def _acoscos_fast(u):
 
 
 @njit(inline="always", **_OPTS)
-def _acotcot_fast(u):
-    k, hi, lo = _reduce(u)
+def _acotcot_of(u, k, hi, lo):
+    # r mod pi in [0, pi): hi + lo is within an ulp or so of [-pi/2, pi/2], so adding pi to
+    # the negative ones is enough (no end adjustment needed).
     neg = _pi_plus(hi, lo)
     return neg if hi < 0.0 else hi + 0.0
 
 
+@njit(inline="always", **_OPTS)
+def _atantan_fast(u):
+    k, hi, lo = _reduce(u)
+    return _atantan_of(u, k, hi, lo)
+
+
+@njit(inline="always", **_OPTS)
+def _asinsin_fast(u):
+    k, hi, lo = _reduce(u)
+    return _asinsin_of(u, k, hi, lo)
+
+
+@njit(inline="always", **_OPTS)
+def _acoscos_fast(u):
+    k, hi, lo = _reduce(u)
+    return _acoscos_of(u, k, hi, lo)
+
+
+@njit(inline="always", **_OPTS)
+def _acotcot_fast(u):
+    k, hi, lo = _reduce_cw(u)
+    return _acotcot_of(u, k, hi, lo)
+
+
 @njit(**_OPTS)
 def atantan_scalar(u):
-    if abs(u) <= LIMIT:
+    if abs(u) <= FAST:
         return _atantan_fast(u)
+    if abs(u) <= LIMIT:
+        k, hi, lo = _reduce_dekker(u)
+        return _atantan_of(u, k, hi, lo)
     return _atan(_tan(u))
 
 
 @njit(**_OPTS)
 def asinsin_scalar(u):
-    if abs(u) <= LIMIT:
+    if abs(u) <= FAST:
         return _asinsin_fast(u)
+    if abs(u) <= LIMIT:
+        k, hi, lo = _reduce_dekker(u)
+        return _asinsin_of(u, k, hi, lo)
     return _asin(_sin(u))
 
 
 @njit(**_OPTS)
 def acoscos_scalar(u):
-    if abs(u) <= LIMIT:
+    if abs(u) <= FAST:
         return _acoscos_fast(u)
+    if abs(u) <= LIMIT:
+        k, hi, lo = _reduce_dekker(u)
+        return _acoscos_of(u, k, hi, lo)
     return _acos(_cos(u))
 
 
 @njit(**_OPTS)
 def acotcot_scalar(u):
-    if abs(u) <= LIMIT:
+    if abs(u) <= FAST:
         return _acotcot_fast(u)
+    if abs(u) <= LIMIT:
+        k, hi, lo = _reduce_dekker(u)
+        return _acotcot_of(u, k, hi, lo)
     return _PI_2 - _atan(1.0 / _tan(u))
 
 
@@ -204,10 +307,10 @@ def atantan_row(W, d, a, n):
     for k in range(n):
         u = W[a, k]
         W[d, k] = _atantan_fast(u)
-        bad += 0 if abs(u) <= LIMIT else 1
+        bad += 0 if abs(u) <= FAST else 1
     if bad:
         for k in range(n):
-            if not abs(W[a, k]) <= LIMIT:
+            if not abs(W[a, k]) <= FAST:
                 W[d, k] = atantan_scalar(W[a, k])
 
 
@@ -217,10 +320,10 @@ def asinsin_row(W, d, a, n):
     for k in range(n):
         u = W[a, k]
         W[d, k] = _asinsin_fast(u)
-        bad += 0 if abs(u) <= LIMIT else 1
+        bad += 0 if abs(u) <= FAST else 1
     if bad:
         for k in range(n):
-            if not abs(W[a, k]) <= LIMIT:
+            if not abs(W[a, k]) <= FAST:
                 W[d, k] = asinsin_scalar(W[a, k])
 
 
@@ -230,10 +333,10 @@ def acoscos_row(W, d, a, n):
     for k in range(n):
         u = W[a, k]
         W[d, k] = _acoscos_fast(u)
-        bad += 0 if abs(u) <= LIMIT else 1
+        bad += 0 if abs(u) <= FAST else 1
     if bad:
         for k in range(n):
-            if not abs(W[a, k]) <= LIMIT:
+            if not abs(W[a, k]) <= FAST:
                 W[d, k] = acoscos_scalar(W[a, k])
 
 
@@ -243,10 +346,10 @@ def acotcot_row(W, d, a, n):
     for k in range(n):
         u = W[a, k]
         W[d, k] = _acotcot_fast(u)
-        bad += 0 if abs(u) <= LIMIT else 1
+        bad += 0 if abs(u) <= FAST else 1
     if bad:
         for k in range(n):
-            if not abs(W[a, k]) <= LIMIT:
+            if not abs(W[a, k]) <= FAST:
                 W[d, k] = acotcot_scalar(W[a, k])
 
 
@@ -270,35 +373,39 @@ def direct_array(name: str, u: np.ndarray, fns) -> np.ndarray:
 _OWN = {name: REGISTRY[name].array for name in ("sin", "cos", "tan", "asin", "acos", "atan")}
 
 
-def _twin(name: str, fast):
+def _twin(name: str, finish, reduce_fast):
     def array(u) -> np.ndarray:
         u = np.asarray(u, np.float64)
         with np.errstate(all="ignore"):
-            k, hi, lo = _reduce_py(u)
-            out = fast(u, k, hi, lo)
-            bad = ~(np.abs(u) <= LIMIT)
-            if bad.any():
-                out = np.where(bad, direct_array(name, u, _OWN), out)
-        return np.asarray(out, np.float64)
+            out = np.asarray(finish(u, *reduce_fast(u)), np.float64)
+            slow = ~(np.abs(u) <= FAST)
+            if slow.any():
+                out = out.copy()
+                us = u[slow]
+                mid = finish(us, *_reduce_dekker_py(us))
+                far = direct_array(name, us, _OWN)
+                out[slow] = np.where(np.abs(us) <= LIMIT, mid, far)
+        return out
 
     array.__name__ = f"{name}_array"
     array.__doc__ = f"numpy twin of ``{name}_row`` (same bits)."
     return array
 
 
-atantan_array = _twin("atantan", lambda u, k, hi, lo: np.where(k == 0.0, u, hi))
+def _acoscos_np(u, k, hi, lo):
+    odd = _parity_py(k) != 0.0
+    return np.where(odd, _pi_minus_py(np.abs(hi), np.where(hi >= 0.0, lo, -lo)), np.abs(hi))
+
+
+atantan_array = _twin("atantan", lambda u, k, hi, lo: np.where(k == 0.0, u, hi), _reduce_py)
 asinsin_array = _twin(
     "asinsin",
     lambda u, k, hi, lo: np.where(k == 0.0, u, np.where(_parity_py(k) != 0.0, -hi, hi)),
+    _reduce_py,
 )
-acoscos_array = _twin(
-    "acoscos",
-    lambda u, k, hi, lo: np.where(
-        _parity_py(k) != 0.0, _pi_minus_py(np.abs(hi), np.where(hi >= 0.0, lo, -lo)), np.abs(hi)
-    ),
-)
+acoscos_array = _twin("acoscos", _acoscos_np, _reduce_py)
 acotcot_array = _twin(
-    "acotcot", lambda u, k, hi, lo: np.where(hi < 0.0, _pi_plus_py(hi, lo), hi + 0.0)
+    "acotcot", lambda u, k, hi, lo: np.where(hi < 0.0, _pi_plus_py(hi, lo), hi + 0.0), _reduce_cw_py
 )
 
 ARRAYS = {

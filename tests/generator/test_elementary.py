@@ -109,7 +109,13 @@ def _round_trip_arguments() -> np.ndarray:
     near = np.concatenate([k * np.pi / 2, np.nextafter(k * np.pi / 2, np.inf)])
     near = np.concatenate([near, np.nextafter(k * np.pi / 2, -np.inf), k * np.pi])
     big = rng.uniform(1e3, 1e15, 2000) * rng.choice([-1, 1], 2000)
-    return np.concatenate([rng.uniform(-20, 20, 20000), near, big, SPECIAL, [2.0**50, -(2.0**51)]])
+    # Both sides of R.FAST (the vectorised reduction's end), jumps just below it included.
+    kf = np.floor(R.FAST / np.pi) - np.arange(4.0)
+    fast = np.concatenate([kf * np.pi, (kf + 0.5) * np.pi, [R.FAST, np.nextafter(R.FAST, np.inf)]])
+    fast = np.concatenate([fast, -fast, np.nextafter(fast, 0.0)])
+    return np.concatenate(
+        [rng.uniform(-20, 20, 20000), near, big, fast, SPECIAL, [2.0**50, -(2.0**51)]]
+    )
 
 
 @pytest.mark.parametrize("name", R.ROUND_TRIPS)

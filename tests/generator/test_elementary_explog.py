@@ -371,6 +371,7 @@ POW_VALUES = [
     0.0, -0.0, INF, -INF, NAN, 1.0, -1.0, 0.5, -0.5, 2.0, -2.0, 3.0, -3.0, 2.5, -2.5, 1e300, -1e300,
     5e-324, -5e-324, 2.0**52 + 1, -(2.0**52 + 1), 2.0**53, -(2.0**53), 2.0**53 + 2, 1e20, -1e20,
     0.9999999999999999, 1.0000000000000002, 1075.0, -1075.0, 1024.0, -1024.0, 0.3, -0.3,
+    1.5, -1.5, 2.0**-300, 2.0**300, 2.0**-301, 2.0**301,
 ]  # fmt: skip
 
 
@@ -413,6 +414,53 @@ def test_pow_c99_table(x: float, y: float, want: float) -> None:
         assert _same(got, want), f"pow({x!r}, {y!r}) = {got!r}, want {want!r}"
 
 
+@pytest.mark.parametrize("c", [1.5, 3.0])
+def test_pow_exact_exponents_agree_and_are_correctly_rounded(c: float) -> None:
+    """x^1.5 and x^3 take the exact-product path (|x| in [2^-300, 2^300], 0, inf, NaN): the
+    row's fast loop, the row with a lane outside that range (then every lane through the
+    selecting kernel), pow_row_vv, the scalar and the numpy twin agree bit for bit, and the
+    results are within 0.5 ulp + 2^-100 of mpmath's."""
+    rng = np.random.default_rng(15)
+    lo, hi = E.POW_EXACT_LO, E.POW_EXACT_HI
+    edges = np.array([lo, hi, np.nextafter(lo, 0), np.nextafter(hi, INF), -lo, -hi])
+    inside = np.concatenate(
+        [
+            rng.uniform(0.0, 4.0, 3000),
+            rng.choice([-1.0, 1.0], 3000) * 2.0 ** rng.uniform(-299.9, 299.9, 3000),
+            np.round(rng.uniform(1, 2**26, 500)) ** 2,  # exact results for 1.5
+            [0.0, -0.0, INF, -INF, NAN, lo, hi, -lo, -hi, 1.0, -1.0, -2.0],
+        ]
+    )
+    W = np.zeros((3, inside.size))
+    W[0] = inside
+    E.pow_row_vs(W, 1, 0, c, inside.size)
+    twin = E.pow_array(inside, c)
+    assert E._NP_GLOBALS["_pow_exact_lane"](inside, c).all()
+    assert np.array_equal(_bits(W[1]), _bits(twin))
+    mixed = np.concatenate([inside, edges, [5e-324, 1e308, -1e308]])
+    W = np.zeros((3, mixed.size))
+    W[0] = mixed
+    W[2] = c
+    E.pow_row_vs(W, 1, 0, c, mixed.size)
+    twin = E.pow_array(mixed, c)
+    assert np.array_equal(_bits(W[1]), _bits(twin))
+    E.pow_row_vv(W, 1, 0, 2, mixed.size)
+    assert np.array_equal(_bits(W[1]), _bits(twin))
+    out = np.empty_like(mixed)
+    _scalar_loop2(E.pow_scalar, mixed, np.full_like(mixed, c), out)
+    assert np.array_equal(_bits(out), _bits(twin))
+    with np.errstate(all="ignore"):
+        c_pow = np.power(mixed, c)
+    special = ~np.isfinite(c_pow) | (c_pow == 0)
+    assert np.array_equal(
+        _bits(twin[special]), _bits(np.where(np.isnan(c_pow), NAN, c_pow)[special])
+    )
+    finite = np.flatnonzero(np.isfinite(twin[: inside.size]) & (twin[: inside.size] != 0))
+    sample = rng.choice(finite, 1500, replace=False)
+    err = [_ulps(float(twin[i]), mp.power(mp.mpf(mixed[i]), mp.mpf(c))) for i in sample]
+    assert max(err) <= 0.5001, f"{max(err)} ulp"  # one rounding of a 2^-100-accurate sum
+
+
 def test_the_rows_vectorise() -> None:
     """No call and no branch is left in the kernels: LLVM vectorises pow's row (which holds
     log's and exp's kernels). Compiled afresh: numba cannot inspect cached code."""
@@ -425,3 +473,4 @@ def test_the_rows_vectorise() -> None:
     fresh(np.ones((2, 8)), 1, 0, 2.5, 8)
     llvm = fresh.inspect_llvm(fresh.signatures[0])
     assert re.search(r"<(4|8) x double>", llvm)
+    assert re.search(r"llvm\.sqrt\.v(4|8)f64", llvm)  # the x^1.5 loop
