@@ -44,7 +44,7 @@ from surfgen.generator.settings import (
     settings_to_dict,
 )
 
-SAMPLER_VERSION = 5  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5)
+SAMPLER_VERSION = 5  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror
 FAMILIES = ("sculpture", "lattice", "free")
 FAMILY_CHOICES = (*FAMILIES, "mix")
 SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
@@ -105,7 +105,7 @@ class SamplerConfig:
     sculpture_exponent: tuple[float, float] = (1.6, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
     sculpture_stretch_prob: float = 0.15  # one axis of the envelope stretched (breaks symmetry)
     sculpture_groups: tuple[str, ...] = SCULPTURE_GROUPS
-    sculpture_group_weights: tuple[float, ...] = (0.15, 0.2, 0.2, 0.2, 0.1, 0.15)
+    sculpture_group_weights: tuple[float, ...] = (0.2, 0.25, 0.2, 0.15, 0.1, 0.1)
     sculpture_powers: tuple[int, ...] = (1, 2, 3)  # outer power k of the ornament sum
     sculpture_power_weights: tuple[float, ...] = (0.6, 0.25, 0.15)
     sculpture_depth: tuple[float, float] = (0.1, 0.4)  # carving depth / envelope radius
