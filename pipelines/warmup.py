@@ -29,7 +29,7 @@ def warm_shape_kernels() -> float:
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.evaluate import evaluate
     from surfgen.generator.families import envelope_departure, pieces
-    from surfgen.generator.grid import Box, Grid
+    from surfgen.generator.grid import Box, Field, Grid
     from surfgen.generator.mesh import _merge_same, extract_with_edges
     from surfgen.generator.parser import parse
     from surfgen.generator.walls import label_walls
@@ -49,9 +49,13 @@ def warm_shape_kernels() -> float:
     envelope_departure(field.values, field.values)
     envelope_departure(field.values + 0.0, field.values)
     pieces(field.values)
-    # vertices of one grid edge given one index: only meshes with such groups (a crossing on a
-    # box edge of a capped shape, an ambiguous cell) run it, and the warm ball has none
+    # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
+    # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
+    # sample) given an offset from their neighbours; the warm ball has neither.
     _merge_same(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int64), np.arange(3))
+    holed = field.values.copy()
+    holed[7, 7, 7] = np.nan
+    extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's
     seconds = time.perf_counter() - t0
     log.debug("shape kernels ready in %.2f s", seconds)
     return seconds
