@@ -17,7 +17,11 @@ from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.kernels import eval_points
-from surfgen.generator.mesh import JUMP, POLE, ROOT
+from surfgen.generator.mesh import ROOT
+from surfgen.generator.walls import (  # unchanged since: shared, not copied
+    _crossings,
+    _decide,
+)
 
 ROOT_SHRINK = 0.6
 ROOT_FLOOR = 1e-9
@@ -69,48 +73,6 @@ def main_classify(
 
 
 _NB = {"cache": True, "error_model": "numpy", "nogil": True}
-
-
-@njit(inline="always", **_NB)
-def _nanmax(a, b):
-    """np.maximum: NaN propagates."""
-    if a != a or b != b:
-        return np.nan
-    return max(a, b)
-
-
-@njit(**_NB)
-def _decide(mid, end, fa, fb):
-    """The kind of each refined edge from its brackets after the first and the last round."""
-    n = fa.size
-    out = np.empty(n, dtype=np.uint8)
-    for e in range(n):
-        f_lo2, f_hi2 = mid[e, 2], mid[e, 3]
-        lo4, hi4, f_lo4, f_hi4 = end[e, 0], end[e, 1], end[e, 2], end[e, 3]
-        kept_lo = lo4 == 0.0  # the bracket still starts at sample a
-        kept_hi = hi4 == 1.0  # ... or still ends at sample b
-        outside_end = f_hi4 if end[e, 4] != 0.0 else f_lo4
-        scale = (abs(fa[e]) if np.isfinite(fa[e]) else 0.0) + (
-            abs(fb[e]) if np.isfinite(fb[e]) else 0.0
-        )
-        m2 = _nanmax(0.0 if kept_lo else abs(f_lo2), 0.0 if kept_hi else abs(f_hi2))
-        m4 = _nanmax(0.0 if kept_lo else abs(f_lo4), 0.0 if kept_hi else abs(f_hi4))
-        kept_value = abs(fa[e]) if kept_lo else (abs(fb[e]) if kept_hi else 0.0)
-        kept_small = not (kept_lo or kept_hi) or kept_value <= ROOT_KEPT * scale
-        root = kept_small and (m4 <= ROOT_SHRINK * m2 or m4 <= ROOT_FLOOR * scale)
-        ends = _nanmax(abs(f_lo4), abs(f_hi4) if np.isfinite(f_hi4) else 0.0)
-        pole = (
-            np.isinf(outside_end)
-            or (m4 >= POLE_GROWTH * m2 and m4 > 0.0)
-            or ends >= POLE_SCALE * scale
-        )
-        kind = JUMP
-        if pole and not np.isnan(outside_end):  # F becoming NaN is a domain's edge: a jump
-            kind = POLE
-        if root and np.isfinite(outside_end):
-            kind = ROOT
-        out[e] = kind
-    return out
 
 
 @njit(**_NB)
@@ -217,73 +179,3 @@ def _bisect_kernel(
     for r in range(m):
         out[rest[r]] = kinds[r]
     return out, points
-
-
-@njit(inline="always", **_NB)
-def _sign(u):
-    """np.sign (NaN stays NaN; the callers have only finite values)."""
-    if u > 0.0:
-        return 1.0
-    if u < 0.0:
-        return -1.0
-    return u
-
-
-@njit(**_NB)
-def _crossings(values, shape, edges, level, ratio):
-    """Kinds of the vertices' edges from the samples alone, and the suspects.
-
-    Rows with axis -1, at the grid's end, or whose samples are on the same side (inside is
-    ``F < level``, finite) are UNKNOWN, the others ROOT.  A crossing is *suspect* unless both
-    neighbours along its grid line exist and the secants look smooth (step 1 of the module's
-    docstring): returns
-    the kinds, and for the suspects their rows, ``fa``, ``fb`` (``F - level`` at the edge's
-    samples) and whether sample a is inside.
-    """
-    n = edges.shape[0]
-    kinds = np.full(n, UNKNOWN, dtype=np.uint8)
-    rows = np.empty(n, dtype=np.int64)
-    out_a = np.empty(n)
-    out_b = np.empty(n)
-    out_in = np.empty(n, dtype=np.bool_)
-    strides = (shape[1] * shape[2], shape[2], 1)
-    count = 0
-    for v in range(n):
-        axis = edges[v, 0]
-        if axis < 0:
-            continue
-        pos = edges[v, 1 + axis]
-        length = shape[axis]
-        if pos + 1 >= length:
-            continue
-        step = strides[axis]
-        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
-        ib = ia + step
-        fa = values[ia] - level
-        fb = values[ib] - level
-        ina = np.isfinite(fa) and fa < 0.0
-        if ina == (np.isfinite(fb) and fb < 0.0):
-            continue
-        kinds[v] = ROOT
-        smooth = False
-        if pos >= 1 and pos + 2 < length:
-            fm = values[ia - step] - level
-            fp = values[ib + step] - level
-            d = fb - fa
-            dm = fa - fm
-            dp = fp - fb
-            smooth = np.isfinite(dm + d + dp) and (
-                (
-                    _sign(dm) == _sign(d)
-                    and _sign(dp) == _sign(d)
-                    and abs(d) <= ratio * max(abs(dm), abs(dp))
-                )
-                or abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp))
-            )
-        if not smooth:
-            rows[count] = v
-            out_a[count] = fa
-            out_b[count] = fb
-            out_in[count] = ina
-            count += 1
-    return kinds, rows[:count], out_a[:count], out_b[:count], out_in[:count]

@@ -18,15 +18,14 @@ from walls_main import (  # the frozen copy of main's classifier before walls2
     SEPARATION_T,
     SMOOTH_RATIO,
     UNKNOWN,
-    _decide,
     _points_minus_level,
-    _sign,
 )
 
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.mesh import ROOT
+from surfgen.generator.walls import _decide, _sign
 
 ROUNDS = 2  # refinement rounds ...
 POINTS = 3  # ... of this many points each: the bracket shrinks 4x per round
