@@ -1041,6 +1041,34 @@ def _gather(values, at):
 
 
 @njit(**_OPTS)
+def _pack_maps(pair_parts, pair_keys, has, ids, n, map_at):
+    """The ``maps`` of :func:`run_lattice`: each pair level's two parts (the entries of its
+    variables' stores, ``pair_keys[q]`` = (pair level, variable level)), then for the xyz
+    level the entry of every point in each level it has; ``map_at`` records where each
+    starts."""
+    total_maps = 0
+    for part in pair_parts:
+        total_maps += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            total_maps += n
+    maps = np.empty(max(total_maps, 1), dtype=np.int64)
+    at = 0
+    for q in range(len(pair_parts)):
+        lv, k = pair_keys[q]
+        map_at[lv, k] = at
+        part = pair_parts[q]
+        maps[at : at + part.size] = part
+        at += part.size
+    for k in (1, 2, 4, 3, 5, 6):
+        if has[k]:
+            map_at[7, k] = at
+            maps[at : at + n] = ids[k]
+            at += n
+    return maps
+
+
+@njit(**_OPTS)
 def eval_points(prog, tile, active, rows, px, py, pz, out):
     """Evaluate a points program at ``(px[p], py[p], pz[p])`` into ``out[p]``, each level once
     per distinct value it needs (:func:`run_lattice`): its plan made here, in one call.
@@ -1077,25 +1105,7 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
         pair_keys.append((lv, a))
         pair_parts.append(_gather(ids[b], first))
         pair_keys.append((lv, b))
-    total_maps = 0
-    for part in pair_parts:
-        total_maps += part.size
-    for k in (1, 2, 4, 3, 5, 6):
-        if has[k]:
-            total_maps += n
-    maps = np.empty(max(total_maps, 1), dtype=np.int64)
-    at = 0
-    for q in range(len(pair_parts)):
-        lv, k = pair_keys[q]
-        map_at[lv, k] = at
-        part = pair_parts[q]
-        maps[at : at + part.size] = part
-        at += part.size
-    for k in (1, 2, 4, 3, 5, 6):
-        if has[k]:
-            map_at[7, k] = at
-            maps[at : at + n] = ids[k]
-            at += n
+    maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
     offsets = np.zeros(8, dtype=np.int64)
     total = 0
     for k in (1, 2, 3, 4, 5, 6):
@@ -1216,25 +1226,7 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
         pair_keys.append((lv, va))
         pair_parts.append(_gather(ids[other], pfirst))
         pair_keys.append((lv, other))
-    total_maps = 0
-    for part in pair_parts:
-        total_maps += part.size
-    for k in (1, 2, 4, 3, 5, 6):
-        if has[k]:
-            total_maps += n
-    maps = np.empty(max(total_maps, 1), dtype=np.int64)
-    at = 0
-    for q in range(len(pair_parts)):
-        lv, k = pair_keys[q]
-        map_at[lv, k] = at
-        part = pair_parts[q]
-        maps[at : at + part.size] = part
-        at += part.size
-    for k in (1, 2, 4, 3, 5, 6):
-        if has[k]:
-            map_at[7, k] = at
-            maps[at : at + n] = ids[k]
-            at += n
+    maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
     total = fixed_end
     for k in (va, va | vb, va | vc):
         offsets[k] = total
