@@ -61,6 +61,7 @@ side changes), bisection follows one of them, so kinds there are a guess.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -81,7 +82,7 @@ from surfgen.generator.mesh import (
     Mesh,
     compact_mesh,
     extract_with_edges,
-    wall_share,
+    face_cross,
 )
 
 log = logging.getLogger(__name__)
@@ -180,9 +181,18 @@ def label_walls(
     lets a caller look at the mesh before paying for the classification."""
     check_walls_mode(walls)
     kinds, refined, points = _classify(field, tree, params, level, edges)
-    face_kinds = face_kinds_of(mesh, edges, kinds, cap and walls != "remove", field)
-    labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
     counts = np.bincount(kinds, minlength=256)
+    # one pass labels the faces and, where an edge is a wall, sums the areas (wall_share's sums)
+    face_kinds, wall, total = _label_faces(
+        mesh.vertices,
+        mesh.faces,
+        kinds,
+        cap and walls != "remove",
+        np.asarray(field.grid.box.lo, dtype=np.float64),
+        np.asarray(field.grid.box.hi, dtype=np.float64),
+        bool(counts[POLE] + counts[JUMP]),
+    )
+    labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
     report = WallReport(
         edges=int(counts[ROOT] + counts[POLE] + counts[JUMP]),
         refined=refined,
@@ -190,7 +200,7 @@ def label_walls(
         roots=int(counts[ROOT]),
         poles=int(counts[POLE]),
         jumps=int(counts[JUMP]),
-        wall_fraction=wall_share(labelled.vertices, labelled.faces, face_kinds),
+        wall_fraction=float(wall / total) if wall > 0.0 and total > 0.0 else 0.0,
     )
     log.debug("walls: %s", report)
     if walls == "keep":
@@ -241,7 +251,7 @@ def _classify(
         return kinds, 0, 0
     prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
     ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64) for a in field.grid.axes())
-    kinds[idx], points = _bisect_kernel(
+    points = _bisect_kernel(
         prog,
         tile,
         active,
@@ -249,11 +259,12 @@ def _classify(
         float(level),
         (ax, ay, az),
         np.asarray(field.grid.spacing, dtype=np.float64),
-        np.ascontiguousarray(edges[idx, 1:]),
-        np.ascontiguousarray(edges[idx, 0]),
+        edges,
+        idx,
         ina,
         fa,
         fb,
+        kinds,
     )
     return kinds, int(idx.size), int(points)
 
@@ -272,9 +283,16 @@ def _nanmax(a, b):
 @njit(**_NB)
 def _decide(mid, end, fa, fb):
     """The kind of each refined edge from its brackets after the first and the last round."""
-    n = fa.size
+    return _decide_rows(mid, end, fa, fb, np.arange(fa.size))
+
+
+@njit(**_NB)
+def _decide_rows(mid, end, fa, fb, rest):
+    """:func:`_decide` of rows ``rest`` (read in place, without copies of the rows)."""
+    n = rest.size
     out = np.empty(n, dtype=np.uint8)
-    for e in range(n):
+    for r in range(n):
+        e = rest[r]
         f_lo2, f_hi2 = mid[e, 2], mid[e, 3]
         lo4, hi4, f_lo4, f_hi4 = end[e, 0], end[e, 1], end[e, 2], end[e, 3]
         kept_lo = lo4 == 0.0  # the bracket still starts at sample a
@@ -299,7 +317,7 @@ def _decide(mid, end, fa, fb):
             kind = POLE
         if root and np.isfinite(outside_end):
             kind = ROOT
-        out[e] = kind
+        out[r] = kind
     return out
 
 
@@ -444,34 +462,43 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
     # a bracket still ending at a sample that does not read as a root is bisected twice more
     # (a steep root next to a sample shows only closer to it)
-    kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+    kinds = _decide_rows(before, now, fa, fb, rest)
     held = np.empty(m, dtype=np.int64)
+    held_at = np.empty(m, dtype=np.int64)  # their places in rest
     n_held = 0
     for r in range(m):
         e = rest[r]
         if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] != ROOT:
             held[n_held] = e
+            held_at[n_held] = r
             n_held += 1
             for k in range(5):
                 before[e, k] = now[e, k]
-    for _ in range(BISECTIONS):
-        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
-    kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+    if n_held:  # only their brackets changed: only their kinds are decided again
+        for _ in range(BISECTIONS):
+            points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
+        again = _decide_rows(before, now, fa, fb, held[:n_held])
+        for q in range(n_held):
+            kinds[held_at[q]] = again[q]
     # a jump whose M shrank, but by less than a root's: twice more (a root on the flank of a
     # spike, or curved, shrinks as the bracket closes in; a jump's M stays)
     unsure = np.empty(m, dtype=np.int64)
+    unsure_at = np.empty(m, dtype=np.int64)
     n_unsure = 0
     for r in range(m):
         e = rest[r]
         if kinds[r] == JUMP and _shrink(before, now, e) < UNSURE:
             unsure[n_unsure] = e
+            unsure_at[n_unsure] = r
             n_unsure += 1
             for k in range(5):
                 before[e, k] = now[e, k]
     if n_unsure:
         for _ in range(BISECTIONS):
             points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, unsure[:n_unsure])
-        kinds = _decide(before[rest], now[rest], fa[rest], fb[rest])
+        again = _decide_rows(before, now, fa, fb, unsure[:n_unsure])
+        for q in range(n_unsure):
+            kinds[unsure_at[q]] = again[q]
     for r in range(m):
         out[rest[r]] = kinds[r]
     return out, points
@@ -490,28 +517,51 @@ def _shrink(mid, end, e):
 
 
 @njit(**_NB)
-def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_inside, fa, fb):
-    """Kinds of suspect edges, axis by axis (:func:`_classify_axis`; the formula's levels that
-    do not vary along an axis are computed once per edge, :func:`kernels.edge_lattice`).
-    Returns the kinds and the number of points evaluated."""
-    n = fa.size
-    out = np.empty(n, dtype=np.uint8)
+def _bisect_kernel(
+    prog, tile, active, rows, level, axes, spacing, edges, idx, a_inside, fa, fb, kinds
+):
+    """Kinds of the suspect edges ``edges[idx]`` into ``kinds[idx]``, axis by axis
+    (:func:`_classify_axis`; the formula's levels that do not vary along an axis are computed
+    once per edge, :func:`kernels.edge_lattice`).  Returns the number of points evaluated."""
+    n = idx.size
+    # the suspects grouped by axis (in their order within an axis), without numpy's fancy
+    # indexing: their starts, grid indices and samples
+    starts = np.zeros(4, dtype=np.int64)
+    for r in range(n):
+        starts[edges[idx[r], 0] + 1] += 1
+    for a in range(3):
+        starts[a + 1] += starts[a]
+    order = np.empty(n, dtype=np.int64)
+    fill = starts[:3].copy()
+    for r in range(n):
+        a = edges[idx[r], 0]
+        order[fill[a]] = r
+        fill[a] += 1
+    ijk = np.empty((n, 3), dtype=np.int64)
+    s_in = np.empty(n, dtype=np.bool_)
+    s_fa = np.empty(n)
+    s_fb = np.empty(n)
+    for q in range(n):
+        r = order[q]
+        for k in range(3):
+            ijk[q, k] = edges[idx[r], 1 + k]
+        s_in[q], s_fa[q], s_fb[q] = a_inside[r], fa[r], fb[r]
     points = 0
     for a in range(3):
-        members = np.flatnonzero(axis == a)
-        if members.size == 0:
+        s0, s1 = starts[a], starts[a + 1]
+        m = s1 - s0
+        if m == 0:
             continue
-        sub = np.ascontiguousarray(ijk[members])
+        sub = ijk[s0:s1]
         ctx = edge_lattice(prog, tile, active, rows, a, sub, axes)
-        u0 = np.empty(members.size)
-        t = np.empty(members.size)
-        for r in range(members.size):
-            u0[r] = axes[a][sub[r, a]]
-            e = members[r]
+        u0 = np.empty(m)
+        t = np.empty(m)
+        for r in range(m):
             pos = sub[r, a]
+            u0[r] = axes[a][pos]
             border = pos < 1 or pos + 2 >= axes[a].size  # no grid line to judge the profile
-            t[r] = _first_point(fa[e], fb[e]) if border else 0.5
-        kinds, pts = _classify_axis(
+            t[r] = _first_point(s_fa[s0 + r], s_fb[s0 + r]) if border else 0.5
+        got, pts = _classify_axis(
             prog,
             tile,
             active,
@@ -520,14 +570,15 @@ def _bisect_kernel(prog, tile, active, rows, level, axes, spacing, ijk, axis, a_
             level,
             u0,
             spacing[a],
-            a_inside[members],
-            fa[members],
-            fb[members],
+            s_in[s0:s1],
+            s_fa[s0:s1],
+            s_fb[s0:s1],
             t,
         )
-        out[members] = kinds
+        for r in range(m):
+            kinds[idx[order[s0 + r]]] = got[r]
         points += pts
-    return out, points
+    return points
 
 
 @njit(inline="always", **_NB)
@@ -557,7 +608,8 @@ def _crossings(values, shape, edges, level, ratio):
     out_a = np.empty(n)
     out_b = np.empty(n)
     out_in = np.empty(n, dtype=np.bool_)
-    strides = (shape[1] * shape[2], shape[2], 1)
+    s0 = shape[1] * shape[2]
+    s1 = shape[2]
     count = 0
     for v in range(n):
         axis = edges[v, 0]
@@ -567,8 +619,8 @@ def _crossings(values, shape, edges, level, ratio):
         length = shape[axis]
         if pos + 1 >= length:
             continue
-        step = strides[axis]
-        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
+        step = s0 if axis == 0 else (s1 if axis == 1 else 1)
+        ia = edges[v, 1] * s0 + edges[v, 2] * s1 + edges[v, 3]
         ib = ia + step
         fa = values[ia] - level
         fb = values[ib] - level
@@ -576,27 +628,29 @@ def _crossings(values, shape, edges, level, ratio):
         if ina == (np.isfinite(fb) and fb < 0.0):
             continue
         kinds[v] = ROOT
-        smooth = False
-        if pos >= 1 and pos + 2 < length:
-            fm = values[ia - step] - level
-            fp = values[ib + step] - level
-            d = fb - fa
-            dm = fa - fm
-            dp = fp - fb
-            smooth = np.isfinite(dm + d + dp) and (
-                (
-                    _sign(dm) == _sign(d)
-                    and _sign(dp) == _sign(d)
-                    and abs(d) <= ratio * max(abs(dm), abs(dp))
-                )
+        # the neighbours along the grid line (the edge's own samples at the grid's border,
+        # where the edge is suspect whatever they are); the test without branches, as the
+        # verdict is unpredictable from one vertex to the next
+        inner = pos >= 1 and pos + 2 < length
+        fm = values[ia - step if pos >= 1 else ia] - level
+        fp = values[ib + step if pos + 2 < length else ib] - level
+        d = fb - fa
+        dm = fa - fm
+        dp = fp - fb
+        one_sign = _sign(dm) == _sign(d) and _sign(dp) == _sign(d)
+        smooth = (
+            inner
+            and np.isfinite(dm + d + dp)
+            and (
+                (one_sign and abs(d) <= ratio * max(abs(dm), abs(dp)))
                 or abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp))
             )
-        if not smooth:
-            rows[count] = v
-            out_a[count] = fa
-            out_b[count] = fb
-            out_in[count] = ina
-            count += 1
+        )
+        rows[count] = v
+        out_a[count] = fa
+        out_b[count] = fb
+        out_in[count] = ina
+        count += not smooth
     return kinds, rows[:count], out_a[:count], out_b[:count], out_in[:count]
 
 
@@ -615,34 +669,49 @@ def face_kinds_of(
 
 @njit(**_NB)
 def _face_kinds(v, f, kinds, cap, lo, hi):
+    return _label_faces(v, f, kinds, cap, lo, hi, False)[0]
+
+
+@njit(**_NB)
+def _label_faces(v, f, kinds, cap, lo, hi, areas):
+    """:func:`face_kinds_of`'s kinds; with ``areas``, also the area on wall faces and in all
+    (:func:`~surfgen.generator.mesh.wall_share`'s sums: the same operations in face order).
+    Branch-free per vertex (kinds through small tables): walls and roots interleave."""
     n_faces = f.shape[0]
-    out = np.full(n_faces, ROOT, dtype=np.uint8)
+    out = np.empty(n_faces, dtype=np.uint8)
+    known_of = np.ones(256, dtype=np.int64)
+    known_of[UNKNOWN] = 0
+    wall_of = np.zeros(256, dtype=np.int64)
+    wall_of[POLE] = wall_of[JUMP] = 1
+    pole_of = np.zeros(256, dtype=np.int64)
+    pole_of[POLE] = 1
     bits = np.zeros(v.shape[0], dtype=np.uint8)
     if cap:
         # One bit per box face for each vertex on it; a cap face has a bit all three share.
         for i in range(v.shape[0]):
             b = 0
             for k in range(3):
-                if v[i, k] == lo[k]:
-                    b |= 1 << (2 * k)
-                if v[i, k] == hi[k]:
-                    b |= 1 << (2 * k + 1)
+                b |= np.int64(v[i, k] == lo[k]) << (2 * k)
+                b |= np.int64(v[i, k] == hi[k]) << (2 * k + 1)
             bits[i] = b
+    wall_area = 0.0
+    total = 0.0
     for n in range(n_faces):
-        if cap and (bits[f[n, 0]] & bits[f[n, 1]] & bits[f[n, 2]]) != 0:
-            out[n] = CAP
-            continue
-        known = 0
-        wall = 0
-        pole = False
-        for c in range(3):
-            kind = kinds[f[n, c]]
-            if kind != UNKNOWN:
-                known += 1
-            if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
-                wall += 1
-            if kind == POLE:
-                pole = True
+        i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
+        k0, k1, k2 = kinds[i0], kinds[i1], kinds[i2]
+        known = known_of[k0] + known_of[k1] + known_of[k2]
+        wall = wall_of[k0] + wall_of[k1] + wall_of[k2]
+        pole = pole_of[k0] + pole_of[k1] + pole_of[k2]
+        kind = ROOT
         if 2 * wall > known:
-            out[n] = POLE if pole else JUMP
-    return out
+            kind = POLE if pole > 0 else JUMP
+        if (bits[i0] & bits[i1] & bits[i2]) != 0:
+            kind = CAP
+        out[n] = kind
+        if areas:
+            x, y, z = face_cross(v, i0, i1, i2)
+            a = 0.5 * math.sqrt(x * x + y * y + z * z)
+            total += a
+            if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
+                wall_area += a
+    return out, wall_area, total
