@@ -22,7 +22,9 @@ the zero set.
    when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the sample on the same side of the level as the
    midpoint (a pole or a jump keeps |F| at least as large as that sample's between it and the
    wall: |F| does not fall away from a wall; a sample exactly at the level never certifies).
-   Else the half edge where the side changes is the bracket.
+   ``NEAR_ROOT`` is 1/2: F linear through a root anywhere on the edge has
+   ``|F(1/2)| <= |F(s)| / 2``, so the midpoint settles every near-linear root, halfway between
+   a root's profile and a wall's.  Else the half edge where the side changes is the bracket.
 3. *Secant step.*  Where |F| at the midpoint is below that sample's (not a wall's profile), F
    at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root by
    the same test against the bracket's end on its side; else it narrows the bracket.
@@ -96,7 +98,7 @@ POLE_GROWTH = 2.5
 POLE_SCALE = 4.0
 SMOOTH_RATIO = 2.0
 SMOOTH_THIRD = 1.0
-NEAR_ROOT = 0.25
+NEAR_ROOT = 0.5  # see step 2 of the docstring
 UNSURE = 0.9  # a jump whose M shrank below this share is bisected twice more
 BISECTIONS = 2  # at most, after the midpoint; as many again where the bracket ends at a sample
 SECANT_GRID = 16.0  # the secant step's point: a multiple of 1/16 of the edge
@@ -608,8 +610,7 @@ def _crossings(values, shape, edges, level, ratio):
     out_a = np.empty(n)
     out_b = np.empty(n)
     out_in = np.empty(n, dtype=np.bool_)
-    s0 = shape[1] * shape[2]
-    s1 = shape[2]
+    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
     count = 0
     for v in range(n):
         axis = edges[v, 0]
@@ -619,31 +620,35 @@ def _crossings(values, shape, edges, level, ratio):
         length = shape[axis]
         if pos + 1 >= length:
             continue
-        step = s0 if axis == 0 else (s1 if axis == 1 else 1)
-        ia = edges[v, 1] * s0 + edges[v, 2] * s1 + edges[v, 3]
+        step = strides[axis]
+        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
         ib = ia + step
         fa = values[ia] - level
         fb = values[ib] - level
-        ina = np.isfinite(fa) and fa < 0.0
-        if ina == (np.isfinite(fb) and fb < 0.0):
+        ina = fa < 0.0 and fa > -np.inf  # inside: finite and below the level
+        if ina == (fb < 0.0 and fb > -np.inf):
             continue
         kinds[v] = ROOT
-        # the neighbours along the grid line (the edge's own samples at the grid's border,
-        # where the edge is suspect whatever they are); the test without branches, as the
-        # verdict is unpredictable from one vertex to the next
-        inner = pos >= 1 and pos + 2 < length
-        fm = values[ia - step if pos >= 1 else ia] - level
-        fp = values[ib + step if pos + 2 < length else ib] - level
+        # The neighbours along the grid line (at the grid's border the edge's own samples:
+        # the edge is suspect whatever they are).  The test is written without branches, as
+        # its verdict is unpredictable from one vertex to the next: one sign is
+        # _sign(dm) == _sign(d) == _sign(dp) (d is not 0: the samples are on both sides).
+        lo_ok = pos >= 1
+        hi_ok = pos + 2 < length
+        fm = values[ia - step * lo_ok] - level
+        fp = values[ib + step * hi_ok] - level
         d = fb - fa
         dm = fa - fm
         dp = fp - fb
-        one_sign = _sign(dm) == _sign(d) and _sign(dp) == _sign(d)
+        one_sign = ((dm > 0.0) == (d > 0.0)) & (dm != 0.0) & ((dp > 0.0) == (d > 0.0)) & (dp != 0.0)
+        total = dm + d + dp
         smooth = (
-            inner
-            and np.isfinite(dm + d + dp)
-            and (
-                (one_sign and abs(d) <= ratio * max(abs(dm), abs(dp)))
-                or abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp))
+            lo_ok
+            & hi_ok
+            & (total - total == 0.0)  # all finite
+            & (
+                (one_sign & (abs(d) <= ratio * max(abs(dm), abs(dp))))
+                | (abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp)))
             )
         )
         rows[count] = v
