@@ -29,8 +29,9 @@ the zero set.
    at the secant estimate inside the half edge (rounded to a sixteenth of the edge): a root by
    the same test against the bracket's end on its side; else it narrows the bracket.
 4. *Bisection.*  The bracket is bisected until it is a quarter of the first one (at most
-   twice); where it still ends at a sample and does not read as a root (below), twice more (a
-   steep root next to a sample shows only closer to it); where it reads as a jump whose ``M``
+   twice); where it still ends at a sample and reads as a jump (below), twice more (a steep
+   root next to a sample shows only closer to it: until then its ``M`` stays, as a jump's; it
+   does not grow as a pole's, so a bracket that reads as a pole is not held); where it reads as a jump whose ``M``
    shrank, but to more than ``ROOT_SHRINK`` and less than ``UNSURE`` of ``M1``, twice more (a
    root on the flank of a spike, or a curved one, keeps shrinking; a jump's ``M`` stays).
    ``M`` is the largest ``|F - level|`` at a bracket's ends, leaving out an end that is still a
@@ -46,7 +47,7 @@ the zero set.
      of a domain).
 
    A suspect costs one point when the midpoint shows a root, two when the secant step does,
-   else three (five next to a sample or where M shrank a little), plus the secant step where
+   else three (five for a jump next to a sample or where M shrank a little), plus the secant step where
    |F| dipped.
 
 Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, 1/8, ...), so the formula
@@ -462,15 +463,15 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     for _ in range(BISECTIONS):
         sel = _wider(now, before, rest)
         points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel)
-    # a bracket still ending at a sample that does not read as a root is bisected twice more
-    # (a steep root next to a sample shows only closer to it)
+    # a bracket still ending at a sample that reads as a jump is bisected twice more (a steep
+    # root next to a sample shows only closer to it)
     kinds = _decide_rows(before, now, fa, fb, rest)
     held = np.empty(m, dtype=np.int64)
     held_at = np.empty(m, dtype=np.int64)  # their places in rest
     n_held = 0
     for r in range(m):
         e = rest[r]
-        if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] != ROOT:
+        if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] == JUMP:
             held[n_held] = e
             held_at[n_held] = r
             n_held += 1

@@ -227,7 +227,7 @@ def reference_kinds(field, tree, level, edges):
         wide = now[rest, 1] - now[rest, 0] > 0.25 * (before[rest, 1] - before[rest, 0])
         bisect(rest[wide])
     first = w._decide(before[rest], now[rest], fa[rest], fb[rest])
-    held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first != ROOT)]
+    held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first == JUMP)]
     before[held] = now[held]
     for _ in range(w.BISECTIONS):
         bisect(held)
