@@ -185,17 +185,19 @@ def label_walls(
     check_walls_mode(walls)
     kinds, refined, points = _classify(field, tree, params, level, edges)
     counts = np.bincount(kinds, minlength=256)
-    # one pass labels the faces and, where an edge is a wall, sums the areas (wall_share's sums)
-    face_kinds, wall, total = _label_faces(
-        mesh.vertices,
-        mesh.faces,
-        kinds,
-        cap and walls != "remove",
-        np.asarray(field.grid.box.lo, dtype=np.float64),
-        np.asarray(field.grid.box.hi, dtype=np.float64),
-        bool(counts[POLE] + counts[JUMP]),
-    )
-    labelled = Mesh(mesh.vertices, mesh.faces, face_kinds)
+    any_wall = bool(counts[POLE] + counts[JUMP])
+    if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
+        face_kinds, wall, total = None, 0.0, 0.0
+    else:  # one pass labels the faces and, with walls, sums the areas (wall_share's sums)
+        face_kinds, wall, total = _label_faces(
+            mesh.vertices,
+            mesh.faces,
+            kinds,
+            cap and walls != "remove",
+            np.asarray(field.grid.box.lo, dtype=np.float64),
+            np.asarray(field.grid.box.hi, dtype=np.float64),
+            any_wall,
+        )
     report = WallReport(
         edges=int(counts[ROOT] + counts[POLE] + counts[JUMP]),
         refined=refined,
@@ -209,7 +211,7 @@ def label_walls(
     if walls == "keep":
         return mesh, report
     if walls == "mark":
-        return labelled, report
+        return Mesh(mesh.vertices, mesh.faces, face_kinds), report
     keep = ~np.isin(face_kinds, WALL_KINDS)
     if not keep.any():
         raise EmptySurface(
@@ -682,36 +684,36 @@ def _face_kinds(v, f, kinds, cap, lo, hi):
 def _label_faces(v, f, kinds, cap, lo, hi, areas):
     """:func:`face_kinds_of`'s kinds; with ``areas``, also the area on wall faces and in all
     (:func:`~surfgen.generator.mesh.wall_share`'s sums: the same operations in face order).
-    Branch-free per vertex (kinds through small tables): walls and roots interleave."""
+
+    One code per vertex, so that a face needs three loads and no branch per vertex (walls and
+    roots interleave): the low byte counts ``known + 4 wall + 16 pole`` (the sums of three stay
+    below 64, so the fields do not carry into each other), the high byte has one bit per box
+    face the vertex lies on (a cap face has a bit all three share)."""
+    n_vertices = v.shape[0]
+    table = np.zeros(256, dtype=np.int32)  # UNKNOWN counts for nothing
+    table[ROOT] = 1
+    table[POLE] = 1 + 4 + 16
+    table[JUMP] = 1 + 4
+    code = np.empty(n_vertices, dtype=np.int32)
+    for i in range(n_vertices):
+        b = np.int32(0)
+        if cap:
+            for k in range(3):
+                b |= np.int32(v[i, k] == lo[k]) << (2 * k)
+                b |= np.int32(v[i, k] == hi[k]) << (2 * k + 1)
+        code[i] = table[kinds[i]] | (b << 8)
     n_faces = f.shape[0]
     out = np.empty(n_faces, dtype=np.uint8)
-    known_of = np.ones(256, dtype=np.int64)
-    known_of[UNKNOWN] = 0
-    wall_of = np.zeros(256, dtype=np.int64)
-    wall_of[POLE] = wall_of[JUMP] = 1
-    pole_of = np.zeros(256, dtype=np.int64)
-    pole_of[POLE] = 1
-    bits = np.zeros(v.shape[0], dtype=np.uint8)
-    if cap:
-        # One bit per box face for each vertex on it; a cap face has a bit all three share.
-        for i in range(v.shape[0]):
-            b = 0
-            for k in range(3):
-                b |= np.int64(v[i, k] == lo[k]) << (2 * k)
-                b |= np.int64(v[i, k] == hi[k]) << (2 * k + 1)
-            bits[i] = b
     wall_area = 0.0
     total = 0.0
     for n in range(n_faces):
         i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
-        k0, k1, k2 = kinds[i0], kinds[i1], kinds[i2]
-        known = known_of[k0] + known_of[k1] + known_of[k2]
-        wall = wall_of[k0] + wall_of[k1] + wall_of[k2]
-        pole = pole_of[k0] + pole_of[k1] + pole_of[k2]
+        c0, c1, c2 = code[i0], code[i1], code[i2]
+        counts = (c0 + c1 + c2) & 255
         kind = ROOT
-        if 2 * wall > known:
-            kind = POLE if pole > 0 else JUMP
-        if (bits[i0] & bits[i1] & bits[i2]) != 0:
+        if 2 * ((counts >> 2) & 3) > (counts & 3):  # most of its labelled vertices are walls
+            kind = POLE if counts >= 16 else JUMP
+        if (c0 & c1 & c2) >> 8 != 0:
             kind = CAP
         out[n] = kind
         if areas:
