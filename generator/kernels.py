@@ -953,6 +953,7 @@ def dedupe(keys):
         cap *= 2
     mask = np.uint64(cap - 1)
     table = np.full(cap, -1, dtype=np.int64)
+    held = np.empty(cap, dtype=np.int64)  # the key in each used slot: no lookup through first
     first = np.empty(n, dtype=np.int64)
     ids = np.empty(n, dtype=np.int64)
     m = 0
@@ -965,14 +966,40 @@ def dedupe(keys):
             t = table[h]
             if t == -1:
                 table[h] = m
+                held[h] = k
                 first[m] = p
                 ids[p] = m
                 m += 1
                 break
-            if keys[first[t]] == k:
+            if held[h] == k:
                 ids[p] = t
                 break
             h = (h + np.uint64(1)) & mask
+    return ids, first[:m]
+
+
+@njit(**_OPTS)
+def dedupe_in(keys, size):
+    """:func:`dedupe` of keys known to lie in ``[0, size)`` (pairs of dense ids): the same
+    ``ids`` and ``first``, through a table indexed by the key where it is small enough (no
+    hashing, no probing), else :func:`dedupe`."""
+    n = keys.size
+    if size > 8 * n + 4096:
+        return dedupe(keys)
+    table = np.full(size, -1, dtype=np.int32)
+    first = np.empty(n, dtype=np.int64)
+    ids = np.empty(n, dtype=np.int64)
+    m = 0
+    for p in range(n):
+        k = keys[p]
+        t = table[k]
+        if t == -1:
+            table[k] = m
+            first[m] = p
+            ids[p] = m
+            m += 1
+        else:
+            ids[p] = t
     return ids, first[:m]
 
 
@@ -1097,7 +1124,7 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     for lv, a, b in ((3, 1, 2), (5, 1, 4), (6, 2, 4)):
         if not active[lv]:
             continue
-        ids_lv, first = dedupe(ids[a] * sizes[b] + ids[b])
+        ids_lv, first = dedupe_in(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b])
         ids[lv] = ids_lv
         sizes[lv] = first.size
         has[lv] = True
@@ -1147,7 +1174,7 @@ def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
         keys = np.empty(n, dtype=np.int64)
         for e in range(n):
             keys[e] = ijk[e, b] * nc + ijk[e, c]
-        pair_ids, pair_first = dedupe(keys)
+        pair_ids, pair_first = dedupe_in(keys, nb * nc)
         sizes[vb | vc] = pair_first.size
     offsets = np.zeros(8, dtype=np.int64)
     total = 0
@@ -1218,7 +1245,7 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
         lv = va | other
         if not active[lv]:
             continue
-        pid, pfirst = dedupe(ids[va] * nother + ids[other])
+        pid, pfirst = dedupe_in(ids[va] * nother + ids[other], sizes[va] * nother)
         ids[lv] = pid
         sizes[lv] = pfirst.size
         has[lv] = True
