@@ -251,7 +251,9 @@ def _classify(
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
     edges = np.ascontiguousarray(edges, dtype=np.int64)
-    kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
+    kinds, idx, fa, fb, ina, ijk, axis = _crossings_core(
+        values, shape, edges, float(level), SMOOTH_RATIO
+    )
     if idx.size == 0:
         return kinds, 0, 0
     prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
@@ -264,7 +266,8 @@ def _classify(
         float(level),
         (ax, ay, az),
         np.asarray(field.grid.spacing, dtype=np.float64),
-        edges,
+        ijk,
+        axis,
         idx,
         ina,
         fa,
@@ -331,11 +334,13 @@ def _split(now, e, s, f):
     """Keep the part of bracket ``now[e]`` (lo, hi, f_lo, f_hi, lo_inside) where the side
     changes, given ``f = F(s) - level`` at a point ``s`` inside it."""
     inside = np.isfinite(f) and f < 0.0
-    if (now[e, 4] != 0.0) != inside:  # the side changes between lo and s
-        now[e, 1], now[e, 3] = s, f
-    else:
-        now[e, 0], now[e, 2] = s, f
-        now[e, 4] = 1.0 if inside else 0.0
+    lower = (now[e, 4] != 0.0) != inside  # the side changes between lo and s
+    # selects, not branches: which half keeps the change is unpredictable
+    now[e, 1] = s if lower else now[e, 1]
+    now[e, 3] = f if lower else now[e, 3]
+    now[e, 0] = now[e, 0] if lower else s
+    now[e, 2] = now[e, 2] if lower else f
+    now[e, 4] = now[e, 4] if lower else (1.0 if inside else 0.0)
 
 
 @njit(**_NB)
@@ -410,7 +415,7 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     dips = np.empty(n, dtype=np.int64)
     m = 0
     n_dips = 0
-    for e in range(n):
+    for e in range(n):  # without a branch per verdict: roots and walls interleave
         f = fs[e] - level
         a, b = abs(fa[e]), abs(fb[e])
         finite = (
@@ -419,21 +424,21 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
             and (fa[e] / (fa[e] - fb[e])) == (fa[e] / (fa[e] - fb[e]))
         )
         inside = np.isfinite(f) and f < 0.0
-        far = a if a_inside[e] == inside else b  # the sample on the point's side
-        if finite and abs(f) < NEAR_ROOT * far:
-            continue  # a root
-        if inside == a_inside[e]:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = t[e], 1.0, f, fb[e]
-            now[e, 4] = 1.0 if inside else 0.0
-        else:
-            now[e, 0], now[e, 1], now[e, 2], now[e, 3] = 0.0, t[e], fa[e], f
-            now[e, 4] = 1.0 if a_inside[e] else 0.0
+        upper = inside == a_inside[e]  # the side changes between the point and sample b
+        far = a if upper else b  # the sample on the point's side
+        root = finite and abs(f) < NEAR_ROOT * far
+        lo = t[e] if upper else 0.0
+        hi = 1.0 if upper else t[e]
+        now[e, 0], now[e, 1] = lo, hi
+        now[e, 2] = f if upper else fa[e]
+        now[e, 3] = fb[e] if upper else f
+        now[e, 4] = 1.0 if a_inside[e] else 0.0  # the side at lo is sample a's either way
         rest[m] = e
-        m += 1
-        room = (now[e, 1] - now[e, 0]) * SECANT_GRID >= 2.0  # a point strictly inside
-        if finite and abs(f) < far and room:  # |F| dips below the sample: not a wall's
-            dips[n_dips] = e
-            n_dips += 1
+        m += not root
+        room = (hi - lo) * SECANT_GRID >= 2.0  # a point strictly inside
+        dips[n_dips] = e
+        # |F| dips below the sample: not a wall's profile
+        n_dips += (not root) and finite and abs(f) < far and room
     before = now.copy()
     # a secant step inside the half where |F| dipped: a root there shows in one more point
     if n_dips:
@@ -523,9 +528,23 @@ def _shrink(mid, end, e):
 
 @njit(**_NB)
 def _bisect_kernel(
-    prog, tile, active, rows, level, axes, spacing, edges, idx, a_inside, fa, fb, kinds
+    prog,
+    tile,
+    active,
+    rows,
+    level,
+    axes,
+    spacing,
+    edge_ijk,
+    edge_axis,
+    idx,
+    a_inside,
+    fa,
+    fb,
+    kinds,
 ):
-    """Kinds of the suspect edges ``edges[idx]`` into ``kinds[idx]``, axis by axis
+    """Kinds of the suspect edges (from grid indices ``edge_ijk`` along ``edge_axis``) into
+    ``kinds[idx]``, axis by axis
     (:func:`_classify_axis`; the formula's levels that do not vary along an axis are computed
     once per edge, :func:`kernels.edge_lattice`).  Returns the number of points evaluated."""
     n = idx.size
@@ -533,13 +552,13 @@ def _bisect_kernel(
     # indexing: their starts, grid indices and samples
     starts = np.zeros(4, dtype=np.int64)
     for r in range(n):
-        starts[edges[idx[r], 0] + 1] += 1
+        starts[edge_axis[r] + 1] += 1
     for a in range(3):
         starts[a + 1] += starts[a]
     order = np.empty(n, dtype=np.int64)
     fill = starts[:3].copy()
     for r in range(n):
-        a = edges[idx[r], 0]
+        a = edge_axis[r]
         order[fill[a]] = r
         fill[a] += 1
     ijk = np.empty((n, 3), dtype=np.int64)
@@ -549,7 +568,7 @@ def _bisect_kernel(
     for q in range(n):
         r = order[q]
         for k in range(3):
-            ijk[q, k] = edges[idx[r], 1 + k]
+            ijk[q, k] = edge_ijk[r, k]
         s_in[q], s_fa[q], s_fb[q] = a_inside[r], fa[r], fb[r]
     points = 0
     for a in range(3):
@@ -607,12 +626,21 @@ def _crossings(values, shape, edges, level, ratio):
     the kinds, and for the suspects their rows, ``fa``, ``fb`` (``F - level`` at the edge's
     samples) and whether sample a is inside.
     """
+    kinds, rows, fa, fb, ina, _ijk, _axis = _crossings_core(values, shape, edges, level, ratio)
+    return kinds, rows, fa, fb, ina
+
+
+@njit(**_NB)
+def _crossings_core(values, shape, edges, level, ratio):
+    """:func:`_crossings`, and the suspects' grid indices ``(i, j, k)`` and axes."""
     n = edges.shape[0]
     kinds = np.full(n, UNKNOWN, dtype=np.uint8)
     rows = np.empty(n, dtype=np.int64)
     out_a = np.empty(n)
     out_b = np.empty(n)
     out_in = np.empty(n, dtype=np.bool_)
+    out_ijk = np.empty((n, 3), dtype=np.int64)
+    out_axis = np.empty(n, dtype=np.int64)
     strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
     count = 0
     for v in range(n):
@@ -658,8 +686,20 @@ def _crossings(values, shape, edges, level, ratio):
         out_a[count] = fa
         out_b[count] = fb
         out_in[count] = ina
+        out_ijk[count, 0] = edges[v, 1]
+        out_ijk[count, 1] = edges[v, 2]
+        out_ijk[count, 2] = edges[v, 3]
+        out_axis[count] = axis
         count += not smooth
-    return kinds, rows[:count], out_a[:count], out_b[:count], out_in[:count]
+    return (
+        kinds,
+        rows[:count],
+        out_a[:count],
+        out_b[:count],
+        out_in[:count],
+        out_ijk[:count],
+        out_axis[:count],
+    )
 
 
 def face_kinds_of(
