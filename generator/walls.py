@@ -184,7 +184,7 @@ def label_walls(
     lets a caller look at the mesh before paying for the classification."""
     check_walls_mode(walls)
     kinds, refined, points = _classify(field, tree, params, level, edges)
-    counts = np.bincount(kinds, minlength=256)
+    counts = _count_kinds(kinds)  # np.bincount converts the uint8 kinds to int64 first
     any_wall = bool(counts[POLE] + counts[JUMP])
     if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
         face_kinds, wall, total = None, 0.0, 0.0
@@ -544,9 +544,9 @@ def _bisect_kernel(
     kinds,
 ):
     """Kinds of the suspect edges (from grid indices ``edge_ijk`` along ``edge_axis``) into
-    ``kinds[idx]``, axis by axis
-    (:func:`_classify_axis`; the formula's levels that do not vary along an axis are computed
-    once per edge, :func:`kernels.edge_lattice`).  Returns the number of points evaluated."""
+    ``kinds[idx]``, axis by axis (:func:`_classify_axis`; the formula's levels that do not vary
+    along an axis are computed once per edge, :func:`kernels.edge_lattice`).  Returns the
+    number of points evaluated."""
     n = idx.size
     # the suspects grouped by axis (in their order within an axis), without numpy's fancy
     # indexing: their starts, grid indices and samples
@@ -556,17 +556,16 @@ def _bisect_kernel(
     for a in range(3):
         starts[a + 1] += starts[a]
     order = np.empty(n, dtype=np.int64)
-    fill = starts[:3].copy()
-    for r in range(n):
-        a = edge_axis[r]
-        order[fill[a]] = r
-        fill[a] += 1
     ijk = np.empty((n, 3), dtype=np.int64)
     s_in = np.empty(n, dtype=np.bool_)
     s_fa = np.empty(n)
     s_fb = np.empty(n)
-    for q in range(n):
-        r = order[q]
+    fill = starts[:3].copy()
+    for r in range(n):  # one pass: reads in order, writes three streams
+        a = edge_axis[r]
+        q = fill[a]
+        fill[a] += 1
+        order[q] = r
         for k in range(3):
             ijk[q, k] = edge_ijk[r, k]
         s_in[q], s_fa[q], s_fb[q] = a_inside[r], fa[r], fb[r]
@@ -718,6 +717,15 @@ def face_kinds_of(
 @njit(**_NB)
 def _face_kinds(v, f, kinds, cap, lo, hi):
     return _label_faces(v, f, kinds, cap, lo, hi, False)[0]
+
+
+@njit(**_NB)
+def _count_kinds(kinds):
+    """How many of each uint8 kind (``np.bincount(kinds, minlength=256)``)."""
+    counts = np.zeros(256, dtype=np.int64)
+    for k in kinds:
+        counts[k] += 1
+    return counts
 
 
 @njit(**_NB)
