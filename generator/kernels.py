@@ -1105,7 +1105,7 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     distinct (x, y) pairs of the points (if ``active[3]``), likewise xz, yz; xyz over every
     point.  ``rows[lv]``: the store rows of level ``lv`` (``Program.rows``)."""
     n = px.size
-    ids = np.zeros((8, n), dtype=np.int64)
+    ids = np.empty((8, n), dtype=np.int64)  # the rows of the levels it has, all set below
     sizes = np.zeros(8, dtype=np.int64)
     has = np.zeros(8, dtype=np.bool_)
     firsts_x = dedupe(px.view(np.int64))
@@ -1231,7 +1231,7 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     has[va] = has[vb] = has[vc] = True
     has[vb | vc] = active[vb | vc]
     map_at = np.zeros((8, 8), dtype=np.int64)
-    ids = np.zeros((8, n), dtype=np.int64)
+    ids = np.empty((8, n), dtype=np.int64)  # the rows of the levels it has, all set below
     ids[va] = uid
     for p in range(n):
         e = sel[p]
