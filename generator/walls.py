@@ -282,10 +282,9 @@ _NB = {"cache": True, "error_model": "numpy", "nogil": True}
 
 @njit(inline="always", **_NB)
 def _nanmax(a, b):
-    """np.maximum: NaN propagates."""
-    if a != a or b != b:
-        return np.nan
-    return max(a, b)
+    """np.maximum: NaN propagates (a select, not a branch)."""
+    bigger = a if a > b else b
+    return np.nan if (a != a) | (b != b) else bigger
 
 
 @njit(**_NB)
@@ -312,18 +311,19 @@ def _decide_rows(mid, end, fa, fb, rest):
         m2 = _nanmax(0.0 if kept_lo else abs(f_lo2), 0.0 if kept_hi else abs(f_hi2))
         m4 = _nanmax(0.0 if kept_lo else abs(f_lo4), 0.0 if kept_hi else abs(f_hi4))
         kept_value = abs(fa[e]) if kept_lo else (abs(fb[e]) if kept_hi else 0.0)
-        kept_small = not (kept_lo or kept_hi) or kept_value <= ROOT_KEPT * scale
-        root = kept_small and (m4 <= ROOT_SHRINK * m2 or m4 <= ROOT_FLOOR * scale)
+        # & and | rather than and/or: no short-circuit branches (the verdicts interleave)
+        kept_small = (not (kept_lo | kept_hi)) | (kept_value <= ROOT_KEPT * scale)
+        root = kept_small & ((m4 <= ROOT_SHRINK * m2) | (m4 <= ROOT_FLOOR * scale))
         ends = _nanmax(abs(f_lo4), abs(f_hi4) if np.isfinite(f_hi4) else 0.0)
         pole = (
             np.isinf(outside_end)
-            or (m4 >= POLE_GROWTH * m2 and m4 > 0.0)
-            or ends >= POLE_SCALE * scale
+            | ((m4 >= POLE_GROWTH * m2) & (m4 > 0.0))
+            | (ends >= POLE_SCALE * scale)
         )
         kind = JUMP
-        if pole and not np.isnan(outside_end):  # F becoming NaN is a domain's edge: a jump
+        if pole & (not np.isnan(outside_end)):  # F becoming NaN is a domain's edge: a jump
             kind = POLE
-        if root and np.isfinite(outside_end):
+        if root & np.isfinite(outside_end):
             kind = ROOT
         out[r] = kind
     return out
