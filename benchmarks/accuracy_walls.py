@@ -32,19 +32,15 @@ import numpy as np
 
 import surfgen.generator.mesh as mesh_module
 import surfgen.generator.walls as walls_module
-from surfgen.filters.verdict import screen_field
-from surfgen.generator.errors import EmptySurface
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import JUMP, POLE, ROOT
 from surfgen.generator.parser import parse
-from surfgen.generator.sampler import choose_d, draw_equation
-from surfgen.pipelines.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_walls import NAMED  # noqa: E402
+from bench_walls import NAMED, sampled_shapes  # noqa: E402
 from walls_main import main_classify  # noqa: E402
 
 AMBIGUOUS = 255
@@ -117,25 +113,7 @@ def shapes(args):
         for name, formula, half in NAMED:
             tree = parse(formula)
             yield name, tree, evaluate(tree, Grid(Box.cube(half), (args.grid,) * 3), threads=1)
-    config = load_config()
-    found = index = 0
-    while found < args.n and index < 50 * args.n:
-        draw = draw_equation(args.seed, index, config.sampler)
-        index += 1
-        d = choose_d(draw, config.sampler, threads=1)
-        if d is None:
-            continue
-        tree = draw.equation.with_d(d).to_tree()
-        coarse = evaluate(tree, Grid(draw.box, (config.filters.coarse_grid,) * 3), threads=1)
-        if not screen_field(coarse.values, 0.0, config.filters, coarse=True).accepted:
-            continue
-        field = evaluate(tree, Grid(draw.box, (args.grid,) * 3), threads=1)
-        try:
-            mesh_module.extract_mesh(field, 0.0, cap=True)
-        except EmptySurface:
-            continue
-        found += 1
-        yield f"#{index - 1}", tree, field
+    yield from sampled_shapes(args.n, args.seed, args.grid)
 
 
 def main() -> None:

@@ -201,6 +201,30 @@ def summary(title, rows):
     )
 
 
+def sampled_shapes(n: int, seed: int, grid: int):
+    """The first ``n`` draws of ``seed`` whose coarse field passes the sampler's screen and
+    whose ``grid``³ field has a surface: ``(name, tree, field)``, named ``#index``."""
+    config = load_config()
+    found = index = 0
+    while found < n and index < 50 * n:
+        draw = draw_equation(seed, index, config.sampler)
+        index += 1
+        d = choose_d(draw, config.sampler, threads=1)
+        if d is None:
+            continue
+        tree = draw.equation.with_d(d).to_tree()
+        coarse = evaluate(tree, Grid(draw.box, (config.filters.coarse_grid,) * 3), threads=1)
+        if not screen_field(coarse.values, 0.0, config.filters, coarse=True).accepted:
+            continue
+        field = evaluate(tree, Grid(draw.box, (grid,) * 3), threads=1)
+        try:
+            mesh_module.extract_mesh(field, 0.0, cap=True)
+        except EmptySurface:
+            continue
+        found += 1
+        yield f"#{index - 1}", tree, field
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=24)
@@ -218,25 +242,10 @@ def main() -> None:
             tree = parse(formula)
             field = evaluate(tree, Grid(Box.cube(half), (args.grid,) * 3), threads=1)
             named.append(measure(name, tree, field, args.repeat))
-    config = load_config()
-    rows = []
-    index = 0
-    while len(rows) < args.n and index < 50 * args.n:
-        draw = draw_equation(args.seed, index, config.sampler)
-        index += 1
-        d = choose_d(draw, config.sampler, threads=1)
-        if d is None:
-            continue
-        tree = draw.equation.with_d(d).to_tree()
-        coarse = evaluate(tree, Grid(draw.box, (config.filters.coarse_grid,) * 3), threads=1)
-        if not screen_field(coarse.values, 0.0, config.filters, coarse=True).accepted:
-            continue
-        field = evaluate(tree, Grid(draw.box, (args.grid,) * 3), threads=1)
-        try:
-            mesh_module.extract_mesh(field, 0.0, cap=True)
-        except EmptySurface:
-            continue
-        rows.append(measure(f"#{index - 1}", tree, field, args.repeat))
+    rows = [
+        measure(name, tree, field, args.repeat)
+        for name, tree, field in sampled_shapes(args.n, args.seed, args.grid)
+    ]
     print(f"\nat {args.grid}^3, best of {args.repeat}")
     summary("named", named)
     summary(f"sampled (seed {args.seed})", rows)
