@@ -701,24 +701,6 @@ def _crossings_core(values, shape, edges, level, ratio):
     )
 
 
-def face_kinds_of(
-    mesh: Mesh, edges: np.ndarray, kinds: np.ndarray, cap: bool, field: Field
-) -> np.ndarray:
-    """uint8 ``(F,)`` kind of each face from its vertices' edge kinds.
-
-    With ``cap``, faces lying on a box face are CAP.  Otherwise a face is a wall when most of
-    its labelled vertices are walls (a pole if any of those is a pole, else a jump), else ROOT.
-    """
-    lo = np.asarray(field.grid.box.lo, dtype=np.float64)
-    hi = np.asarray(field.grid.box.hi, dtype=np.float64)
-    return _face_kinds(mesh.vertices, mesh.faces, kinds, cap, lo, hi)
-
-
-@njit(**_NB)
-def _face_kinds(v, f, kinds, cap, lo, hi):
-    return _label_faces(v, f, kinds, cap, lo, hi, False)[0]
-
-
 @njit(**_NB)
 def _count_kinds(kinds):
     """How many of each uint8 kind (``np.bincount(kinds, minlength=256)``)."""
@@ -730,8 +712,13 @@ def _count_kinds(kinds):
 
 @njit(**_NB)
 def _label_faces(v, f, kinds, cap, lo, hi, areas):
-    """:func:`face_kinds_of`'s kinds; with ``areas``, also the area on wall faces and in all
-    (:func:`~surfgen.generator.mesh.wall_share`'s sums: the same operations in face order).
+    """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``areas``, also
+    the area on wall faces and in all (:func:`~surfgen.generator.mesh.wall_share`'s sums: the
+    same operations in face order).
+
+    With ``cap``, faces lying on a box face (``lo``, ``hi``) are CAP.  Otherwise a face is a wall
+    when most of its labelled vertices are walls (a pole if any of those is a pole, else a
+    jump), else ROOT.
 
     One code per vertex, so that a face needs three loads and no branch per vertex (walls and
     roots interleave): the low byte counts ``known + 4 wall + 16 pole`` (the sums of three stay
