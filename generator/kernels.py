@@ -1068,6 +1068,19 @@ def _gather(values, at):
 
 
 @njit(**_OPTS)
+def _pair_level(ids, sizes, has, lv, a, b):
+    """Pair level ``lv`` of variables' levels ``a`` and ``b`` (dense ids ``ids[a]``,
+    ``ids[b]`` of the points): its entries are their distinct pairs (sets ``ids[lv]``,
+    ``sizes[lv]``, ``has[lv]``).  Returns the entries of ``a`` and of ``b`` each one reads (the
+    caller appends them to the parts :func:`_pack_maps` packs: numba types the list there)."""
+    ids_lv, first = dedupe_in(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b])
+    ids[lv] = ids_lv
+    sizes[lv] = first.size
+    has[lv] = True
+    return _gather(ids[a], first), _gather(ids[b], first)
+
+
+@njit(**_OPTS)
 def _pack_maps(pair_parts, pair_keys, has, ids, n, map_at):
     """The ``maps`` of :func:`run_lattice`: each pair level's two parts (the entries of its
     variables' stores, ``pair_keys[q]`` = (pair level, variable level)), then for the xyz
@@ -1124,13 +1137,10 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     for lv, a, b in ((3, 1, 2), (5, 1, 4), (6, 2, 4)):
         if not active[lv]:
             continue
-        ids_lv, first = dedupe_in(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b])
-        ids[lv] = ids_lv
-        sizes[lv] = first.size
-        has[lv] = True
-        pair_parts.append(_gather(ids[a], first))
+        part_a, part_b = _pair_level(ids, sizes, has, lv, a, b)
+        pair_parts.append(part_a)
         pair_keys.append((lv, a))
-        pair_parts.append(_gather(ids[b], first))
+        pair_parts.append(part_b)
         pair_keys.append((lv, b))
     maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
     offsets = np.zeros(8, dtype=np.int64)
@@ -1241,17 +1251,14 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     # the pair levels with the axis: (value id, grid index) pairs
     pair_parts = []
     pair_keys = []
-    for other, nother in ((vb, sizes[vb]), (vc, sizes[vc])):
+    for other in (vb, vc):
         lv = va | other
         if not active[lv]:
             continue
-        pid, pfirst = dedupe_in(ids[va] * nother + ids[other], sizes[va] * nother)
-        ids[lv] = pid
-        sizes[lv] = pfirst.size
-        has[lv] = True
-        pair_parts.append(_gather(ids[va], pfirst))
+        part_a, part_b = _pair_level(ids, sizes, has, lv, va, other)
+        pair_parts.append(part_a)
         pair_keys.append((lv, va))
-        pair_parts.append(_gather(ids[other], pfirst))
+        pair_parts.append(part_b)
         pair_keys.append((lv, other))
     maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
     total = fixed_end
