@@ -34,7 +34,7 @@ numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 log = logging.getLogger(__name__)
 
-TILE_MAX = 512  # points per W row (several z rows when nz <= 256): n_vector rows stay in L2
+TILE_MAX = 1024  # points per W row (several z rows when nz <= 512): n_vector rows stay in L2
 CHUNKS_PER_THREAD = 4  # slabs per thread, for load balance when threads are shared
 COMPILED_CACHE = 64  # programs kept by evaluate_fast, keyed by (tree, params)
 

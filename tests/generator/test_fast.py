@@ -456,7 +456,7 @@ def test_the_conditioning_bound_compares_most_points_and_catches_errors(monkeypa
 # ----------------------------------------------------------------------------- tiles
 
 
-@pytest.mark.parametrize("tile_max", [4, 8, 24, 512])
+@pytest.mark.parametrize("tile_max", [4, 8, 24, 512, 1024])
 @pytest.mark.parametrize(
     "formula",
     [
