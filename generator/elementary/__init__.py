@@ -32,21 +32,32 @@ import numpy as np
 
 # ----------------------------------------------------------------------------- numba's cache
 #
-# numba's on-disk cache checks only the source file of the cached function itself. The
+# numba's on-disk cache checks only the source file of the cached function itself, but a cached
+# function carries the machine code of every jitted function it calls from other files: the
 # interpreter (kernels.py) and the round trips compile the elementary functions *into* their own
-# machine code, so a change of trig.py or explog.py would leave them stale. The locator below
-# adds a digest of this package's sources to the freshness stamp of those files.
+# code, the walls' classification (walls.py) the interpreter's points kernels, and so on. A
+# change of trig.py or kernels.py would leave those callers stale, with the old bits. The locator
+# below adds a digest of every surfgen source that holds numba code to the freshness stamp of
+# every cached function of surfgen (and, in a source checkout, of its tests and benchmarks).
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 _GENERATOR = os.path.dirname(_HERE)
+_ROOT = os.path.dirname(_GENERATOR)  # surfgen's package (installed) or the checkout (editable)
+_NUMBA_MARKS = (b"njit", b"overload", b"_dual")
 
 
 def _package_digest() -> str:
     h = hashlib.sha256()
-    for name in sorted(os.listdir(_HERE)):
-        if name.endswith(".py"):
-            with open(os.path.join(_HERE, name), "rb") as f:
-                h.update(name.encode() + b"\0" + f.read())
+    folders = [_GENERATOR, _HERE]
+    folders += [os.path.join(_ROOT, name) for name in ("filters", "pipelines")]
+    for folder in (f for f in folders if os.path.isdir(f)):
+        for name in sorted(os.listdir(folder)):
+            if name.endswith(".py"):
+                with open(os.path.join(folder, name), "rb") as f:
+                    source = f.read()
+                if any(mark in source for mark in _NUMBA_MARKS):
+                    h.update(os.path.basename(folder).encode() + b"/" + name.encode() + b"\0")
+                    h.update(source)
     return h.hexdigest()
 
 
@@ -81,7 +92,7 @@ def _install_cache_stamp() -> None:
         @classmethod
         def from_function(cls, py_func, py_file):
             path = os.path.abspath(py_file)
-            if not (path.startswith(_HERE) or path == os.path.join(_GENERATOR, "kernels.py")):
+            if not path.startswith(_ROOT + os.sep):
                 return None
             for c in inner_classes:
                 inner = c.from_function(py_func, py_file)

@@ -225,3 +225,34 @@ def test_round_trip_rows_vectorise_without_fused_multiply_add():
         asm = "\n".join(fresh.inspect_asm().values())
         assert re.search(r"\bv?mulpd\b", asm), f"{name}: no packed multiply, not vectorised"
         assert not re.search(r"\bv?f(n)?m(add|sub)\d", asm), f"{name}: FMA"
+
+
+# ----------------------------------------------------------------------------- numba's cache
+
+
+def test_every_cached_caller_is_stamped_with_the_numba_sources(tmp_path, monkeypatch):
+    # A cached function carries the code of the jitted functions it calls from other files
+    # (walls -> kernels -> trig): its cache must go stale when any of them changes, not only
+    # when its own file does.
+    from surfgen.generator import elementary, kernels, walls
+    from surfgen.generator.elementary import trig
+
+    digest = elementary._package_digest()
+    for fn in (walls._bisect_kernel, kernels.run_serial, trig.atan_row):
+        locator = fn._cache._impl._locator
+        assert getattr(locator, "_surfgen", False), fn
+        assert locator.get_source_stamp()[1] == digest, fn
+    # the digest follows the numba sources of the folders it reads (here a copy of them)
+    for name in ("generator", "filters", "pipelines"):
+        (tmp_path / name).mkdir()
+    (tmp_path / "generator" / "elementary").mkdir()
+    (tmp_path / "generator" / "kernels.py").write_text("from numba import njit\n")
+    (tmp_path / "generator" / "plain.py").write_text("x = 1\n")
+    monkeypatch.setattr(elementary, "_ROOT", str(tmp_path))
+    monkeypatch.setattr(elementary, "_GENERATOR", str(tmp_path / "generator"))
+    monkeypatch.setattr(elementary, "_HERE", str(tmp_path / "generator" / "elementary"))
+    before = elementary._package_digest()
+    (tmp_path / "generator" / "plain.py").write_text("x = 2\n")  # no numba code: no change
+    assert elementary._package_digest() == before
+    (tmp_path / "generator" / "kernels.py").write_text("from numba import njit\n# edited\n")
+    assert elementary._package_digest() != before
