@@ -308,8 +308,14 @@ class PointsEvaluator:
 
 def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> PointsEvaluator:
     """A :class:`PointsEvaluator` of ``tree`` (compiled programs are shared with
-    :func:`evaluate_fast`). Raises :class:`FormulaError` as :func:`compile_tree` does."""
-    return PointsEvaluator(_compiled(tree, tuple(sorted((params or {}).items()))))
+    :func:`evaluate_fast`; evaluators of recent trees are kept, as the walls' classification
+    asks for one per mesh). Raises :class:`FormulaError` as :func:`compile_tree` does."""
+    return _points_evaluator(tree, tuple(sorted((params or {}).items())))
+
+
+@functools.lru_cache(maxsize=COMPILED_CACHE)
+def _points_evaluator(tree: Expr, params: tuple[tuple[str, float], ...]) -> PointsEvaluator:
+    return PointsEvaluator(_compiled(tree, params))
 
 
 def _warm_tree() -> Expr:
