@@ -184,8 +184,8 @@ def label_walls(
     lets a caller look at the mesh before paying for the classification."""
     check_walls_mode(walls)
     kinds, refined, points = _classify(field, tree, params, level, edges)
-    counts = _count_kinds(kinds)  # np.bincount would convert the uint8 kinds to int64 first
-    any_wall = bool(counts[POLE] + counts[JUMP])
+    roots, poles, jumps = _count_kinds(kinds)
+    any_wall = bool(poles + jumps)
     if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
         face_kinds, wall, total = None, 0.0, 0.0
     else:  # one pass labels the faces and, with walls, sums the areas (wall_share's sums)
@@ -199,12 +199,12 @@ def label_walls(
             any_wall,
         )
     report = WallReport(
-        edges=int(counts[ROOT] + counts[POLE] + counts[JUMP]),
+        edges=int(roots + poles + jumps),
         refined=refined,
         points=points,
-        roots=int(counts[ROOT]),
-        poles=int(counts[POLE]),
-        jumps=int(counts[JUMP]),
+        roots=int(roots),
+        poles=int(poles),
+        jumps=int(jumps),
         wall_fraction=float(wall / total) if wall > 0.0 and total > 0.0 else 0.0,
     )
     log.debug("walls: %s", report)
@@ -703,17 +703,15 @@ def _crossings_core(values, shape, edges, level, ratio):
 
 @njit(**_NB)
 def _count_kinds(kinds):
-    """How many of each uint8 kind (``np.bincount(kinds, minlength=256)``) for ROOT, POLE and
-    JUMP, the others 0: three compares a kind, which vectorise (a histogram's increments of one
-    counter after another wait on each other, as runs of one kind are the rule)."""
+    """How many ROOT, POLE and JUMP kinds: three compares a kind, which vectorise (a histogram's
+    increments of one counter after another wait on each other, as runs of one kind are the
+    rule)."""
     roots = poles = jumps = 0
     for k in kinds:
         roots += k == ROOT
         poles += k == POLE
         jumps += k == JUMP
-    counts = np.zeros(256, dtype=np.int64)
-    counts[ROOT], counts[POLE], counts[JUMP] = roots, poles, jumps
-    return counts
+    return roots, poles, jumps
 
 
 @njit(**_NB)
