@@ -92,7 +92,9 @@ def _install_cache_stamp() -> None:
         @classmethod
         def from_function(cls, py_func, py_file):
             path = os.path.abspath(py_file)
-            if not path.startswith(_ROOT + os.sep):
+            inside = path[len(_ROOT) :]
+            # surfgen's files only (in a checkout, not a virtual environment's packages under it)
+            if not path.startswith(_ROOT + os.sep) or f"{os.sep}site-packages{os.sep}" in inside:
                 return None
             for c in inner_classes:
                 inner = c.from_function(py_func, py_file)

@@ -256,3 +256,12 @@ def test_every_cached_caller_is_stamped_with_the_numba_sources(tmp_path, monkeyp
     assert elementary._package_digest() == before
     (tmp_path / "generator" / "kernels.py").write_text("from numba import njit\n# edited\n")
     assert elementary._package_digest() != before
+    # surfgen's files are stamped; other packages' are not, even in a virtual environment that
+    # lives inside a checkout
+    stamped = type(walls._bisect_kernel._cache._impl._locator)
+    venv = tmp_path / ".venv" / "lib" / "site-packages"
+    venv.mkdir(parents=True)
+    (venv / "other.py").write_text("x = 1\n")
+    py_func = walls._bisect_kernel.py_func
+    assert stamped.from_function(py_func, str(tmp_path / "generator" / "kernels.py")) is not None
+    assert stamped.from_function(py_func, str(venv / "other.py")) is None
