@@ -1072,7 +1072,7 @@ def _pair_level(ids, sizes, has, lv, a, b):
     """Pair level ``lv`` of variables' levels ``a`` and ``b`` (dense ids ``ids[a]``,
     ``ids[b]`` of the points): its entries are their distinct pairs (sets ``ids[lv]``,
     ``sizes[lv]``, ``has[lv]``).  Returns the entries of ``a`` and of ``b`` each one reads (the
-    caller appends them to the parts :func:`_pack_maps` packs: numba types the list there)."""
+    caller appends them to the parts :func:`_place_parts` copies: numba types the list there)."""
     ids_lv, first = dedupe_in(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b])
     ids[lv] = ids_lv
     sizes[lv] = first.size
@@ -1081,31 +1081,30 @@ def _pair_level(ids, sizes, has, lv, a, b):
 
 
 @njit(**_OPTS)
-def _pack_maps(pair_parts, pair_keys, has, ids, n, map_at):
-    """The ``maps`` of :func:`run_lattice`: each pair level's two parts (the entries of its
-    variables' stores, ``pair_keys[q]`` = (pair level, variable level)), then for the xyz
-    level the entry of every point in each level it has; ``map_at`` records where each
-    starts."""
-    total_maps = 0
-    for part in pair_parts:
-        total_maps += part.size
+def _maps_with_ids(n, pair_levels):
+    """The ``maps`` of :func:`run_lattice`, laid out so that the points' entries need no copy:
+    first the xyz level's section, whose row ``k`` (``ids[k]``, a view, filled by the caller)
+    is the entry of every point in level ``k``'s store, then room for the two parts of each of
+    ``pair_levels`` pair levels (at most ``n`` entries each: :func:`_place_parts`)."""
+    maps = np.empty(8 * n + 2 * n * pair_levels + 1, dtype=np.int64)
+    return maps, maps[: 8 * n].reshape((8, n))
+
+
+@njit(**_OPTS)
+def _place_parts(maps, n, pair_parts, pair_keys, has, map_at):
+    """Copy each pair level's two parts (the entries of its variables' stores, ``pair_keys[q]``
+    = (pair level, variable level)) behind the xyz section of ``maps``
+    (:func:`_maps_with_ids`), and record in ``map_at`` where every section starts."""
     for k in (1, 2, 4, 3, 5, 6):
         if has[k]:
-            total_maps += n
-    maps = np.empty(max(total_maps, 1), dtype=np.int64)
-    at = 0
+            map_at[7, k] = k * n
+    at = 8 * n
     for q in range(len(pair_parts)):
         lv, k = pair_keys[q]
         map_at[lv, k] = at
         part = pair_parts[q]
         maps[at : at + part.size] = part
         at += part.size
-    for k in (1, 2, 4, 3, 5, 6):
-        if has[k]:
-            map_at[7, k] = at
-            maps[at : at + n] = ids[k]
-            at += n
-    return maps
 
 
 @njit(**_OPTS)
@@ -1118,7 +1117,8 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     distinct (x, y) pairs of the points (if ``active[3]``), likewise xz, yz; xyz over every
     point.  ``rows[lv]``: the store rows of level ``lv`` (``Program.rows``)."""
     n = px.size
-    ids = np.empty((8, n), dtype=np.int64)  # the rows of the levels it has, all set below
+    # the rows of the levels it has, all set below, in place in the maps
+    maps, ids = _maps_with_ids(n, active[3] + active[5] + active[6])
     sizes = np.zeros(8, dtype=np.int64)
     has = np.zeros(8, dtype=np.bool_)
     firsts_x = dedupe(px.view(np.int64))
@@ -1142,7 +1142,7 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
         pair_keys.append((lv, a))
         pair_parts.append(part_b)
         pair_keys.append((lv, b))
-    maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
+    _place_parts(maps, n, pair_parts, pair_keys, has, map_at)
     offsets = np.zeros(8, dtype=np.int64)
     total = 0
     for k in (1, 2, 3, 4, 5, 6):
@@ -1241,7 +1241,8 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     has[va] = has[vb] = has[vc] = True
     has[vb | vc] = active[vb | vc]
     map_at = np.zeros((8, 8), dtype=np.int64)
-    ids = np.empty((8, n), dtype=np.int64)  # the rows of the levels it has, all set below
+    # the rows of the levels it has, all set below, in place in the maps
+    maps, ids = _maps_with_ids(n, active[va | vb] + active[va | vc])
     ids[va] = uid
     for p in range(n):
         e = sel[p]
@@ -1260,7 +1261,7 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
         pair_keys.append((lv, va))
         pair_parts.append(part_b)
         pair_keys.append((lv, other))
-    maps = _pack_maps(pair_parts, pair_keys, has, ids, n, map_at)
+    _place_parts(maps, n, pair_parts, pair_keys, has, map_at)
     total = fixed_end
     for k in (va, va | vb, va | vc):
         offsets[k] = total
