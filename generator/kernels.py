@@ -947,6 +947,14 @@ def dedupe(keys):
 
     Returns ``ids`` (``keys[p]`` is the ``ids[p]``-th distinct key) and ``first`` (the position
     of each distinct key's first appearance)."""
+    ids = np.empty(keys.size, dtype=np.int64)
+    return ids, _dedupe_into(keys, ids)
+
+
+@njit(**_OPTS)
+def _dedupe_into(keys, ids):
+    """:func:`dedupe` writing ``ids`` into the given array (a row of the maps, no copy);
+    returns ``first``."""
     n = keys.size
     cap = 16
     while cap < 2 * n:
@@ -955,7 +963,6 @@ def dedupe(keys):
     table = np.full(cap, -1, dtype=np.int64)
     held = np.empty(cap, dtype=np.int64)  # the key in each used slot: no lookup through first
     first = np.empty(n, dtype=np.int64)
-    ids = np.empty(n, dtype=np.int64)
     m = 0
     for p in range(n):
         k = keys[p]
@@ -975,7 +982,7 @@ def dedupe(keys):
                 ids[p] = t
                 break
             h = (h + np.uint64(1)) & mask
-    return ids, first[:m]
+    return first[:m]
 
 
 @njit(**_OPTS)
@@ -983,12 +990,18 @@ def dedupe_in(keys, size):
     """:func:`dedupe` of keys known to lie in ``[0, size)`` (pairs of dense ids): the same
     ``ids`` and ``first``, through a table indexed by the key where it is small enough (no
     hashing, no probing), else :func:`dedupe`."""
+    ids = np.empty(keys.size, dtype=np.int64)
+    return ids, _dedupe_in_into(keys, size, ids)
+
+
+@njit(**_OPTS)
+def _dedupe_in_into(keys, size, ids):
+    """:func:`dedupe_in` writing ``ids`` into the given array; returns ``first``."""
     n = keys.size
     if size > 8 * n + 4096:
-        return dedupe(keys)
+        return _dedupe_into(keys, ids)
     table = np.full(size, -1, dtype=np.int32)
     first = np.empty(n, dtype=np.int64)
-    ids = np.empty(n, dtype=np.int64)
     m = 0
     for p in range(n):
         k = keys[p]
@@ -1000,7 +1013,7 @@ def dedupe_in(keys, size):
             m += 1
         else:
             ids[p] = t
-    return ids, first[:m]
+    return first[:m]
 
 
 @njit(**_OPTS)
@@ -1073,8 +1086,7 @@ def _pair_level(ids, sizes, has, lv, a, b):
     ``ids[b]`` of the points): its entries are their distinct pairs (sets ``ids[lv]``,
     ``sizes[lv]``, ``has[lv]``).  Returns the entries of ``a`` and of ``b`` each one reads (the
     caller appends them to the parts :func:`_place_parts` copies: numba types the list there)."""
-    ids_lv, first = dedupe_in(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b])
-    ids[lv] = ids_lv
+    first = _dedupe_in_into(ids[a] * sizes[b] + ids[b], sizes[a] * sizes[b], ids[lv])
     sizes[lv] = first.size
     has[lv] = True
     return _gather(ids[a], first), _gather(ids[b], first)
@@ -1121,13 +1133,10 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     maps, ids = _maps_with_ids(n, active[3] + active[5] + active[6])
     sizes = np.zeros(8, dtype=np.int64)
     has = np.zeros(8, dtype=np.bool_)
-    firsts_x = dedupe(px.view(np.int64))
-    firsts_y = dedupe(py.view(np.int64))
-    firsts_z = dedupe(pz.view(np.int64))
-    ids[1] = firsts_x[0]
-    ids[2] = firsts_y[0]
-    ids[4] = firsts_z[0]
-    sizes[1], sizes[2], sizes[4] = firsts_x[1].size, firsts_y[1].size, firsts_z[1].size
+    first_x = _dedupe_into(px.view(np.int64), ids[1])
+    first_y = _dedupe_into(py.view(np.int64), ids[2])
+    first_z = _dedupe_into(pz.view(np.int64), ids[4])
+    sizes[1], sizes[2], sizes[4] = first_x.size, first_y.size, first_z.size
     has[1] = has[2] = has[4] = True
     sizes[7] = n
     # parts: (level, variable level) -> the entries of the variable's store it reads, in maps
@@ -1149,9 +1158,9 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
         offsets[k] = total
         total += rows[k] * sizes[k]
     store = np.empty(max(total, 1))
-    store[offsets[1] : offsets[1] + sizes[1]] = _gather(px, firsts_x[1])
-    store[offsets[2] : offsets[2] + sizes[2]] = _gather(py, firsts_y[1])
-    store[offsets[4] : offsets[4] + sizes[4]] = _gather(pz, firsts_z[1])
+    store[offsets[1] : offsets[1] + sizes[1]] = _gather(px, first_x)
+    store[offsets[2] : offsets[2] + sizes[2]] = _gather(py, first_y)
+    store[offsets[4] : offsets[4] + sizes[4]] = _gather(pz, first_z)
     run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out)
 
 
@@ -1234,16 +1243,15 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     vb, vc = 1 << b, 1 << c
     sizes = sizes_fixed.copy()
     offsets = offsets_fixed.copy()
-    uid, ufirst = dedupe(u.view(np.int64))
+    # the rows of the levels it has, all set below, in place in the maps
+    maps, ids = _maps_with_ids(n, active[va | vb] + active[va | vc])
+    ufirst = _dedupe_into(u.view(np.int64), ids[va])
     sizes[va] = ufirst.size
     sizes[7] = n
     has = np.zeros(8, dtype=np.bool_)
     has[va] = has[vb] = has[vc] = True
     has[vb | vc] = active[vb | vc]
     map_at = np.zeros((8, 8), dtype=np.int64)
-    # the rows of the levels it has, all set below, in place in the maps
-    maps, ids = _maps_with_ids(n, active[va | vb] + active[va | vc])
-    ids[va] = uid
     for p in range(n):
         e = sel[p]
         ids[vb, p] = ijk[e, b]
