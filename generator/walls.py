@@ -473,45 +473,50 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     # a bracket still ending at a sample that reads as a jump is bisected twice more (a steep
     # root next to a sample shows only closer to it)
     kinds = _decide_rows(before, now, fa, fb, rest)
-    held = np.empty(m, dtype=np.int64)
-    held_at = np.empty(m, dtype=np.int64)  # their places in rest
-    n_held = 0
+    held = np.empty(m, dtype=np.bool_)
     for r in range(m):
         e = rest[r]
-        if (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] == JUMP:
-            held[n_held] = e
-            held_at[n_held] = r
-            n_held += 1
-            for k in range(5):
-                before[e, k] = now[e, k]
-    if n_held:  # only their brackets changed: only their kinds are decided again
-        for _ in range(BISECTIONS):
-            points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, held[:n_held])
-        again = _decide_rows(before, now, fa, fb, held[:n_held])
-        for q in range(n_held):
-            kinds[held_at[q]] = again[q]
+        held[r] = (now[e, 0] == 0.0 or now[e, 1] == 1.0) and kinds[r] == JUMP
+    points += _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, fb,
+                            rest, kinds, held)  # fmt: skip
     # a jump whose M shrank, but by less than a root's: twice more (a root on the flank of a
     # spike, or curved, shrinks as the bracket closes in; a jump's M stays)
-    unsure = np.empty(m, dtype=np.int64)
-    unsure_at = np.empty(m, dtype=np.int64)
-    n_unsure = 0
+    unsure = np.empty(m, dtype=np.bool_)
     for r in range(m):
-        e = rest[r]
-        if kinds[r] == JUMP and _shrink(before, now, e) < UNSURE:
-            unsure[n_unsure] = e
-            unsure_at[n_unsure] = r
-            n_unsure += 1
-            for k in range(5):
-                before[e, k] = now[e, k]
-    if n_unsure:
-        for _ in range(BISECTIONS):
-            points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, unsure[:n_unsure])
-        again = _decide_rows(before, now, fa, fb, unsure[:n_unsure])
-        for q in range(n_unsure):
-            kinds[unsure_at[q]] = again[q]
+        unsure[r] = kinds[r] == JUMP and _shrink(before, now, rest[r]) < UNSURE
+    points += _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, fb,
+                            rest, kinds, unsure)  # fmt: skip
     for r in range(m):
         out[rest[r]] = kinds[r]
     return out, points
+
+
+@njit(**_NB)
+def _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, fb, rest, kinds,
+                  pick):  # fmt: skip
+    """Bisect the brackets of the rows ``rest[r]`` with ``pick[r]`` ``BISECTIONS`` more times
+    and decide their ``kinds[r]`` again from the brackets before and after (only theirs
+    changed: only their kinds are decided again); returns the number of points evaluated."""
+    sel = np.empty(rest.size, dtype=np.int64)
+    at = np.empty(rest.size, dtype=np.int64)  # their places in rest
+    count = 0
+    for r in range(rest.size):
+        if pick[r]:
+            e = rest[r]
+            sel[count] = e
+            at[count] = r
+            count += 1
+            for k in range(5):
+                before[e, k] = now[e, k]
+    if count == 0:
+        return 0
+    points = 0
+    for _ in range(BISECTIONS):
+        points += _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel[:count])
+    again = _decide_rows(before, now, fa, fb, sel[:count])
+    for q in range(count):
+        kinds[at[q]] = again[q]
+    return points
 
 
 @njit(**_NB)
