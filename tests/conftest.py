@@ -184,7 +184,7 @@ def pytest_collection_modifyitems(config, items) -> None:
     for item in items:
         module = getattr(item, "module", None)
         if item.name in getattr(module, "BACKGROUND_TESTS", ()):
-            module.start_in_background()  # starts once however often it is called
+            module.start_in_background(item.name)  # once however often it is called
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:

@@ -1,6 +1,8 @@
 """One result everywhere: the sha256 of the fields of every preset and of 50 eq. (13) formulas is
 pinned here, and must hold on every CPU (AMD AVX2, Intel AVX-512, ...) and with vectorisation
-disabled (``SURFGEN_NO_VECTORIZE=1``, checked in a subprocess).
+disabled (``SURFGEN_NO_VECTORIZE=1``, checked in a subprocess); another subprocess compiles the
+evaluator for an Intel Xeon (numba's ``NUMBA_CPU_NAME``, numpy's dispatch cut down to that Xeon's:
+:func:`intel_target`) and checks the same hashes there.
 
 The formulas are stored in ``data/eq13_formulas.jsonl`` (drawn once by the sampler, seed 7;
 they are data now, not regenerated). The hashes are in ``data/field_hashes.json``; after a
@@ -94,9 +96,15 @@ import json, re, sys
 sys.path.insert(0, {here!r})
 from test_field_hashes import fast_hashes
 from surfgen.generator import NO_VECTORIZE, kernels
+import numba, os
+from numpy._core._multiarray_umath import __cpu_features__ as cpu_features
 hashes = fast_hashes()
 asm = "\\n".join(kernels.run_serial.inspect_asm().values())
+disabled = os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split()
 print(json.dumps({{
+    "cpu": numba.config.CPU_NAME,
+    "features": disabled,
+    "dispatched": [f for f in disabled if cpu_features.get(f)],
     "switch": NO_VECTORIZE,
     "hashes": hashes,
     "asm_chars": len(asm),
@@ -107,19 +115,46 @@ print(json.dumps({{
 
 
 _BACKGROUND: dict[str, tuple[subprocess.Popen, str]] = {}
-BACKGROUND_TESTS = ("test_same_hashes_with_vectorisation_disabled",)
+BACKGROUND_TESTS = (
+    "test_same_hashes_with_vectorisation_disabled",
+    "test_same_hashes_with_intel_code_generation",
+)
 
 
-def start_in_background() -> None:
-    """Start the no-vectorisation run now; its test collects it later. It compiles the whole
-    evaluator afresh (about 90 s of one core), so ``tests/conftest.py`` starts it as soon as
-    the test is collected: it then overlaps the rest of the suite instead of adding to it."""
-    if "novec" in _BACKGROUND:
+def intel_target() -> tuple[str, str]:
+    """The Intel Xeon this machine can stand in for: numba's code generation for that CPU
+    (``NUMBA_CPU_NAME``) and numpy's SIMD dispatch cut down to what it has
+    (``NPY_DISABLE_CPU_FEATURES``).  With AVX-512 (F, BW, DQ, VL: an AMD Zen 4/5 or an Intel
+    Xeon), a Skylake-SP Xeon: LLVM's instruction selection and vector widths for
+    ``skylake-avx512``, numpy's AVX-512 (Skylake) kernels without the Ice Lake ones; else a
+    Haswell/Broadwell Xeon (``haswell``: Intel's AVX2 code generation)."""
+    from llvmlite import binding
+
+    features = binding.get_host_cpu_features()
+    avx512 = all(features.get(f, False) for f in ("avx512f", "avx512bw", "avx512dq", "avx512vl"))
+    if avx512:
+        return "skylake-avx512", "AVX512_ICL AVX512_SPR"
+    return "haswell", "X86_V4 AVX512_ICL AVX512_SPR"
+
+
+def _background_env(test: str) -> dict[str, str]:
+    if test == "test_same_hashes_with_vectorisation_disabled":
+        return {"SURFGEN_NO_VECTORIZE": "1"}
+    cpu, disabled = intel_target()
+    return {"NUMBA_CPU_NAME": cpu, "NPY_DISABLE_CPU_FEATURES": disabled}
+
+
+def start_in_background(test: str = BACKGROUND_TESTS[0]) -> None:
+    """Start the subprocess of background test ``test`` now; the test collects it later.  Each
+    compiles the whole evaluator afresh (60-90 s of one core), so ``tests/conftest.py`` starts
+    them as soon as the tests are collected: they then overlap the rest of the suite instead of
+    adding to it."""
+    if test in _BACKGROUND:
         return
     # A fresh numba cache: numba's cache key ignores the vectoriser flags, and a fresh compile
-    # lets us read the machine code (no packed arithmetic left, no FMA).
-    cache = tempfile.mkdtemp(prefix="surfgen-novec-")
-    env = dict(os.environ, SURFGEN_NO_VECTORIZE="1", NUMBA_CACHE_DIR=cache)
+    # lets us read the machine code (no packed arithmetic left, no FMA; the target's registers).
+    cache = tempfile.mkdtemp(prefix="surfgen-hashes-")
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, **_background_env(test))
     code = _SUBPROCESS.format(here=str(Path(__file__).parent))
     proc = subprocess.Popen(
         [sys.executable, "-c", code],
@@ -128,34 +163,59 @@ def start_in_background() -> None:
         stderr=subprocess.PIPE,
         text=True,
     )
-    _BACKGROUND["novec"] = (proc, cache)
+    _BACKGROUND[test] = (proc, cache)
 
 
-def stop_background() -> None:
-    """Kill a run that no test collected (an interrupted session) and drop its cache."""
-    for proc, cache in _BACKGROUND.values():
+def stop_background(test: str | None = None) -> None:
+    """Kill a run that no test collected (an interrupted session; all of them without ``test``)
+    and drop its cache."""
+    for name in [test] if test is not None else list(_BACKGROUND):
+        if name not in _BACKGROUND:
+            continue
+        proc, cache = _BACKGROUND.pop(name)
         if proc.poll() is None:
             proc.kill()
         proc.wait()
         shutil.rmtree(cache, ignore_errors=True)
-    _BACKGROUND.clear()
 
 
-def test_same_hashes_with_vectorisation_disabled():
-    start_in_background()  # already running when the whole suite runs
-    proc, cache = _BACKGROUND["novec"]
+def _background_result(test: str) -> dict:
+    start_in_background(test)  # already running when the whole suite runs
+    proc, _cache = _BACKGROUND[test]
     try:
         stdout, stderr = proc.communicate(timeout=1800)
     finally:
-        stop_background()
+        stop_background(test)
     assert proc.returncode == 0, stderr[-2000:]
-    result = json.loads(stdout.strip().splitlines()[-1])
+    return json.loads(stdout.strip().splitlines()[-1])
+
+
+def test_same_hashes_with_vectorisation_disabled():
+    result = _background_result("test_same_hashes_with_vectorisation_disabled")
     assert result["switch"] is True
     assert result["asm_chars"] > 10_000  # the interpreter and everything it calls
     assert result["packed"] == 0, "vectorisation is still on"
     assert result["fma"] == 0
     bad = _diff(result["hashes"], _pinned())
     assert not bad, f"{len(bad)} fields differ without vectorisation: {bad[:5]}"
+
+
+def test_same_hashes_with_intel_code_generation():
+    """The machines of this project are AMD EPYCs and Intel Xeons; the fields must not depend
+    on which.  What differs between them is the code: LLVM's instruction selection and vector
+    widths for the CPU numba compiles for, and the SIMD kernels numpy dispatches to.  This
+    compiles the whole evaluator for an Intel Xeon (:func:`intel_target`) with numpy's dispatch
+    cut down to that Xeon's, and checks every pinned field on it."""
+    cpu, disabled = intel_target()
+    result = _background_result("test_same_hashes_with_intel_code_generation")
+    assert result["cpu"] == cpu, "numba did not compile for the Intel target"
+    assert result["asm_chars"] > 10_000
+    assert result["packed"] > 0, "the Intel build is not vectorised"
+    assert result["fma"] == 0
+    assert result["features"] == disabled.split()
+    assert not result["dispatched"], f"numpy still dispatches {result['dispatched']}"
+    bad = _diff(result["hashes"], _pinned())
+    assert not bad, f"{len(bad)} fields differ with {cpu} code: {bad[:5]}"
 
 
 _NUMPY_SUBPROCESS = """
