@@ -11,11 +11,13 @@ On each, in the same run, best of ``--repeat``:
 - ``placement``: ``extract_mesh`` with the merge-robust vertex placement switched off (the mesh
   stage as it was before issue 11);
 - ``old mesh``: the numpy mesh stage before issue 13 (``tests/generator/mesh_reference.py``);
-- ``mesh``: ``extract_mesh`` (robust placement, numba around marching cubes: the mesh stage
-  now; capped, as the sampler);
+- ``mesh``: ``extract_with_edges`` (robust placement, numba around marching cubes: the mesh
+  stage now; capped, as the sampler);
 - ``walls``: what ``extract_labelled(..., walls="mark")`` adds to it: ``label_walls`` on the
   mesh and edges (the root/pole/jump classification of every crossing: secant point and
-  bisections, one numba call; the faces' kinds and the wall fraction), timed by itself;
+  bisections, one numba call; the faces' kinds and the wall fraction), timed by itself right
+  after the mesh stage that made them, as in the pipeline (so with the caches as it leaves
+  them);
 - ``main``: the same with main's classification before the second cost work
   (``tests/generator/walls_main.py``: the secant point, then bisections over the whole formula
   at every point);
@@ -116,28 +118,33 @@ def measure(name, tree, field, repeat):
     changed = float(areas[mesh.face_kinds != before.face_kinds].sum() / areas.sum())
     t_old = best(lambda: old_placement(field, 0.0), repeat)
     t_old_mesh = best(lambda: reference_extract_with_edges(field, 0.0, True), repeat)
-    capped, edges = mesh_module.extract_with_edges(field, 0.0, True)
-
     def label(classify=None):
+        """Mesh, then classify its crossings (``label_walls``, mark): timed apart, in the
+        state the pipeline classifies in, right after its field's mesh stage."""
+        start = time.perf_counter()
+        capped, edges = mesh_module.extract_with_edges(field, 0.0, True)
+        middle = time.perf_counter()
         keep = walls_module._classify
         walls_module._classify = classify or keep
         try:
-            return label_walls(capped, edges, field, tree, {}, 0.0, True, "mark")
+            label_walls(capped, edges, field, tree, {}, 0.0, True, "mark")
         finally:
             walls_module._classify = keep
+        return middle - start, time.perf_counter() - middle
 
     # extract_labelled is extract_with_edges then label_walls: time the two parts (a
-    # difference of two noisy totals would be noisier), interleaved, so a busy moment hits
-    # all four alike, and the three classifications in turns after the mesh stage (the
-    # first one after it finds the caches cold)
+    # difference of two noisy totals would be noisier), each classification right after a
+    # mesh stage of its own (the pipeline's state: the mesh stage's data in the caches, the
+    # field's samples mostly out of them), the three in turns, so a busy moment hits all alike
     t_mesh = float("inf")
     times = [float("inf")] * 3
     runs = [label, lambda: label(main_classify), lambda: label(previous)]
     for r in range(repeat):
-        t_mesh = min(t_mesh, best(lambda: mesh_module.extract_mesh(field, 0.0, cap=True), 1))
         for q in range(3):
             k = (q + r) % 3
-            times[k] = min(times[k], best(runs[k], 1))
+            mesh_time, label_time = runs[k]()
+            t_mesh = min(t_mesh, mesh_time)
+            times[k] = min(times[k], label_time)
     t_walls, t_main, t_prev = times
     print(
         f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} "
