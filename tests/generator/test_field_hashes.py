@@ -144,7 +144,7 @@ def _background_env(test: str) -> dict[str, str]:
     return {"NUMBA_CPU_NAME": cpu, "NPY_DISABLE_CPU_FEATURES": disabled}
 
 
-def start_in_background(test: str = BACKGROUND_TESTS[0]) -> None:
+def start_in_background(test: str) -> None:
     """Start the subprocess of background test ``test`` now; the test collects it later.  Each
     compiles the whole evaluator afresh (60-90 s of one core), so ``tests/conftest.py`` starts
     them as soon as the tests are collected: they then overlap the rest of the suite instead of
