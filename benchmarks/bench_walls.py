@@ -118,6 +118,7 @@ def measure(name, tree, field, repeat):
     changed = float(areas[mesh.face_kinds != before.face_kinds].sum() / areas.sum())
     t_old = best(lambda: old_placement(field, 0.0), repeat)
     t_old_mesh = best(lambda: reference_extract_with_edges(field, 0.0, True), repeat)
+
     def label(classify=None):
         """Mesh, then classify its crossings (``label_walls``, mark): timed apart, in the
         state the pipeline classifies in, right after its field's mesh stage."""
