@@ -1,9 +1,8 @@
 """Accuracy of the walls' classification (issue 11): each suspect crossing's kind against the
 edge itself, looked at closely.
 
-For every suspect crossing (the crossings the samples alone do not settle: step 1 on F's
-samples, as main's, ``walls._crossings``, or on the mesh stage's offsets, as now,
-``walls.step_one``) of the shapes of ``bench_walls.py`` (the named ones and the first ``--n`` screened draws of
+For every suspect crossing (the crossings the samples alone do not settle, ``walls._crossings``)
+of the shapes of ``bench_walls.py`` (the named ones and the first ``--n`` screened draws of
 ``--seed``, at ``--grid``³), the *truth*: F sampled at ``--fine`` points along the edge (the
 plain points evaluator, nothing shared); where F changes side exactly once, that change is
 bisected ``--bisect`` more times (to about 2^-44 of the edge), and the kind read from |F| at the
@@ -48,20 +47,13 @@ AMBIGUOUS = 255
 NAMES = {ROOT: "root", POLE: "pole", JUMP: "jump"}
 
 
-def truth(tree, field, vertex_edges, fine: int, bisections: int):
-    """Rows of the suspects in ``vertex_edges`` and their kinds by the close look (module
-    docstring)."""
+def truth(tree, field, edges, fine: int, bisections: int):
+    """Rows of the suspects in ``edges`` and their kinds by the close look (module docstring)."""
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
-    edges = np.ascontiguousarray(vertex_edges.index, dtype=np.int64)
-    _, idx_main, _, _, _ = walls_module._crossings(
+    _, idx, fa, fb, _ = walls_module._crossings(
         values, shape, edges, 0.0, walls_module.SMOOTH_RATIO
     )
-    _, idx_now, *_ = walls_module.step_one(field, 0.0, vertex_edges)
-    idx = np.union1d(idx_main, idx_now)
-    strides = np.array([shape[1] * shape[2], shape[2], 1])
-    at = edges[idx, 1:] @ strides
-    fa, fb = values[at], values[at + strides[edges[idx, 0]]]
     plain = points_evaluator(tree).plain
     axes = field.grid.axes()
     axis = edges[idx, 0]
@@ -143,6 +135,7 @@ def main() -> None:
           f"{'p.main':>7}")  # fmt: skip
     for name, tree, field in shapes(args):
         _, edges = mesh_module.extract_with_edges(field, 0.0, True)
+        edges = np.ascontiguousarray(edges, dtype=np.int64)
         idx, kinds = truth(tree, field, edges, args.fine, args.bisect)
         clear = kinds != AMBIGUOUS
         row = {}

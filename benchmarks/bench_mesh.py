@@ -75,7 +75,7 @@ def same(a, b) -> bool:
     return (
         a[0].vertices.tobytes() == b[0].vertices.tobytes()
         and np.array_equal(a[0].faces, b[0].faces)
-        and np.array_equal(a[1], b[1].index)
+        and np.array_equal(a[1], b[1])
     )
 
 

@@ -58,29 +58,6 @@ class Mesh:
         return int(self.faces.shape[0])
 
 
-@dataclass(frozen=True, slots=True)
-class VertexEdges:
-    """The grid edge under each vertex of a mesh :func:`extract_with_edges` made, and the samples
-    marching cubes read.
-
-    ``index``: int64 ``(V, 4)`` ``(axis, i, j, k)``: the vertex lies on the edge from sample
-    ``(i, j, k)`` to its neighbour one step along ``axis`` (0, 1, 2 for x, y, z); ``axis`` is -1
-    for vertices on no edge of the grid (cap vertices on box samples, and the few vertices
-    marching cubes puts inside a cell to resolve ambiguous cases).  ``offsets``: the float32
-    ``F - level`` marching cubes read at ``level`` (:func:`_offsets`: signs exact, magnitudes
-    clipped and raised for the separation), with ``pad`` layers of outside samples around the grid (1 with
-    a cap); still in the caches when the walls are classified, so step 1 of
-    :mod:`surfgen.generator.walls` reads them rather than F's samples.  ``finite``: every sample
-    of F was finite (non-finite ones have mirrored offsets, which hide them).
-    """
-
-    index: np.ndarray
-    offsets: np.ndarray
-    level: float
-    pad: int
-    finite: bool
-
-
 # What a face of an extracted mesh is (``Mesh.face_kinds``): a piece of the zero set (root), a
 # wall where F passes through infinity (pole) or jumps over the level (jump), or a box cap.
 ROOT, POLE, JUMP, CAP = 0, 1, 2, 3
@@ -206,8 +183,13 @@ def extract_mesh(field: Field, level: float = 0.0, cap: bool = False) -> Mesh:
 
 def extract_with_edges(
     field: Field, level: float = 0.0, cap: bool = False
-) -> tuple[Mesh, VertexEdges]:
-    """:func:`extract_mesh`, and the grid edge each vertex lies on (:class:`VertexEdges`).
+) -> tuple[Mesh, np.ndarray]:
+    """:func:`extract_mesh`, and the grid edge each vertex lies on.
+
+    Returns the mesh and an int64 ``(V, 4)`` array ``(axis, i, j, k)``: the vertex lies on the
+    edge from sample ``(i, j, k)`` to its neighbour one step along ``axis`` (0, 1, 2 for x, y,
+    z); ``axis`` is -1 for vertices on no edge of the grid (cap vertices on box samples, and
+    the few vertices marching cubes puts inside a cell to resolve ambiguous cases).
 
     Everything around marching cubes runs in numba kernels, one pass each, and marching cubes
     visits only the cells whose corners are on both sides (its ``mask``): the other cells make
@@ -215,7 +197,7 @@ def extract_with_edges(
     replaced, bit for bit (``tests/generator/test_mesh.py`` compares them).
     """
     values = np.ascontiguousarray(field.values, dtype=np.float64)
-    work, inside, n_inside, n_bad = _offsets(values, level)
+    work, inside, n_inside = _offsets(values, level)
     if n_inside == 0:
         raise EmptySurface(_empty_message("outside", level, field))
     if n_inside == inside.size:
@@ -257,7 +239,7 @@ def extract_with_edges(
         level,
         cap,
     )
-    return Mesh(vertices, faces), VertexEdges(edges, work, level, 1 if cap else 0, n_bad == 0)
+    return Mesh(vertices, faces), edges
 
 
 _NB = {"cache": True, "nogil": True, "error_model": "numpy"}
@@ -269,9 +251,8 @@ _FACE_HI = 1.0 - SEPARATION
 _HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed int64
 
 
-def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """float32 ``F - level`` with signs decided in float64, the boolean inside mask, its count
-    and the count of non-finite samples.
+def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """float32 ``F - level`` with signs decided in float64, the boolean inside mask and its count.
 
     Inside samples (``F < level``, finite) get a strictly negative offset, all others a strictly
     positive one, so marching cubes never sees a sample on the level (where ``<`` vs ``<=``
@@ -290,7 +271,7 @@ def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, 
     if n_bad:
         _mirror_nonfinite(values, offset, inside)
     _separate(offset, inside)
-    return offset, inside, int(n_inside), int(n_bad)
+    return offset, inside, int(n_inside)
 
 
 @njit(**_NB)

@@ -16,15 +16,7 @@ the zero set.
    ``SMOOTH_THIRD`` times ``|dm| + |dp|`` (F bends smoothly through an extremum: a pole or a
    jump on the edge makes it about twice the pole's or the jump's size).  Everything else
    (poles and resets against the neighbours' slopes, steep steps, non-finite neighbours, edges
-   at the grid's border) is *suspect*.  Where every sample of F is finite, the test first reads
-   the float32 offsets marching cubes read (:class:`~surfgen.generator.mesh.VertexEdges`),
-   still in the caches after the mesh stage, where F's own samples are not: F - level rounded
-   to float32, a sample beside a much larger opposite one raised to 1/99 of it (the mesh's
-   separation), which makes a steep profile steeper; then F's samples, only at the crossings
-   suspect on the offsets, and those that look smooth there are not suspect.  Compared with F's
-   samples alone, on the 34 shapes of ``bench_walls.py``: 0.8 % fewer suspects, no other, and
-   as many wrong kinds where the truth is clear (``accuracy_walls.py``: 7078 against 7117 of
-   181087).  F's samples alone where a sample is not finite (the offsets mirror it).
+   at the grid's border) is *suspect*.
 2. *Midpoint.*  F at the edge's middle (at an edge on the grid's border, which has no grid line
    to judge its profile, at the secant estimate rounded to a sixteenth of the edge): a root
    when ``|F| < NEAR_ROOT * |F(s)|``, ``s`` the sample on the same side of the level as the
@@ -91,7 +83,6 @@ from surfgen.generator.mesh import (
     ROOT,
     WALL_KINDS,
     Mesh,
-    VertexEdges,
     compact_mesh,
     extract_with_edges,
     face_cross,
@@ -180,7 +171,7 @@ def extract_labelled(
 
 def label_walls(
     mesh: Mesh,
-    edges: VertexEdges,
+    edges: np.ndarray,
     field: Field,
     tree: Expr,
     params: Mapping[str, float] | None = None,
@@ -236,10 +227,9 @@ def classify_edges(
     tree: Expr,
     params: Mapping[str, float] | None,
     level: float,
-    edges: VertexEdges,
+    edges: np.ndarray,
 ) -> tuple[np.ndarray, int]:
-    """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each vertex's ``(axis, i, j, k)`` edge
-    (``edges.index``, (V, 4)).
+    """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each ``(axis, i, j, k)`` edge of ``edges`` (V, 4).
 
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
@@ -255,10 +245,15 @@ def _classify(
     tree: Expr,
     params: Mapping[str, float] | None,
     level: float,
-    edges: VertexEdges,
+    edges: np.ndarray,
 ) -> tuple[np.ndarray, int, int]:
     """:func:`classify_edges`, and how many points the formula was evaluated at."""
-    kinds, idx, fa, fb, ina, ijk, axis = step_one(field, level, edges)
+    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
+    shape = np.asarray(field.values.shape, dtype=np.int64)
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    kinds, idx, fa, fb, ina, ijk, axis = _crossings_core(
+        values, shape, edges, float(level), SMOOTH_RATIO
+    )
     if idx.size == 0:
         return kinds, 0, 0
     prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
@@ -280,25 +275,6 @@ def _classify(
         kinds,
     )
     return kinds, int(idx.size), int(points)
-
-
-def step_one(field: Field, level: float, edges: VertexEdges) -> tuple[np.ndarray, ...]:
-    """Step 1 of the module's docstring: the kinds of the vertices' edges from the samples
-    alone (ROOT where they cross, UNKNOWN elsewhere), and the suspects: their rows, ``fa``,
-    ``fb`` (F - level at the edge's samples, float64), whether sample a is inside, their grid
-    indices and axes.
-
-    The test reads the float32 offsets marching cubes read (:class:`VertexEdges`), still in the
-    caches after the mesh stage, where they stand for F (every sample finite, the same level),
-    then F's samples at the crossings suspect there.  Else F's samples (a non-finite sample
-    makes its edges and its neighbours' suspect: the offsets mirror it)."""
-    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
-    shape = np.asarray(field.values.shape, dtype=np.int64)
-    index = np.ascontiguousarray(edges.index, dtype=np.int64)
-    if edges.finite and edges.level == level:
-        offsets = np.ascontiguousarray(edges.offsets, dtype=np.float32).reshape(-1)
-        return _crossings_hot(offsets, edges.pad, values, shape, index, float(level), SMOOTH_RATIO)
-    return _crossings_core(values, shape, index, float(level), SMOOTH_RATIO)
 
 
 _NB = {"cache": True, "error_model": "numpy", "nogil": True}
@@ -661,24 +637,6 @@ def _crossings(values, shape, edges, level, ratio):
     return kinds, rows, fa, fb, ina
 
 
-@njit(inline="always", **_NB)
-def _smooth(fm, fa, fb, fp, ratio):
-    """Step 1's test of a crossing from its samples ``fa``, ``fb`` and their neighbours ``fm``,
-    ``fp`` along the grid line (``F - level``): the secants are finite and either have one sign
-    with the edge's at most ``ratio`` times the larger neighbour, or change smoothly.  Written
-    without branches, as its verdict is unpredictable from one vertex to the next: one sign is
-    _sign(dm) == _sign(d) == _sign(dp) (d is not 0: the samples are on both sides)."""
-    d = fb - fa
-    dm = fa - fm
-    dp = fp - fb
-    one_sign = ((dm > 0.0) == (d > 0.0)) & (dm != 0.0) & ((dp > 0.0) == (d > 0.0)) & (dp != 0.0)
-    total = dm + d + dp
-    return (total - total == 0.0) & (  # all finite
-        (one_sign & (abs(d) <= ratio * max(abs(dm), abs(dp))))
-        | (abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp)))
-    )
-
-
 @njit(**_NB)
 def _crossings_core(values, shape, edges, level, ratio):
     """:func:`_crossings`, and the suspects' grid indices ``(i, j, k)`` and axes."""
@@ -710,12 +668,27 @@ def _crossings_core(values, shape, edges, level, ratio):
             continue
         kinds[v] = ROOT
         # The neighbours along the grid line (at the grid's border the edge's own samples:
-        # the edge is suspect whatever they are).
+        # the edge is suspect whatever they are).  The test is written without branches, as
+        # its verdict is unpredictable from one vertex to the next: one sign is
+        # _sign(dm) == _sign(d) == _sign(dp) (d is not 0: the samples are on both sides).
         lo_ok = pos >= 1
         hi_ok = pos + 2 < length
         fm = values[ia - step * lo_ok] - level
         fp = values[ib + step * hi_ok] - level
-        smooth = lo_ok & hi_ok & _smooth(fm, fa, fb, fp, ratio)
+        d = fb - fa
+        dm = fa - fm
+        dp = fp - fb
+        one_sign = ((dm > 0.0) == (d > 0.0)) & (dm != 0.0) & ((dp > 0.0) == (d > 0.0)) & (dp != 0.0)
+        total = dm + d + dp
+        smooth = (
+            lo_ok
+            & hi_ok
+            & (total - total == 0.0)  # all finite
+            & (
+                (one_sign & (abs(d) <= ratio * max(abs(dm), abs(dp))))
+                | (abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp)))
+            )
+        )
         rows[count] = v
         out_a[count] = fa
         out_b[count] = fb
@@ -733,86 +706,6 @@ def _crossings_core(values, shape, edges, level, ratio):
         out_in[:count],
         out_ijk[:count],
         out_axis[:count],
-    )
-
-
-@njit(**_NB)
-def _crossings_hot(offsets, pad, values, shape, edges, level, ratio):
-    """:func:`_crossings_core` for a field whose samples are all finite, its test first on the
-    float32 ``offsets`` (flat, ``pad`` layers around the grid: :class:`VertexEdges`), then on
-    F's samples (F - level in float64) only at the crossings suspect on the offsets, in a
-    second pass: suspect on both."""
-    n = edges.shape[0]
-    kinds = np.full(n, UNKNOWN, dtype=np.uint8)
-    rows = np.empty(n, dtype=np.int64)
-    out_ijk = np.empty((n, 3), dtype=np.int64)
-    out_axis = np.empty(n, dtype=np.int64)
-    wide_y, wide_z = shape[1] + 2 * pad, shape[2] + 2 * pad
-    strides = np.array([wide_y * wide_z, wide_z, 1], dtype=np.int64)
-    corner = pad * (strides[0] + strides[1] + 1)  # sample (0, 0, 0)
-    count = 0
-    for v in range(n):
-        axis = edges[v, 0]
-        if axis < 0:
-            continue
-        pos = edges[v, 1 + axis]
-        length = shape[axis]
-        if pos + 1 >= length:
-            continue
-        step = strides[axis]
-        ia = corner + edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
-        ib = ia + step
-        fa = np.float64(offsets[ia])
-        fb = np.float64(offsets[ib])
-        if (fa < 0.0) == (fb < 0.0):  # an offset is never 0; negative exactly inside
-            continue
-        kinds[v] = ROOT
-        lo_ok = pos >= 1
-        hi_ok = pos + 2 < length
-        fm = np.float64(offsets[ia - step * lo_ok])
-        fp = np.float64(offsets[ib + step * hi_ok])
-        smooth = lo_ok & hi_ok & _smooth(fm, fa, fb, fp, ratio)
-        rows[count] = v
-        out_ijk[count, 0] = edges[v, 1]
-        out_ijk[count, 1] = edges[v, 2]
-        out_ijk[count, 2] = edges[v, 3]
-        out_axis[count] = axis
-        count += not smooth
-    # F's samples at the suspects: the test again on them (a sample the separation raised makes
-    # a steep profile steeper: suspect on the offsets, not on F), and their fa, fb
-    out_a = np.empty(count)
-    out_b = np.empty(count)
-    out_in = np.empty(count, dtype=np.bool_)
-    plane, line = shape[1] * shape[2], shape[2]
-    kept = 0
-    for q in range(count):
-        axis = out_axis[q]
-        pos = out_ijk[q, axis]
-        ia = out_ijk[q, 0] * plane + out_ijk[q, 1] * line + out_ijk[q, 2]
-        step = plane if axis == 0 else (line if axis == 1 else 1)
-        ib = ia + step
-        lo_ok = pos >= 1
-        hi_ok = pos + 2 < shape[axis]
-        fa = values[ia] - level
-        fb = values[ib] - level
-        fm = values[ia - step * lo_ok] - level
-        fp = values[ib + step * hi_ok] - level
-        rows[kept] = rows[q]
-        for k in range(3):
-            out_ijk[kept, k] = out_ijk[q, k]
-        out_axis[kept] = axis
-        out_a[kept] = fa
-        out_b[kept] = fb
-        out_in[kept] = fa < 0.0
-        kept += not (lo_ok & hi_ok & _smooth(fm, fa, fb, fp, ratio))
-    return (
-        kinds,
-        rows[:kept],
-        out_a[:kept],
-        out_b[:kept],
-        out_in[:kept],
-        out_ijk[:kept],
-        out_axis[:kept],
     )
 
 

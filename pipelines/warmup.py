@@ -32,7 +32,7 @@ def warm_shape_kernels() -> float:
     from surfgen.generator.grid import Box, Field, Grid
     from surfgen.generator.mesh import _merge_same, extract_with_edges
     from surfgen.generator.parser import parse
-    from surfgen.generator.walls import label_walls, step_one
+    from surfgen.generator.walls import label_walls
     from surfgen.pipelines.pictures import render_image
 
     t0 = time.perf_counter()
@@ -51,13 +51,11 @@ def warm_shape_kernels() -> float:
     pieces(field.values)
     # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
     # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
-    # sample) given an offset from their neighbours, and step 1 of the walls on F's samples
-    # there; the warm ball has neither.
+    # sample) given an offset from their neighbours; the warm ball has neither.
     _merge_same(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int64), np.arange(3))
     holed = field.values.copy()
     holed[7, 7, 7] = np.nan
-    holed_field = Field(field.grid, holed)  # read-only, as the sampler's
-    step_one(holed_field, 0.0, extract_with_edges(holed_field, 0.0, cap=True)[1])  # F's samples
+    extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's
     seconds = time.perf_counter() - t0
     log.debug("shape kernels ready in %.2f s", seconds)
     return seconds

@@ -351,7 +351,7 @@ def assert_same_extraction(field: Field, level: float, cap: bool) -> None:
     mesh, edges = extract_with_edges(field, level, cap)
     assert mesh.vertices.tobytes() == want[0].vertices.tobytes()
     assert np.array_equal(mesh.faces, want[0].faces)
-    assert np.array_equal(edges.index, want[1])
+    assert np.array_equal(edges, want[1])
 
 
 @pytest.mark.parametrize(

@@ -156,11 +156,12 @@ def test_points_evaluator_is_the_reference():
 # kernels.run_points): the kinds must be the same.
 
 
-def reference_kinds(field, tree, level, vertex_edges):
+def reference_kinds(field, tree, level, edges):
     from surfgen.generator import walls as w
 
-    kinds, idx, fa, fb, ina, _ijk, _axis = w.step_one(field, level, vertex_edges)
-    edges = vertex_edges.index
+    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
+    shape = np.asarray(field.values.shape, dtype=np.int64)
+    kinds, idx, fa, fb, ina = w._crossings(values, shape, edges, level, w.SMOOTH_RATIO)
     if idx.size == 0:
         return kinds, 0
     plain = points_evaluator(tree).plain
@@ -269,91 +270,6 @@ def test_fused_classification_is_the_stepwise_reference(formula, half, cap):
     field = evaluate_reference(tree, Grid(Box.cube(half), (27, 30, 25)))
     _mesh, edges = extract_with_edges(field, 0.0, cap)
     kinds, refined = classify_edges(field, tree, None, 0.0, edges)
-    want, want_refined = reference_kinds(field, tree, 0.0, edges)
+    want, want_refined = reference_kinds(field, tree, 0.0, np.ascontiguousarray(edges))
     assert refined == want_refined
     assert np.array_equal(kinds, want)
-
-
-# ----------------------------------------------------------------------------- step 1's samples
-# Where every sample of F is finite, step 1 reads the float32 offsets marching cubes read (still
-# in the caches after the mesh stage), and F's own samples only at the suspects; elsewhere F's
-# samples (the offsets mirror a non-finite sample, which would hide it).
-
-
-def step_one_both(field, cap):
-    """Step 1 on the offsets (as the mesh stage leaves them) and on F's samples."""
-    from dataclasses import replace
-
-    from surfgen.generator.mesh import extract_with_edges
-    from surfgen.generator.walls import step_one
-
-    _mesh, edges = extract_with_edges(field, 0.0, cap)
-    return edges, step_one(field, 0.0, edges), step_one(field, 0.0, replace(edges, finite=False))
-
-
-@pytest.mark.parametrize(
-    ("formula", "half"),
-    [
-        ("tan(x)*tan(y)-z", 3.0),
-        ("atan(tan(2*x))+0.5-0.3*y*z", 3.0),
-        ("stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),
-        ("saw1(x+y,0.6,4)-0.3*z^2", 2.0),
-        ("sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
-        ("x^2+y^2+z^2-1", 1.3),
-    ],
-)
-@pytest.mark.parametrize("cap", [False, True])
-def test_step_one_on_the_offsets_reads_the_same_crossings(formula, half, cap):
-    field = evaluate_reference(parse(formula), Grid(Box.cube(half), (27, 30, 25)))
-    edges, hot, cold = step_one_both(field, cap)
-    assert edges.finite and edges.pad == (1 if cap else 0)
-    assert edges.offsets.shape == tuple(np.asarray(field.values.shape) + 2 * edges.pad)
-    kinds, rows, fa, fb, ina, ijk, axis = hot
-    assert np.array_equal(kinds, cold[0])  # the same crossings
-    assert np.array_equal(ijk, edges.index[rows, 1:]) and np.array_equal(axis, edges.index[rows, 0])
-    # each suspect with F's own samples, not the offsets
-    step = np.eye(3, dtype=np.int64)[axis]
-    values = field.values
-    assert np.array_equal(fa, values[tuple(ijk.T)]) and np.array_equal(
-        fb, values[tuple((ijk + step).T)]
-    )
-    assert np.array_equal(ina, fa < 0.0)
-    # the suspects: those of F's samples, but those smooth on the offsets: F's samples rounded to
-    # float32, or one of the four samples the test reads raised by the mesh's separation
-    from surfgen.generator import walls as w
-
-    shape = np.asarray(values.shape, dtype=np.int64)
-    rounded = values.astype(np.float32).astype(np.float64).reshape(-1)
-    smooth_rounded = np.setdiff1d(
-        cold[1], w._crossings_core(rounded, shape, edges.index, 0.0, w.SMOOTH_RATIO)[1]
-    )
-    p = edges.pad
-    inner = edges.offsets[p : p + shape[0], p : p + shape[1], p : p + shape[2]]
-    raised = inner != values.astype(np.float32)
-    assert np.isin(rows, cold[1]).all()
-    dropped = np.setdiff1d(cold[1], rows)
-    for v in np.setdiff1d(dropped, smooth_rounded):
-        a, start = edges.index[v, 0], edges.index[v, 1:]
-        line = [start + k * np.eye(3, dtype=np.int64)[a] for k in (-1, 0, 1, 2)]
-        line = [q for q in line if 0 <= q[a] < shape[a]]
-        assert any(raised[tuple(q)] for q in line), (v, start, a)
-
-
-def test_step_one_reads_F_where_a_sample_is_not_finite():
-    from dataclasses import replace
-
-    from surfgen.generator.grid import Field
-    from surfgen.generator.walls import step_one
-
-    # x^3 - 0.05 crosses between x = 0.3 and 0.4; a NaN at x = 0.2 (the crossing's neighbour on
-    # its grid line) hides behind a mirrored offset, and the crossing must stay suspect
-    grid = Grid(Box.cube(1.0), (21, 7, 7))
-    values = evaluate_reference(parse("x^3-0.05"), grid).values.copy()
-    values[12, 3, 3] = np.nan
-    field = Field(grid, values)
-    edges, _hot, cold = step_one_both(field, False)
-    assert not edges.finite
-    crossing = np.flatnonzero((edges.index == [0, 13, 3, 3]).all(axis=1))
-    assert crossing.size == 1 and crossing[0] in cold[1]
-    hot = step_one(field, 0.0, replace(edges, finite=True))  # what the offsets alone would say
-    assert crossing[0] not in hot[1]

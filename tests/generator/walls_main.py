@@ -17,7 +17,7 @@ from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.kernels import eval_points
-from surfgen.generator.mesh import ROOT, VertexEdges
+from surfgen.generator.mesh import ROOT
 from surfgen.generator.walls import (  # unchanged since: shared, not copied
     _crossings,
     _decide,
@@ -41,13 +41,13 @@ def main_classify(
     tree: Expr,
     params: Mapping[str, float] | None,
     level: float,
-    edges: VertexEdges,
+    edges: np.ndarray,
 ) -> tuple[np.ndarray, int, int]:
     """Kinds of the ``(axis, i, j, k)`` rows of ``edges``, the suspects and the points evaluated
     (``walls._classify`` as it was on main)."""
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
-    edges = np.ascontiguousarray(edges.index, dtype=np.int64)  # step 1 on F's samples
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
     kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
     if idx.size == 0:
         return kinds, 0, 0

@@ -24,7 +24,7 @@ from walls_main import (  # the frozen copy of main's classifier before walls2
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.mesh import ROOT, VertexEdges
+from surfgen.generator.mesh import ROOT
 from surfgen.generator.walls import _decide, _sign
 
 ROUNDS = 2  # refinement rounds ...
@@ -36,7 +36,7 @@ def reference_classify_edges(
     tree: Expr,
     params: Mapping[str, float] | None,
     level: float,
-    edges: VertexEdges,
+    edges: np.ndarray,
 ) -> tuple[np.ndarray, int]:
     """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each ``(axis, i, j, k)`` edge of ``edges`` (V, 4).
 
@@ -45,7 +45,7 @@ def reference_classify_edges(
     """
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
     shape = np.asarray(field.values.shape, dtype=np.int64)
-    edges = np.ascontiguousarray(edges.index, dtype=np.int64)  # step 1 on F's samples
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
     kinds, idx, fa, fb, ina = _crossings(values, shape, edges, float(level), SMOOTH_RATIO)
     if idx.size == 0:
         return kinds, 0
