@@ -153,11 +153,14 @@ def screen_field(
     return ACCEPT
 
 
-def quick_metrics(mesh: Mesh, box: tuple[float, ...]) -> dict[str, Any]:
+def quick_metrics(
+    mesh: Mesh, box: tuple[float, ...], areas: np.ndarray | None = None
+) -> dict[str, Any]:
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
     ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
-    (area of the largest component / total)."""
-    areas = face_areas(mesh)
+    (area of the largest component / total).  ``areas``: the mesh's
+    :func:`~surfgen.generator.mesh.face_areas`, where the caller has them already."""
+    areas = face_areas(mesh) if areas is None else areas
     total = float(areas.sum()) or 1.0
     lo = np.array(box[0::2])
     hi = np.array(box[1::2])

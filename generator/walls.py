@@ -178,11 +178,16 @@ def label_walls(
     level: float = 0.0,
     cap: bool = False,
     walls: str = "mark",
+    areas: np.ndarray | None = None,
 ) -> tuple[Mesh, WallReport]:
     """The second half of :func:`extract_labelled`, for a mesh and edges that
     :func:`~surfgen.generator.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
-    lets a caller look at the mesh before paying for the classification."""
+    lets a caller look at the mesh before paying for the classification.  ``areas``: the
+    mesh's face areas (:func:`~surfgen.generator.mesh.face_areas`) where the caller has them
+    (the sampler's filters need them too: computed once); else computed here, the same bits."""
     check_walls_mode(walls)
+    if areas is not None and len(areas) != mesh.n_faces:
+        raise ValueError(f"{len(areas)} face areas for {mesh.n_faces} faces")
     kinds, refined, points = _classify(field, tree, params, level, edges)
     roots, poles, jumps = _count_kinds(kinds)
     any_wall = bool(poles + jumps)
@@ -197,6 +202,7 @@ def label_walls(
             np.asarray(field.grid.box.lo, dtype=np.float64),
             np.asarray(field.grid.box.hi, dtype=np.float64),
             any_wall,
+            np.empty(0) if areas is None else np.ascontiguousarray(areas, dtype=np.float64),
         )
     report = WallReport(
         edges=int(roots + poles + jumps),
@@ -723,10 +729,11 @@ def _count_kinds(kinds):
 
 
 @njit(**_NB)
-def _label_faces(v, f, kinds, cap, lo, hi, areas):
-    """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``areas``, also
+def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
+    """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``sums``, also
     the area on wall faces and in all (:func:`~surfgen.generator.mesh.wall_share`'s sums: the
-    same operations in face order).
+    same operations in face order), from the faces' ``areas`` where given (the same values as
+    :func:`~surfgen.generator.mesh.face_areas`'), else computed here.
 
     With ``cap``, faces lying on a box face (``lo``, ``hi``) are CAP.  Otherwise a face is a wall
     when most of its labelled vertices are walls (a pole if any of those is a pole, else a
@@ -750,6 +757,7 @@ def _label_faces(v, f, kinds, cap, lo, hi, areas):
                 b |= np.int32(v[i, k] == hi[k]) << (2 * k + 1)
         code[i] = table[kinds[i]] | (b << 8)
     n_faces = f.shape[0]
+    given = areas.size > 0
     out = np.empty(n_faces, dtype=np.uint8)
     wall_area = 0.0
     total = 0.0
@@ -763,9 +771,12 @@ def _label_faces(v, f, kinds, cap, lo, hi, areas):
         if (c0 & c1 & c2) >> 8 != 0:
             kind = CAP
         out[n] = kind
-        if areas:
-            x, y, z = face_cross(v, i0, i1, i2)
-            a = 0.5 * math.sqrt(x * x + y * y + z * z)
+        if sums:
+            if given:
+                a = areas[n]
+            else:
+                x, y, z = face_cross(v, i0, i1, i2)
+                a = 0.5 * math.sqrt(x * x + y * y + z * z)
             total += a
             if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
                 wall_area += a

@@ -62,7 +62,7 @@ from surfgen.generator.limits import (
     check_seed,
     estimate_memory,
 )
-from surfgen.generator.mesh import Mesh, extract_with_edges, mesh_bytes
+from surfgen.generator.mesh import Mesh, extract_with_edges, face_areas, mesh_bytes
 from surfgen.generator.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import label_walls
@@ -290,17 +290,20 @@ def _judge(
     capped = run.cap and run.walls != "remove"
     try:
         mesh, edges = extract_with_edges(field_, spec.level, cap=capped)
+        areas = face_areas(mesh)  # the walls' and the filters' (computed once)
         if run.walls != "keep":  # the mesh itself depends on the classification
             mesh, crossings = label_walls(
-                mesh, edges, field_, tree, {}, spec.level, run.cap, run.walls
+                mesh, edges, field_, tree, {}, spec.level, run.cap, run.walls, areas
             )
             metrics["wall_fraction"] = crossings.wall_fraction
+            if run.walls == "remove":  # fewer faces
+                areas = face_areas(mesh)
     except EmptySurface:
         return stop(Verdict.reject("empty"))
     finally:
         watch.lap("mesh")
     # Cheap checks first (most draws fail them)...
-    quick = quick_metrics(mesh, spec.box)
+    quick = quick_metrics(mesh, spec.box, areas)
     metrics.update(quick)
     verdict = judge(metrics, fcfg, capped=capped)
     watch.lap("filters")
@@ -309,7 +312,9 @@ def _judge(
         verdict = ACCEPT
         if "wall_fraction" not in metrics:
             # ...then the walls (root, pole or jump for every crossing: refines with the formula)
-            _, crossings = label_walls(mesh, edges, field_, tree, {}, spec.level, run.cap, "keep")
+            _, crossings = label_walls(
+                mesh, edges, field_, tree, {}, spec.level, run.cap, "keep", areas
+            )
             metrics["wall_fraction"] = crossings.wall_fraction
             watch.lap("walls")
             verdict = judge(metrics, fcfg, capped=capped)

@@ -56,6 +56,21 @@ def test_quick_metrics_agree_with_full_metrics() -> None:
     assert q["components"] == m["components"] == 1 and q["faces"] == m["faces"]
 
 
+def test_quick_metrics_take_the_face_areas_a_caller_has() -> None:
+    from surfgen.generator.mesh import face_areas
+
+    slab, g = mesh_of("z-0.5+0.2*sin(3*x)", 1.0, 24)
+    areas = face_areas(slab)
+    assert quick_metrics(slab, g.box.bounds(), areas) == quick_metrics(slab, g.box.bounds())
+    # they are used, not measured again
+    assert quick_metrics(slab, g.box.bounds(), 2.0 * areas)["box_fraction"] == pytest.approx(
+        quick_metrics(slab, g.box.bounds())["box_fraction"]
+    )
+    half = areas.copy()
+    half[: len(half) // 2] = 0.0
+    assert quick_metrics(slab, g.box.bounds(), half) != quick_metrics(slab, g.box.bounds())
+
+
 def test_screen_field_reasons() -> None:
     cfg = FilterConfig()
     g = Grid(Box.cube(1), (24, 24, 24))

@@ -273,3 +273,29 @@ def test_fused_classification_is_the_stepwise_reference(formula, half, cap):
     want, want_refined = reference_kinds(field, tree, 0.0, np.ascontiguousarray(edges))
     assert refined == want_refined
     assert np.array_equal(kinds, want)
+
+
+@pytest.mark.parametrize("walls", ["keep", "mark"])
+def test_label_walls_takes_the_face_areas_a_caller_has(walls):
+    # the sampler's filters need the faces' areas too: it computes them once and passes them
+    from surfgen.generator.mesh import extract_with_edges, face_areas
+    from surfgen.generator.walls import label_walls
+
+    tree = parse("tan(x)+0.3*y")
+    field = evaluate_reference(tree, Grid(Box.cube(3.0), (30, 30, 30)))
+    mesh, edges = extract_with_edges(field, 0.0, True)
+    areas = face_areas(mesh)
+    got, report = label_walls(mesh, edges, field, tree, None, 0.0, True, walls, areas)
+    want, want_report = label_walls(mesh, edges, field, tree, None, 0.0, True, walls)
+    assert report == want_report and report.wall_fraction > 0.1  # the same bits
+    assert (got.face_kinds is None) == (want.face_kinds is None)
+    if walls == "mark":
+        assert np.array_equal(got.face_kinds, want.face_kinds)
+        assert report.wall_fraction == wall_fraction(got)
+    # they are used, not measured again: twice the walls' areas, a larger share
+    marked = label_walls(mesh, edges, field, tree, None, 0.0, True, "mark")[0]
+    double = np.where(np.isin(marked.face_kinds, (POLE, JUMP)), 2.0, 1.0) * areas
+    _, doubled = label_walls(mesh, edges, field, tree, None, 0.0, True, walls, double)
+    assert doubled.wall_fraction > report.wall_fraction
+    with pytest.raises(ValueError, match="face areas"):
+        label_walls(mesh, edges, field, tree, None, 0.0, True, walls, areas[:-1])
