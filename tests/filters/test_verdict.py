@@ -62,10 +62,7 @@ def test_quick_metrics_take_the_face_areas_a_caller_has() -> None:
     slab, g = mesh_of("z-0.5+0.2*sin(3*x)", 1.0, 24)
     areas = face_areas(slab)
     assert quick_metrics(slab, g.box.bounds(), areas) == quick_metrics(slab, g.box.bounds())
-    # they are used, not measured again
-    assert quick_metrics(slab, g.box.bounds(), 2.0 * areas)["box_fraction"] == pytest.approx(
-        quick_metrics(slab, g.box.bounds())["box_fraction"]
-    )
+    # they are used, not measured again: other areas, other shares
     half = areas.copy()
     half[: len(half) // 2] = 0.0
     assert quick_metrics(slab, g.box.bounds(), half) != quick_metrics(slab, g.box.bounds())
