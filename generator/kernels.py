@@ -134,6 +134,13 @@ def _cycles(typingctx):
 
 
 @njit(inline="always", **_OPTS)
+def unsigned(i):
+    """Index ``i`` (never negative) as unsigned: numba checks a signed index for a negative
+    value to wrap around, a compare and a select at every load of a gather."""
+    return np.uint64(i)
+
+
+@njit(inline="always", **_OPTS)
 def _usign(u):
     """constituents.unit_sign: +1 for u >= 0 (also -0), -1 below, NaN for NaN."""
     if u >= 0.0:
@@ -1005,9 +1012,9 @@ def _dedupe_in_into(keys, size, ids):
     m = 0
     for p in range(n):
         k = keys[p]
-        t = table[k]
+        t = table[unsigned(k)]
         if t == -1:
-            table[k] = m
+            table[unsigned(k)] = m
             first[m] = p
             ids[p] = m
             m += 1
@@ -1052,12 +1059,12 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None)
                 elif kind == lv:
                     base = offsets[kind] + row * sizes[kind] + e0
                     for k in range(n):
-                        W[slot, k] = store[base + k]
+                        W[slot, k] = store[unsigned(base + k)]
                 else:
                     base = offsets[kind] + row * sizes[kind]
                     at = map_at[lv, kind] + e0
                     for k in range(n):
-                        W[slot, k] = store[base + maps[at + k]]
+                        W[slot, k] = store[unsigned(base + maps[at + k])]
             _exec(code, c0, c1, consts, W, S, T, n, prof)
             for q in range(blocks[lv, 4], blocks[lv, 5]):
                 slot = stores[q, 0]
@@ -1065,18 +1072,18 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None)
                 row = stores[q, 2]
                 if kind == 7:
                     for k in range(n):
-                        out[e0 + k] = W[slot, k]
+                        out[unsigned(e0 + k)] = W[slot, k]
                 else:
                     base = offsets[kind] + row * sizes[kind] + e0
                     for k in range(n):
-                        store[base + k] = W[slot, k]
+                        store[unsigned(base + k)] = W[slot, k]
 
 
 @njit(**_OPTS)
 def _gather(values, at):
     out = np.empty(at.size, dtype=values.dtype)
     for i in range(at.size):
-        out[i] = values[at[i]]
+        out[i] = values[unsigned(at[i])]
     return out
 
 
@@ -1254,9 +1261,9 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     map_at = np.zeros((8, 8), dtype=np.int64)
     for p in range(n):
         e = sel[p]
-        ids[vb, p] = ijk[e, b]
-        ids[vc, p] = ijk[e, c]
-        ids[vb | vc, p] = pair_ids[e]
+        ids[vb, p] = ijk[unsigned(e), b]
+        ids[vc, p] = ijk[unsigned(e), c]
+        ids[vb | vc, p] = pair_ids[unsigned(e)]
     # the pair levels with the axis: (value id, grid index) pairs
     pair_parts = []
     pair_keys = []
@@ -1279,7 +1286,7 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
         grown[:fixed_end] = store[:fixed_end]
         store = grown
     for q in range(ufirst.size):
-        store[offsets[va] + q] = u[ufirst[q]]
+        store[unsigned(offsets[va] + q)] = u[unsigned(ufirst[q])]
     skip = np.zeros(8, dtype=np.bool_)
     skip[vb] = skip[vc] = skip[vb | vc] = True
     run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip)

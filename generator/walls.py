@@ -75,7 +75,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import edge_lattice, eval_edges
+from surfgen.generator.kernels import edge_lattice, eval_edges, unsigned
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -305,7 +305,7 @@ def _decide_rows(mid, end, fa, fb, rest):
     n = rest.size
     out = np.empty(n, dtype=np.uint8)
     for r in range(n):
-        e = rest[r]
+        e = unsigned(rest[r])
         f_lo2, f_hi2 = mid[e, 2], mid[e, 3]
         lo4, hi4, f_lo4, f_hi4 = end[e, 0], end[e, 1], end[e, 2], end[e, 3]
         kept_lo = lo4 == 0.0  # the bracket still starts at sample a
@@ -356,11 +356,11 @@ def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
     u = np.empty(m)
     fm = np.empty(m)
     for r in range(m):
-        e = sel[r]
+        e = unsigned(sel[r])
         u[r] = u0[e] + 0.5 * (now[e, 0] + now[e, 1]) * h
     eval_edges(prog, tile, active, rows, ctx, sel, u, fm)
     for r in range(m):
-        e = sel[r]
+        e = unsigned(sel[r])
         _split(now, e, 0.5 * (now[e, 0] + now[e, 1]), fm[r] - level)
     return m
 
@@ -371,7 +371,7 @@ def _wider(now, first, sel):
     out = np.empty(sel.size, dtype=np.int64)
     m = 0
     for r in range(sel.size):
-        e = sel[r]
+        e = unsigned(sel[r])
         if now[e, 1] - now[e, 0] > 0.25 * (first[e, 1] - first[e, 0]):
             out[m] = e
             m += 1
@@ -511,7 +511,7 @@ def _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, 
     count = 0
     for r in range(rest.size):
         if pick[r]:
-            e = rest[r]
+            e = unsigned(rest[r])
             sel[count] = e
             at[count] = r
             count += 1
@@ -618,16 +618,6 @@ def _bisect_kernel(
     return points
 
 
-@njit(inline="always", **_NB)
-def _sign(u):
-    """np.sign (NaN stays NaN; the callers have only finite values)."""
-    if u > 0.0:
-        return 1.0
-    if u < 0.0:
-        return -1.0
-    return u
-
-
 @njit(**_NB)
 def _crossings(values, shape, edges, level, ratio):
     """Kinds of the vertices' edges from the samples alone, and the suspects.
@@ -645,74 +635,88 @@ def _crossings(values, shape, edges, level, ratio):
 
 @njit(**_NB)
 def _crossings_core(values, shape, edges, level, ratio):
-    """:func:`_crossings`, and the suspects' grid indices ``(i, j, k)`` and axes."""
+    """:func:`_crossings`, and the suspects' grid indices ``(i, j, k)`` and axes.
+
+    Three passes, so that the test runs on arrays: the samples of every row's grid line
+    (scalar loads), the test itself (no loads, no branches: it vectorises), then the suspects
+    gathered.  Indices are unsigned (:func:`kernels.unsigned`)."""
     n = edges.shape[0]
-    kinds = np.full(n, UNKNOWN, dtype=np.uint8)
-    rows = np.empty(n, dtype=np.int64)
-    out_a = np.empty(n)
-    out_b = np.empty(n)
-    out_in = np.empty(n, dtype=np.bool_)
-    out_ijk = np.empty((n, 3), dtype=np.int64)
-    out_axis = np.empty(n, dtype=np.int64)
-    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
-    count = 0
+    kinds = np.empty(n, dtype=np.uint8)
+    # F at the edge's samples a, b and at its neighbours before a and after b along the grid
+    # line; a neighbour that does not exist (the grid's border) is the edge's own sample, and
+    # a row on no edge (axis -1, or at the grid's end) reads sample 0 four times
+    line = np.empty((4, n))
+    inner = np.empty(n, dtype=np.bool_)  # on a grid edge
+    both = np.empty(n, dtype=np.bool_)  # ... with both neighbours
+    s0 = shape[1] * shape[2]
+    s1 = shape[2]
     for v in range(n):
         axis = edges[v, 0]
-        if axis < 0:
-            continue
-        pos = edges[v, 1 + axis]
-        length = shape[axis]
-        if pos + 1 >= length:
-            continue
-        step = strides[axis]
-        ia = edges[v, 1] * strides[0] + edges[v, 2] * strides[1] + edges[v, 3]
-        ib = ia + step
-        fa = values[ia] - level
-        fb = values[ib] - level
-        ina = fa < 0.0 and fa > -np.inf  # inside: finite and below the level
-        if ina == (fb < 0.0 and fb > -np.inf):
-            continue
-        kinds[v] = ROOT
-        # The neighbours along the grid line (at the grid's border the edge's own samples:
-        # the edge is suspect whatever they are).  The test is written without branches, as
-        # its verdict is unpredictable from one vertex to the next: one sign is
-        # _sign(dm) == _sign(d) == _sign(dp) (d is not 0: the samples are on both sides).
+        i, j, k = edges[v, 1], edges[v, 2], edges[v, 3]
+        pos = i if axis == 0 else (j if axis == 1 else k)
+        length = shape[0] if axis == 0 else (shape[1] if axis == 1 else shape[2])
+        step = s0 if axis == 0 else (s1 if axis == 1 else 1)
+        on_edge = (axis >= 0) & (pos + 1 < length)
+        ia = np.uint64(i * s0 + j * s1 + k if on_edge else 0)
+        us = np.uint64(step if on_edge else 0)
         lo_ok = pos >= 1
         hi_ok = pos + 2 < length
-        fm = values[ia - step * lo_ok] - level
-        fp = values[ib + step * hi_ok] - level
+        ib = ia + us
+        line[0, v] = values[ia - us * np.uint64(lo_ok)]
+        line[1, v] = values[ia]
+        line[2, v] = values[ib]
+        line[3, v] = values[ib + us * np.uint64(hi_ok)]
+        inner[v] = on_edge
+        both[v] = on_edge & lo_ok & hi_ok
+    suspect = np.empty(n, dtype=np.bool_)
+    for v in range(n):
+        fm = line[0, v] - level
+        fa = line[1, v] - level
+        fb = line[2, v] - level
+        fp = line[3, v] - level
+        ina = (fa < 0.0) & (fa > -np.inf)  # inside: finite and below the level
+        inb = (fb < 0.0) & (fb > -np.inf)
+        crossing = inner[v] & (ina != inb)
+        kinds[v] = ROOT if crossing else UNKNOWN
+        # one sign: np.sign(dm) == np.sign(d) == np.sign(dp) (d is not 0 at a crossing)
         d = fb - fa
         dm = fa - fm
         dp = fp - fb
         one_sign = ((dm > 0.0) == (d > 0.0)) & (dm != 0.0) & ((dp > 0.0) == (d > 0.0)) & (dp != 0.0)
         total = dm + d + dp
+        adm = abs(dm)
+        adp = abs(dp)
+        larger = adm if adm > adp else adp
         smooth = (
-            lo_ok
-            & hi_ok
+            both[v]
             & (total - total == 0.0)  # all finite
             & (
-                (one_sign & (abs(d) <= ratio * max(abs(dm), abs(dp))))
-                | (abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (abs(dm) + abs(dp)))
+                (one_sign & (abs(d) <= ratio * larger))
+                | (abs(dp - 2.0 * d + dm) <= SMOOTH_THIRD * (adm + adp))
             )
         )
+        suspect[v] = crossing & (not smooth)
+    rows = np.empty(n, dtype=np.int64)
+    count = 0
+    for v in range(n):  # without a branch: suspects and smooth roots interleave
         rows[count] = v
-        out_a[count] = fa
-        out_b[count] = fb
-        out_in[count] = ina
-        out_ijk[count, 0] = edges[v, 1]
-        out_ijk[count, 1] = edges[v, 2]
-        out_ijk[count, 2] = edges[v, 3]
-        out_axis[count] = axis
-        count += not smooth
-    return (
-        kinds,
-        rows[:count],
-        out_a[:count],
-        out_b[:count],
-        out_in[:count],
-        out_ijk[:count],
-        out_axis[:count],
-    )
+        count += suspect[v]
+    rows = rows[:count]
+    out_a = np.empty(count)
+    out_b = np.empty(count)
+    out_in = np.empty(count, dtype=np.bool_)
+    out_ijk = np.empty((count, 3), dtype=np.int64)
+    out_axis = np.empty(count, dtype=np.int64)
+    for q in range(count):
+        v = rows[q]
+        fa = line[1, v] - level
+        out_a[q] = fa
+        out_b[q] = line[2, v] - level
+        out_in[q] = (fa < 0.0) & (fa > -np.inf)
+        for c in range(3):
+            out_ijk[q, c] = edges[v, 1 + c]
+        out_axis[q] = edges[v, 0]
+    return kinds, rows, out_a, out_b, out_in, out_ijk, out_axis
 
 
 @njit(**_NB)
@@ -763,7 +767,7 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
     total = 0.0
     for n in range(n_faces):
         i0, i1, i2 = f[n, 0], f[n, 1], f[n, 2]
-        c0, c1, c2 = code[i0], code[i1], code[i2]
+        c0, c1, c2 = code[unsigned(i0)], code[unsigned(i1)], code[unsigned(i2)]
         counts = (c0 + c1 + c2) & 255
         kind = ROOT
         if 2 * ((counts >> 2) & 3) > (counts & 3):  # most of its labelled vertices are walls

@@ -299,3 +299,78 @@ def test_label_walls_takes_the_face_areas_a_caller_has(walls):
     assert doubled.wall_fraction > report.wall_fraction
     with pytest.raises(ValueError, match="face areas"):
         label_walls(mesh, edges, field, tree, None, 0.0, True, walls, areas[:-1])
+
+
+# ----------------------------------------------------------------------------- step 1
+def step_one_reference(values, edges, level):
+    """Step 1 of walls' docstring on arrays: kinds (ROOT at a crossing, else UNKNOWN) and the
+    suspects' rows, fa, fb, whether sample a is inside, grid indices and axes."""
+    from surfgen.generator import walls as w
+
+    shape = np.asarray(values.shape)
+    axis, ijk = edges[:, 0], edges[:, 1:]
+    on_grid = axis >= 0
+    a = np.where(on_grid, axis, 0)
+    pos = ijk[np.arange(len(edges)), a]
+    inner = on_grid & (pos + 1 < shape[a])
+    step = np.eye(3, dtype=np.int64)[a]
+
+    def f_at(shift):  # F - level at ijk + shift * step, clipped into the grid
+        p = np.clip(ijk + shift[:, None] * step, 0, shape - 1)
+        return values[p[:, 0], p[:, 1], p[:, 2]] - level
+
+    zero = np.zeros(len(edges), dtype=np.int64)
+    fa, fb = f_at(zero), f_at(zero + 1)
+    inside_a = np.isfinite(fa) & (fa < 0)
+    crossing = inner & (inside_a != (np.isfinite(fb) & (fb < 0)))
+    with np.errstate(all="ignore"):
+        fm, fp = f_at(zero - 1), f_at(zero + 2)
+        d, dm, dp = fb - fa, fa - fm, fp - fb
+        one_sign = (np.sign(dm) == np.sign(d)) & (np.sign(dp) == np.sign(d))
+        smooth = (
+            (pos >= 1)
+            & (pos + 2 < shape[a])
+            & np.isfinite(dm + d + dp)
+            & (
+                (one_sign & (np.abs(d) <= w.SMOOTH_RATIO * np.maximum(np.abs(dm), np.abs(dp))))
+                | (np.abs(dp - 2 * d + dm) <= w.SMOOTH_THIRD * (np.abs(dm) + np.abs(dp)))
+            )
+        )
+    rows = np.flatnonzero(crossing & ~smooth)
+    kinds = np.where(crossing, ROOT, w.UNKNOWN).astype(np.uint8)
+    return kinds, rows, fa[rows], fb[rows], inside_a[rows], ijk[rows], axis[rows]
+
+
+@pytest.mark.parametrize(
+    "formula, half",
+    [
+        ("tan(x)+0.3*y", 3.0),  # poles
+        ("stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),  # plateaus and risers
+        ("sqrt(1-x^2-y^2)-abs(z)-0.2+0.1/(x-0.3)", 1.2),  # NaN and +-inf samples
+        ("1/x+y+z", 2.0),  # +inf samples at x = 0
+        ("log(abs(x))+0.3*y", 2.0),  # -inf samples at x = 0: outside
+        ("x^2+y^2+z^2-1", 1.05),  # smooth: suspects only next to the border
+    ],
+)
+@pytest.mark.parametrize("cap", [False, True])  # cap: vertices on no grid edge (axis -1)
+def test_step_one_is_its_docstring(formula, half, cap):
+    from surfgen.generator import walls as w
+    from surfgen.generator.mesh import extract_with_edges
+
+    tree = parse(formula)
+    field = evaluate_reference(tree, Grid(Box.cube(half), (21, 24, 19)))
+    _mesh, edges = extract_with_edges(field, 0.0, cap)
+    # rows on no grid edge and at the grid's end, which marching cubes does not make
+    extra = np.array([[-1, 3, 4, 5], [0, 20, 2, 2], [1, 2, 23, 2], [2, 2, 2, 18]])
+    edges = np.ascontiguousarray(np.concatenate([edges, extra]), dtype=np.int64)
+    assert (edges[:, 0] == -1).any()
+    values = np.ascontiguousarray(field.values, dtype=np.float64)
+    got = w._crossings_core(values.reshape(-1), np.asarray(values.shape), edges, 0.0,
+                            w.SMOOTH_RATIO)  # fmt: skip
+    want = step_one_reference(values, edges, 0.0)
+    assert got[1].size > 0
+    if "log" in formula:
+        assert np.isneginf(values).any()
+    for g, e in zip(got, want, strict=True):
+        assert g.dtype.kind == e.dtype.kind
+        assert np.array_equal(g, e, equal_nan=g.dtype.kind == "f")

@@ -25,7 +25,7 @@ from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
 from surfgen.generator.mesh import ROOT
-from surfgen.generator.walls import _decide, _sign
+from surfgen.generator.walls import _decide
 
 ROUNDS = 2  # refinement rounds ...
 POINTS = 3  # ... of this many points each: the bracket shrinks 4x per round
@@ -222,6 +222,16 @@ def _classify_kernel(
     for e in range(m):
         out[rest[e]] = kinds[e]
     return out
+
+
+@njit(inline="always", **_NB)
+def _sign(u):
+    """np.sign (NaN stays NaN; the callers have only finite values)."""
+    if u > 0.0:
+        return 1.0
+    if u < 0.0:
+        return -1.0
+    return u
 
 
 @njit(**_NB)
