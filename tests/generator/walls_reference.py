@@ -24,6 +24,7 @@ from walls_main import (  # the frozen copy of main's classifier before walls2
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
+from surfgen.generator.kernels import _sign  # np.sign (the samples here are finite)
 from surfgen.generator.mesh import ROOT
 from surfgen.generator.walls import _decide
 
@@ -222,16 +223,6 @@ def _classify_kernel(
     for e in range(m):
         out[rest[e]] = kinds[e]
     return out
-
-
-@njit(inline="always", **_NB)
-def _sign(u):
-    """np.sign (NaN stays NaN; the callers have only finite values)."""
-    if u > 0.0:
-        return 1.0
-    if u < 0.0:
-        return -1.0
-    return u
 
 
 @njit(**_NB)
