@@ -64,7 +64,6 @@ side changes), bisection follows one of them, so kinds there are a guess.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -85,7 +84,7 @@ from surfgen.generator.mesh import (
     Mesh,
     compact_mesh,
     extract_with_edges,
-    face_cross,
+    face_areas,
 )
 
 log = logging.getLogger(__name__)
@@ -184,7 +183,7 @@ def label_walls(
     :func:`~surfgen.generator.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
     lets a caller look at the mesh before paying for the classification.  ``areas``: the
     mesh's face areas (:func:`~surfgen.generator.mesh.face_areas`) where the caller has them
-    (the sampler's filters need them too: computed once); else computed here, the same bits."""
+    (the sampler's filters need them too: computed once); else computed here."""
     check_walls_mode(walls)
     if areas is not None and len(areas) != mesh.n_faces:
         raise ValueError(f"{len(areas)} face areas for {mesh.n_faces} faces")
@@ -194,6 +193,8 @@ def label_walls(
     if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
         face_kinds, wall, total = None, 0.0, 0.0
     else:  # one pass labels the faces and, with walls, sums the areas (wall_share's sums)
+        if any_wall and areas is None:
+            areas = face_areas(mesh)
         face_kinds, wall, total = _label_faces(
             mesh.vertices,
             mesh.faces,
@@ -202,7 +203,7 @@ def label_walls(
             np.asarray(field.grid.box.lo, dtype=np.float64),
             np.asarray(field.grid.box.hi, dtype=np.float64),
             any_wall,
-            np.empty(0) if areas is None else np.ascontiguousarray(areas, dtype=np.float64),
+            np.ascontiguousarray(areas if any_wall else np.empty(0), dtype=np.float64),
         )
     report = WallReport(
         edges=int(roots + poles + jumps),
@@ -736,9 +737,8 @@ def _count_kinds(kinds):
 @njit(**_NB)
 def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
     """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``sums``, also
-    the area on wall faces and in all (:func:`~surfgen.generator.mesh.wall_share`'s sums: the
-    same operations in face order), from the faces' ``areas`` where given (the same values as
-    :func:`~surfgen.generator.mesh.face_areas`'), else computed here.
+    the area on wall faces and in all from the faces' ``areas``
+    (:func:`~surfgen.generator.mesh.wall_share`'s sums: the same operations in face order).
 
     With ``cap``, faces lying on a box face (``lo``, ``hi``) are CAP.  Otherwise a face is a wall
     when most of its labelled vertices are walls (a pole if any of those is a pole, else a
@@ -762,7 +762,6 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
                 b |= np.int32(v[i, k] == hi[k]) << (2 * k + 1)
         code[i] = table[kinds[i]] | (b << 8)
     n_faces = f.shape[0]
-    given = areas.size > 0
     out = np.empty(n_faces, dtype=np.uint8)
     wall_area = 0.0
     total = 0.0
@@ -777,11 +776,7 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
             kind = CAP
         out[n] = kind
         if sums:
-            if given:
-                a = areas[n]
-            else:
-                x, y, z = face_cross(v, i0, i1, i2)
-                a = 0.5 * math.sqrt(x * x + y * y + z * z)
+            a = areas[n]
             total += a
             if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
                 wall_area += a
