@@ -514,7 +514,15 @@ def _binary_sv(op, W, d, s, b, n):
 @njit(**_OPTS)
 def _exec(code, c0, c1, consts, W, S, T, n, prof):
     """Run code rows [c0, c1) on the first n columns of W; with a non-empty ``prof``,
-    add the cycles each row takes to ``prof[row]``."""
+    add the cycles each row takes to ``prof[row]``.
+
+    The cheap operations (+, -, *, / in every operand mode; copy, neg, abs, square, recip,
+    sqrt) run here, inline; only the others call :func:`_unary` and ``_binary_*``. A call of
+    those costs 15-35 ns whatever ``n`` (numba increments and decrements the reference counts
+    of its array arguments, atomic operations), as much as the loop of a cheap operation over
+    a few hundred points; inline, one dispatch costs a few ns. The arithmetic is the same, so
+    are the bits.
+    """
     profiling = prof.size > 0
     t0 = 0
     for pc in range(c0, c1):
@@ -526,13 +534,73 @@ def _exec(code, c0, c1, consts, W, S, T, n, prof):
         a = code[pc, 3]
         b = code[pc, 4]
         if mode == M_VV:
-            _binary_vv(op, W, d, a, b, n)
+            if op == OP_MUL:
+                for k in range(n):
+                    W[d, k] = W[a, k] * W[b, k]
+            elif op == OP_ADD:
+                for k in range(n):
+                    W[d, k] = W[a, k] + W[b, k]
+            elif op == OP_SUB:
+                for k in range(n):
+                    W[d, k] = W[a, k] - W[b, k]
+            elif op == OP_DIV:
+                for k in range(n):
+                    W[d, k] = W[a, k] / W[b, k]
+            else:
+                _binary_vv(op, W, d, a, b, n)
         elif mode == M_VS:
-            _binary_vs(op, W, d, a, S[b], n)
+            s = S[b]
+            if op == OP_MUL:
+                for k in range(n):
+                    W[d, k] = W[a, k] * s
+            elif op == OP_ADD:
+                for k in range(n):
+                    W[d, k] = W[a, k] + s
+            elif op == OP_SUB:
+                for k in range(n):
+                    W[d, k] = W[a, k] - s
+            elif op == OP_DIV:
+                for k in range(n):
+                    W[d, k] = W[a, k] / s
+            else:
+                _binary_vs(op, W, d, a, s, n)
         elif mode == M_V:
-            _unary(op, W, d, a, n, consts, code[pc, 5], T)
+            if op == OP_COPY:
+                for k in range(n):
+                    W[d, k] = W[a, k]
+            elif op == OP_ABS:
+                for k in range(n):
+                    W[d, k] = abs(W[a, k])
+            elif op == OP_SQUARE:
+                for k in range(n):
+                    W[d, k] = W[a, k] * W[a, k]
+            elif op == OP_RECIP:
+                for k in range(n):
+                    W[d, k] = 1.0 / W[a, k]
+            elif op == OP_NEG:
+                for k in range(n):
+                    W[d, k] = -W[a, k]
+            elif op == OP_SQRT:
+                for k in range(n):
+                    W[d, k] = math.sqrt(W[a, k])
+            else:
+                _unary(op, W, d, a, n, consts, code[pc, 5], T)
         elif mode == M_SV:
-            _binary_sv(op, W, d, S[a], b, n)
+            s = S[a]
+            if op == OP_MUL:
+                for k in range(n):
+                    W[d, k] = s * W[b, k]
+            elif op == OP_ADD:
+                for k in range(n):
+                    W[d, k] = s + W[b, k]
+            elif op == OP_SUB:
+                for k in range(n):
+                    W[d, k] = s - W[b, k]
+            elif op == OP_DIV:
+                for k in range(n):
+                    W[d, k] = s / W[b, k]
+            else:
+                _binary_sv(op, W, d, s, b, n)
         elif mode == M_S:
             s = S[a]
             for k in range(n):
@@ -621,6 +689,26 @@ def _block(
             prof,
         )
         return
+    if broadcast:
+        _broadcast(
+            code[c0, 1],
+            code[c0, 3],
+            loads,
+            l0,
+            l1,
+            consts,
+            sx,
+            sy,
+            sxy,
+            sz,
+            sxz,
+            syz,
+            out,
+            i,
+            j0,
+            j1,
+        )
+        return
     for j in range(j0, j1):
         for q in range(l0, l1):
             if loads[q, 3] == 0:
@@ -634,11 +722,6 @@ def _block(
                     S[loads[q, 2]] = sy[row, j]
                 else:
                     S[loads[q, 2]] = sxy[row, j]
-        if broadcast:
-            _broadcast_row(
-                code[c0, 1], code[c0, 3], loads, l0, l1, S, sz, sxz, syz, out, i, j, nrun
-            )
-            continue
         r0 = 0
         while r0 < nrun:
             n = min(tile, nrun - r0)
@@ -723,7 +806,13 @@ def _block_rows(
 ):
     """A block along z (yz or xyz) in tiles of up to m whole rows j (see :func:`_block`): its
     scalar loads are constants or x values, the same for every j; y and xy values enter as
-    vector loads (kinds 2 and 3, one value per row j: fast.rows_program rewrites a program so)."""
+    vector loads (kinds 2 and 3, one value per row j: fast.rows_program rewrites a program so).
+
+    A run is the whole z axis (``nrun == Nz``), so the tile's rows of the output and of the yz
+    plane are one contiguous stretch: they are copied as such, through flat views."""
+    ny = syz.shape[1]
+    out_flat = out.reshape(out.size)
+    syz_flat = syz.reshape(syz.size)
     for q in range(l0, l1):
         if loads[q, 3] == 0:
             if loads[q, 0] == 0:
@@ -740,10 +829,10 @@ def _block_rows(
                 kind = loads[q, 0]
                 row = loads[q, 1]
                 slot = loads[q, 2]
-                if kind == 6:
-                    for r in range(rows):
-                        for k in range(nrun):
-                            W[slot, r * nrun + k] = syz[row, j + r, k]
+                if kind == 6:  # rows j..j+rows-1 of the plane: contiguous
+                    base = unsigned((row * ny + j) * nrun)
+                    for k in range(n):
+                        W[slot, k] = syz_flat[base + unsigned(k)]
                 elif kind == 2:
                     for r in range(rows):
                         v = sy[row, j + r]
@@ -767,38 +856,54 @@ def _block_rows(
             slot = stores[q, 0]
             kind = stores[q, 1]
             row = stores[q, 2]
-            if kind == 7:
-                for r in range(rows):
-                    for k in range(nrun):
-                        out[i, j + r, k] = W[slot, r * nrun + k]
+            if kind == 7:  # out[i, j:j+rows, :] is contiguous (nrun is the whole z axis)
+                base = unsigned((i * ny + j) * nrun)
+                for k in range(n):
+                    out_flat[base + unsigned(k)] = W[slot, k]
             else:  # the yz store
-                for r in range(rows):
-                    for k in range(nrun):
-                        syz[row, j + r, k] = W[slot, r * nrun + k]
+                base = unsigned((row * ny + j) * nrun)
+                for k in range(n):
+                    syz_flat[base + unsigned(k)] = W[slot, k]
         j += rows
 
 
 @njit(**_OPTS)
-def _broadcast_row(mode, a, loads, l0, l1, S, sz, sxz, syz, out, i, j, nrun):
-    """out[i, j, :] = the root, a row scalar (mode S) or a z, xz or yz row (mode V)."""
-    if mode == M_S:
-        s = S[a]
-        for k in range(nrun):
-            out[i, j, k] = s
-        return
+def _broadcast(mode, a, loads, l0, l1, consts, sx, sy, sxy, sz, sxz, syz, out, i, j0, j1):
+    """out[i, j, :] for j0 <= j < j1 = the root of a formula of one or two variables: a scalar
+    per row (mode S: a constant, x, y or xy value) or a z, xz or yz row (mode V), copied
+    straight from its store, in one call for all rows j (a call per row cost more than the
+    copy of its Nz values)."""
+    nz = out.shape[2]
     for q in range(l0, l1):
-        if loads[q, 3] >= 1 and loads[q, 2] == a:
-            kind = loads[q, 0]
-            row = loads[q, 1]
-            if kind == 4:
-                for k in range(nrun):
-                    out[i, j, k] = sz[row, k]
+        if loads[q, 2] != a or (loads[q, 3] == 0) != (mode == M_S):
+            continue
+        kind = loads[q, 0]
+        row = loads[q, 1]
+        for j in range(j0, j1):
+            o = out[i, j]
+            if mode == M_S:
+                if kind == 0:
+                    s = consts[row]
+                elif kind == 1:
+                    s = sx[row, i]
+                elif kind == 2:
+                    s = sy[row, j]
+                else:
+                    s = sxy[row, j]
+                for k in range(nz):
+                    o[k] = s
+            elif kind == 4:
+                src = sz[row]
+                for k in range(nz):
+                    o[k] = src[k]
             elif kind == 5:
-                for k in range(nrun):
-                    out[i, j, k] = sxz[row, k]
+                src = sxz[row]
+                for k in range(nz):
+                    o[k] = src[k]
             else:
-                for k in range(nrun):
-                    out[i, j, k] = syz[row, j, k]
+                src = syz[row, j]
+                for k in range(nz):
+                    o[k] = src[k]
 
 
 @njit(**_OPTS)
