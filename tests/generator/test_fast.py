@@ -207,6 +207,26 @@ def test_constant_and_low_level_formulas_fill_the_grid():
         check_text(text, threads=2)
 
 
+@pytest.mark.parametrize("shape", [(5, 4, 700), (4, 6, 5), (4, 4, 4)])
+def test_broadcast_roots_of_every_source(shape):
+    # A formula of one or two variables is a copy of a lower level's store or a row scalar
+    # (kernels._broadcast, one call per x index): every kind of source, on a long z axis
+    # (runs longer than half a tile), short ones and the smallest grid, 1 and 2 threads.
+    from surfgen.generator.compiler import M_S, OP
+
+    grid = Grid(Box((-1.5, -2.0, -0.5), (2.0, 1.5, 3.0)), shape)
+    for text in ("0.25-pi", "x^2-y", "atan(y)", "x*y-1", "z/3", "cos(x*z)", "y*z^2"):
+        program = compile_tree(parse(text))
+        c0, c1 = program.blocks[7, :2]
+        assert c1 - c0 == 1 and program.code[c0, 0] == OP["copy"], text
+        want = evaluate_reference(parse(text), grid).values
+        for threads in (1, 2):
+            got = evaluate_program(program, grid, threads=threads).values
+            assert_identical(got, want, f"{text} {shape} {threads}T")
+        mode = program.code[c0, 1]
+        assert (mode == M_S) == (text in ("0.25-pi", "x^2-y", "atan(y)", "x*y-1")), text
+
+
 # ----------------------------------------------------------------------------- constituents
 
 CONSTITUENTS = [
