@@ -872,15 +872,18 @@ def _broadcast(mode, a, loads, l0, l1, consts, sx, sy, sxy, sz, sxz, syz, out, i
     """out[i, j, :] for j0 <= j < j1 = the root of a formula of one or two variables: a scalar
     per row (mode S: a constant, x, y or xy value) or a z, xz or yz row (mode V), copied
     straight from its store, in one call for all rows j (a call per row cost more than the
-    copy of its Nz values)."""
+    copy of its Nz values). Indexed flat, without a view per row (numba counts references to
+    every view it makes)."""
+    ny = out.shape[1]
     nz = out.shape[2]
+    out_flat = out.reshape(out.size)
     for q in range(l0, l1):
         if loads[q, 2] != a or (loads[q, 3] == 0) != (mode == M_S):
             continue
         kind = loads[q, 0]
         row = loads[q, 1]
         for j in range(j0, j1):
-            o = out[i, j]
+            base = unsigned((i * ny + j) * nz)
             if mode == M_S:
                 if kind == 0:
                     s = consts[row]
@@ -891,19 +894,16 @@ def _broadcast(mode, a, loads, l0, l1, consts, sx, sy, sxy, sz, sxz, syz, out, i
                 else:
                     s = sxy[row, j]
                 for k in range(nz):
-                    o[k] = s
+                    out_flat[base + unsigned(k)] = s
             elif kind == 4:
-                src = sz[row]
                 for k in range(nz):
-                    o[k] = src[k]
+                    out_flat[base + unsigned(k)] = sz[row, k]
             elif kind == 5:
-                src = sxz[row]
                 for k in range(nz):
-                    o[k] = src[k]
+                    out_flat[base + unsigned(k)] = sxz[row, k]
             else:
-                src = syz[row, j]
                 for k in range(nz):
-                    o[k] = src[k]
+                    out_flat[base + unsigned(k)] = syz[row, j, k]
 
 
 @njit(**_OPTS)
