@@ -330,26 +330,8 @@ def _series_row(W, d, a, n, consts, base):
 
 @njit(**_OPTS)
 def _unary(op, W, d, a, n, consts, imm, T):
-    """The operations of one vector operand."""
-    if op == OP_COPY:
-        for k in range(n):
-            W[d, k] = W[a, k]
-    elif op == OP_NEG:
-        for k in range(n):
-            W[d, k] = -W[a, k]
-    elif op == OP_ABS:
-        for k in range(n):
-            W[d, k] = abs(W[a, k])
-    elif op == OP_SQUARE:
-        for k in range(n):
-            W[d, k] = W[a, k] * W[a, k]
-    elif op == OP_RECIP:
-        for k in range(n):
-            W[d, k] = 1.0 / W[a, k]
-    elif op == OP_SQRT:
-        for k in range(n):
-            W[d, k] = math.sqrt(W[a, k])
-    elif op == OP_SIN:
+    """The operations of one vector operand but the cheap ones (:func:`_exec` runs those)."""
+    if op == OP_SIN:
         _sin_row(W, d, a, n)
     elif op == OP_COS:
         _cos_row(W, d, a, n)
@@ -417,19 +399,8 @@ def _unary(op, W, d, a, n, consts, imm, T):
 
 @njit(**_OPTS)
 def _binary_vv(op, W, d, a, b, n):
-    if op == OP_MUL:
-        for k in range(n):
-            W[d, k] = W[a, k] * W[b, k]
-    elif op == OP_ADD:
-        for k in range(n):
-            W[d, k] = W[a, k] + W[b, k]
-    elif op == OP_SUB:
-        for k in range(n):
-            W[d, k] = W[a, k] - W[b, k]
-    elif op == OP_DIV:
-        for k in range(n):
-            W[d, k] = W[a, k] / W[b, k]
-    elif op == OP_POW:
+    """The operations of two operands but + - * / (:func:`_exec` runs those)."""
+    if op == OP_POW:
         _power_vv(W, d, a, b, n)
     elif op == OP_MIN:
         for k in range(n):
@@ -449,19 +420,8 @@ def _binary_vv(op, W, d, a, b, n):
 
 @njit(**_OPTS)
 def _binary_vs(op, W, d, a, s, n):
-    if op == OP_MUL:
-        for k in range(n):
-            W[d, k] = W[a, k] * s
-    elif op == OP_ADD:
-        for k in range(n):
-            W[d, k] = W[a, k] + s
-    elif op == OP_SUB:
-        for k in range(n):
-            W[d, k] = W[a, k] - s
-    elif op == OP_DIV:
-        for k in range(n):
-            W[d, k] = W[a, k] / s
-    elif op == OP_POW:
+    """The operations of two operands but + - * / (:func:`_exec` runs those)."""
+    if op == OP_POW:
         _power_vs(W, d, a, s, n)
     elif op == OP_MIN:
         for k in range(n):
@@ -481,19 +441,8 @@ def _binary_vs(op, W, d, a, s, n):
 
 @njit(**_OPTS)
 def _binary_sv(op, W, d, s, b, n):
-    if op == OP_MUL:
-        for k in range(n):
-            W[d, k] = s * W[b, k]
-    elif op == OP_ADD:
-        for k in range(n):
-            W[d, k] = s + W[b, k]
-    elif op == OP_SUB:
-        for k in range(n):
-            W[d, k] = s - W[b, k]
-    elif op == OP_DIV:
-        for k in range(n):
-            W[d, k] = s / W[b, k]
-    elif op == OP_POW:
+    """The operations of two operands but + - * / (:func:`_exec` runs those)."""
+    if op == OP_POW:
         _power_sv(W, d, s, b, n)
     elif op == OP_MIN:
         for k in range(n):
