@@ -110,6 +110,7 @@ print(json.dumps({{
     "asm_chars": len(asm),
     "packed": len(re.findall(r"\\bv?(mul|add|sub|div)pd\\b", asm)),
     "fma": len(re.findall(r"\\bv?f(n)?m(add|sub)\\d", asm)),
+    "zmm": len(re.findall(r"%zmm", asm)),
 }}))
 """
 
@@ -214,6 +215,8 @@ def test_same_hashes_with_intel_code_generation():
     assert result["fma"] == 0
     assert result["features"] == disabled.split()
     assert not result["dispatched"], f"numpy still dispatches {result['dispatched']}"
+    if cpu == "skylake-avx512":  # 512-bit vectors, not LLVM's 256-bit tuning for that Xeon
+        assert result["zmm"] > 0, "the AVX-512 build runs on 256-bit vectors"
     bad = _diff(result["hashes"], _pinned())
     assert not bad, f"{len(bad)} fields differ with {cpu} code: {bad[:5]}"
 
