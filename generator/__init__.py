@@ -49,8 +49,8 @@ def wide_vector_features(environ, host_features: str) -> str | None:
     vectors (512-bit instructions once lowered those Xeons' clocks), AMD's Zen 4 and 5 not. On
     the Zen 5, with Intel's code generation (``NUMBA_CPU_NAME=skylake-avx512``) and numpy's
     dispatch cut to that Xeon's, the median fast / numpy ratio of ``benchmarks/bench_eval.py``
-    was 2.3x with 256-bit vectors and 3.6x with 512-bit ones. Vector width changes no bit: every
-    operation is elementwise, without FMA.
+    was 2.3-2.4x with 256-bit vectors and 3.0-3.6x with 512-bit ones. Vector width changes no
+    bit: every operation is elementwise, without FMA.
     """
     if "NUMBA_CPU_FEATURES" in environ or environ.get("NUMBA_ENABLE_AVX", "") == "0":
         return None
