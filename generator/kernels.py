@@ -595,10 +595,29 @@ def _block(
     s1 = blocks[lv, 5]
     if c0 == c1:
         return
-    tile = W.shape[1]
     # A root of a lower level (a formula of one or two variables): the output is a broadcast,
     # written straight from its source instead of through the register file.
-    broadcast = lv == 7 and c1 - c0 == 1 and code[c0, 0] == OP_COPY
+    if lv == 7 and c1 - c0 == 1 and code[c0, 0] == OP_COPY:
+        _broadcast(
+            code[c0, 1],
+            code[c0, 3],
+            loads,
+            l0,
+            l1,
+            consts,
+            sx,
+            sy,
+            sxy,
+            sz,
+            sxz,
+            syz,
+            out,
+            i,
+            j0,
+            j1,
+        )
+        return
+    tile = W.shape[1]
     # Rows of several j per tile when a run is short (nrun <= tile/2) and no scalar load varies
     # with j (y or xy values): the code then runs on m*nrun points per dispatch, and the per-op
     # cost of the interpreter is paid once per m rows. Every operation is elementwise, so the
@@ -608,7 +627,7 @@ def _block(
         for q in range(l0, l1):
             if loads[q, 3] == 0 and (loads[q, 0] == 2 or loads[q, 0] == 3):
                 m = 1
-    if m > 1 and not broadcast:
+    if m > 1:
         _block_rows(
             m,
             i,
@@ -636,26 +655,6 @@ def _block(
             S,
             T,
             prof,
-        )
-        return
-    if broadcast:
-        _broadcast(
-            code[c0, 1],
-            code[c0, 3],
-            loads,
-            l0,
-            l1,
-            consts,
-            sx,
-            sy,
-            sxy,
-            sz,
-            sxz,
-            syz,
-            out,
-            i,
-            j0,
-            j1,
         )
         return
     for j in range(j0, j1):
