@@ -6,8 +6,9 @@
     fine = evaluate_program(program, fine_grid, threads=1)   # in a worker process: one thread
 
 The only full-size array is the output; scratch is a few tiles per thread plus one (Ny, Nz)
-plane per yz-level value that the per-point code reads. ``threads=1`` never starts numba's
-thread pool (the sampler runs one process per core); ``threads=None`` uses numba's default
+plane per yz-level value that the per-point code reads. ``threads=1`` runs in the calling
+thread (the sampler runs one process per core); more run the kernels in a pool of Python threads
+for the call (they release the GIL); ``threads=None`` uses numba's default count
 (``NUMBA_NUM_THREADS``, all cores).
 """
 
@@ -16,8 +17,11 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import os
+import threading
 import time
 from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -27,10 +31,6 @@ from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, 
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
 from surfgen.generator.grid import Box, Field, Grid
-
-# pymeshlab ships an old libtbb; once it is loaded numba would try it first, warn that it is
-# too old and fall back. Ask for OpenMP, then numba's own workqueue, TBB only last.
-numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 log = logging.getLogger(__name__)
 
@@ -73,16 +73,62 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
     out = np.empty(grid.shape, np.float64)
     tile = _tile(grid.shape[2])  # rows along z; x and y runs are cut to the same length
     prog = _prog(program, tile >= 2 * grid.shape[2])
+    stores = kernels.grid_stores(prog[5], ax, ay, az)
     if n_threads == 1:
-        kernels.run_serial(prog, tile, ax, ay, az, out, _NO_PROFILE)
+        kernels.run_grid(prog, tile, *stores, out, _NO_PROFILE, kernels.GRID_ALL, 0, 0)
     else:
-        previous = numba.get_num_threads()
-        numba.set_num_threads(n_threads)
-        try:
-            kernels.run_parallel(prog, tile, ax, ay, az, out, n_threads * CHUNKS_PER_THREAD)
-        finally:
-            numba.set_num_threads(previous)
+        _run_threads(prog, tile, stores, out, n_threads)
     return Field(grid, out)
+
+
+def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threads: int) -> None:
+    """:func:`kernels.run_grid` on ``n_threads`` threads: the x, y, z blocks, then the yz
+    plane's rows and the slabs of x indices in ``CHUNKS_PER_THREAD`` chunks per thread, on a
+    pool of Python threads (the kernels release the GIL: ``nogil``)."""
+    run = functools.partial(kernels.run_grid, prog, tile, *stores, out, _NO_PROFILE)
+    run(kernels.GRID_XYZ_AXES, 0, 0)
+    ny, nx = stores[1].shape[1], stores[0].shape[1]
+    pool = _pool(n_threads)
+    for part, size in (
+        (kernels.GRID_YZ_ROWS, ny if prog[5][6] > 0 else 0),
+        (kernels.GRID_SLAB, nx),
+    ):
+        chunks = min(n_threads * CHUNKS_PER_THREAD, size)
+        # n_threads workers take the chunks in turn from one iterator (atomic under the GIL)
+        todo = iter([(c * size // chunks, (c + 1) * size // chunks) for c in range(chunks)])
+
+        def work(part=part, todo=todo) -> None:
+            for lo, hi in todo:
+                run(part, lo, hi)
+
+        for future in [pool.submit(work) for _ in range(min(n_threads, chunks))]:
+            future.result()
+
+
+_POOL: list[tuple[int, ThreadPoolExecutor]] = []  # (threads, pool), made on first use
+_POOL_LOCK = threading.Lock()
+
+
+def _pool(n_threads: int) -> ThreadPoolExecutor:
+    """A pool of at least ``n_threads`` threads, kept between calls (a pool made per call
+    costs a millisecond or two, a third of a 128^3 evaluation on two threads)."""
+    with _POOL_LOCK:
+        if _POOL and _POOL[0][0] >= n_threads:
+            return _POOL[0][1]
+        if _POOL:
+            _POOL.pop()[1].shutdown(wait=False)
+        _POOL.append((n_threads, ThreadPoolExecutor(n_threads, thread_name_prefix="surfgen-eval")))
+        return _POOL[0][1]
+
+
+def _forget_pool() -> None:
+    """In a forked child the pool's threads do not exist: make a new pool when asked."""
+    global _POOL_LOCK
+    _POOL.clear()
+    _POOL_LOCK = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)
 
 
 def warm_up(parallel: bool = True) -> float:
@@ -205,7 +251,9 @@ def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     out = np.empty(grid.shape, np.float64)
     prof = np.zeros(len(program.code))
     tile = _tile(grid.shape[2])
-    kernels.run_serial(_prog(program, tile >= 2 * grid.shape[2]), tile, ax, ay, az, out, prof)
+    prog = _prog(program, tile >= 2 * grid.shape[2])
+    stores = kernels.grid_stores(prog[5], ax, ay, az)
+    kernels.run_grid(prog, tile, *stores, out, prof, kernels.GRID_ALL, 0, 0)
     return Field(grid, out), prof
 
 

@@ -7,11 +7,11 @@ transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`): 
 that runs a whole W row, whose numpy twin the reference evaluator calls, so results are
 bit-identical to the reference on every CPU. No C library maths is called here.
 
-Layout of a run: the caller allocates the output; the x, y, z and yz stores are computed once
-(:func:`_prologue`, :func:`_yz_rows`), then each slab of x indices (:func:`_slab`, one per
-thread chunk) computes its xy and xz rows per i and the xyz block per (i, j) row of z values,
-in tiles of W rows, writing straight into the output. Scratch is O(tile * n_vector) per thread
-plus the yz store.
+Layout of a run (:func:`run_grid`): the caller allocates the output and the stores
+(:func:`grid_stores`); the x, y, z and yz stores are computed once (:func:`_prologue`,
+:func:`_yz_rows`), then each slab of x indices (:func:`_slab`, one per thread chunk) computes
+its xy and xz rows per i and the xyz block per (i, j) row of z values, in tiles of W rows,
+writing straight into the output. Scratch is O(tile * n_vector) per thread plus the yz store.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, prange, types
+from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
@@ -861,7 +861,8 @@ def _scratch(prog, tile):
 
 
 @njit(**_OPTS)
-def _stores(rows, ax, ay, az):
+def grid_stores(rows, ax, ay, az):
+    """The x, y, z and yz stores of a grid run (``rows``: the program's), the axes in row 0."""
     sx = np.empty((rows[1], ax.size))
     sy = np.empty((rows[2], ay.size))
     sz = np.empty((rows[4], az.size))
@@ -910,35 +911,34 @@ def _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof):
         _block(7, i, 0, ny, nz, *args)
 
 
+# What run_grid does: all of a grid on one thread, or one part of it (the threads' way).
+GRID_ALL, GRID_XYZ_AXES, GRID_YZ_ROWS, GRID_SLAB = 0, 1, 2, 3
+
+
 @njit(**_OPTS)
-def run_serial(prog, tile, ax, ay, az, out, prof):
-    """Evaluate a program into ``out`` (Nx, Ny, Nz) on one thread.
+def run_grid(prog, tile, sx, sy, sz, syz, out, prof, part, lo, hi):
+    """Evaluate a program into ``out`` (Nx, Ny, Nz), with the stores of :func:`grid_stores`.
 
     ``prog`` is ``(code, blocks, loads, stores, consts, rows, n_vector, n_scalar)`` of a
     :class:`~surfgen.generator.compiler.Program`; ``prof`` is empty, or float64 of one entry
-    per code row to receive cycle counts."""
-    sx, sy, sz, syz = _stores(prog[5], ax, ay, az)
-    _prologue(prog, tile, sx, sy, sz, syz, out, prof)
-    _yz_rows(0, ay.size, prog, tile, sx, sy, sz, syz, out, prof)
-    _slab(0, ax.size, prog, tile, sx, sy, sz, syz, out, prof)
+    per code row to receive cycle counts. ``part`` is :data:`GRID_ALL` (the whole grid), or
+    one step of it, for threads: :data:`GRID_XYZ_AXES` (the x, y and z blocks, first),
+    :data:`GRID_YZ_ROWS` (the yz plane's rows lo <= j < hi, next), :data:`GRID_SLAB` (x
+    indices lo <= i < hi, last). Every part computes the same values wherever it runs.
 
-
-@njit(parallel=True, **_OPTS)
-def run_parallel(prog, tile, ax, ay, az, out, chunks):
-    """Evaluate a program into ``out`` with ``chunks`` slabs of x (and of y for the yz
-    plane) shared among numba's threads."""
-    prof = np.empty(0)
-    sx, sy, sz, syz = _stores(prog[5], ax, ay, az)
-    _prologue(prog, tile, sx, sy, sz, syz, out, prof)
-    ny = ay.size
-    nx = ax.size
-    if prog[5][6] > 0:
-        cy = min(chunks, ny)
-        for c in prange(cy):
-            _yz_rows(c * ny // cy, (c + 1) * ny // cy, prog, tile, sx, sy, sz, syz, out, prof)
-    cx = min(chunks, nx)
-    for c in prange(cx):
-        _slab(c * nx // cx, (c + 1) * nx // cx, prog, tile, sx, sy, sz, syz, out, prof)
+    One entry point for both: numba compiles (and caches) the whole interpreter again into
+    every entry point that calls it, a minute and more of LLVM each.
+    """
+    whole = part == GRID_ALL
+    j0, j1 = (0, sy.shape[1]) if whole else (lo, hi)
+    i0, i1 = (0, sx.shape[1]) if whole else (lo, hi)
+    # one call site each (LLVM may inline a callee into every site: twice the code to compile)
+    if whole or part == GRID_XYZ_AXES:
+        _prologue(prog, tile, sx, sy, sz, syz, out, prof)
+    if whole or part == GRID_YZ_ROWS:
+        _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof)
+    if whole or part == GRID_SLAB:
+        _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof)
 
 
 # ----------------------------------------------------------------------------- arbitrary points

@@ -238,7 +238,7 @@ def test_every_cached_caller_is_stamped_with_the_numba_sources(tmp_path, monkeyp
     from surfgen.generator.elementary import trig
 
     digest = elementary._package_digest()
-    for fn in (walls._bisect_kernel, kernels.run_serial, trig.atan_row):
+    for fn in (walls._bisect_kernel, kernels.run_grid, trig.atan_row):
         locator = fn._cache._impl._locator
         assert getattr(locator, "_surfgen", False), fn
         assert locator.get_source_stamp()[1] == digest, fn

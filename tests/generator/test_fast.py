@@ -390,6 +390,67 @@ def test_threads_give_identical_fields():
         )
 
 
+def test_threads_run_at_once_and_never_more_than_asked(monkeypatch):
+    import threading
+    import time
+
+    from surfgen.generator import fast, kernels
+
+    real, lock = kernels.run_grid, threading.Lock()
+    active, seen, parts = [0], [0], []
+
+    def tracked(*args):
+        with lock:
+            active[0] += 1
+            seen[0] = max(seen[0], active[0])
+            parts.append(args[-3])
+        time.sleep(0.02)  # the kernel releases the GIL: so does this
+        real(*args)
+        with lock:
+            active[0] -= 1
+
+    tree = parse("atan(tan(x*y*z*3)) + sin(y*z)*z - x")  # with a yz plane
+    grid = Grid(Box.cube(3.0), (21, 22, 23))
+    want = check(tree, grid, threads=1)
+    monkeypatch.setattr(kernels, "run_grid", tracked)
+    # as many threads as asked, whatever the cores (evaluate caps them at NUMBA_NUM_THREADS)
+    monkeypatch.setattr(fast, "_resolve_threads", lambda threads: threads)
+    fast._pool(4)  # a pool larger than asked for below
+    for threads in (2, 3):
+        seen[0] = 0
+        parts.clear()
+        assert_identical(evaluate_fast(tree, grid, threads=threads).values, want)
+        assert seen[0] == threads
+        assert parts[0] == kernels.GRID_XYZ_AXES
+        assert parts.count(kernels.GRID_YZ_ROWS) == parts.count(kernels.GRID_SLAB) == 4 * threads
+
+
+def _child_evaluates(queue) -> None:
+    tree = parse("atan(tan(x*y*z*3)) + sin(y*z)*z - x")
+    queue.put(evaluate_fast(tree, Grid(Box.cube(3.0), (21, 22, 23)), threads=2).values.tobytes())
+
+
+def test_one_pool_of_threads_kept_and_a_forked_child_makes_its_own():
+    import multiprocessing
+
+    from surfgen.generator import fast
+
+    tree = parse("atan(tan(x*y*z*3)) + sin(y*z)*z - x")
+    grid = Grid(Box.cube(3.0), (21, 22, 23))
+    want = evaluate_fast(tree, grid, threads=2).values
+    pool = fast._pool(2)
+    evaluate_fast(tree, grid, threads=2)
+    assert fast._pool(2) is pool
+    ctx = multiprocessing.get_context("fork")  # the pool's threads are not in the child
+    queue = ctx.Queue()
+    child = ctx.Process(target=_child_evaluates, args=(queue,))
+    child.start()
+    got = queue.get(timeout=120)
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    assert got == want.tobytes()
+
+
 @pytest.mark.parametrize("threads", [0, -1, 1.5, True, "2"])
 def test_bad_thread_counts(threads):
     with pytest.raises(FormulaError, match="threads"):

@@ -99,7 +99,7 @@ from surfgen.generator import NO_VECTORIZE, kernels
 import numba, os
 from numpy._core._multiarray_umath import __cpu_features__ as cpu_features
 hashes = fast_hashes()
-asm = "\\n".join(kernels.run_serial.inspect_asm().values())
+asm = "\\n".join(kernels.run_grid.inspect_asm().values())
 disabled = os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split()
 print(json.dumps({{
     "cpu": numba.config.CPU_NAME,
