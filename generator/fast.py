@@ -132,7 +132,9 @@ os.register_at_fork(after_in_child=_forget_pool)
 
 
 def warm_up(parallel: bool = True) -> float:
-    """Load (or compile, the first time) the interpreter; returns the seconds it took."""
+    """Load (or compile, the first time) the interpreter; returns the seconds it took.
+    ``parallel``: also run it once on two threads (the same compiled kernel: this only makes
+    the pool of threads)."""
     t0 = time.perf_counter()
     grid = Grid(Box.cube(1.0), (4, 4, 4))
     program = compile_tree(_WARM_TREE)
@@ -140,14 +142,14 @@ def warm_up(parallel: bool = True) -> float:
     if parallel and numba.config.NUMBA_NUM_THREADS > 1:
         evaluate_program(program, grid, threads=2)
     seconds = time.perf_counter() - t0
-    log.debug("fast evaluator ready in %.2f s (parallel kernel: %s)", seconds, parallel)
+    log.debug("fast evaluator ready in %.2f s (threads too: %s)", seconds, parallel)
     return seconds
 
 
 def _resolve_threads(threads: int | None) -> int:
-    limit = numba.config.NUMBA_NUM_THREADS
-    if threads is None:
-        return numba.get_num_threads()
+    limit = numba.config.NUMBA_NUM_THREADS  # read, never numba.get_num_threads(): that call
+    if threads is None:  # starts numba's own thread pool (TBB first, too old beside pymeshlab)
+        return limit
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
         raise FormulaError(f"threads must be a whole number >= 1, got {threads!r}")
     return min(int(threads), limit)

@@ -425,6 +425,27 @@ def test_threads_run_at_once_and_never_more_than_asked(monkeypatch):
         assert parts.count(kernels.GRID_YZ_ROWS) == parts.count(kernels.GRID_SLAB) == 4 * threads
 
 
+def test_threads_never_start_numbas_own_thread_pool():
+    # numba.get_num_threads() would: its first choice, TBB, is older beside pymeshlab's libtbb
+    # and warns on stderr, which a one-line error must not carry (tests/pipelines/
+    # test_real_disks.py); surfgen's threads are its own.
+    import subprocess
+    import sys
+
+    code = (
+        "import pymeshlab, numba.np.ufunc.parallel as p\n"
+        "from surfgen.generator.fast import evaluate_fast\n"
+        "from surfgen.generator.grid import Box, Grid\n"
+        "from surfgen.generator.parser import parse\n"
+        "for threads in (None, 2, 1):\n"
+        "    evaluate_fast(parse('sin(x*y*z)'), Grid(Box.cube(1.0), (8, 9, 10)), threads=threads)\n"
+        "print(p._is_initialized)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False" and "Numba" not in out.stderr, out.stderr
+
+
 def _child_evaluates(queue) -> None:
     tree = parse("atan(tan(x*y*z*3)) + sin(y*z)*z - x")
     queue.put(evaluate_fast(tree, Grid(Box.cube(3.0), (21, 22, 23)), threads=2).values.tobytes())
