@@ -101,7 +101,11 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
             for lo, hi in todo:
                 run(part, lo, hi)
 
-        for future in [pool.submit(work) for _ in range(min(n_threads, chunks))]:
+        # the calling thread works too: it starts at once, while a pool thread may take a
+        # millisecond to wake (an idle vCPU of a virtual machine)
+        helpers = [pool.submit(work) for _ in range(min(n_threads, chunks) - 1)]
+        work()
+        for future in helpers:
             future.result()
 
 
@@ -110,14 +114,16 @@ _POOL_LOCK = threading.Lock()
 
 
 def _pool(n_threads: int) -> ThreadPoolExecutor:
-    """A pool of at least ``n_threads`` threads, kept between calls (a pool made per call
-    costs a millisecond or two, a third of a 128^3 evaluation on two threads)."""
+    """A pool of at least ``n_threads - 1`` threads (the caller works too), kept between calls
+    (a pool made per call costs a millisecond or two, a third of a 128^3 evaluation on two
+    threads)."""
     with _POOL_LOCK:
-        if _POOL and _POOL[0][0] >= n_threads:
+        if _POOL and _POOL[0][0] >= n_threads - 1:
             return _POOL[0][1]
         if _POOL:
             _POOL.pop()[1].shutdown(wait=False)
-        _POOL.append((n_threads, ThreadPoolExecutor(n_threads, thread_name_prefix="surfgen-eval")))
+        helpers = max(1, n_threads - 1)  # the caller is the other one
+        _POOL.append((helpers, ThreadPoolExecutor(helpers, thread_name_prefix="surfgen-eval")))
         return _POOL[0][1]
 
 
