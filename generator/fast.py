@@ -21,7 +21,7 @@ import os
 import threading
 import time
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
 import numpy as np
@@ -104,7 +104,10 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
         # the calling thread works too: it starts at once, while a pool thread may take a
         # millisecond to wake (an idle vCPU of a virtual machine)
         helpers = [pool.submit(work) for _ in range(min(n_threads, chunks) - 1)]
-        work()
+        try:
+            work()
+        finally:  # no helper left writing into `out` once this returns or raises
+            wait(helpers)
         for future in helpers:
             future.result()
 
@@ -120,8 +123,9 @@ def _pool(n_threads: int) -> ThreadPoolExecutor:
     with _POOL_LOCK:
         if _POOL and _POOL[0][0] >= n_threads - 1:
             return _POOL[0][1]
-        if _POOL:
-            _POOL.pop()[1].shutdown(wait=False)
+        # a smaller pool still in use by another call keeps running; its threads end when the
+        # last reference to it goes (ThreadPoolExecutor's workers watch it through a weakref)
+        _POOL.clear()
         helpers = max(1, n_threads - 1)  # the caller is the other one
         _POOL.append((helpers, ThreadPoolExecutor(helpers, thread_name_prefix="surfgen-eval")))
         return _POOL[0][1]

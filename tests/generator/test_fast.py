@@ -425,6 +425,34 @@ def test_threads_run_at_once_and_never_more_than_asked(monkeypatch):
         assert parts.count(kernels.GRID_YZ_ROWS) == parts.count(kernels.GRID_SLAB) == 4 * threads
 
 
+def test_a_failing_part_is_raised_once_every_thread_has_stopped(monkeypatch):
+    import threading
+    import time
+
+    from surfgen.generator import fast, kernels
+
+    real, lock, running = kernels.run_grid, threading.Lock(), [0]
+
+    def failing(*args):
+        with lock:
+            running[0] += 1
+        try:
+            time.sleep(0.01)
+            caller = threading.current_thread() is threading.main_thread()
+            if args[-3] == kernels.GRID_SLAB and caller:  # while the helper works on
+                raise MemoryError("no room for the slab's scratch")
+            real(*args)
+        finally:
+            with lock:
+                running[0] -= 1
+
+    monkeypatch.setattr(kernels, "run_grid", failing)
+    monkeypatch.setattr(fast, "_resolve_threads", lambda threads: threads)
+    with pytest.raises(MemoryError, match="scratch"):
+        evaluate_fast(parse("sin(x*y*z)"), Grid(Box.cube(1.0), (16, 9, 10)), threads=2)
+    assert running[0] == 0
+
+
 def test_threads_never_start_numbas_own_thread_pool():
     # numba.get_num_threads() would: its first choice, TBB, is older beside pymeshlab's libtbb
     # and warns on stderr, which a one-line error must not carry (tests/pipelines/
