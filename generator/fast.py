@@ -68,17 +68,21 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
         raise TypeError(f"expected a Program, got {type(program).__name__}")
     if not isinstance(grid, Grid):
         raise TypeError(f"expected a Grid, got {type(grid).__name__}")
-    n_threads = _resolve_threads(threads)
+    return Field(grid, _run(program, grid, _resolve_threads(threads), _NO_PROFILE))
+
+
+def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.ndarray:
+    """The values of ``program`` on ``grid`` (``prof``: see :func:`kernels.run_grid`)."""
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
     tile = _tile(grid.shape[2])  # rows along z; x and y runs are cut to the same length
     prog = _prog(program, tile >= 2 * grid.shape[2])
     stores = kernels.grid_stores(prog[5], ax, ay, az)
     if n_threads == 1:
-        kernels.run_grid(prog, tile, *stores, out, _NO_PROFILE, kernels.GRID_ALL, 0, 0)
+        kernels.run_grid(prog, tile, *stores, out, prof, kernels.GRID_ALL, 0, 0)
     else:
         _run_threads(prog, tile, stores, out, n_threads)
-    return Field(grid, out)
+    return out
 
 
 def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threads: int) -> None:
@@ -112,7 +116,7 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
             future.result()
 
 
-_POOL: list[tuple[int, ThreadPoolExecutor]] = []  # (threads, pool), made on first use
+_POOL: dict[int, ThreadPoolExecutor] = {}  # {helper threads: pool}, at most one, made on first use
 _POOL_LOCK = threading.Lock()
 
 
@@ -120,15 +124,14 @@ def _pool(n_threads: int) -> ThreadPoolExecutor:
     """A pool of at least ``n_threads - 1`` threads (the caller works too), kept between calls
     (a pool made per call costs a millisecond or two, a third of a 128^3 evaluation on two
     threads)."""
+    helpers = max(1, n_threads - 1)
     with _POOL_LOCK:
-        if _POOL and _POOL[0][0] >= n_threads - 1:
-            return _POOL[0][1]
-        # a smaller pool still in use by another call keeps running; its threads end when the
-        # last reference to it goes (ThreadPoolExecutor's workers watch it through a weakref)
-        _POOL.clear()
-        helpers = max(1, n_threads - 1)  # the caller is the other one
-        _POOL.append((helpers, ThreadPoolExecutor(helpers, thread_name_prefix="surfgen-eval")))
-        return _POOL[0][1]
+        if not _POOL or max(_POOL) < helpers:
+            # a smaller pool still in use by another call keeps running; its threads end when
+            # the last reference to it goes (ThreadPoolExecutor's workers watch it by weakref)
+            _POOL.clear()
+            _POOL[helpers] = ThreadPoolExecutor(helpers, thread_name_prefix="surfgen-eval")
+        return next(iter(_POOL.values()))
 
 
 def _forget_pool() -> None:
@@ -259,14 +262,8 @@ def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     Returns the field and a float64 array with the cycles of each row of ``program.code``
     (for benchmarks and for finding where the time goes; slower than a plain run).
     """
-    ax, ay, az = grid.axes()
-    out = np.empty(grid.shape, np.float64)
     prof = np.zeros(len(program.code))
-    tile = _tile(grid.shape[2])
-    prog = _prog(program, tile >= 2 * grid.shape[2])
-    stores = kernels.grid_stores(prog[5], ax, ay, az)
-    kernels.run_grid(prog, tile, *stores, out, prof, kernels.GRID_ALL, 0, 0)
-    return Field(grid, out), prof
+    return Field(grid, _run(program, grid, 1, prof)), prof
 
 
 POINTS_TILE = 256  # points per W row of the points kernel
