@@ -26,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor, wait
 import numba
 import numpy as np
 
-from surfgen.generator import kernels
+from surfgen.generator import kernels, points
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
@@ -270,7 +270,7 @@ POINTS_TILE = 256  # points per W row of the points kernel
 
 
 def points_program(program: Program) -> tuple:
-    """``program`` rewritten for :func:`kernels.run_points`: every block runs along a list of
+    """``program`` rewritten for :func:`points.run_points`: every block runs along a list of
     points instead of a grid axis.
 
     On a grid, a value that does not vary along a block's run axis is a row scalar (an S slot,
@@ -338,29 +338,29 @@ class PointsEvaluator:
         return out
 
     def plain(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """The same values, every level computed at every point (:func:`kernels.run_points`,
+        """The same values, every level computed at every point (:func:`points.run_points`,
         no sharing): the check of :meth:`__call__`'s sharing."""
         px, py, pz = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, z))
         out = np.empty(px.size, dtype=np.float64)
         if px.size:
-            kernels.run_points(self._prog, POINTS_TILE, px, py, pz, out)
+            points.run_points(self._prog, POINTS_TILE, px, py, pz, out)
         return out
 
     def kernel_args(self) -> tuple:
-        """``(prog, tile, active, rows)``: what :func:`kernels.eval_points` takes before the
+        """``(prog, tile, active, rows)``: what :func:`points.eval_points` takes before the
         points, for numba code that evaluates the formula itself (the walls' classification)."""
         return self._prog, POINTS_TILE, self._active, self._rows
 
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
-        """Evaluate each level once per distinct value it needs (:func:`kernels.eval_points`
-        plans the lattice and runs :func:`kernels.run_lattice`).
+        """Evaluate each level once per distinct value it needs (:func:`points.eval_points`
+        plans the lattice and runs :func:`points.run_lattice`).
 
         Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
         alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are
         told apart by their bits (-0.0 and +0.0 are distinct), so every entry is computed from
         exactly the bits of its points.
         """
-        kernels.eval_points(self._prog, POINTS_TILE, self._active, self._rows, px, py, pz, out)
+        points.eval_points(self._prog, POINTS_TILE, self._active, self._rows, px, py, pz, out)
 
 
 def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> PointsEvaluator:

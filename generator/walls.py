@@ -51,7 +51,7 @@ the zero set.
    |F| dipped.
 
 Every point lies on a grid edge at a dyadic fraction of it (1/2, 1/4, 1/8, ...), so the formula
-is evaluated axis by axis (:func:`kernels.eval_edges`): the parts of the formula that do not
+is evaluated axis by axis (:func:`points.eval_edges`): the parts of the formula that do not
 involve the edge's axis once per edge, the parts in that axis alone or with one other once per
 distinct value or pair (the midpoints of all edges of one grid slab share one x), only the part
 in all three variables once per point.
@@ -74,7 +74,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import edge_lattice, eval_edges, unsigned
+from surfgen.generator.interpreter import unsigned
 from surfgen.generator.mesh import (
     CAP,
     JUMP,
@@ -86,6 +86,7 @@ from surfgen.generator.mesh import (
     extract_with_edges,
     face_areas,
 )
+from surfgen.generator.points import edge_lattice, eval_edges
 
 log = logging.getLogger(__name__)
 
@@ -241,7 +242,7 @@ def classify_edges(
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
     One numba call for the suspects (:func:`_bisect_kernel`: the midpoint, the secant step,
-    the bisections and the decision, the formula through :func:`kernels.eval_edges`).
+    the bisections and the decision, the formula through :func:`points.eval_edges`).
     """
     kinds, refined, _points = _classify(field, tree, params, level, edges)
     return kinds, refined
@@ -561,7 +562,7 @@ def _bisect_kernel(
 ):
     """Kinds of the suspect edges (from grid indices ``edge_ijk`` along ``edge_axis``) into
     ``kinds[idx]``, axis by axis (:func:`_classify_axis`; the formula's levels that do not vary
-    along an axis are computed once per edge, :func:`kernels.edge_lattice`).  Returns the
+    along an axis are computed once per edge, :func:`points.edge_lattice`).  Returns the
     number of points evaluated."""
     n = idx.size
     # the suspects grouped by axis (in their order within an axis), without numpy's fancy
@@ -641,7 +642,7 @@ def _crossings_core(values, shape, edges, level, ratio):
 
     Three passes, so that the test runs on arrays: the samples of every row's grid line
     (scalar loads), the test itself (no loads, no branches: it vectorises), then the suspects
-    gathered.  Indices are unsigned (:func:`kernels.unsigned`)."""
+    gathered.  Indices are unsigned (:func:`interpreter.unsigned`)."""
     n = edges.shape[0]
     kinds = np.empty(n, dtype=np.uint8)
     # F at the edge's samples a, b and at its neighbours before a and after b along the grid

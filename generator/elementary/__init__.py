@@ -34,11 +34,12 @@ import numpy as np
 #
 # numba's on-disk cache checks only the source file of the cached function itself, but a cached
 # function carries the machine code of every jitted function it calls from other files: the
-# interpreter (kernels.py) and the round trips compile the elementary functions *into* their own
-# code, the walls' classification (walls.py) the interpreter's points kernels, and so on. A
-# change of trig.py or kernels.py would leave those callers stale, with the old bits. The locator
-# below adds a digest of every surfgen source that holds numba code to the freshness stamp of
-# every cached function of surfgen (and, in a source checkout, of its tests and benchmarks).
+# interpreter (interpreter.py) and the round trips compile the elementary functions *into* their
+# own code, the grid driver (kernels.py) the interpreter, the walls' classification (walls.py) the
+# points kernels (points.py), and so on. A change of trig.py or interpreter.py would leave those
+# callers stale, with the old bits. The locator below adds a digest of every surfgen source that
+# holds numba code to the freshness stamp of every cached function of surfgen (and, in a source
+# checkout, of its tests and benchmarks).
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 _GENERATOR = os.path.dirname(_HERE)

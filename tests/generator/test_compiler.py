@@ -43,10 +43,10 @@ def test_opcode_numbers_are_append_only():
     assert sorted(numbers) == list(range(len(numbers))), "opcode numbers must be 0..n-1"
 
 
-def test_kernels_use_the_table():
-    kernels = pytest.importorskip("surfgen.generator.kernels")
+def test_interpreter_uses_the_table():
+    interpreter = pytest.importorskip("surfgen.generator.interpreter")
     for name, number in OP.items():
-        assert getattr(kernels, f"OP_{name.upper()}") == number
+        assert getattr(interpreter, f"OP_{name.upper()}") == number
 
 
 def test_constant_formula_folds_to_one_fill():

@@ -104,11 +104,11 @@ def test_points_on_grid_lines_share_levels_exactly():
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_points_on_grid_edges_are_the_reference(axis):
-    # kernels.eval_edges (the walls' refinement): the levels that do not vary along the edges
-    # computed once per edge (kernels.edge_lattice), the others over the points of each call;
+    # points.eval_edges (the walls' refinement): the levels that do not vary along the edges
+    # computed once per edge (points.edge_lattice), the others over the points of each call;
     # dyadic fractions repeat coordinates, a grid axis holds -0.0 and +0.0, more points than
     # edges and than a tile.
-    from surfgen.generator import kernels
+    from surfgen.generator import points
 
     tree = parse("1/x+atan2(y,z)*cos(x*y)^2.5+abs(z)^0.31*tan(y*z)-sinh(x)*y+x*z^3")
     axes = (
@@ -119,14 +119,14 @@ def test_points_on_grid_edges_are_the_reference(axis):
     rng = np.random.default_rng(axis)
     ijk = np.stack([rng.integers(0, a.size - 1, 40) for a in axes], axis=1)
     prog, tile, active, rows = points_evaluator(tree).kernel_args()
-    ctx = kernels.edge_lattice(prog, tile, active, rows, axis, ijk, axes)
+    ctx = points.edge_lattice(prog, tile, active, rows, axis, ijk, axes)
     for n in (0, 7, 600):
         sel = rng.integers(0, ijk.shape[0], n)
         t = rng.integers(0, 17, n) / 16
         h = axes[axis][ijk[sel, axis] + 1] - axes[axis][ijk[sel, axis]]
         u = axes[axis][ijk[sel, axis]] + t * h
         got = np.full(n, 7.0)
-        kernels.eval_edges(prog, tile, active, rows, ctx, sel, u, got)
+        points.eval_edges(prog, tile, active, rows, ctx, sel, u, got)
         p = np.stack([axes[k][ijk[sel, k]] for k in range(3)], axis=1)
         p[:, axis] = u
         assert_identical(got, evaluate_points(tree, p[:, 0], p[:, 1], p[:, 2]), f"axis {axis}")

@@ -150,10 +150,10 @@ def test_points_evaluator_is_the_reference():
 
 # ----------------------------------------------------------------------------- fast path
 # classify_edges runs the midpoint, the secant step, the bisections and the decision in one
-# numba call (the formula through kernels.eval_edges, the levels that do not vary along an
+# numba call (the formula through points.eval_edges, the levels that do not vary along an
 # edge computed once per edge).  The reference below takes the same steps on arrays from
 # Python, the formula evaluated at every point without sharing (PointsEvaluator.plain,
-# kernels.run_points): the kinds must be the same.
+# points.run_points): the kinds must be the same.
 
 
 def reference_kinds(field, tree, level, edges):

@@ -16,8 +16,8 @@ from numba import njit
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import eval_points
 from surfgen.generator.mesh import ROOT
+from surfgen.generator.points import eval_points
 from surfgen.generator.walls import (  # unchanged since: shared, not copied
     _crossings,
     _decide,

@@ -24,7 +24,7 @@ from walls_main import (  # the frozen copy of main's classifier before walls2
 from surfgen.generator.expr import Expr
 from surfgen.generator.fast import PointsEvaluator, points_evaluator
 from surfgen.generator.grid import Field
-from surfgen.generator.kernels import _sign  # np.sign (the samples here are finite)
+from surfgen.generator.interpreter import _sign  # np.sign (the samples here are finite)
 from surfgen.generator.mesh import ROOT
 from surfgen.generator.walls import _decide
 
@@ -72,7 +72,7 @@ def _classify_suspects(
 
     One numba call (:func:`_classify_kernel`): the per-edge arithmetic (:func:`_secant_points`,
     :func:`_secant_roots`, :func:`_round_points`, :func:`_round_update`, :func:`_decide`) and the
-    formula at the points of each step (:func:`surfgen.generator.kernels.eval_points`, the
+    formula at the points of each step (:func:`surfgen.generator.points.eval_points`, the
     points evaluator's kernel), so no step pays Python's overhead; each step does, edge by
     edge, the operations the numpy version of this module did on arrays, so the kinds are the
     same.
