@@ -17,6 +17,12 @@ from surfgen.generator.errors import GridError
 
 MIN_POINTS = 4
 MAX_POINTS = 2048
+# Box bounds lie within +-MAX_COORDINATE (the sampler's box_half has the same bound): areas and
+# volumes of meshes in such a box stay far from overflow.
+MAX_COORDINATE = 1e6
+# Grid points are at least this fraction of their distance from 0 apart, so that mesh files,
+# which store float32 coordinates (24 bits), still place a vertex within 1/16 of a cell.
+MIN_RELATIVE_SPACING = 2.0**-20
 
 
 @dataclass(frozen=True, slots=True)
@@ -32,6 +38,10 @@ class Box:
                 raise GridError(f"box: the {axis} bounds must be finite numbers, got {a}, {b}")
             if not a < b:
                 raise GridError(f"box: {axis}min must be less than {axis}max, got {a} >= {b}")
+            if max(abs(a), abs(b)) > MAX_COORDINATE:
+                raise GridError(
+                    f"box: the {axis} bounds must lie within ±{MAX_COORDINATE:.0f}, got {a!r}, {b!r}"
+                )
 
     @classmethod
     def cube(cls, half: float) -> Box:
@@ -74,6 +84,15 @@ class Grid:
                     f"grid: N{axis} must be a whole number from {MIN_POINTS} to {MAX_POINTS}, got {n}"
                 )
         object.__setattr__(self, "shape", tuple(int(n) for n in self.shape))
+        for axis, a, b, n in zip("xyz", self.box.lo, self.box.hi, self.shape, strict=True):
+            far = max(abs(a), abs(b))
+            if (b - a) / (n - 1) < MIN_RELATIVE_SPACING * far:
+                raise GridError(
+                    f"grid: {n} points over {axis} in [{a!r}, {b!r}] are {(b - a) / (n - 1):.3g} "
+                    f"apart, less than 1/{round(1 / MIN_RELATIVE_SPACING)} of their distance "
+                    f"from 0 ({far!r}): too fine for mesh files, which store float32 coordinates "
+                    "(7 digits); use fewer points, a wider range or one nearer 0"
+                )
 
     @classmethod
     def from_sizes(cls, box: Box, sizes: int | Sequence[int]) -> Grid:

@@ -140,6 +140,12 @@ def test_spec_file_round_trip(tmp_path: Path, capsys) -> None:
         (["render", "--preset", "sphere", "--grid", "a,b"], "--grid must be whole numbers"),
         (["render", "--preset", "sphere", "--box", "1,-1"], "xmin must be less than xmax"),
         (["render", "--preset", "sphere", "--box", "1,2,3"], "--box takes 2 or 6 values"),
+        (["render", "--preset", "sphere", "--box", "0,1e308"], "must lie within ±1000000"),
+        (["render", "--preset", "sphere", "--box", "-1e308,1e308"], "must lie within ±1000000"),
+        (
+            ["render", "--preset", "sphere", "--box", "999999,1000000"],
+            "too fine for mesh files",
+        ),
         (
             ["render", "--preset", "sphere", "--formula", "x"],
             "exactly one of --preset, --formula, --spec or --from",
