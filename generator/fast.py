@@ -26,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor, wait
 import numba
 import numpy as np
 
-from surfgen.generator import kernels, points
+from surfgen.generator import interpreter, kernels, points
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.expr import Expr
@@ -157,6 +157,21 @@ def warm_up(parallel: bool = True) -> float:
     seconds = time.perf_counter() - t0
     log.debug("fast evaluator ready in %.2f s (threads too: %s)", seconds, parallel)
     return seconds
+
+
+def warm_interpreter() -> float:
+    """Load (or compile) the tape interpreter itself (:func:`interpreter.run_code`, with every
+    elementary function) for the grid driver's argument types, without a grid kernel around it;
+    returns the seconds it took. The first time on a machine that is about a third of all the
+    compiling a shape needs, which the other kernels then take from numba's on-disk cache: the
+    sampler's warm-up runs this before it compiles the grid kernel in another process."""
+    t0 = time.perf_counter()
+    prog = _prog(compile_tree(_WARM_TREE))
+    nv, ns = prog[6], prog[7]
+    code, consts = prog[0], prog[4]
+    W, S, T = np.zeros((nv, 1)), np.zeros(max(ns, 1)), np.zeros((2, 1))
+    interpreter.run_code(code, 0, 0, consts, W, S, T, 1, np.empty(0))  # no rows: types only
+    return time.perf_counter() - t0
 
 
 def _resolve_threads(threads: int | None) -> int:
@@ -292,6 +307,10 @@ def points_program(program: Program) -> tuple:
     loads = np.array(program.loads, dtype=np.int64)
     scalar = loads[:, 3] == 0
     loads[scalar, 2] += nv
+    # read-only, as on a grid: the points kernels then call the interpreter with the grid
+    # kernel's argument types, and numba compiles (and caches) one interpreter for both
+    for a in (code, loads):
+        a.flags.writeable = False
     return (
         code,
         np.ascontiguousarray(program.blocks),

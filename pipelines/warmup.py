@@ -10,6 +10,9 @@ the same through :mod:`surfgen.pipelines.warm`, imported by their forkserver.
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -19,28 +22,126 @@ log = logging.getLogger(__name__)
 # A small ball with a pole inside the box (so the walls' classification runs its kernel) and
 # one cut by the box (caps).
 WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
+WARM_HALF, WARM_POINTS = 1.1, 14
+
+# The child that compiles the grid kernel, and what follows a mesh but the walls, while this
+# process compiles the walls' kernels.
+_CHILD = "from surfgen.pipelines.warmup import warm_in_child; warm_in_child()"
 
 
-def warm_shape_kernels() -> float:
+def _tiny_shape(evaluator: str = "fast"):
+    """The warm-up's formula, its box and its field (``evaluator``: fast or reference, the same
+    values)."""
+    from surfgen.generator.evaluate import evaluate
+    from surfgen.generator.grid import Box, Grid
+    from surfgen.generator.parser import parse
+
+    tree = parse(WARM_FORMULA)
+    box = Box.cube(WARM_HALF)
+    return tree, box, evaluate(tree, Grid(box, (WARM_POINTS,) * 3), evaluator=evaluator, threads=1)
+
+
+def warm_grid_kernel() -> None:
+    """Load (or compile) the fast evaluator's grid kernel, as :func:`warm_shape_kernels` uses it."""
+    _tiny_shape("fast")
+
+
+def warm_in_child() -> None:
+    """The child's part of a parallel warm-up: the grid kernel, then every kernel after the
+    evaluation except the walls' (which the parent compiles meanwhile)."""
+    tree, box, field = _tiny_shape("fast")
+    _warm_the_rest(field, tree, box, walls=False)
+
+
+def grid_kernel_cached() -> bool:
+    """Whether numba's on-disk cache holds the grid kernel for this machine and this code (then
+    loading it takes a fraction of a second). True when that cannot be told: the caller then
+    does what it always did."""
+    try:
+        from surfgen.generator import kernels
+
+        dispatcher = kernels.run_grid
+        cache = dispatcher._cache  # numba's own cache (a NullCache where caching is off)
+        index = cache._cache_file._load_index()  # empty when missing or stale
+        here = cache._index_key(None, dispatcher.targetctx.codegen())[1:]
+        return any(key[1:] == here for key in index)
+    except Exception:  # numba's internals moved: no way to tell, assume the cache is warm
+        log.debug("cannot read numba's cache index of the grid kernel", exc_info=True)
+        return True
+
+
+def _start_child() -> subprocess.Popen | None:
+    """On a cold cache with a second CPU: compile the interpreter here (the grid kernel and the
+    points kernels each need it), then start the child (:func:`warm_in_child`)."""
+    if len(os.sched_getaffinity(0)) < 2 or grid_kernel_cached():
+        return None
+    from surfgen.generator.fast import warm_interpreter
+
+    log.debug("interpreter compiled in %.1f s", warm_interpreter())
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", _CHILD],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+    except OSError as exc:  # no second process: compile it all here, as before
+        log.debug("cannot start the warm-up's child process: %s", exc)
+        return None
+
+
+def _join_child(child: subprocess.Popen) -> None:
+    _, err = child.communicate()
+    if child.returncode != 0:  # compiled here instead, by what follows
+        log.debug("the warm-up's child process failed: %s", err.decode(errors="replace"))
+
+
+def warm_shape_kernels(parallel: bool = True) -> float:
     """Evaluate, mesh, classify, measure, describe and draw a tiny shape once; returns the
-    seconds it took."""
+    seconds it took.
+
+    The first time on a machine this compiles every kernel, about two minutes on one CPU. With
+    ``parallel`` and a second CPU it takes about 0.7 of that (``benchmarks/bench_cold_start.py``):
+    this process compiles the interpreter, then a child process (:func:`warm_in_child`)
+    compiles the grid kernel and the mesh, filter and picture kernels into numba's on-disk cache
+    while this one compiles the walls' kernels on the tiny shape sampled by the reference
+    evaluator (the same values); then this process loads the child's kernels from the cache."""
+    t0 = time.perf_counter()
+    child = _start_child() if parallel else None
+    try:
+        if child is not None:
+            tree, box, field = _tiny_shape("reference")
+            _warm_the_rest(field, tree, box, walls_only=True)
+            _join_child(child)
+            child = None
+        tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
+        _warm_the_rest(field, tree, box)
+    finally:
+        if child is not None:  # interrupted: leave no compiler behind
+            child.kill()
+            child.wait()
+    seconds = time.perf_counter() - t0
+    log.debug("shape kernels ready in %.2f s", seconds)
+    return seconds
+
+
+def _warm_the_rest(field, tree, box, walls: bool = True, walls_only: bool = False) -> None:
+    """Every kernel after the evaluation, on the tiny shape's field (without the walls', or only
+    the mesh's and the walls')."""
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
-    from surfgen.generator.evaluate import evaluate
     from surfgen.generator.families import envelope_departure, pieces
-    from surfgen.generator.grid import Box, Field, Grid
+    from surfgen.generator.grid import Field
     from surfgen.generator.mesh import _merge_same, extract_with_edges
-    from surfgen.generator.parser import parse
     from surfgen.generator.walls import label_walls
     from surfgen.pipelines.pictures import render_image
 
-    t0 = time.perf_counter()
-    tree = parse(WARM_FORMULA)
-    box = Box.cube(1.1)
-    field = evaluate(tree, Grid(box, (14, 14, 14)), threads=1)
     mesh, edges = extract_with_edges(field, 0.0, cap=True)
-    label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
+    if walls or walls_only:
+        label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
+    if walls_only:
+        return
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)
@@ -56,6 +157,3 @@ def warm_shape_kernels() -> float:
     holed = field.values.copy()
     holed[7, 7, 7] = np.nan
     extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's
-    seconds = time.perf_counter() - t0
-    log.debug("shape kernels ready in %.2f s", seconds)
-    return seconds

@@ -4,8 +4,12 @@ compile one inside a shape's timeout."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import time
+
+import pytest
 
 # In a fresh process: in this one, earlier tests may have compiled what the warm-up forgets.
 CHECK = """
@@ -45,3 +49,93 @@ def test_sampled_shapes_compile_nothing_after_the_warm_up() -> None:
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["kernels"] >= 10 and result["accepted"] >= 1
     assert not result["grew"], f"compiled while sampling, not in the warm-up: {result['grew']}"
+
+
+# ----------------------------------------------------------------------------- a cold cache
+
+
+def test_a_cold_cache_is_told_from_a_warm_one(tmp_path) -> None:
+    from surfgen.pipelines.warmup import grid_kernel_cached, warm_grid_kernel
+
+    warm_grid_kernel()
+    assert grid_kernel_cached()
+    fresh = subprocess.run(
+        [sys.executable, "-c", "from surfgen.pipelines import warmup as w; print(w.grid_kernel_cached())"],
+        env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
+        capture_output=True, text=True, timeout=120, check=True,
+    )  # fmt: skip
+    assert fresh.stdout.strip() == "False"
+
+
+class _Spy:
+    """Watches what the warm-up does with its child: the child's process, and whether this
+    process ran the grid kernel while the child was still at work (it should not: the child
+    compiles it) or after (with the child's exit code then)."""
+
+    def __init__(self, monkeypatch) -> None:
+        from surfgen.generator import kernels
+        from surfgen.pipelines import warmup
+
+        self.children: list[subprocess.Popen] = []
+        self.grid_runs_beside_child = 0
+        self.loaded_after_child: list[int | None] = []
+        popen, run_grid = subprocess.Popen, kernels.run_grid
+
+        def start(*args, **kwargs):
+            self.children.append(popen(*args, **kwargs))
+            return self.children[-1]
+
+        def grid(*args):
+            if any(c.poll() is None for c in self.children):
+                self.grid_runs_beside_child += 1
+            elif self.children:
+                self.loaded_after_child.append(self.children[-1].returncode)
+            return run_grid(*args)
+
+        monkeypatch.setattr(warmup.subprocess, "Popen", start)
+        monkeypatch.setattr(kernels, "run_grid", grid)
+        monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)  # as on a new machine
+        monkeypatch.setattr(warmup.os, "sched_getaffinity", lambda pid: {0, 1})
+
+
+def test_a_cold_cache_compiles_the_grid_kernel_in_a_child_meanwhile(monkeypatch) -> None:
+    from surfgen.pipelines.warmup import warm_shape_kernels
+
+    spy = _Spy(monkeypatch)
+    warm_shape_kernels()
+    assert len(spy.children) == 1 and spy.children[0].returncode == 0
+    assert spy.grid_runs_beside_child == 0  # the reference sampled the tiny shape meanwhile
+    assert spy.loaded_after_child[:1] == [0]  # loaded here once the child was done
+    # one CPU, or parallel=False: no child, everything here as before
+    runs = len(spy.loaded_after_child)
+    warm_shape_kernels(parallel=False)
+    monkeypatch.setattr("surfgen.pipelines.warmup.os.sched_getaffinity", lambda pid: {0})
+    warm_shape_kernels()
+    assert len(spy.children) == 1 and len(spy.loaded_after_child) > runs
+
+
+def test_a_failing_child_leaves_the_work_to_this_process(monkeypatch, caplog) -> None:
+    from surfgen.pipelines import warmup
+
+    spy = _Spy(monkeypatch)
+    monkeypatch.setattr(warmup, "_CHILD", "import sys; sys.exit('no compiler here')")
+    with caplog.at_level("DEBUG", logger="surfgen.pipelines.warmup"):
+        warmup.warm_shape_kernels()
+    assert spy.children[0].returncode == 1 and spy.loaded_after_child[:1] == [1]
+    assert "no compiler here" in caplog.text
+
+
+def test_an_interrupted_warm_up_leaves_no_child_behind(monkeypatch) -> None:
+    from surfgen.pipelines import warmup
+
+    spy = _Spy(monkeypatch)
+    monkeypatch.setattr(warmup, "_CHILD", "import time; time.sleep(60)")
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(warmup, "_warm_the_rest", interrupted)
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        warmup.warm_shape_kernels()
+    assert spy.children[0].returncode is not None and time.perf_counter() - t0 < 30

@@ -1,0 +1,85 @@
+"""The first run on a machine: compiling every kernel a sampled shape needs, on one CPU and on two.
+
+    python benchmarks/bench_cold_start.py [--rounds 1]
+
+Each run is a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``, a new temporary
+folder) that calls :func:`surfgen.pipelines.warmup.warm_shape_kernels`, as ``surfgen sample``
+does before it forks its workers: once with ``parallel=False`` (everything compiled in one
+process, the baseline) and once with ``parallel=True`` (the fast evaluator's grid kernel
+compiled by a child process meanwhile), taking turns ``--rounds`` times, baseline first.
+Prints each run's wall time (the process's start and imports included) and CPU time, then the
+ratio of the best parallel run over the best serial one. Afterwards the cache of every run is
+checked for the grid kernel, loadable by a fresh process (so the parallel runs left nothing
+to compile). Needs two CPUs to show a gain.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+_RUN = """
+import json, sys, time
+from surfgen.pipelines.warmup import warm_shape_kernels
+seconds = warm_shape_kernels(parallel=sys.argv[1] == "parallel")
+print(json.dumps({"warm_up": seconds}))
+"""
+
+_CHECK = """
+import json
+from surfgen.generator import kernels
+from surfgen.pipelines.warmup import grid_kernel_cached, warm_grid_kernel
+cached = grid_kernel_cached()
+warm_grid_kernel()
+print(json.dumps({"cached": cached, "misses": sum(kernels.run_grid.stats.cache_misses.values())}))
+"""
+
+
+def _run(mode: str, cache: str) -> dict:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    out = subprocess.run(
+        [sys.executable, "-c", _RUN, mode], env=env, capture_output=True, text=True, check=True
+    )
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    check = subprocess.run(
+        [sys.executable, "-c", _CHECK], env=env, capture_output=True, text=True, check=True
+    )
+    return {"wall": wall, "cpu": cpu, **result, **json.loads(check.stdout.strip().splitlines()[-1])}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=1)
+    args = ap.parse_args()
+    print(f"CPUs: {len(os.sched_getaffinity(0))}, load average {os.getloadavg()[0]:.1f}")
+    best: dict[str, float] = {}
+    for round_ in range(args.rounds):
+        for mode in ("serial", "parallel"):
+            with tempfile.TemporaryDirectory(prefix="surfgen-cold-") as cache:
+                r = _run(mode, cache)
+            best[mode] = min(best.get(mode, float("inf")), r["wall"])
+            print(
+                f"round {round_ + 1} {mode:8s}: {r['wall']:6.1f} s wall, {r['cpu']:6.1f} s CPU "
+                f"(warm-up {r['warm_up']:.1f} s); then a fresh process finds the grid kernel "
+                f"cached: {r['cached']}, compiles it again: {r['misses'] > 0}"
+            )
+    print(
+        f"first run's compile, two CPUs / one: {best['parallel']:.1f} s / {best['serial']:.1f} s "
+        f"= {best['parallel'] / best['serial']:.2f}"
+    )
+    print(f"load average after the runs {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()
