@@ -50,7 +50,7 @@ def warm_in_child() -> None:
     """The child's part of a parallel warm-up: the grid kernel, then every kernel after the
     evaluation except the walls' (which the parent compiles meanwhile)."""
     tree, box, field = _tiny_shape("fast")
-    _warm_the_rest(field, tree, box, walls=False)
+    _warm_the_rest(field, box, _warm_mesh(field, tree, walls=False))
 
 
 def grid_kernel_cached() -> bool:
@@ -110,12 +110,12 @@ def warm_shape_kernels(parallel: bool = True) -> float:
     child = _start_child() if parallel else None
     try:
         if child is not None:
-            tree, box, field = _tiny_shape("reference")
-            _warm_the_rest(field, tree, box, walls_only=True)
+            tree, _, field = _tiny_shape("reference")
+            _warm_mesh(field, tree)
             _join_child(child)
             child = None
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
-        _warm_the_rest(field, tree, box)
+        _warm_the_rest(field, box, _warm_mesh(field, tree))
     finally:
         if child is not None:  # interrupted: leave no compiler behind
             child.kill()
@@ -125,23 +125,28 @@ def warm_shape_kernels(parallel: bool = True) -> float:
     return seconds
 
 
-def _warm_the_rest(field, tree, box, walls: bool = True, walls_only: bool = False) -> None:
-    """Every kernel after the evaluation, on the tiny shape's field (without the walls', or only
-    the mesh's and the walls')."""
+def _warm_mesh(field, tree, walls: bool = True):
+    """The mesh kernels and (``walls``) the walls' classification on the tiny shape's field;
+    returns the mesh."""
+    from surfgen.generator.mesh import extract_with_edges
+    from surfgen.generator.walls import label_walls
+
+    mesh, edges = extract_with_edges(field, 0.0, cap=True)
+    if walls:
+        label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
+    return mesh
+
+
+def _warm_the_rest(field, box, mesh) -> None:
+    """Every kernel after the mesh and the walls, on the tiny shape."""
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.families import envelope_departure, pieces
     from surfgen.generator.grid import Field
     from surfgen.generator.mesh import _merge_same, extract_with_edges
-    from surfgen.generator.walls import label_walls
     from surfgen.pipelines.pictures import render_image
 
-    mesh, edges = extract_with_edges(field, 0.0, cap=True)
-    if walls or walls_only:
-        label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
-    if walls_only:
-        return
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)

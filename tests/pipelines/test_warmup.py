@@ -134,7 +134,7 @@ def test_an_interrupted_warm_up_leaves_no_child_behind(monkeypatch) -> None:
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(warmup, "_warm_the_rest", interrupted)
+    monkeypatch.setattr(warmup, "_warm_mesh", interrupted)
     t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
         warmup.warm_shape_kernels()
