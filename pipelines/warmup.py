@@ -70,10 +70,17 @@ def grid_kernel_cached() -> bool:
         return True
 
 
+def _cpus() -> int:
+    """The CPUs this process may run on (all of them where the OS cannot tell, as on macOS)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
 def _start_child() -> subprocess.Popen | None:
     """On a cold cache with a second CPU: compile the interpreter here (the grid kernel and the
     points kernels each need it), then start the child (:func:`warm_in_child`)."""
-    if len(os.sched_getaffinity(0)) < 2 or grid_kernel_cached():
+    if _cpus() < 2 or grid_kernel_cached():
         return None
     from surfgen.generator.fast import warm_interpreter
 

@@ -95,7 +95,7 @@ class _Spy:
         monkeypatch.setattr(warmup.subprocess, "Popen", start)
         monkeypatch.setattr(kernels, "run_grid", grid)
         monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)  # as on a new machine
-        monkeypatch.setattr(warmup.os, "sched_getaffinity", lambda pid: {0, 1})
+        monkeypatch.setattr(warmup, "_cpus", lambda: 2)
 
 
 def test_a_cold_cache_compiles_the_grid_kernel_in_a_child_meanwhile(monkeypatch) -> None:
@@ -109,7 +109,7 @@ def test_a_cold_cache_compiles_the_grid_kernel_in_a_child_meanwhile(monkeypatch)
     # one CPU, or parallel=False: no child, everything here as before
     runs = len(spy.loaded_after_child)
     warm_shape_kernels(parallel=False)
-    monkeypatch.setattr("surfgen.pipelines.warmup.os.sched_getaffinity", lambda pid: {0})
+    monkeypatch.setattr("surfgen.pipelines.warmup._cpus", lambda: 1)
     warm_shape_kernels()
     assert len(spy.children) == 1 and len(spy.loaded_after_child) > runs
 
@@ -139,3 +139,12 @@ def test_an_interrupted_warm_up_leaves_no_child_behind(monkeypatch) -> None:
     with pytest.raises(KeyboardInterrupt):
         warmup.warm_shape_kernels()
     assert spy.children[0].returncode is not None and time.perf_counter() - t0 < 30
+
+
+def test_cpus_counted_where_the_os_has_no_affinity(monkeypatch) -> None:
+    from surfgen.pipelines import warmup
+
+    if hasattr(os, "sched_getaffinity"):
+        assert warmup._cpus() == len(os.sched_getaffinity(0))
+        monkeypatch.delattr(os, "sched_getaffinity")  # as on macOS
+    assert warmup._cpus() == (os.cpu_count() or 1)
