@@ -181,7 +181,7 @@ def _block(
             r0 += n
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _block_rows(
     m,
     i,
@@ -331,7 +331,7 @@ def grid_stores(rows, ax, ay, az):
     return sx, sy, sz, syz
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _prologue(prog, tile, sx, sy, sz, syz, out, prof):
     """The x, y and z blocks (1-D, once per grid)."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
@@ -343,7 +343,7 @@ def _prologue(prog, tile, sx, sy, sz, syz, out, prof):
     _block(4, 0, 0, 1, sz.shape[1], *args)
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof):
     """The yz block for rows j0 <= j < j1 (once per grid)."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
@@ -353,7 +353,7 @@ def _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof):
     _block(6, 0, j0, j1, sz.shape[1], *args)
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof):
     """x indices i0 <= i < i1: per i the xy and xz rows, then the xyz block row by row."""
     code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]

@@ -290,13 +290,14 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
     store[offsets[1] : offsets[1] + sizes[1]] = _gather(px, first_x)
     store[offsets[2] : offsets[2] + sizes[2]] = _gather(py, first_y)
     store[offsets[4] : offsets[4] + sizes[4]] = _gather(pz, first_z)
-    run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out)
+    # skip given (nothing skipped): the signature of the edges' calls, one compile for all
+    run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, np.zeros(8, dtype=np.bool_))
 
 
 # ----------------------------------------------------------------------------- points on grid edges
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
     """The part of a points program that does not vary along grid edges parallel to ``axis``
     (0, 1, 2): for edges starting at grid indices ``ijk`` (n, 3), the two single-variable
