@@ -57,17 +57,30 @@ def grid_kernel_cached() -> bool:
     """Whether numba's on-disk cache holds the grid kernel for this machine and this code (then
     loading it takes a fraction of a second). True when that cannot be told: the caller then
     does what it always did."""
-    try:
-        from surfgen.generator import kernels
+    from surfgen.generator import kernels
 
-        dispatcher = kernels.run_grid
+    return kernel_cached(kernels.run_grid)
+
+
+def kernel_cached(dispatcher) -> bool:
+    """Whether numba's on-disk cache holds a compiled ``dispatcher`` (any signature) for this
+    machine and this code. True when that cannot be told (numba's internals moved)."""
+    try:
         cache = dispatcher._cache  # numba's own cache (a NullCache where caching is off)
         index = cache._cache_file._load_index()  # empty when missing or stale
         here = cache._index_key(None, dispatcher.targetctx.codegen())[1:]
         return any(key[1:] == here for key in index)
     except Exception:  # numba's internals moved: no way to tell, assume the cache is warm
-        log.debug("cannot read numba's cache index of the grid kernel", exc_info=True)
+        log.debug("cannot read numba's cache index of %s", dispatcher, exc_info=True)
         return True
+
+
+def warm_mesh_kernels() -> None:
+    """Every kernel after the evaluation but the walls' (mesh, filters, descriptor, picture),
+    on the tiny shape sampled by the reference evaluator: needs no interpreter, so it can be
+    compiled while another process compiles that (the test suite's warm-up does)."""
+    tree, box, field = _tiny_shape("reference")
+    _warm_the_rest(field, box, _warm_mesh(field, tree, walls=False))
 
 
 def _cpus() -> int:

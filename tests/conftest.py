@@ -178,13 +178,33 @@ def cat_dir(template, tmp_path):
 
 @pytest.hookimpl(trylast=True)  # after -k/-m deselection: only tests that will run
 def pytest_collection_modifyitems(config, items) -> None:
-    """Start the slow background parts of the selected tests now (a test module's
+    """On a cold numba cache, compile the kernels on both CPUs first (``kernel_warmup``); then
+    start the slow background parts of the selected tests (a test module's
     ``start_in_background``, for the tests it names in ``BACKGROUND_TESTS``), so they overlap
     the rest of the suite."""
+    _warm_kernels(config, len(items))
     for item in items:
         module = getattr(item, "module", None)
         if item.name in getattr(module, "BACKGROUND_TESTS", ()):
             module.start_in_background(item.name)  # once however often it is called
+
+
+def _warm_kernels(config, selected: int) -> None:
+    import os
+
+    import kernel_warmup
+
+    switch = os.environ.get("SURFGEN_TEST_WARMUP", "")
+    if switch == "0" or (switch != "1" and selected < kernel_warmup.MIN_TESTS):
+        return
+    if not kernel_warmup.needed():
+        return
+    say = config.pluginmanager.get_plugin("terminalreporter")
+    if say is not None:
+        say.write_line("numba's cache is cold: compiling the kernels on two processes first ...")
+    seconds = kernel_warmup.warm_for_suite()
+    if say is not None:
+        say.write_line(f"kernels compiled in {seconds:.0f} s")
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:

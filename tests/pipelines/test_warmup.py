@@ -67,6 +67,47 @@ def test_a_cold_cache_is_told_from_a_warm_one(tmp_path) -> None:
     assert fresh.stdout.strip() == "False"
 
 
+def test_kernel_cached_tells_each_kernel(tmp_path) -> None:
+    from surfgen.generator import kernels
+    from surfgen.pipelines.warmup import kernel_cached, warm_grid_kernel
+
+    warm_grid_kernel()
+    assert kernel_cached(kernels.run_grid)
+    code = (
+        "from surfgen.generator import kernels, points; "
+        "from surfgen.pipelines.warmup import kernel_cached as c; "
+        "print(c(kernels.run_grid), c(points.eval_points))"
+    )
+    fresh = subprocess.run(
+        [sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
+        capture_output=True, text=True, timeout=120, check=True,
+    )  # fmt: skip
+    assert fresh.stdout.split() == ["False", "False"]
+
+
+MESH_ONLY = """
+import json
+from numba.core.registry import CPUDispatcher
+from surfgen.generator import interpreter, kernels, mesh
+from surfgen.pipelines.warmup import warm_mesh_kernels
+
+warm_mesh_kernels()
+ran = {k: len(v.signatures) for k, v in vars(mesh).items() if isinstance(v, CPUDispatcher)}
+print(json.dumps({"interpreter": len(interpreter.run_code.signatures),
+                  "grid": len(kernels.run_grid.signatures), "mesh": sum(ran.values())}))
+"""
+
+
+def test_the_mesh_kernels_warm_up_without_the_interpreter() -> None:
+    # what lets the suite's warm-up (tests/kernel_warmup.py) compile them beside the interpreter
+    out = subprocess.run(
+        [sys.executable, "-c", MESH_ONLY], capture_output=True, text=True, timeout=600, check=True
+    )
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["mesh"] >= 3
+    assert result["interpreter"] == 0 and result["grid"] == 0
+
+
 class _Spy:
     """Watches what the warm-up does with its child: the child's process, and whether this
     process ran the grid kernel while the child was still at work (it should not: the child
