@@ -76,3 +76,9 @@ def _use_wide_vectors() -> None:
 
 
 _use_wide_vectors()
+
+# Last: numba reads the settings above when it is imported. Before any jitted function of
+# surfgen is defined (numba picks a function's cache locator then): see numba_cache.py.
+from surfgen.generator.numba_cache import install_cache_stamp as _install_cache_stamp  # noqa: E402
+
+_install_cache_stamp()

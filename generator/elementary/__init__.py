@@ -22,95 +22,15 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import hashlib
-import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import ModuleType
 
 import numpy as np
 
-# ----------------------------------------------------------------------------- numba's cache
-#
-# numba's on-disk cache checks only the source file of the cached function itself, but a cached
-# function carries the machine code of every jitted function it calls from other files: the
-# interpreter (interpreter.py) and the round trips compile the elementary functions *into* their
-# own code, the grid driver (kernels.py) the interpreter, the walls' classification (walls.py) the
-# points kernels (points.py), and so on. A change of trig.py or interpreter.py would leave those
-# callers stale, with the old bits. The locator below adds a digest of every surfgen source that
-# holds numba code to the freshness stamp of every cached function of surfgen (and, in a source
-# checkout, of its tests and benchmarks).
-
-_HERE = os.path.dirname(os.path.abspath(__file__))
-_GENERATOR = os.path.dirname(_HERE)
-_ROOT = os.path.dirname(_GENERATOR)  # surfgen's package (installed) or the checkout (editable)
-_NUMBA_MARKS = (b"njit", b"overload", b"_dual")
-
-
-def _package_digest() -> str:
-    h = hashlib.sha256()
-    folders = [_GENERATOR, _HERE]
-    folders += [os.path.join(_ROOT, name) for name in ("filters", "pipelines")]
-    for folder in (f for f in folders if os.path.isdir(f)):
-        for name in sorted(os.listdir(folder)):
-            if name.endswith(".py"):
-                with open(os.path.join(folder, name), "rb") as f:
-                    source = f.read()
-                if any(mark in source for mark in _NUMBA_MARKS):
-                    h.update(os.path.basename(folder).encode() + b"/" + name.encode() + b"\0")
-                    h.update(source)
-    return h.hexdigest()
-
-
-def _install_cache_stamp() -> None:
-    try:
-        from numba.core import caching
-    except ImportError:  # pragma: no cover
-        return
-    digest = _package_digest()
-    inner_classes = list(caching.CacheImpl._locator_classes)
-    if any(getattr(c, "_surfgen", False) for c in inner_classes):
-        return
-
-    class _StampedLocator(caching._CacheLocator):
-        _surfgen = True
-
-        def __init__(self, inner) -> None:
-            self._inner = inner
-
-        def ensure_cache_path(self) -> None:
-            self._inner.ensure_cache_path()
-
-        def get_cache_path(self) -> str:
-            return self._inner.get_cache_path()
-
-        def get_source_stamp(self):
-            return (self._inner.get_source_stamp(), digest)
-
-        def get_disambiguator(self) -> str:
-            return self._inner.get_disambiguator()
-
-        @classmethod
-        def from_function(cls, py_func, py_file):
-            path = os.path.abspath(py_file)
-            inside = path[len(_ROOT) :]
-            # surfgen's files only (in a checkout, not a virtual environment's packages under it)
-            if not path.startswith(_ROOT + os.sep) or f"{os.sep}site-packages{os.sep}" in inside:
-                return None
-            for c in inner_classes:
-                inner = c.from_function(py_func, py_file)
-                if inner is not None:
-                    return cls(inner)
-            return None
-
-    caching.CacheImpl._locator_classes = [_StampedLocator, *inner_classes]
-
-
-_install_cache_stamp()
+from surfgen.generator.elementary import explog, trig
 
 # ----------------------------------------------------------------------------- the registry
-
-from surfgen.generator.elementary import explog, trig  # noqa: E402
 
 UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh")
 UNARY += ("acosh", "atanh", "exp", "log", "log10", "cbrt")
