@@ -1,4 +1,4 @@
 """surfgen.filters: mesh metrics, verdicts, cleanup, remeshing and de-duplication."""
 
 # numba's cache stamp before any jitted function of this package (surfgen/generator/numba_cache.py)
-import surfgen.generator  # noqa: E402, F401
+import surfgen.generator  # noqa: F401

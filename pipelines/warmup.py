@@ -49,8 +49,7 @@ def warm_grid_kernel() -> None:
 def warm_in_child() -> None:
     """The child's part of a parallel warm-up: the grid kernel, then every kernel after the
     evaluation except the walls' (which the parent compiles meanwhile)."""
-    tree, box, field = _tiny_shape("fast")
-    _warm_the_rest(field, box, _warm_mesh(field, tree, walls=False))
+    _warm_after_evaluation("fast")
 
 
 def grid_kernel_cached() -> bool:
@@ -79,7 +78,13 @@ def warm_mesh_kernels() -> None:
     """Every kernel after the evaluation but the walls' (mesh, filters, descriptor, picture),
     on the tiny shape sampled by the reference evaluator: needs no interpreter, so it can be
     compiled while another process compiles that (the test suite's warm-up does)."""
-    tree, box, field = _tiny_shape("reference")
+    _warm_after_evaluation("reference")
+
+
+def _warm_after_evaluation(evaluator: str) -> None:
+    """Every kernel after the evaluation but the walls', on the tiny shape's field as
+    ``evaluator`` samples it (fast: the grid kernel too)."""
+    tree, box, field = _tiny_shape(evaluator)
     _warm_the_rest(field, box, _warm_mesh(field, tree, walls=False))
 
 
