@@ -21,6 +21,8 @@ import math
 import numba
 import numpy as np
 
+from surfgen.generator.elementary.trig import acos_scalar
+
 
 @numba.njit(cache=True, nogil=True)
 def _dot(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
@@ -105,12 +107,22 @@ def corner_cosines(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def corner_sums(f: np.ndarray, values: np.ndarray, n_vertices: int) -> np.ndarray:
-    """``np.bincount(f.ravel(), weights=values.ravel(), minlength=n_vertices)``."""
+def corner_angle_sums(v: np.ndarray, f: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Per vertex, the sum of the angles at its face corners, added in face order (like
+    ``np.bincount(f.ravel(), weights=angles.ravel())``): the ``acos`` of
+    :func:`corner_cosines` clipped to [-1, 1]. The ``acos`` is surfgen's own
+    (``generator/elementary``: the same bits on every CPU), not numpy's ``arccos``, which runs
+    SIMD code of its own on AVX-512 CPUs and so differs from one machine to another."""
+    cos = corner_cosines(v, f)
     out = np.zeros(n_vertices)
     for t in range(f.shape[0]):
         for k in range(3):
-            out[f[t, k]] += values[t, k]
+            c = cos[t, k]
+            if c < -1.0:
+                c = -1.0
+            elif c > 1.0:
+                c = 1.0
+            out[f[t, k]] += acos_scalar(c)
     return out
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from surfgen.filters.geometry import corner_cosines, corner_sums, used_mask
+from surfgen.filters.geometry import corner_angle_sums, used_mask
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
@@ -215,10 +215,9 @@ def shape_metrics(
 
 def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
     """Sum of |2 pi - sum of corner angles| over vertices (discrete Gauss-Bonnet)."""
-    # Corner cosines and the per-vertex sums in numba (module geometry: the same operations as
-    # the numpy version, bit for bit); the arccos and the final sum stay numpy's.
-    angles = np.arccos(np.clip(corner_cosines(v, f), -1.0, 1.0))
-    angle_sum = corner_sums(f, angles, len(v))
+    # The corner angles and their per-vertex sums in numba, with surfgen's acos (the same bits
+    # on every CPU); the final sum stays numpy's (pairwise, the same order everywhere).
+    angle_sum = corner_angle_sums(v, f, len(v))
     used = used_mask(f, len(v))
     return float(np.abs(2 * math.pi - angle_sum[used]).sum())
 

@@ -15,6 +15,7 @@ from scipy.sparse.csgraph import connected_components
 
 from surfgen.filters import verdict
 from surfgen.filters.meshlab import face_components
+from surfgen.generator.elementary.trig import acos_array
 from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, face_areas
 from surfgen.generator.parser import parse
@@ -78,7 +79,7 @@ def numpy_curvature(v: np.ndarray, f: np.ndarray) -> float:
         cos = np.einsum("ij,ij->i", a, b) / (
             np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) + 1e-300
         )
-        angles[:, k] = np.arccos(np.clip(cos, -1.0, 1.0))
+        angles[:, k] = acos_array(np.clip(cos, -1.0, 1.0))  # surfgen's: the same on every CPU
     angle_sum = np.bincount(f.ravel(), weights=angles.ravel(), minlength=len(v))
     used = np.bincount(f.ravel(), minlength=len(v)) > 0
     return float(np.abs(2 * math.pi - angle_sum[used]).sum())

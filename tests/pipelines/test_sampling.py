@@ -73,6 +73,63 @@ def test_same_catalogue_with_one_and_two_workers(reference_run: Path, tmp_path: 
     assert a[-1][6] == "accepted"  # the run stops at the n-th accepted index
 
 
+# numpy's transcendental ufuncs differ between CPUs: numpy runs its own SIMD maths where the CPU
+# has it (on AVX-512 Xeons arccos, tan, power, log2, ... are an ulp or two from the C library's).
+# The child scales every float result of each by 1 + 2^-26 before surfgen is imported: far more
+# than any CPU's difference, so that any use of them shows through the 10 significant digits of
+# the stored metrics.
+SHIFTED_UFUNCS = (
+    "sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh",
+    "arcsinh", "arccosh", "arctanh", "exp", "exp2", "expm1", "log", "log2", "log10", "log1p",
+    "cbrt", "power", "float_power",
+)  # fmt: skip
+SHIFT_NUMPY = f"""
+import numba.core.typing.npydecl, numba.np.npyimpl  # numba's tables of the plain ufuncs first
+import numpy as np
+
+def shifted(ufunc):
+    def call(*args, **kwargs):
+        out = ufunc(*args, **kwargs)
+        if np.asarray(out).dtype.kind != "f":
+            return out
+        if isinstance(out, np.ndarray):
+            return np.multiply(out, 1.0 + 2.0**-26, out=out)
+        return out * (1.0 + 2.0**-26)
+    return call
+
+plain_arccos = np.arccos
+for name in {SHIFTED_UFUNCS!r}:
+    setattr(np, name, shifted(getattr(np, name)))
+assert np.arccos(0.5) == plain_arccos(0.5) * (1.0 + 2.0**-26)
+"""
+
+
+def test_same_catalogue_when_numpys_maths_differ(reference_run: Path, tmp_path: Path) -> None:
+    """The catalogue (specs, verdicts, metrics) depends on no numpy transcendental, so on no
+    CPU's SIMD maths: a run whose numpy computes every one of them off gives the same rows."""
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\n")
+    run_cli = "from surfgen.pipelines.cli import main; raise SystemExit(main())"
+    code = SHIFT_NUMPY + run_cli
+    args = sample_args(cfg_file, tmp_path / "cat", workers=1)
+    proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert table(tmp_path / "cat") == table(reference_run)
+    assert decided(tmp_path / "cat") == decided(reference_run)
+
+
+def decided(root: Path) -> tuple[list[tuple], dict[str, bytes]]:
+    """Every column of every draw that the sampler computes (not timings, paths, curation), and
+    the mesh files' bytes."""
+    con = sqlite3.connect(root / "catalogue.sqlite")
+    rows = con.execute(
+        "SELECT idx, key, spec, formula, identity, d, model, verdict, reasons, metrics, faces,"
+        " vertices, components, genus, euler, area, volume, descriptor FROM shapes ORDER BY idx"
+    ).fetchall()
+    con.close()
+    return rows, {p.name: p.read_bytes() for p in sorted((root / "meshes").glob("*.ply"))}
+
+
 def test_rejected_draws_are_recorded_with_reasons(reference_run: Path) -> None:
     rows = table(reference_run)
     assert [r[0] for r in rows] == list(range(len(rows)))
