@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, TypeAlias
 import numba
 import numpy as np
 
+from surfgen.generator.elementary import power
 from surfgen.generator.errors import MeshError, SurfgenError
 from surfgen.generator.files import write_atomic
 from surfgen.generator.mesh import Mesh
@@ -101,15 +102,19 @@ _EDGE_DEPTH_JUMP = 0.04  # unit-cube lengths: depth second difference marking an
 _EDGE_DARKEN = 0.45  # outline pixels keep this fraction of their colour
 
 
+# The sRGB curve's powers are surfgen's (generator/elementary), not numpy's, which runs SIMD code
+# of its own on AVX-512 CPUs: a picture's bytes are then the same on every machine.
+
+
 def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return np.where(c <= 0.04045, c / 12.92, power((c + 0.055) / 1.055, 2.4))
 
 
 def _linear_to_srgb8(c: np.ndarray) -> np.ndarray:
     """Linear light in [0, 1] (any shape) to sRGB uint8."""
     c = np.clip(c, 0.0, 1.0)
-    s = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+    s = np.where(c <= 0.0031308, 12.92 * c, 1.055 * power(c, 1.0 / 2.4) - 0.055)
     return np.round(s * 255.0).astype(np.uint8)
 
 
