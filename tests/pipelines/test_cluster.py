@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from catalogue_rows import computed_rows
 
 from surfgen.pipelines.cli import main
 from surfgen.pipelines.config import load_config
@@ -31,17 +32,6 @@ def small_config(tmp_path: Path):
     cfg = tmp_path / "cfg.toml"
     cfg.write_text("[run]\nthumbnails = false\n")
     return cfg, load_config(cfg).with_grid(GRID)
-
-
-def table(root: Path) -> list[tuple]:
-    """Everything that must be identical between equivalent runs (not timings or file paths)."""
-    con = sqlite3.connect(root / "catalogue.sqlite")
-    rows = con.execute(
-        "SELECT idx, key, spec, formula, d, model, verdict, reasons, metrics, descriptor "
-        "FROM shapes ORDER BY idx"
-    ).fetchall()
-    con.close()
-    return rows
 
 
 def mesh_hashes(root: Path) -> dict[str, str]:
@@ -86,7 +76,7 @@ def test_local_cluster_run_equals_local_run(reference: Path, tmp_path: Path, clu
         scheduler=cluster[0],
     )
     assert summary.status == "complete" and summary.accepted == N
-    assert table(tmp_path / "cat") == table(reference)
+    assert computed_rows(tmp_path / "cat") == computed_rows(reference)
     # The files came back as bytes and are the very same files.
     assert mesh_hashes(tmp_path / "cat") == mesh_hashes(reference)
     assert not (tmp_path / "cat" / ".staging").exists()
@@ -117,7 +107,7 @@ def test_killed_worker_changes_nothing(reference: Path, tmp_path: Path, cluster)
     )
     assert killed, "no worker was busy when the first index committed"
     assert summary.status == "complete"
-    assert table(tmp_path / "cat") == table(reference)
+    assert computed_rows(tmp_path / "cat") == computed_rows(reference)
     assert mesh_hashes(tmp_path / "cat") == mesh_hashes(reference)
 
 
@@ -152,13 +142,13 @@ def test_driver_killed_and_resumed(reference: Path, tmp_path: Path, cluster) -> 
     if proc.poll() is None:
         proc.send_signal(signal.SIGKILL)
     proc.wait()
-    partial = table(cat)
-    ref = table(reference)
+    partial = computed_rows(cat)
+    ref = computed_rows(reference)
     assert 0 < len(partial) <= len(ref) and partial == ref[: len(partial)]
     # Resumed without an address: on a LocalCluster of its own this time.
     assert "SURFGEN_SCHEDULER" not in os.environ
     assert main([*args, "--workers", "2", "--resume"]) == 0
-    assert table(cat) == ref
+    assert computed_rows(cat) == ref
     assert mesh_hashes(cat) == mesh_hashes(reference)
 
 

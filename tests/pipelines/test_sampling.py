@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from catalogue_rows import computed_rows, mesh_bytes
 
 from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
 from surfgen.generator.errors import SpecError
@@ -115,19 +116,8 @@ def test_same_catalogue_when_numpys_maths_differ(reference_run: Path, tmp_path: 
     proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert table(tmp_path / "cat") == table(reference_run)
-    assert decided(tmp_path / "cat") == decided(reference_run)
-
-
-def decided(root: Path) -> tuple[list[tuple], dict[str, bytes]]:
-    """Every column of every draw that the sampler computes (not timings, paths, curation), and
-    the mesh files' bytes."""
-    con = sqlite3.connect(root / "catalogue.sqlite")
-    rows = con.execute(
-        "SELECT idx, key, spec, formula, identity, d, model, verdict, reasons, metrics, faces,"
-        " vertices, components, genus, euler, area, volume, descriptor FROM shapes ORDER BY idx"
-    ).fetchall()
-    con.close()
-    return rows, {p.name: p.read_bytes() for p in sorted((root / "meshes").glob("*.ply"))}
+    assert computed_rows(tmp_path / "cat") == computed_rows(reference_run)
+    assert mesh_bytes(tmp_path / "cat") == mesh_bytes(reference_run)
 
 
 def test_rejected_draws_are_recorded_with_reasons(reference_run: Path) -> None:
