@@ -420,6 +420,9 @@ def sample(
                 rate=accepted / minutes if minutes else 0.0,
             )
 
+        def notice(text: str) -> None:
+            typer.echo(text, err=True)  # above the live bar (rich redirects stderr)
+
         try:
             summary = run_sample(
                 n=n,
@@ -433,6 +436,7 @@ def sample(
                 executor=executor,
                 scheduler=scheduler,
                 max_memory=limit,
+                notice=notice,
             )
         except KeyboardInterrupt:
             bar.stop()

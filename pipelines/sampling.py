@@ -397,9 +397,11 @@ def open_executor(
     staging: Path,
     workers: int | None,
     scheduler: str | None = None,
+    notice: Callable[[str], None] | None = None,
 ) -> Executor:
     """The workers that compute shapes: ``local`` processes, or a Dask cluster (``scheduler``
-    address, or a local one of ``workers`` processes). Raises :class:`SpecError` for an unknown
+    address, or a local one of ``workers`` processes). ``notice`` hears when the local workers'
+    kernels must be compiled first (a minute or two, once per machine). Raises :class:`SpecError` for an unknown
     executor and ``ExecutorError`` when Dask is missing or unreachable."""
     pictures = config.run.thumbnails
     if executor == "local":
@@ -418,7 +420,7 @@ def open_executor(
         )
         # Compile (fresh checkout) or load numba's kernels once, here: the forked workers
         # inherit them, and no shape's timeout is spent compiling.
-        warm_shape_kernels()
+        warm_shape_kernels(notice=notice)
         return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
     if executor == "dask":
         from surfgen.pipelines.cluster import DaskPool
@@ -443,10 +445,12 @@ def run_sample(
     executor: str = "local",
     scheduler: str | None = None,
     max_memory: int | None = None,
+    notice: Callable[[str], None] | None = None,
 ) -> RunSummary:
     """Sample until ``n`` shapes are accepted or ``max_draws`` indices are drawn.
 
-    ``progress(accepted, drawn, n)`` is called after each committed index. ``executor`` is
+    ``progress(accepted, drawn, n)`` is called after each committed index; ``notice(text)``
+    before a long wait that is not sampling (compiling the kernels on a new machine). ``executor`` is
     ``local`` (``workers`` processes) or ``dask`` (the cluster at ``scheduler``, or a local one
     of ``workers`` processes). Raises :class:`SpecError` for bad options,
     :class:`CatalogueError` when a run with the same seed, grid and config exists and ``resume``
@@ -497,6 +501,7 @@ def run_sample(
                 staging=staging,
                 workers=workers,
                 scheduler=scheduler,
+                notice=notice,
             )
         )
         with ExitStack() as cleanup:

@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -74,6 +75,26 @@ def kernel_cached(dispatcher) -> bool:
         return True
 
 
+# What a cold start looks like to a user: shown once, before the warm-up compiles.
+COMPILE_NOTICE = (
+    "compiling surfgen's numba kernels: about 1-2 minutes on the first run on this machine "
+    "(or after an update); they are cached for later runs"
+)
+
+
+def shape_kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the kernels a shape goes through (one of each stage:
+    the grid, the walls, the mesh, the metrics, the pictures) for this machine and this code,
+    so that :func:`warm_shape_kernels` only loads them."""
+    from surfgen.filters import geometry
+    from surfgen.generator import kernels, mesh, walls
+    from surfgen.pipelines import pictures
+
+    stages = (kernels.run_grid, walls._bisect_kernel, mesh._offsets_kernel)
+    stages += (geometry.corner_angle_sums, pictures._rasterise)
+    return all(kernel_cached(d) for d in stages)
+
+
 def warm_mesh_kernels() -> None:
     """Every kernel after the evaluation but the walls' (mesh, filters, descriptor, picture),
     on the tiny shape sampled by the reference evaluator: needs no interpreter, so it can be
@@ -121,9 +142,10 @@ def _join_child(child: subprocess.Popen) -> None:
         log.debug("the warm-up's child process failed: %s", err.decode(errors="replace"))
 
 
-def warm_shape_kernels(parallel: bool = True) -> float:
+def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | None = None) -> float:
     """Evaluate, mesh, classify, measure, describe and draw a tiny shape once; returns the
-    seconds it took.
+    seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
+    ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
 
     The first time on a machine this compiles every kernel, about two minutes on one CPU. With
     ``parallel`` and a second CPU it takes about 0.7 of that (``benchmarks/bench_cold_start.py``):
@@ -132,6 +154,10 @@ def warm_shape_kernels(parallel: bool = True) -> float:
     while this one compiles the walls' kernels on the tiny shape sampled by the reference
     evaluator (the same values); then this process loads the child's kernels from the cache."""
     t0 = time.perf_counter()
+    if not shape_kernels_cached():
+        log.info(COMPILE_NOTICE)
+        if notice is not None:
+            notice(COMPILE_NOTICE)
     child = _start_child() if parallel else None
     try:
         if child is not None:

@@ -18,7 +18,7 @@ from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from surfgen.pipelines.config import load_config
 from surfgen.pipelines.sampling import make_shape
-from surfgen.pipelines.warmup import warm_shape_kernels
+from surfgen.pipelines.warmup import shape_kernels_cached, warm_shape_kernels
 
 def compiled():
     out = {}
@@ -30,6 +30,7 @@ def compiled():
     return out
 
 warm_shape_kernels()
+cached = shape_kernels_cached()
 before = compiled()
 config = load_config(None).with_grid(24)
 accepted = 0
@@ -38,7 +39,8 @@ with tempfile.TemporaryDirectory() as tmp:
         accepted += make_shape(index, seed=7, config=config, staging=Path(tmp), pictures=True).verdict.accepted
 after = compiled()
 grew = {k: [before.get(k, 0), v] for k, v in after.items() if v != before.get(k, 0)}
-print(json.dumps({"kernels": sum(before.values()), "accepted": accepted, "grew": grew}))
+print(json.dumps({"kernels": sum(before.values()), "accepted": accepted, "grew": grew,
+                  "cached": cached}))
 """
 
 
@@ -49,6 +51,8 @@ def test_sampled_shapes_compile_nothing_after_the_warm_up() -> None:
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["kernels"] >= 10 and result["accepted"] >= 1
     assert not result["grew"], f"compiled while sampling, not in the warm-up: {result['grew']}"
+    # what tells a cold start (and its notice) checks kernels the warm-up does cache
+    assert result["cached"] is True
 
 
 # ----------------------------------------------------------------------------- a cold cache
@@ -59,12 +63,36 @@ def test_a_cold_cache_is_told_from_a_warm_one(tmp_path) -> None:
 
     warm_grid_kernel()
     assert grid_kernel_cached()
+    code = "from surfgen.pipelines import warmup as w; print(w.grid_kernel_cached(), w.shape_kernels_cached())"
     fresh = subprocess.run(
-        [sys.executable, "-c", "from surfgen.pipelines import warmup as w; print(w.grid_kernel_cached())"],
-        env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
+        [sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
         capture_output=True, text=True, timeout=120, check=True,
     )  # fmt: skip
-    assert fresh.stdout.strip() == "False"
+    assert fresh.stdout.split() == ["False", "False"]
+
+
+def test_a_cold_start_says_it_compiles_first(monkeypatch, caplog) -> None:
+    from surfgen.pipelines import warmup
+
+    heard: list[str] = []
+    warmup.warm_shape_kernels(parallel=False, notice=heard.append)
+    assert heard == []  # warm: nothing to say
+    monkeypatch.setattr(warmup, "shape_kernels_cached", lambda: False)  # as on a new machine
+    with caplog.at_level("INFO", logger="surfgen.pipelines.warmup"):
+        warmup.warm_shape_kernels(parallel=False, notice=heard.append)
+    assert heard == [warmup.COMPILE_NOTICE]
+    assert warmup.COMPILE_NOTICE in caplog.messages  # the library logs it too
+
+
+def test_sample_prints_the_compile_notice_once(monkeypatch, tmp_path, capsys) -> None:
+    from surfgen.pipelines import warmup
+    from surfgen.pipelines.cli import main
+
+    monkeypatch.setattr(warmup, "shape_kernels_cached", lambda: False)
+    args = ["sample", "--n", "1", "--seed", "3", "--grid", "16", "--workers", "1"]
+    assert main([*args, "--no-thumbnails", "--out", str(tmp_path / "cat")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("compiling surfgen's numba kernels") == 1, err
 
 
 def test_kernel_cached_tells_each_kernel(tmp_path) -> None:
