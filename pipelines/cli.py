@@ -68,6 +68,11 @@ def parse_params(items: list[str] | None) -> dict[str, float]:
     return out
 
 
+def echo_err(text: str) -> None:
+    """A line on stderr: notices that are not the command's output."""
+    typer.echo(text, err=True)
+
+
 def emit_json(obj: Any) -> None:
     typer.echo(json.dumps(obj, indent=2, sort_keys=False, default=str))
 
@@ -167,6 +172,7 @@ def render(
     from surfgen.generator.limits import parse_size
     from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
+    from surfgen.pipelines.warmup import compile_notice
 
     limit = parse_size(max_memory) if max_memory is not None else None
     if mathmod is not None:
@@ -179,6 +185,8 @@ def render(
         model = read_model(mathmod, name, slider=slider, params=parse_params(param))
         for notice in model.notices:
             typer.echo(f"notice: {notice}", err=True)
+        if evaluator == "fast":
+            compile_notice(echo_err)
         s = render_model(
             model,
             component=component,
@@ -218,6 +226,8 @@ def render(
         grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid is not None else None,
         level=level,
     )
+    if evaluator == "fast":
+        compile_notice(echo_err)
     result = render_spec(
         spec_obj,
         cap=cap if cap is not None else bool(preset) and get_preset(preset).cap,
@@ -420,9 +430,6 @@ def sample(
                 rate=accepted / minutes if minutes else 0.0,
             )
 
-        def notice(text: str) -> None:
-            typer.echo(text, err=True)  # above the live bar (rich redirects stderr)
-
         try:
             summary = run_sample(
                 n=n,
@@ -436,7 +443,7 @@ def sample(
                 executor=executor,
                 scheduler=scheduler,
                 max_memory=limit,
-                notice=notice,
+                notice=echo_err,  # above the live bar (rich redirects stderr)
             )
         except KeyboardInterrupt:
             bar.stop()

@@ -70,6 +70,7 @@ from surfgen.pipelines.curation import (
     get_shape,
     select_shapes,
 )
+from surfgen.pipelines.warmup import compile_notice
 from surfgen.pipelines.webapi import (
     Param,
     install,
@@ -721,6 +722,7 @@ def serve_cmd(
     if host not in LOOPBACK:
         log.warning("serving on %s: anyone who can reach it can edit the catalogue", host)
     server = make_server(catalogue, host, port)
+    compile_notice(lambda text: typer.echo(text, err=True), background=True)  # the explorer's
     typer.echo(f"gallery of {catalogue} at {server_url(server)} (Ctrl+C to stop)")
     try:
         server.serve_forever()

@@ -82,6 +82,21 @@ COMPILE_NOTICE = (
 )
 
 
+def compile_notice(echo: Callable[[str], None], *, background: bool = False) -> bool:
+    """For a command about to evaluate with the fast evaluator: ``echo`` :data:`COMPILE_NOTICE`
+    (also logged) when its grid kernel is not in numba's cache — compiling it and the mesh's
+    kernels takes a minute or two, once. ``background``: the compile runs beside the command (a
+    server's warm-up). Returns whether it spoke."""
+    if grid_kernel_cached():
+        return False
+    text = COMPILE_NOTICE + (
+        ", in the background: the first step waits for it" if background else ""
+    )
+    log.info(text)
+    echo(text)
+    return True
+
+
 def shape_kernels_cached() -> bool:
     """Whether numba's on-disk cache holds the kernels a shape goes through (one of each stage:
     the grid, the walls, the mesh, the metrics, the pictures) for this machine and this code,

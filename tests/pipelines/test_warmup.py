@@ -11,6 +11,8 @@ import time
 
 import pytest
 
+from surfgen.generator.errors import SurfgenError
+
 # In a fresh process: in this one, earlier tests may have compiled what the warm-up forgets.
 CHECK = """
 import json, sys, tempfile
@@ -111,6 +113,82 @@ def test_kernel_cached_tells_each_kernel(tmp_path) -> None:
         capture_output=True, text=True, timeout=120, check=True,
     )  # fmt: skip
     assert fresh.stdout.split() == ["False", "False"]
+
+
+NOTICE = "compiling surfgen's numba kernels"
+
+
+def _commands(tmp_path):
+    """Commands that evaluate with the fast evaluator, each on something small."""
+    sphere = ["--formula", "x^2+y^2+z^2-r^2", "--box", "-1.2,1.2", "--grid", "12"]
+    model = tmp_path / "model.json"  # a MathMod script: one sphere
+    bounds = {f"{a}{m}": [f"{s}1.5"] for a in "XYZ" for m, s in (("min", "-"), ("max", ""))}
+    fields = {"Name": ["Ball"], "Component": ["S"], "Fxyz": ["x^2+y^2+z^2-1"], "Grid": ["12"]}
+    model.write_text(json.dumps({"Iso3D": {**fields, **bounds}}))
+    return {
+        "render": ["render", "--formula", "x^2+y^2+z^2-1", "--grid", "12", "-o", str(tmp_path / "a.ply")],
+        "render --mathmod": ["render", "--mathmod", str(model), "-o", str(tmp_path / "b.ply")],
+        "sweep": ["sweep", *sphere, "--param", "r=0.5:1.0:0.5", "-o", str(tmp_path / "sweep")],
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("cold", [True, False])
+@pytest.mark.parametrize("command", ["render", "render --mathmod", "sweep"])
+def test_commands_that_evaluate_say_when_they_compile_first(
+    command, cold, monkeypatch, tmp_path, capsys
+) -> None:
+    from surfgen.pipelines import warmup
+    from surfgen.pipelines.cli import main
+
+    monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: not cold)
+    assert main(_commands(tmp_path)[command]) == 0
+    err = capsys.readouterr().err
+    assert err.count(NOTICE) == (1 if cold else 0), err
+
+
+def test_render_with_the_reference_evaluator_says_nothing(monkeypatch, tmp_path, capsys) -> None:
+    from surfgen.pipelines import warmup
+    from surfgen.pipelines.cli import main
+
+    monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)
+    args = ["render", "--formula", "x^2+y^2+z^2-1", "--grid", "12", "--evaluator", "reference"]
+    assert main([*args, "-o", str(tmp_path / "a.ply")]) == 0
+    assert NOTICE not in capsys.readouterr().err
+
+
+def test_reproduce_says_so_for_the_surfaces_only(monkeypatch, tmp_path, capsys) -> None:
+    from surfgen.pipelines import reproduce, warmup
+    from surfgen.pipelines.cli import main
+
+    monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)
+    assert main(["reproduce", "-o", str(tmp_path / "f1"), "--figure", "1"]) == 0
+    assert NOTICE not in capsys.readouterr().err  # Figure 1 plots curves: nothing to compile
+
+    def stop(*args, **kwargs):
+        raise SurfgenError("stopped before the figures")
+
+    monkeypatch.setattr(reproduce, "reproduce", stop)
+    assert main(["reproduce", "-o", str(tmp_path / "f3"), "--figure", "3"]) == 1
+    assert capsys.readouterr().err.count(NOTICE) == 1
+
+
+def test_serve_says_the_explorer_compiles_in_the_background(monkeypatch, tmp_path, capsys) -> None:
+    from surfgen.pipelines import gallery, warmup
+
+    class Server:
+        host, server_port = "127.0.0.1", 8123
+
+        def serve_forever(self):
+            raise KeyboardInterrupt
+
+        def server_close(self):
+            pass
+
+    monkeypatch.setattr(gallery, "make_server", lambda *args: Server())
+    monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)
+    gallery.serve_cmd(tmp_path / "cat", 0, "127.0.0.1")
+    err = capsys.readouterr().err
+    assert err.count(NOTICE) == 1 and "in the background" in err
 
 
 MESH_ONLY = """
