@@ -100,7 +100,8 @@ class DaskPool:
                     threads_per_worker=1,
                     processes=True,
                     host="127.0.0.1",
-                    dashboard_address=None,
+                    # any free port on loopback: a second cluster (or Jupyter's) has 8787
+                    dashboard_address="127.0.0.1:0",
                     silence_logs=logging.ERROR,
                 )
             self.client = distributed.Client(self.cluster)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import os
 import signal
+import socket
 import sqlite3
 import subprocess
 import sys
@@ -57,7 +58,7 @@ def cluster():
             threads_per_worker=1,
             processes=True,
             host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address="127.0.0.1:0",  # beside the driver's cluster (see cluster.py)
         ) as c,
         distributed.Client(c) as client,
     ):
@@ -111,7 +112,24 @@ def test_killed_worker_changes_nothing(reference: Path, tmp_path: Path, cluster)
     assert mesh_hashes(tmp_path / "cat") == mesh_hashes(reference)
 
 
-def test_driver_killed_and_resumed(reference: Path, tmp_path: Path, cluster) -> None:
+@pytest.fixture
+def dashboard_port_taken():
+    """Dask's default dashboard port 8787 held, as by another cluster or a Jupyter session."""
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", 8787))
+            s.listen()
+        except OSError:
+            pass  # taken already
+        yield
+
+
+# The resumed driver's own cluster finds a dashboard port of its own, without distributed's
+# "Port 8787 is already in use" warning on the user's terminal.
+@pytest.mark.filterwarnings("error:Port .* is already in use:UserWarning")
+def test_driver_killed_and_resumed(
+    reference: Path, tmp_path: Path, cluster, dashboard_port_taken
+) -> None:
     address, _ = cluster
     cfg_file, _ = small_config(tmp_path)
     cat = tmp_path / "cat"
