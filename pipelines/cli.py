@@ -68,6 +68,9 @@ def parse_params(items: list[str] | None) -> dict[str, float]:
     return out
 
 
+SHOWN_SETUP = 5.0  # seconds: a sampling run's setup is mentioned from this long on
+
+
 def echo_err(text: str) -> None:
     """A line on stderr: notices that are not the command's output."""
     typer.echo(text, err=True)
@@ -454,10 +457,13 @@ def sample(
             )
             raise typer.Exit(130) from None
     rejected = summary.drawn - summary.accepted
+    setup = summary.setup_seconds
+    # a first run's compile is no part of the sampling rate: say how much of the time it took
+    ready = f" ({setup:.0f} s of it getting the workers ready)" if setup >= SHOWN_SETUP else ""
     typer.echo(
         f"{summary.accepted} accepted, {rejected} rejected of {summary.drawn} drawn "
-        f"({100 * summary.accepted / max(summary.drawn, 1):.0f}% acceptance) in {summary.seconds:.0f} s "
-        f"— {summary.shapes_per_minute:.0f} shapes/min"
+        f"({100 * summary.accepted / max(summary.drawn, 1):.0f}% acceptance) in {summary.seconds:.0f} s"
+        f"{ready} — {summary.shapes_per_minute:.0f} shapes/min"
     )
     if summary.counts:
         typer.echo(

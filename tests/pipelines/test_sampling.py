@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import signal
 import sqlite3
 import subprocess
@@ -118,6 +119,33 @@ def test_same_catalogue_when_numpys_maths_differ(reference_run: Path, tmp_path: 
     assert table(tmp_path / "cat") == table(reference_run)
     assert computed_rows(tmp_path / "cat") == computed_rows(reference_run)
     assert mesh_bytes(tmp_path / "cat") == mesh_bytes(reference_run)
+
+
+def test_the_rate_leaves_the_setup_out(monkeypatch, tmp_path: Path, capsys) -> None:
+    """A first run compiles before it samples: the summary says how long that took, and the
+    rate counts the sampling only."""
+    from surfgen.pipelines import sampling
+
+    real = sampling.warm_shape_kernels
+
+    def compiling(**kwargs):  # as long as a first run's compile, nearly
+        time.sleep(6.0)
+        return real(**kwargs)
+
+    monkeypatch.setattr(sampling, "warm_shape_kernels", compiling)
+    summary = run_sample(n=N, seed=11, config=small_config(tmp_path), catalogue=tmp_path / "a")
+    assert 6.0 <= summary.setup_seconds < summary.seconds
+    sampling_minutes = (summary.seconds - summary.setup_seconds) / 60.0
+    assert summary.shapes_per_minute == pytest.approx(N / sampling_minutes)
+
+    cfg_file = tmp_path / "cfg.toml"
+    cfg_file.write_text("[run]\nthumbnails = false\n")
+    assert main(sample_args(cfg_file, tmp_path / "b", workers=1)) == 0
+    out = capsys.readouterr().out
+    assert re.search(r" in \d+ s \((\d+) s of it getting the workers ready\) — \d+ shapes/min", out)
+    monkeypatch.setattr(sampling, "warm_shape_kernels", lambda **kwargs: 0.0)  # nothing to do
+    assert main(sample_args(cfg_file, tmp_path / "c", workers=1)) == 0
+    assert "getting the workers ready" not in capsys.readouterr().out
 
 
 def test_rejected_draws_are_recorded_with_reasons(reference_run: Path) -> None:
