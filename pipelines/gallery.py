@@ -717,12 +717,14 @@ def serve_cmd(
     ] = "127.0.0.1",
 ) -> None:
     """Browse and curate the catalogue in a web browser (writes at once)."""
+    from surfgen.pipelines.cli import echo_err
+
     if not 0 <= port <= 65535:
         raise GalleryError(f"--port must be 0-65535, got {port}")
     if host not in LOOPBACK:
         log.warning("serving on %s: anyone who can reach it can edit the catalogue", host)
     server = make_server(catalogue, host, port)
-    compile_notice(lambda text: typer.echo(text, err=True), background=True)  # the explorer's
+    compile_notice(echo_err, background=True)  # the explorer compiles in a thread
     typer.echo(f"gallery of {catalogue} at {server_url(server)} (Ctrl+C to stop)")
     try:
         server.serve_forever()

@@ -556,10 +556,12 @@ def reproduce_cmd(
 
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    from surfgen.pipelines.cli import echo_err
+
     if output.exists() and not output.is_dir():
         raise SpecError(f"--output {output} exists and is not a folder")
     if set(figure or FIGURES) - {1}:  # Figures 2-4 evaluate surfaces (Figure 1 plots curves)
-        compile_notice(lambda text: typer.echo(text, err=True))
+        compile_notice(echo_err)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
     with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("reproducing", total=None)

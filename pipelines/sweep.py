@@ -420,7 +420,7 @@ def sweep_cmd(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
     from surfgen.generator.presets import get_preset
-    from surfgen.pipelines.cli import parse_numbers
+    from surfgen.pipelines.cli import echo_err, parse_numbers
     from surfgen.pipelines.render import build_spec
 
     name, values = parse_range(param)
@@ -444,7 +444,7 @@ def sweep_cmd(
         cap = get_preset(preset).cap if preset else catalogued is not None
     if output.exists() and not output.is_dir():
         raise SweepError(f"-o {output}: not a folder")
-    compile_notice(lambda text: typer.echo(text, err=True))
+    compile_notice(echo_err)
     with Progress(BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
                   disable=not sys.stderr.isatty()) as bar:  # fmt: skip
         task = bar.add_task("sweep", total=len(values))

@@ -89,12 +89,18 @@ def compile_notice(echo: Callable[[str], None], *, background: bool = False) -> 
     server's warm-up). Returns whether it spoke."""
     if grid_kernel_cached():
         return False
-    text = COMPILE_NOTICE + (
-        ", in the background: the first step waits for it" if background else ""
+    _announce(
+        COMPILE_NOTICE + (", in the background: the first step waits for it" if background else ""),
+        echo,
     )
-    log.info(text)
-    echo(text)
     return True
+
+
+def _announce(text: str, echo: Callable[[str], None] | None) -> None:
+    """The library logs a compile notice; the CLI's ``echo`` prints it."""
+    log.info(text)
+    if echo is not None:
+        echo(text)
 
 
 def shape_kernels_cached() -> bool:
@@ -170,9 +176,7 @@ def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | No
     evaluator (the same values); then this process loads the child's kernels from the cache."""
     t0 = time.perf_counter()
     if not shape_kernels_cached():
-        log.info(COMPILE_NOTICE)
-        if notice is not None:
-            notice(COMPILE_NOTICE)
+        _announce(COMPILE_NOTICE, notice)
     child = _start_child() if parallel else None
     try:
         if child is not None:
