@@ -73,6 +73,7 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
 
 def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.ndarray:
     """The values of ``program`` on ``grid`` (``prof``: see :func:`kernels.run_grid`)."""
+    interpreter.load_interpreter()  # here, where an error can be raised (the kernels call it)
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
     tile = _tile(grid.shape[2])  # rows along z; x and y runs are cut to the same length
@@ -160,17 +161,13 @@ def warm_up(parallel: bool = True) -> float:
 
 
 def warm_interpreter() -> float:
-    """Load (or compile) the tape interpreter itself (:func:`interpreter.run_code`, with every
-    elementary function) for the grid driver's argument types, without a grid kernel around it;
-    returns the seconds it took. The first time on a machine that is about a third of all the
-    compiling a shape needs, which the other kernels then take from numba's on-disk cache: the
-    sampler's warm-up runs this before it compiles the grid kernel in another process."""
+    """Load (or compile) the tape interpreter itself (:func:`interpreter.load_interpreter`, with
+    every elementary function), without a kernel around it; returns the seconds it took. The
+    first time on a machine that is most of the compiling a shape needs, and nothing else needs
+    it compiled first: the sampler's warm-up runs this while another process compiles the
+    kernels that call it."""
     t0 = time.perf_counter()
-    prog = _prog(compile_tree(_WARM_TREE))
-    nv, ns = prog[6], prog[7]
-    code, consts = prog[0], prog[4]
-    W, S, T = np.zeros((nv, 1)), np.zeros(max(ns, 1)), np.zeros((2, 1))
-    interpreter.run_code(code, 0, 0, consts, W, S, T, 1, np.empty(0))  # no rows: types only
+    interpreter.load_interpreter()
     return time.perf_counter() - t0
 
 
@@ -353,6 +350,7 @@ class PointsEvaluator:
             raise ValueError(f"x, y, z differ in length: {px.size}, {py.size}, {pz.size}")
         out = np.empty(px.size, dtype=np.float64)
         if px.size:
+            interpreter.load_interpreter()
             self._lattice(px, py, pz, out)
         return out
 
@@ -362,12 +360,15 @@ class PointsEvaluator:
         px, py, pz = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, z))
         out = np.empty(px.size, dtype=np.float64)
         if px.size:
+            interpreter.load_interpreter()
             points.run_points(self._prog, POINTS_TILE, px, py, pz, out)
         return out
 
     def kernel_args(self) -> tuple:
         """``(prog, tile, active, rows)``: what :func:`points.eval_points` takes before the
-        points, for numba code that evaluates the formula itself (the walls' classification)."""
+        points, for numba code that evaluates the formula itself (the walls' classification).
+        Loads the interpreter that code calls."""
+        interpreter.load_interpreter()
         return self._prog, POINTS_TILE, self._active, self._rows
 
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:

@@ -8,21 +8,32 @@ no fastmath (NaN and inf are normal values here), hence no FMA contraction eithe
 transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`): a row function
 that runs a whole W row, whose numpy twin the reference evaluator calls, so results are
 bit-identical to the reference on every CPU. No C library maths is called here.
+
+The interpreter is compiled once, as a C function (:func:`load_interpreter`), and the kernels
+call it through a pointer (:func:`run_code_far`, at the end of this file): numba would otherwise
+compile its code, a minute of LLVM, into every kernel that calls it.
 """
 
 from __future__ import annotations
 
+import ctypes
+import logging
 import math
+import threading
 
 import numpy as np
+from llvmlite import binding as llvm
 from llvmlite import ir
-from numba import njit, types
+from numba import carray, cfunc, njit, types
 from numba.core import cgutils
+from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
 from surfgen.generator.elementary import roundtrip as _rt
+
+log = logging.getLogger(__name__)
 
 # Every kernel of the evaluator: cached, NaN/inf as values, the GIL released (threads).
 JIT_OPTIONS = {"cache": True, "error_model": "numpy", "nogil": True}
@@ -553,3 +564,155 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
                 W[d, k] = s
         if profiling:
             prof[pc] += _cycles() - t0
+
+
+# ----------------------------------------------------------------------------- behind a pointer
+#
+# numba links the code of every jitted function a kernel calls into that kernel, and LLVM
+# optimises and emits it again there: the interpreter (every elementary function's vector loop,
+# about a minute of LLVM) was compiled once more into the grid driver, the points kernels and
+# the walls' kernel, each time it or they changed. Instead the interpreter is compiled once, as
+# a C function (:data:`INTERPRETER`, cached by numba like the kernels), and the kernels call it
+# through a pointer (:func:`run_code_far`): their own compile is their own code only.
+#
+# The pointer lives in one cell of this process, an external symbol of the kernels' machine
+# code (so the code numba caches holds no address). Until the interpreter is loaded, the cell
+# points to a small Python function that loads (or compiles) it, fills the cell and forwards the
+# call: a kernel can never call an empty cell, whatever the order of first calls or a fork.
+
+_CELL_SYMBOL = "surfgen_interpreter_cell_v1"
+_I64 = types.int64
+# code, its rows; c0, c1; consts, size; W, rows, columns; S, size; T, columns; n; prof, size
+_C_SIGNATURE = types.void(
+    types.voidptr, _I64, _I64, _I64, types.voidptr, _I64, types.voidptr, _I64, _I64,
+    types.voidptr, _I64, types.voidptr, _I64, _I64, types.voidptr, _I64,
+)  # fmt: skip
+_C_PROTOTYPE = ctypes.CFUNCTYPE(
+    None, *[ctypes.c_void_p if a == types.voidptr else ctypes.c_int64 for a in _C_SIGNATURE.args]
+)
+
+
+def _run_code_c(code_p, n_code, c0, c1, consts_p, n_consts, w_p, w_rows, tile, s_p, n_s, t_p,
+                t_cols, n, prof_p, n_prof):  # fmt: skip
+    """:func:`run_code` on raw C-contiguous buffers (the arrays' data and shapes)."""
+    code = carray(code_p, (n_code, 6), np.int64)
+    consts = carray(consts_p, n_consts, np.float64)
+    W = carray(w_p, (w_rows, tile), np.float64)
+    S = carray(s_p, n_s, np.float64)
+    T = carray(t_p, (2, t_cols), np.float64)
+    prof = carray(prof_p, n_prof, np.float64)
+    run_code(code, c0, c1, consts, W, S, T, n, prof)
+
+
+INTERPRETER = None  # the compiled C function (numba's CFunc) once loaded
+_LOAD_LOCK = threading.Lock()
+
+
+def load_interpreter():
+    """Load the interpreter from numba's cache (or compile it, about a minute the first time on
+    a machine) and point the kernels' cell at it; returns numba's ``CFunc``. Thread-safe."""
+    global INTERPRETER
+    with _LOAD_LOCK:
+        if INTERPRETER is None:
+            compiled = cfunc(_C_SIGNATURE, cache=True, error_model="numpy")(_run_code_c)
+            _CELL.value = compiled.address
+            INTERPRETER = compiled
+    return INTERPRETER
+
+
+def interpreter_asm() -> str:
+    """The interpreter's machine code (assembly), loaded first if need be."""
+    return load_interpreter()._library.get_asm_str()
+
+
+def interpreter_loaded() -> bool:
+    """Whether this process has loaded (or compiled) the interpreter."""
+    return INTERPRETER is not None
+
+
+def interpreter_cached() -> bool:
+    """Whether numba's on-disk cache holds the interpreter for this machine and this code (then
+    loading it takes a fraction of a second). True when that cannot be told (numba's internals
+    moved): the caller then does what it always did."""
+    try:
+        from numba.core.caching import FunctionCache
+        from numba.core.registry import cpu_target
+
+        cache = FunctionCache(_run_code_c)
+        key = cache._index_key(_C_SIGNATURE, cpu_target.target_context.codegen())
+        return key in cache._cache_file._load_index()  # empty when missing or stale
+    except Exception:
+        log.debug("cannot read numba's cache index of the interpreter", exc_info=True)
+        return True
+
+
+def _first_call(*args, _load=load_interpreter) -> None:
+    """The cell's first target: load the interpreter, then run the call. surfgen's entry points
+    load it before they call a kernel, so this runs only for a kernel called directly. An error
+    here cannot reach the kernel's caller (ctypes prints it): the call's values are then NaN,
+    never stale memory."""
+    try:
+        compiled = _load()
+    except BaseException:
+        log.exception("cannot load surfgen's interpreter: this evaluation gives NaN")
+        _, _, _, _, _, _, w_p, w_rows, tile, *_ = args
+        rows = ctypes.cast(w_p, ctypes.POINTER(ctypes.c_double))
+        np.ctypeslib.as_array(rows, shape=(w_rows, tile))[:] = np.nan
+        return
+    compiled.ctypes(*args)
+
+
+_FIRST_CALL = _C_PROTOTYPE(_first_call)  # kept alive as long as the cell may point to it
+_CELL = ctypes.c_void_p(ctypes.cast(_FIRST_CALL, ctypes.c_void_p).value)
+llvm.add_symbol(_CELL_SYMBOL, ctypes.addressof(_CELL))
+
+
+def _c_array(context, builder, ty, value):
+    """(data as i8*, [sizes]) of a C-contiguous array argument."""
+    array = context.make_array(ty)(context, builder, value)
+    data = builder.bitcast(array.data, ir.IntType(8).as_pointer())
+    return data, cgutils.unpack_tuple(builder, array.shape, ty.ndim)
+
+
+@intrinsic
+def run_code_far(typingctx, code, c0, c1, consts, W, S, T, n, prof):
+    """:func:`run_code`, called through the interpreter's pointer (its code is not compiled into
+    the caller). Every array must be C-contiguous (the kernels' are)."""
+    arrays = ((code, 2, types.int64), (consts, 1, types.float64), (W, 2, types.float64))
+    arrays += ((S, 1, types.float64), (T, 2, types.float64), (prof, 1, types.float64))
+    for ty, ndim, dtype in arrays:
+        if not (isinstance(ty, types.Array) and ty.layout == "C" and ty.ndim == ndim):
+            raise TypingError(f"run_code_far: expected a C-contiguous {ndim}-d array, got {ty}")
+        if ty.dtype != dtype:
+            raise TypingError(f"run_code_far: expected {dtype} values, got {ty}")
+    for ty in (c0, c1, n):
+        if not isinstance(ty, types.Integer):
+            raise TypingError(f"run_code_far: expected an integer, got {ty}")
+    sig = types.void(code, c0, c1, consts, W, S, T, n, prof)
+
+    def codegen(context, builder, signature, args):
+        tys = signature.args
+
+        def whole(k):
+            return context.cast(builder, args[k], tys[k], types.int64)
+
+        def buffer(k):
+            return _c_array(context, builder, tys[k], args[k])
+
+        code_p, (n_code, _) = buffer(0)
+        consts_p, (n_consts,) = buffer(3)
+        w_p, (w_rows, tile) = buffer(4)
+        s_p, (n_s,) = buffer(5)
+        t_p, (_, t_cols) = buffer(6)
+        prof_p, (n_prof,) = buffer(8)
+        values = [code_p, n_code, whole(1), whole(2), consts_p, n_consts, w_p, w_rows, tile]
+        values += [s_p, n_s, t_p, t_cols, whole(7), prof_p, n_prof]
+        fnty = ir.FunctionType(ir.VoidType(), [v.type for v in values])
+        module = builder.module
+        cell = module.globals.get(_CELL_SYMBOL)
+        if cell is None:
+            cell = ir.GlobalVariable(module, fnty.as_pointer(), _CELL_SYMBOL)
+        builder.call(builder.load(cell), values)
+        return context.get_dummy_value()
+
+    return sig, codegen

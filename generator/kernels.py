@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.compiler import M_S
-from surfgen.generator.interpreter import JIT_OPTIONS, OP_COPY, run_code, unsigned
+from surfgen.generator.interpreter import JIT_OPTIONS, OP_COPY, run_code_far, unsigned
 
 # ----------------------------------------------------------------------------- blocks and drivers
 
@@ -152,7 +152,7 @@ def _block(
                     else:
                         for k in range(n):
                             W[slot, k] = sx[row, r0 + k]
-            run_code(code, c0, c1, consts, W, S, T, n, prof)
+            run_code_far(code, c0, c1, consts, W, S, T, n, prof)
             for q in range(s0, s1):
                 slot = stores[q, 0]
                 kind = stores[q, 1]
@@ -257,7 +257,7 @@ def _block_rows(
                     for r in range(rows):
                         for k in range(nrun):
                             W[slot, r * nrun + k] = sz[row, k]
-        run_code(code, c0, c1, consts, W, S, T, n, prof)
+        run_code_far(code, c0, c1, consts, W, S, T, n, prof)
         for q in range(s0, s1):
             slot = stores[q, 0]
             kind = stores[q, 1]
@@ -384,8 +384,9 @@ def run_grid(prog, tile, sx, sy, sz, syz, out, prof, part, lo, hi):
     :data:`GRID_YZ_ROWS` (the yz plane's rows lo <= j < hi, next), :data:`GRID_SLAB` (x
     indices lo <= i < hi, last). Every part computes the same values wherever it runs.
 
-    One entry point for both: numba compiles (and caches) the whole interpreter again into
-    every entry point that calls it, a minute and more of LLVM each.
+    One entry point for both: numba compiles (and caches) every jitted function an entry point
+    calls into that entry point, and LLVM optimises it again there (the interpreter itself is
+    called through a pointer, :func:`interpreter.run_code_far`, and compiled once).
     """
     whole = part == GRID_ALL
     j0, j1 = (0, sy.shape[1]) if whole else (lo, hi)

@@ -3,9 +3,10 @@
 numba's cache checks only the source file of the cached function itself, but a cached function
 carries the machine code of every jitted function it calls from other files: the interpreter
 (``interpreter.py``) and the round trips compile the elementary functions *into* their own code,
-the grid driver (``kernels.py``) the interpreter, the walls' classification (``walls.py``) the
-points kernels (``points.py``), and so on. A change of ``trig.py`` or ``interpreter.py`` would
-leave those callers stale, with the old bits. The locator installed here adds a digest of every
+the walls' classification (``walls.py``) the points kernels (``points.py``), and so on; the
+kernels call the interpreter through a pointer whose calling convention (its arguments) they
+compile in. A change of ``trig.py`` or ``interpreter.py`` would leave those callers stale, with
+the old bits or the old convention. The locator installed here adds a digest of every
 surfgen source that holds numba code to the freshness stamp of every cached function of surfgen
 (and, in a source checkout, of its tests and benchmarks).
 

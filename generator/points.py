@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.interpreter import JIT_OPTIONS, run_code, unsigned
+from surfgen.generator.interpreter import JIT_OPTIONS, run_code_far, unsigned
 
 
 @njit(**JIT_OPTIONS)
@@ -57,7 +57,7 @@ def run_points(prog, tile, px, py, pz, out):
                 else:
                     for k in range(n):
                         W[slot, k] = st[kind, row, k]
-            run_code(code, c0, c1, consts, W, S, T, n, prof)
+            run_code_far(code, c0, c1, consts, W, S, T, n, prof)
             for q in range(blocks[lv, 4], blocks[lv, 5]):
                 slot = stores[q, 0]
                 kind = stores[q, 1]
@@ -187,7 +187,7 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None)
                     at = map_at[lv, kind] + e0
                     for k in range(n):
                         W[slot, k] = store[unsigned(base + maps[at + k])]
-            run_code(code, c0, c1, consts, W, S, T, n, prof)
+            run_code_far(code, c0, c1, consts, W, S, T, n, prof)
             for q in range(blocks[lv, 4], blocks[lv, 5]):
                 slot = stores[q, 0]
                 kind = stores[q, 1]

@@ -9,12 +9,13 @@ the same through :mod:`surfgen.pipelines.warm`, imported by their forkserver.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -48,18 +49,58 @@ def warm_grid_kernel() -> None:
 
 
 def warm_in_child() -> None:
-    """The child's part of a parallel warm-up: the grid kernel, then every kernel after the
-    evaluation except the walls' (which the parent compiles meanwhile)."""
-    _warm_after_evaluation("fast")
+    """The child's part of a parallel warm-up: every kernel of a shape but the interpreter, which
+    the parent compiles meanwhile. The kernels that call the interpreter (the grid's, the walls')
+    are compiled for the tiny shape's argument types, not run (:func:`without_interpreter`);
+    the mesh, filter and picture kernels run on the field the reference evaluator samples (the
+    same values)."""
+    from surfgen.generator import kernels, walls
+
+    with without_interpreter((kernels, "run_grid"), (walls, "_bisect_kernel")):
+        _tiny_shape("fast")
+        tree, box, field = _tiny_shape("reference")
+        _warm_the_rest(field, box, _warm_mesh(field, tree))
+
+
+@contextlib.contextmanager
+def without_interpreter(*kernels: tuple[object, str]) -> Iterator[None]:
+    """Within the block the interpreter is not loaded, and each ``(module, name)`` numba
+    dispatcher, a kernel that calls it, is compiled (or loaded from numba's cache) for the types
+    of the arguments it is called with, not run: the call returns 0 and writes nothing. A
+    kernel's compile needs only the interpreter's calling convention
+    (:func:`surfgen.generator.interpreter.run_code_far`), not its code."""
+    import numba
+
+    from surfgen.generator import interpreter
+
+    saved = [(module, name, getattr(module, name)) for module, name in kernels]
+    saved.append((interpreter, "load_interpreter", interpreter.load_interpreter))
+
+    def compiling(dispatcher):
+        def compile_for(*args):
+            dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            return 0
+
+        return compile_for
+
+    try:
+        for module, name, dispatcher in saved[:-1]:
+            setattr(module, name, compiling(dispatcher))
+        interpreter.load_interpreter = lambda: None
+        yield
+    finally:
+        for module, name, original in saved:
+            setattr(module, name, original)
 
 
 def grid_kernel_cached() -> bool:
-    """Whether numba's on-disk cache holds the grid kernel for this machine and this code (then
-    loading it takes a fraction of a second). True when that cannot be told: the caller then
-    does what it always did."""
+    """Whether numba's on-disk cache holds the grid kernel and the interpreter it calls for this
+    machine and this code (then loading them takes a fraction of a second). True when that
+    cannot be told: the caller then does what it always did."""
     from surfgen.generator import kernels
+    from surfgen.generator.interpreter import interpreter_cached
 
-    return kernel_cached(kernels.run_grid)
+    return interpreter_cached() and kernel_cached(kernels.run_grid)
 
 
 def kernel_cached(dispatcher) -> bool:
@@ -104,9 +145,16 @@ def _announce(text: str, echo: Callable[[str], None] | None) -> None:
 
 
 def shape_kernels_cached() -> bool:
-    """Whether numba's on-disk cache holds the kernels a shape goes through (one of each stage:
-    the grid, the walls, the mesh, the metrics, the pictures) for this machine and this code,
-    so that :func:`warm_shape_kernels` only loads them."""
+    """Whether numba's on-disk cache holds the interpreter and the kernels a shape goes through
+    (one of each stage: the grid, the walls, the mesh, the metrics, the pictures) for this
+    machine and this code, so that :func:`warm_shape_kernels` only loads them."""
+    from surfgen.generator.interpreter import interpreter_cached
+
+    return interpreter_cached() and _kernels_cached()
+
+
+def _kernels_cached() -> bool:
+    """:func:`shape_kernels_cached` but the interpreter."""
     from surfgen.filters import geometry
     from surfgen.generator import kernels, mesh, walls
     from surfgen.pipelines import pictures
@@ -114,20 +162,6 @@ def shape_kernels_cached() -> bool:
     stages = (kernels.run_grid, walls._bisect_kernel, mesh._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
     return all(kernel_cached(d) for d in stages)
-
-
-def warm_mesh_kernels() -> None:
-    """Every kernel after the evaluation but the walls' (mesh, filters, descriptor, picture),
-    on the tiny shape sampled by the reference evaluator: needs no interpreter, so it can be
-    compiled while another process compiles that (the test suite's warm-up does)."""
-    _warm_after_evaluation("reference")
-
-
-def _warm_after_evaluation(evaluator: str) -> None:
-    """Every kernel after the evaluation but the walls', on the tiny shape's field as
-    ``evaluator`` samples it (fast: the grid kernel too)."""
-    tree, box, field = _tiny_shape(evaluator)
-    _warm_the_rest(field, box, _warm_mesh(field, tree, walls=False))
 
 
 def _cpus() -> int:
@@ -138,13 +172,10 @@ def _cpus() -> int:
 
 
 def _start_child() -> subprocess.Popen | None:
-    """On a cold cache with a second CPU: compile the interpreter here (the grid kernel and the
-    points kernels each need it), then start the child (:func:`warm_in_child`)."""
-    if _cpus() < 2 or grid_kernel_cached():
+    """On a cold cache with a second CPU: start the child (:func:`warm_in_child`), which compiles
+    every kernel but the interpreter while this process compiles that."""
+    if _cpus() < 2 or _kernels_cached():
         return None
-    from surfgen.generator.fast import warm_interpreter
-
-    log.debug("interpreter compiled in %.1f s", warm_interpreter())
     try:
         return subprocess.Popen(
             [sys.executable, "-c", _CHILD],
@@ -168,20 +199,20 @@ def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | No
     seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
     ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
 
-    The first time on a machine this compiles every kernel, about two minutes on one CPU. With
-    ``parallel`` and a second CPU it takes about 0.7 of that (``benchmarks/bench_cold_start.py``):
-    this process compiles the interpreter, then a child process (:func:`warm_in_child`)
-    compiles the grid kernel and the mesh, filter and picture kernels into numba's on-disk cache
-    while this one compiles the walls' kernels on the tiny shape sampled by the reference
-    evaluator (the same values); then this process loads the child's kernels from the cache."""
+    The first time on a machine this compiles every kernel, about two minutes on one CPU, half
+    of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
+    interpreter alone (``benchmarks/bench_cold_start.py``): this process compiles the
+    interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
+    numba's on-disk cache; then this process loads the child's kernels from the cache."""
+    from surfgen.generator.fast import warm_interpreter
+
     t0 = time.perf_counter()
     if not shape_kernels_cached():
         _announce(COMPILE_NOTICE, notice)
     child = _start_child() if parallel else None
     try:
+        log.debug("interpreter ready in %.1f s", warm_interpreter())
         if child is not None:
-            tree, _, field = _tiny_shape("reference")
-            _warm_mesh(field, tree)
             _join_child(child)
             child = None
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child

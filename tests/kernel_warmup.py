@@ -4,15 +4,10 @@ before the first test, instead of one at a time inside the first tests that call
 From a clean clone the tests spent about 3.5 of their 10 minutes (Zen 3) compiling: the tape
 interpreter, the grid kernel, the walls' kernels, the mesh and picture kernels, and the points
 kernels only tests call directly (:meth:`PointsEvaluator.__call__` and ``.plain``,
-:func:`points.edge_lattice` and :func:`points.eval_edges`).  Serially that is about 210 s of one
-core; scheduled here it takes about 125 s of two:
-
-- a child compiles the mesh, filter and picture kernels (:func:`warmup.warm_mesh_kernels`, on
-  the reference evaluator's field: no interpreter needed) while this process compiles the
-  interpreter (:func:`fast.warm_interpreter`);
-- then, with the interpreter in numba's on-disk cache, a child compiles the test-only points
-  kernels (:func:`warm_points_kernels`) while :func:`warmup.warm_shape_kernels` compiles the grid
-  kernel in its own child and the walls' kernels here.
+:func:`points.edge_lattice` and :func:`points.eval_edges`).  Here
+:func:`warmup.warm_shape_kernels` compiles the interpreter while a child compiles every kernel of
+a shape but that one; then this process compiles the test-only points kernels
+(:func:`warm_points_kernels`, a few seconds: the interpreter is called, not compiled into them).
 
 Nothing is compiled when the cache is warm (a fraction of a second to tell).  ``tests/conftest.py``
 runs it for sessions of :data:`MIN_TESTS` tests or more; ``SURFGEN_TEST_WARMUP=0`` turns it off,
@@ -22,15 +17,11 @@ is missing themselves, as they always could.
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 MIN_TESTS = 100  # smaller sessions (a module, a -k selection) compile only what they use
-_HERE = Path(__file__).resolve()
 
 
 def warm_points_kernels() -> None:
@@ -54,50 +45,21 @@ def warm_points_kernels() -> None:
 
 def needed() -> bool:
     """Whether any of the kernels this warm-up compiles is missing from numba's cache."""
-    from surfgen.generator import kernels, points
-    from surfgen.pipelines.warmup import kernel_cached
+    from surfgen.generator import points
+    from surfgen.pipelines.warmup import kernel_cached, shape_kernels_cached
 
-    return not all(
-        kernel_cached(d) for d in (kernels.run_grid, points.eval_points, points.eval_edges)
-    )
-
-
-def _child(part: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, str(_HERE), part],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+    return not (
+        shape_kernels_cached()
+        and all(kernel_cached(d) for d in (points.eval_points, points.eval_edges))
     )
 
 
 def warm_for_suite() -> float:
-    """Compile everything above on two processes at a time; returns the seconds it took."""
-    from surfgen.generator.fast import warm_interpreter
+    """Compile everything above, on two processes while the interpreter compiles; returns the
+    seconds it took."""
     from surfgen.pipelines.warmup import warm_shape_kernels
 
     t0 = time.perf_counter()
-    children = [_child("mesh")]
-    try:
-        warm_interpreter()
-        children.append(_child("points"))
-        warm_shape_kernels(parallel=True)
-        for child in children:
-            child.wait()
-    finally:
-        for child in children:  # interrupted: leave no compiler behind
-            if child.poll() is None:
-                child.kill()
-                child.wait()
+    warm_shape_kernels(parallel=True)
+    warm_points_kernels()
     return time.perf_counter() - t0
-
-
-if __name__ == "__main__":
-    if sys.argv[1:] == ["mesh"]:
-        from surfgen.pipelines.warmup import warm_mesh_kernels
-
-        warm_mesh_kernels()
-    elif sys.argv[1:] == ["points"]:
-        warm_points_kernels()
-    else:
-        sys.exit(f"usage: {sys.argv[0]} mesh|points")

@@ -95,11 +95,12 @@ _SUBPROCESS = """
 import json, re, sys
 sys.path.insert(0, {here!r})
 from test_field_hashes import fast_hashes
-from surfgen.generator import NO_VECTORIZE, kernels
+from surfgen.generator import NO_VECTORIZE
+from surfgen.generator.interpreter import interpreter_asm
 import numba, os
 from numpy._core._multiarray_umath import __cpu_features__ as cpu_features
 hashes = fast_hashes()
-asm = "\\n".join(kernels.run_grid.inspect_asm().values())
+asm = interpreter_asm()
 disabled = os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split()
 print(json.dumps({{
     "cpu": numba.config.CPU_NAME,

@@ -149,18 +149,3 @@ def test_bad_input():
         points_evaluator(parse("m*x", ["m"]))
     program = compile_program(parse("m*x+y", ["m"]), {"m": 2.0})
     assert PointsEvaluator(program)(np.array([1.0]), np.array([0.5]), np.array([0.0]))[0] == 2.5
-
-
-def test_the_points_kernels_call_the_grids_interpreter() -> None:
-    # The interpreter takes the same argument types from the points kernels as from the grid
-    # kernel (read-only code), so numba compiles and caches it once, not twice (a third of a
-    # first run's compiling).
-    import numba
-
-    from surfgen.generator import fast
-
-    program = compile_program(parse("sin(x)*y + z^2 - 1"))
-    on_grid, at_points = fast._prog(program), fast.points_program(program)
-    for k in (0, 4):  # code and consts, as run_code takes them
-        assert numba.typeof(at_points[k]) == numba.typeof(on_grid[k])
-    assert not at_points[2].flags.writeable  # loads: read-only like the grid's

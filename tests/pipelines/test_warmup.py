@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from surfgen.generator.errors import SurfgenError
@@ -191,27 +192,52 @@ def test_serve_says_the_explorer_compiles_in_the_background(monkeypatch, tmp_pat
     assert err.count(NOTICE) == 1 and "in the background" in err
 
 
-MESH_ONLY = """
+CHILD_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
-from surfgen.generator import interpreter, kernels, mesh
-from surfgen.pipelines.warmup import warm_mesh_kernels
+from surfgen.generator import interpreter, kernels, mesh, walls
+from surfgen.pipelines.warmup import warm_in_child
 
-warm_mesh_kernels()
+warm_in_child()
 ran = {k: len(v.signatures) for k, v in vars(mesh).items() if isinstance(v, CPUDispatcher)}
-print(json.dumps({"interpreter": len(interpreter.run_code.signatures),
-                  "grid": len(kernels.run_grid.signatures), "mesh": sum(ran.values())}))
+print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
+                  "grid": len(kernels.run_grid.signatures),
+                  "walls": len(walls._bisect_kernel.signatures), "mesh": sum(ran.values())}))
 """
 
 
-def test_the_mesh_kernels_warm_up_without_the_interpreter() -> None:
-    # what lets the suite's warm-up (tests/kernel_warmup.py) compile them beside the interpreter
+def test_the_child_warms_every_kernel_but_the_interpreter() -> None:
+    # what lets the warm-up compile them all beside the interpreter: the grid and walls'
+    # kernels are compiled for their argument types, never run (they would call it)
     out = subprocess.run(
-        [sys.executable, "-c", MESH_ONLY], capture_output=True, text=True, timeout=600, check=True
+        [sys.executable, "-c", CHILD_ONLY], capture_output=True, text=True, timeout=600, check=True
     )
     result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["mesh"] >= 3
-    assert result["interpreter"] == 0 and result["grid"] == 0
+    assert result["mesh"] >= 3 and result["grid"] == 1 and result["walls"] == 1
+    assert result["interpreter"] is False
+
+
+def test_without_interpreter_compiles_for_the_arguments_and_runs_nothing() -> None:
+    from numba import njit
+
+    from surfgen.generator import interpreter
+    from surfgen.pipelines.warmup import without_interpreter
+
+    @njit
+    def fill(out, value):
+        out[:] = value
+
+    class Module:
+        kernel = fill
+
+    out, load = np.zeros(3), interpreter.load_interpreter
+    with without_interpreter((Module, "kernel")):
+        assert Module.kernel(out, 2.0) == 0
+        assert interpreter.load_interpreter() is None
+    assert Module.kernel is fill and interpreter.load_interpreter is load
+    assert len(fill.signatures) == 1 and not out.any()  # compiled, not run
+    Module.kernel(out, 2.0)
+    assert (out == 2.0).all() and len(fill.signatures) == 1
 
 
 class _Spy:
@@ -241,17 +267,17 @@ class _Spy:
 
         monkeypatch.setattr(warmup.subprocess, "Popen", start)
         monkeypatch.setattr(kernels, "run_grid", grid)
-        monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)  # as on a new machine
+        monkeypatch.setattr(warmup, "_kernels_cached", lambda: False)  # as on a new machine
         monkeypatch.setattr(warmup, "_cpus", lambda: 2)
 
 
-def test_a_cold_cache_compiles_the_grid_kernel_in_a_child_meanwhile(monkeypatch) -> None:
+def test_a_cold_cache_compiles_the_kernels_in_a_child_meanwhile(monkeypatch) -> None:
     from surfgen.pipelines.warmup import warm_shape_kernels
 
     spy = _Spy(monkeypatch)
     warm_shape_kernels()
     assert len(spy.children) == 1 and spy.children[0].returncode == 0
-    assert spy.grid_runs_beside_child == 0  # the reference sampled the tiny shape meanwhile
+    assert spy.grid_runs_beside_child == 0  # this process compiled the interpreter meanwhile
     assert spy.loaded_after_child[:1] == [0]  # loaded here once the child was done
     # one CPU, or parallel=False: no child, everything here as before
     runs = len(spy.loaded_after_child)
@@ -281,7 +307,7 @@ def test_an_interrupted_warm_up_leaves_no_child_behind(monkeypatch) -> None:
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(warmup, "_warm_mesh", interrupted)
+    monkeypatch.setattr("surfgen.generator.fast.warm_interpreter", interrupted)  # Ctrl-C there
     t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
         warmup.warm_shape_kernels()
