@@ -621,7 +621,9 @@ def load_interpreter():
 
 
 def interpreter_asm() -> str:
-    """The interpreter's machine code (assembly), loaded first if need be."""
+    """The interpreter's machine code (assembly), compiled first if need be; empty when it was
+    loaded from numba's on-disk cache (numba keeps no assembly of cached code: inspect it in a
+    process with an empty ``NUMBA_CACHE_DIR``)."""
     return load_interpreter()._library.get_asm_str()
 
 
