@@ -199,7 +199,7 @@ def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | No
     seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
     ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
 
-    The first time on a machine this compiles every kernel, about two minutes on one CPU, half
+    The first time on a machine this compiles every kernel, about two minutes on one CPU, most
     of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
     interpreter alone (``benchmarks/bench_cold_start.py``): this process compiles the
     interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
