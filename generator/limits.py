@@ -27,6 +27,9 @@ MAX_WHERE_LENGTH = 4_000
 MAX_WHERE_CONDITIONS = 200
 MAX_WHERE_NESTING = 50
 
+# Stars a curator may give a shape.
+MAX_STARS = 5
+
 # Input files read whole into memory.
 MAX_SPEC_FILE_BYTES = 1 << 20  # a spec (or export sidecar) JSON: 1 MiB
 MAX_CONFIG_FILE_BYTES = 1 << 20  # a config TOML: 1 MiB

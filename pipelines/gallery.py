@@ -58,18 +58,17 @@ from surfgen.pipelines.catalogue import (
     open_catalogue,
 )
 from surfgen.pipelines.curation import (
-    FIELDS,
     MAX_NOTE,
     MAX_REASON,
     MAX_STARS,
     MAX_TAGS,
     CatalogueOption,
     CurationError,
-    WhereError,
     apply_action,
     get_shape,
     select_shapes,
 )
+from surfgen.pipelines.query import FIELDS, WhereError
 from surfgen.pipelines.warmup import compile_notice
 from surfgen.pipelines.webapi import (
     Param,

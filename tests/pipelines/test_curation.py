@@ -1,5 +1,6 @@
-"""Tests for surfgen.pipelines.curation: the --where language, curation writes, the catalogue CLI
-and near-duplicate marking, on a catalogue built from the canonical shapes."""
+"""Tests for surfgen.pipelines.curation: queries, curation writes, the catalogue CLI and
+near-duplicate marking, on a catalogue built from the canonical shapes (the --where language
+alone: test_query.py)."""
 
 from __future__ import annotations
 
@@ -18,11 +19,8 @@ from surfgen.pipelines.catalogue import CatalogueError, open_catalogue
 from surfgen.pipelines.cli import main
 from surfgen.pipelines.curation import (
     CurationError,
-    WhereError,
     apply_action,
     dedupe_catalogue,
-    parse_sort,
-    parse_where,
     select_shapes,
 )
 
@@ -140,36 +138,6 @@ def test_where_values_are_bound_not_spliced(cat_dir, keys) -> None:
         assert select_shapes(cat, where='note = "x\' OR 1=1 --"') == []
         assert select_shapes(cat, where="tag = 'a; DROP TABLE shapes'") == []
         assert len(select_shapes(cat)) == len(SHAPES)  # the table is still there
-    w = parse_where("genus >= 2 and tag = nice")
-    assert "nice" not in w.sql and w.params == (2.0, "nice")
-
-
-@pytest.mark.parametrize(
-    ("expr", "column", "fragment"),
-    [
-        ("genus >= 2 and", 15, "expected a field name"),
-        ("genu > 1", 1, "unknown field 'genu'"),
-        ("genus 2", 7, "expected an operator"),
-        ("genus > abc", 9, "needs a number"),
-        ("(genus > 1", 11, "expected ')'"),
-        ("genus > 1 components < 2", 11, "expected 'and', 'or'"),
-        ("genus > 1; drop table shapes", 10, "unexpected ';'"),
-        ("tag < nice", 5, "'tag' takes = != ~"),
-        ("reason = bogus", 10, "unknown reason 'bogus'"),
-        ("key = xyz", 7, "not a key"),
-        ("note = 'abc", 8, "unterminated string"),
-        ("rejected = maybe", 12, "yes or no"),
-        ("and", 1, "unknown field 'and'"),
-    ],
-)
-def test_malformed_where_names_column_and_fields(expr: str, column: int, fragment: str) -> None:
-    with pytest.raises(WhereError) as info:
-        parse_where(expr)
-    msg = str(info.value)
-    assert f"at column {column} " in msg
-    assert fragment in msg
-    assert "fields: area, box_fraction, components" in msg
-    assert "\n" not in msg
 
 
 def test_sort(cat_dir, keys) -> None:
@@ -181,11 +149,6 @@ def test_sort(cat_dir, keys) -> None:
         assert [r["area"] for r in recs] == sorted((r["area"] for r in recs), reverse=True)
         assert len(select_shapes(cat, sort="random")) == len(SHAPES)
         assert select_shapes(cat, limit=0) == []
-    assert parse_sort(None).endswith("shapes.run, shapes.idx")
-    with pytest.raises(WhereError, match="unknown field 'bogus'.*sortable: genus"):
-        parse_sort("-bogus")
-    with pytest.raises(WhereError, match="sortable"):
-        parse_sort("tag")
 
 
 # ----------------------------------------------------------------------------- writes

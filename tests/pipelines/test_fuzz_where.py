@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from surfgen.pipelines.catalogue import SCHEMA
-from surfgen.pipelines.curation import WhereError, parse_sort, parse_where
+from surfgen.pipelines.query import WhereError, parse_sort, parse_where
 
 WORDS = [
     "genus", "components", "faces", "stars", "key", "verdict", "formula", "note", "tag",
