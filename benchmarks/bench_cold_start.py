@@ -5,8 +5,9 @@
 Each run is a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``, a new temporary
 folder) that calls :func:`surfgen.pipelines.warmup.warm_shape_kernels`, as ``surfgen sample``
 does before it forks its workers: once with ``parallel=False`` (everything compiled in one
-process, the baseline) and once with ``parallel=True`` (the fast evaluator's grid kernel
-compiled by a child process meanwhile), taking turns ``--rounds`` times, baseline first.
+process, the baseline) and once with ``parallel=True`` (every kernel but the interpreter
+compiled by a child process while this one compiles the interpreter), taking turns ``--rounds``
+times, baseline first.
 Prints each run's wall time (the process's start and imports included) and CPU time, then the
 ratio of the best parallel run over the best serial one. Afterwards the cache of every run is
 checked for the grid kernel, loadable by a fresh process (so the parallel runs left nothing
