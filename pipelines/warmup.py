@@ -73,9 +73,6 @@ def without_interpreter(*kernels: tuple[object, str]) -> Iterator[None]:
 
     from surfgen.generator import interpreter
 
-    saved = [(module, name, getattr(module, name)) for module, name in kernels]
-    saved.append((interpreter, "load_interpreter", interpreter.load_interpreter))
-
     def compiling(dispatcher):
         def compile_for(*args):
             dispatcher.compile(tuple(numba.typeof(a) for a in args))
@@ -83,14 +80,17 @@ def without_interpreter(*kernels: tuple[object, str]) -> Iterator[None]:
 
         return compile_for
 
+    originals = {(module, name): getattr(module, name) for module, name in kernels}
+    load = interpreter.load_interpreter
     try:
-        for module, name, dispatcher in saved[:-1]:
+        for (module, name), dispatcher in originals.items():
             setattr(module, name, compiling(dispatcher))
         interpreter.load_interpreter = lambda: None
         yield
     finally:
-        for module, name, original in saved:
-            setattr(module, name, original)
+        interpreter.load_interpreter = load
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, dispatcher)
 
 
 def grid_kernel_cached() -> bool:
