@@ -175,7 +175,7 @@ def render(
     from surfgen.generator.limits import parse_size
     from surfgen.generator.presets import get_preset
     from surfgen.pipelines.render import build_spec, render_spec
-    from surfgen.pipelines.warmup import compile_notice
+    from surfgen.pipelines.warmup import compile_first
 
     limit = parse_size(max_memory) if max_memory is not None else None
     if mathmod is not None:
@@ -189,7 +189,7 @@ def render(
         for notice in model.notices:
             typer.echo(f"notice: {notice}", err=True)
         if evaluator == "fast":
-            compile_notice(echo_err)
+            compile_first(echo_err)
         s = render_model(
             model,
             component=component,
@@ -230,7 +230,7 @@ def render(
         level=level,
     )
     if evaluator == "fast":
-        compile_notice(echo_err)
+        compile_first(echo_err)
     result = render_spec(
         spec_obj,
         cap=cap if cap is not None else bool(preset) and get_preset(preset).cap,

@@ -55,7 +55,7 @@ from surfgen.generator.grid import Box, Field, Grid
 from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
 from surfgen.generator.presets import eq_a_formula, get_preset
 from surfgen.generator.spec import SurfaceSpec
-from surfgen.pipelines.warmup import compile_notice
+from surfgen.pipelines.warmup import compile_first
 
 log = logging.getLogger(__name__)
 
@@ -561,7 +561,7 @@ def reproduce_cmd(
     if output.exists() and not output.is_dir():
         raise SpecError(f"--output {output} exists and is not a folder")
     if set(figure or FIGURES) - {1}:  # Figures 2-4 evaluate surfaces (Figure 1 plots curves)
-        compile_notice(echo_err)
+        compile_first(echo_err)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
     with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("reproducing", total=None)

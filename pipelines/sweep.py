@@ -37,7 +37,7 @@ from surfgen.generator.grid import Box, Grid
 from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.explore import apply_changes, mesh_stats
-from surfgen.pipelines.warmup import compile_notice
+from surfgen.pipelines.warmup import compile_first
 
 log = logging.getLogger(__name__)
 
@@ -444,7 +444,7 @@ def sweep_cmd(
         cap = get_preset(preset).cap if preset else catalogued is not None
     if output.exists() and not output.is_dir():
         raise SweepError(f"-o {output}: not a folder")
-    compile_notice(echo_err)
+    compile_first(echo_err)
     with Progress(BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
                   disable=not sys.stderr.isatty()) as bar:  # fmt: skip
         task = bar.add_task("sweep", total=len(values))

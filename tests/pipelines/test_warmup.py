@@ -141,10 +141,27 @@ def test_commands_that_evaluate_say_when_they_compile_first(
     from surfgen.pipelines import warmup
     from surfgen.pipelines.cli import main
 
+    warm_ups: list[dict] = []
     monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: not cold)
+    monkeypatch.setattr(warmup, "_cpus", lambda: 2)
+    monkeypatch.setattr(warmup, "warm_shape_kernels", lambda **kw: warm_ups.append(kw) or 0.0)
     assert main(_commands(tmp_path)[command]) == 0
     err = capsys.readouterr().err
     assert err.count(NOTICE) == (1 if cold else 0), err
+    # cold, with a second CPU: every kernel first, on two processes (not one by one)
+    assert warm_ups == ([{"parallel": True}] if cold else [])
+
+
+def test_on_one_cpu_a_cold_command_compiles_as_it_goes(monkeypatch, tmp_path, capsys) -> None:
+    from surfgen.pipelines import warmup
+    from surfgen.pipelines.cli import main
+
+    warm_ups: list[dict] = []
+    monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)
+    monkeypatch.setattr(warmup, "_cpus", lambda: 1)
+    monkeypatch.setattr(warmup, "warm_shape_kernels", lambda **kw: warm_ups.append(kw) or 0.0)
+    assert main(_commands(tmp_path)["render"]) == 0
+    assert capsys.readouterr().err.count(NOTICE) == 1 and warm_ups == []
 
 
 def test_render_with_the_reference_evaluator_says_nothing(monkeypatch, tmp_path, capsys) -> None:
