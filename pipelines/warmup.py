@@ -4,7 +4,9 @@ The sampling driver calls :func:`warm_shape_kernels` before it forks its workers
 start with the kernels in memory: on a fresh checkout, compiling them took a worker a minute
 or more, longer than a shape's ``timeout`` on a loaded machine, and the first shapes were then
 rejected as ``timeout`` — a catalogue that depended on the cache. Dask's shape processes get
-the same through :mod:`surfgen.pipelines.warm`, imported by their forkserver.
+the same through :mod:`surfgen.pipelines.warm`, imported by their forkserver. ``render``,
+``sweep`` and ``reproduce`` call :func:`compile_first`: on a cold cache, the same warm-up on two
+processes before they evaluate.
 """
 
 from __future__ import annotations
