@@ -32,6 +32,7 @@ from numba.extending import intrinsic
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
 from surfgen.generator.elementary import roundtrip as _rt
+from surfgen.generator.numba_cache import cached_on_disk
 
 log = logging.getLogger(__name__)
 
@@ -636,16 +637,14 @@ def interpreter_cached() -> bool:
     """Whether numba's on-disk cache holds the interpreter for this machine and this code (then
     loading it takes a fraction of a second). True when that cannot be told (numba's internals
     moved): the caller then does what it always did."""
-    try:
+
+    def locate():
         from numba.core.caching import FunctionCache
         from numba.core.registry import cpu_target
 
-        cache = FunctionCache(_run_code_c)
-        key = cache._index_key(_C_SIGNATURE, cpu_target.target_context.codegen())
-        return key in cache._cache_file._load_index()  # empty when missing or stale
-    except Exception:
-        log.debug("cannot read numba's cache index of the interpreter", exc_info=True)
-        return True
+        return FunctionCache(_run_code_c), cpu_target.target_context.codegen()
+
+    return cached_on_disk(locate, "the interpreter")
 
 
 def _first_call(*args, _load=load_interpreter) -> None:

@@ -22,7 +22,12 @@ compiled the mesh and filter kernels again, about 20 s.)
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
+from collections.abc import Callable
+from typing import Any
+
+log = logging.getLogger(__name__)
 
 _GENERATOR = os.path.dirname(os.path.abspath(__file__))
 _HERE = os.path.join(_GENERATOR, "elementary")
@@ -90,3 +95,18 @@ def install_cache_stamp() -> None:
             return None
 
     caching.CacheImpl._locator_classes = [_StampedLocator, *inner_classes]
+
+
+def cached_on_disk(locate: Callable[[], tuple[Any, Any]], name: str) -> bool:
+    """Whether numba's on-disk cache holds ``name`` compiled (any signature) for this machine and
+    this code (then loading it takes a fraction of a second); ``locate()`` gives its numba cache
+    and code generator. True when that cannot be told (numba's internals moved): the caller then
+    does what it always did."""
+    try:
+        cache, codegen = locate()
+        index = cache._cache_file._load_index()  # empty when missing or stale
+        here = cache._index_key(None, codegen)[1:]
+        return any(key[1:] == here for key in index)
+    except Exception:
+        log.debug("cannot read numba's cache index of %s", name, exc_info=True)
+        return True

@@ -108,14 +108,10 @@ def grid_kernel_cached() -> bool:
 def kernel_cached(dispatcher) -> bool:
     """Whether numba's on-disk cache holds a compiled ``dispatcher`` (any signature) for this
     machine and this code. True when that cannot be told (numba's internals moved)."""
-    try:
-        cache = dispatcher._cache  # numba's own cache (a NullCache where caching is off)
-        index = cache._cache_file._load_index()  # empty when missing or stale
-        here = cache._index_key(None, dispatcher.targetctx.codegen())[1:]
-        return any(key[1:] == here for key in index)
-    except Exception:  # numba's internals moved: no way to tell, assume the cache is warm
-        log.debug("cannot read numba's cache index of %s", dispatcher, exc_info=True)
-        return True
+    from surfgen.generator.numba_cache import cached_on_disk
+
+    # dispatcher._cache: numba's own cache (a NullCache where caching is off)
+    return cached_on_disk(lambda: (dispatcher._cache, dispatcher.targetctx.codegen()), dispatcher)
 
 
 # What a cold start looks like to a user: shown once, before the warm-up compiles.
