@@ -82,3 +82,9 @@ _use_wide_vectors()
 from surfgen.generator.numba_cache import install_cache_stamp as _install_cache_stamp  # noqa: E402
 
 _install_cache_stamp()
+
+# Before any of surfgen's functions is compiled too: four vectors per iteration in the
+# evaluator's loops (vector_loops.py).
+from surfgen.generator.vector_loops import install as _install_interleave  # noqa: E402
+
+_install_interleave()

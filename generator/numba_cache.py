@@ -37,8 +37,14 @@ _NUMBA_MARKS = (b"njit", b"overload", b"_dual")
 
 def package_digest() -> str:
     """sha256 of every surfgen source file (generator, its elementary functions, filters,
-    pipelines) that holds numba code."""
+    pipelines) that holds numba code, and the interleave count the evaluator is compiled with."""
+    from surfgen.generator import vector_loops
+
     h = hashlib.sha256()
+    # how the evaluator is compiled: LLVM's interleave count, and which functions get it
+    h.update(b"interleave %d\0" % vector_loops.INTERLEAVE)
+    with open(vector_loops.__file__, "rb") as f:
+        h.update(f.read())
     folders = [_GENERATOR, _HERE]
     folders += [os.path.join(_ROOT, name) for name in ("filters", "pipelines")]
     for folder in (f for f in folders if os.path.isdir(f)):

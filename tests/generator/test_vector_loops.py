@@ -1,0 +1,166 @@
+"""Four vectors per iteration for the evaluator's loops (generator/vector_loops.py): which
+compiles get LLVM's forced interleave, that they really get it, and that nothing else does."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import subprocess
+import sys
+import types
+
+import numpy as np
+import pytest
+from numba import njit
+
+from surfgen.generator import numba_cache, vector_loops
+from surfgen.generator.vector_loops import _Listener, evaluator_function, interleave_from
+
+
+def _event(module: str | None):
+    if module is None:
+        return types.SimpleNamespace(data=None)
+    func = types.SimpleNamespace(__module__=module)
+    return types.SimpleNamespace(data={"dispatcher": types.SimpleNamespace(py_func=func)})
+
+
+def test_which_functions_are_the_evaluators():
+    for module in (
+        "surfgen.generator.interpreter",
+        "surfgen.generator.elementary",
+        "surfgen.generator.elementary.trig",
+        "surfgen.generator.elementary.roundtrip",
+    ):
+        assert evaluator_function(module), module
+    for module in (
+        "surfgen.generator.kernels",
+        "surfgen.generator.walls",
+        "surfgen.generator.interpreterx",
+        "surfgen.generator.elementaryfoo",
+        "surfgen.filters.metrics",
+        "numpy",
+        "",
+        None,
+    ):
+        assert not evaluator_function(module), module
+
+
+def test_the_option_is_on_from_the_outermost_evaluator_compile_to_its_end():
+    calls: list[int] = []
+    listener = _Listener(setter=calls.append)
+    ours, other = _event("surfgen.generator.interpreter"), _event("surfgen.generator.mesh")
+
+    listener.on_start(other)  # another kernel: LLVM's choice
+    listener.on_end(other)
+    assert calls == []
+
+    listener.on_start(ours)  # the interpreter ...
+    listener.on_start(_event("surfgen.generator.elementary.trig"))  # ... compiles a row
+    listener.on_start(other)  # ... and something else on the way (inherits the option)
+    listener.on_end(other)
+    listener.on_end(ours)
+    assert calls == [vector_loops.INTERLEAVE]  # still on: the outer compile goes on
+    listener.on_end(ours)
+    assert calls == [vector_loops.INTERLEAVE, 0]  # LLVM's default back
+
+    calls.clear()
+    listener.on_start(other)  # an evaluator function compiled inside another kernel's compile
+    listener.on_start(ours)
+    listener.on_end(ours)
+    listener.on_end(other)
+    assert calls == [vector_loops.INTERLEAVE, 0]
+
+    calls.clear()
+    listener.on_end(ours)  # an end without its start (installed mid-compile): ignored
+    listener.on_start(_event(None))  # not a dispatcher's compile
+    listener.on_end(_event(None))
+    assert calls == []
+
+
+def test_a_failed_compile_resets_the_option():
+    from numba.core import event
+    from numba.core.errors import TypingError
+
+    calls: list[int] = []
+    listener = vector_loops._as_numba_listener(event, _Listener(setter=calls.append))
+
+    def bad(x):
+        return x.no_such_attribute
+
+    bad.__module__ = "surfgen.generator.elementary.probe"
+    with event.install_listener("numba:compile", listener), pytest.raises(TypingError):
+        njit(bad)(1.0)
+    assert calls == [vector_loops.INTERLEAVE, 0]
+
+
+def test_interleave_count_from_the_environment(caplog):
+    assert interleave_from({}) == vector_loops.DEFAULT_INTERLEAVE
+    assert interleave_from({"SURFGEN_INTERLEAVE": " 2 "}) == 2
+    assert interleave_from({"SURFGEN_INTERLEAVE": "0"}) == 0
+    assert interleave_from({"SURFGEN_INTERLEAVE": "16"}) == 16
+    with caplog.at_level(logging.WARNING, logger="surfgen.generator.vector_loops"):
+        for bad in ("17", "-1", "four", "2.5"):
+            caplog.clear()
+            assert interleave_from({"SURFGEN_INTERLEAVE": bad}) == vector_loops.DEFAULT_INTERLEAVE
+            assert "SURFGEN_INTERLEAVE" in caplog.text and "0 (LLVM's choice) to 16" in caplog.text
+
+
+def test_the_interleave_count_is_part_of_the_cache_stamp(monkeypatch):
+    before = numba_cache.package_digest()
+    monkeypatch.setattr(vector_loops, "INTERLEAVE", vector_loops.INTERLEAVE + 1)
+    assert numba_cache.package_digest() != before
+
+
+def _probe(out, a, n):
+    """A loop body long enough that LLVM's cost model gives it one vector per iteration."""
+    for k in range(n):
+        x = a[k]
+        y = np.sqrt(x * x + 1.0)
+        p = ((((y * 0.5 + 0.25) * y + 0.125) * y + 0.0625) * y + 0.03125) * y
+        out[k] = p / (x + 2.0)
+
+
+def _compiled_as(module: str):
+    func = types.FunctionType(_probe.__code__, _probe.__globals__, "probe")
+    func.__module__ = module
+    f = njit(error_model="numpy")(func)
+    a = np.linspace(-3.0, 3.0, 100)
+    out = np.empty(100)
+    f(out, a, 100)
+    return f, out
+
+
+def _vector_sqrts(f) -> int:
+    return len(re.findall(r"\bv?sqrtpd\b", f.inspect_asm(f.signatures[0])))
+
+
+def test_an_evaluator_loop_runs_four_vectors_per_iteration_and_others_keep_llvms_choice():
+    """The listener installed by ``surfgen.generator`` in this very process: a function of the
+    elementary functions' package is compiled with four vector square roots in its loop (plus
+    the epilogue's), the same function anywhere else with LLVM's one; the same values."""
+    assert vector_loops._INSTALLED is not None
+    ours, ours_out = _compiled_as("surfgen.generator.elementary.probe")
+    other, other_out = _compiled_as("tests.probe")
+    assert _vector_sqrts(other) >= 1, "the probe loop is not vectorised at all"
+    assert _vector_sqrts(ours) >= vector_loops.INTERLEAVE * _vector_sqrts(other)
+    assert np.array_equal(ours_out.view(np.int64), other_out.view(np.int64))
+    # and LLVM's default is back for whatever compiles next
+    again, _ = _compiled_as("tests.probe_again")
+    assert _vector_sqrts(again) == _vector_sqrts(other)
+
+
+def test_zero_leaves_the_choice_to_llvm():
+    code = (
+        "from surfgen.generator import vector_loops as v; import json;"
+        "print(json.dumps([v.INTERLEAVE, v._INSTALLED is None]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        env=dict(os.environ, SURFGEN_INTERLEAVE="0"),
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert json.loads(done.stdout) == [0, True]
