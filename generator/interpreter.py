@@ -325,6 +325,37 @@ def _segsum(W, d, a, n, consts, base):
         W[d, k] = 0.5 * total
 
 
+@njit(inline="always", **JIT_OPTIONS)
+def _series_special(x):
+    """The lanes :func:`_series` takes the slow way: NaN, inf and |x| > 1e307."""
+    return not (abs(x) <= 1e307)
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def _series_lanes(x, r, inv_r, fp):
+    """:func:`_series` without a branch, for the other lanes (the loop that calls it vectorises):
+    three candidate segments around x/r, their index as a float (exact: out of [-p, p] a
+    candidate is dropped whatever its value), the same operations as ``_series`` on the one
+    that holds x. At most one does: the segments [r(i-1), r i) tile the line, each bound the
+    same product for both its segments. So which candidates are tried changes nothing as long
+    as the one holding x is among them: x times 1/r (a multiplication instead of a division)
+    is within a few ulps of x/r, and the window of three covers an index off by one. Far from
+    [-p, p] (``_series``'s early exit) no candidate is in range, so the sum is 0 there too."""
+    i = np.floor(x * inv_r)
+    out = _series_candidate(x, r, fp, i, 0.0)
+    out = _series_candidate(x, r, fp, i + 1.0, out)
+    return _series_candidate(x, r, fp, i + 2.0, out)
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def _series_candidate(x, r, fp, i, out):
+    """``2(x - a) + 0`` when segment i, [a, b) = [r(i-1), r i), holds x and -p <= i <= p (as
+    :func:`_series` computes it), else ``out``: a select."""
+    lo = r * (i - 1.0)
+    hit = (i >= -fp) & (i <= fp) & (lo <= x) & (x < r * i)
+    return (0.0 + 2.0 * (x - lo)) if hit else out
+
+
 @njit(**JIT_OPTIONS)
 def _series_row(W, d, a, n, consts, base):
     r = consts[base]
@@ -332,9 +363,28 @@ def _series_row(W, d, a, n, consts, base):
     if consts[base + 2] != 0.0:
         for k in range(n):
             W[d, k] = _series_exact(W[a, k], r, p)
-    else:
+        return
+    # NaN, inf and huge lanes are rare: count them, save them (d may equal a), run the
+    # branch-free loop over the row, then patch them the slow way.
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _series_special(W[a, k]) else 0
+    if cnt > 0:
+        idx = np.empty(cnt, np.int64)
+        val = np.empty(cnt, np.float64)
+        j = 0
         for k in range(n):
-            W[d, k] = _series(W[a, k], r, p)
+            if _series_special(W[a, k]):
+                idx[j] = k
+                val[j] = W[a, k]
+                j += 1
+    fp = float(p)
+    inv_r = 1.0 / r
+    for k in range(n):
+        W[d, k] = _series_lanes(W[a, k], r, inv_r, fp)
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = _series(val[j], r, p)
 
 
 @njit(**JIT_OPTIONS)

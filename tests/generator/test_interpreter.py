@@ -113,3 +113,38 @@ def test_run_code_far_takes_c_contiguous_arrays_only() -> None:
         call(code, consts, W[:, ::2], S, T, prof)
     with pytest.raises(TypingError, match="int64 values"):
         call(code.astype(np.int32), consts, W, S, T, prof)
+
+
+# 1.3562357016817128 * (1/1.3562357016817128) rounds below 1: floor(x * (1/r)) is 0 for x = r,
+# the lower bound of segment 2 (two candidates up).
+SERIES_CASES = [(0.5, 3), (1.0, 0), (0.37, 12), (1e-300, 4), (3.0, 100), (1.3562357016817128, 3)]
+
+
+@pytest.mark.parametrize(("r", "p"), SERIES_CASES)
+def test_the_series_row_gives_the_series_bits(r: float, p: int) -> None:
+    """The series row's branch-free loop (three candidate segments around x * (1/r), a select)
+    gives what the scalar ``_series`` gives, bit for bit: on every segment bound and its two
+    neighbouring doubles, random points in and beyond the sum's range, signed zeros, NaN, inf
+    and huge values (those take the slow way), in place too."""
+    rng = np.random.default_rng(p)
+    bounds = np.arange(-(p + 3), p + 4) * r
+    xs = np.concatenate(
+        [
+            rng.uniform(-(p + 4) * r, (p + 4) * r, 3000),
+            bounds,
+            np.nextafter(bounds, np.inf),
+            np.nextafter(bounds, -np.inf),
+            [0.0, -0.0, np.nan, np.inf, -np.inf, 1e308, -1e308, 1e307, 5e-324, -5e-324, 1e300],
+        ]
+    )
+    n = xs.size
+    consts = np.array([r, float(p), 0.0])
+    want = np.array([interpreter._series(x, r, p) for x in xs])
+    W = np.zeros((2, n))
+    W[0] = xs
+    interpreter._series_row(W, 1, 0, n, consts, 0)
+    in_place = W[:1].copy()
+    interpreter._series_row(in_place, 0, 0, n, consts, 0)
+    for got in (W[1], in_place[0]):
+        same = (got.view(np.int64) == want.view(np.int64)) | (np.isnan(got) & np.isnan(want))
+        assert same.all(), xs[~same][:5]
