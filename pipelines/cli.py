@@ -449,6 +449,7 @@ def sample(
                 notice=echo_err,  # above the live bar (rich redirects stderr)
             )
         except KeyboardInterrupt:
+            _quiet_after_interrupt()
             bar.stop()
             typer.echo(
                 "interrupted: what was catalogued is kept; run the same command with --resume "
@@ -480,6 +481,20 @@ def sample(
             f"only {summary.accepted} of {n} shapes accepted after {summary.drawn} draws (--max-draws); "
             "loosen the [filters] thresholds or raise --max-draws"
         )
+
+
+def _quiet_after_interrupt() -> None:
+    """After a Ctrl-C, what is torn down may be half-built: the interrupt can land inside any
+    constructor (one of llvmlite's, say, while numba loads a kernel), and that object's
+    destructor then fails. Its error would print "Exception ignored in ..." lines after the
+    one-line message; they are logged (debug) instead."""
+
+    def hook(unraisable: Any) -> None:
+        logging.getLogger(__name__).debug(
+            "after the interrupt: %r in %r", unraisable.exc_value, unraisable.object
+        )
+
+    sys.unraisablehook = hook
 
 
 def _interrupt(signum: int, _frame: Any) -> None:
@@ -570,9 +585,11 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo(f"error: {message}", err=True)
         return exc.exit_code or 2
     except Abort:
+        _quiet_after_interrupt()
         typer.echo("aborted", err=True)
         return 130
     except KeyboardInterrupt:
+        _quiet_after_interrupt()
         typer.echo("interrupted", err=True)
         return 130
     return rv if isinstance(rv, int) else 0

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -254,3 +256,52 @@ def test_help_and_unknown_commands(capsys) -> None:
     assert main(["nonsense"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "No such command 'nonsense'" in err[0] and "sample" in err[0]
+
+
+# A Ctrl-C can land inside a constructor (one of llvmlite's while numba loads a kernel, say):
+# the half-built object's destructor fails when it is collected, after the one-line message.
+_INTERRUPTED_SAMPLE = """
+import surfgen.pipelines.sampling as sampling
+from surfgen.pipelines.cli import main
+
+class HalfBuilt:
+    def __del__(self):
+        raise AttributeError("'HalfBuilt' object has no attribute '_as_parameter_'")
+
+def run_sample(**kwargs):
+    half = HalfBuilt()  # freed with the interrupt's traceback, after the message
+    raise KeyboardInterrupt
+
+sampling.run_sample = run_sample
+raise SystemExit(main(["sample", "--n", "1", "--out", {out!r}]))
+"""
+
+
+def test_an_interrupted_sample_ends_on_its_one_line_message(tmp_path: Path) -> None:
+    code = _INTERRUPTED_SAMPLE.format(out=str(tmp_path / "cat"))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 130, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert lines[-1].startswith("interrupted: what was catalogued is kept"), done.stderr
+    assert "Exception ignored" not in done.stderr and "_as_parameter_" not in done.stderr
+
+
+def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
+    monkeypatch, capsys, caplog
+) -> None:
+    import logging
+
+    from surfgen.pipelines import cli
+
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # restored afterwards
+
+    class HalfBuilt:
+        def __del__(self):
+            raise AttributeError("half-built")
+
+    cli._quiet_after_interrupt()
+    with caplog.at_level(logging.DEBUG, logger="surfgen.pipelines.cli"):
+        half = HalfBuilt()
+        del half
+    assert "half-built" not in capsys.readouterr().err
+    assert "after the interrupt" in caplog.text and "half-built" in caplog.text
