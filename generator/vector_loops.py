@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import logging
 import os
-import threading
+
+from numba.core import event
 
 log = logging.getLogger(__name__)
 
@@ -79,34 +80,27 @@ def _set_interleave(count: int) -> None:
     binding.set_option("surfgen", f"-force-vector-interleave={count}")
 
 
-class _Listener:
+class _Listener(event.Listener):
     """numba's ``numba:compile`` events: the option is on from the start of the outermost
-    compile of an evaluator function to its end (an error included)."""
+    compile of an evaluator function to its end (an error included). numba delivers them under
+    its global compiler lock, one compile at a time."""
 
     def __init__(self, setter=_set_interleave) -> None:
         self._set = setter
-        self._stack: list[bool] = []  # per started compile: whether it turned the option on
         self._depth = 0  # evaluator compiles in progress
-        self._lock = threading.Lock()
 
-    def on_start(self, event) -> None:
-        with self._lock:
-            ours = evaluator_function(_module_of(event.data))
-            turned_on = ours and self._depth == 0
-            if ours:
-                self._depth += 1
-            self._stack.append(ours)
-            if turned_on:
+    def on_start(self, ev) -> None:
+        if evaluator_function(_module_of(ev.data)):
+            self._depth += 1
+            if self._depth == 1:
                 self._set(INTERLEAVE)
 
-    def on_end(self, event) -> None:
-        with self._lock:
-            if not self._stack:  # installed in the middle of a compile
-                return
-            if self._stack.pop():
-                self._depth -= 1
-                if self._depth == 0:
-                    self._set(0)
+    def on_end(self, ev) -> None:
+        # (an end without its start: the listener was installed in the middle of a compile)
+        if self._depth > 0 and evaluator_function(_module_of(ev.data)):
+            self._depth -= 1
+            if self._depth == 0:
+                self._set(0)
 
 
 def _module_of(data) -> str | None:
@@ -125,22 +119,5 @@ def install() -> None:
     global _INSTALLED
     if _INSTALLED is not None or INTERLEAVE == 0:
         return
-    try:
-        from numba.core import event
-    except ImportError:  # pragma: no cover (numba moved its event API: LLVM's choice stays)
-        log.debug("numba has no compile events: LLVM chooses the interleave")
-        return
-    listener = _Listener()
-    event.register("numba:compile", _as_numba_listener(event, listener))
-    _INSTALLED = listener
-
-
-def _as_numba_listener(event, listener: _Listener):
-    class _NumbaListener(event.Listener):
-        def on_start(self, ev) -> None:
-            listener.on_start(ev)
-
-        def on_end(self, ev) -> None:
-            listener.on_end(ev)
-
-    return _NumbaListener()
+    _INSTALLED = _Listener()
+    event.register("numba:compile", _INSTALLED)

@@ -84,7 +84,7 @@ def test_a_failed_compile_resets_the_option():
     from numba.core.errors import TypingError
 
     calls: list[int] = []
-    listener = vector_loops._as_numba_listener(event, _Listener(setter=calls.append))
+    listener = _Listener(setter=calls.append)
 
     def bad(x):
         return x.no_such_attribute
