@@ -11,7 +11,10 @@ bit-identical to the reference on every CPU. No C library maths is called here.
 
 The interpreter is compiled once, as a C function (:func:`load_interpreter`), and the kernels
 call it through a pointer (:func:`run_code_far`, at the end of this file): numba would otherwise
-compile its code, a minute of LLVM, into every kernel that calls it.
+compile its code into every kernel that calls it. In the same way the interpreter runs its cheap
+operations inline and calls its heavy ones (every elementary function, the round trips, ``pow``,
+the series) through the row table (:mod:`surfgen.generator.far`), each compiled once as a C
+function of its own (:mod:`surfgen.generator.row_table`) instead of again in every layer above.
 """
 
 from __future__ import annotations
@@ -31,8 +34,9 @@ from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
-from surfgen.generator.elementary import roundtrip as _rt
+from surfgen.generator.far import SLOT, far_row
 from surfgen.generator.numba_cache import cached_on_disk
+from surfgen.generator.vector_loops import evaluator_compile
 
 log = logging.getLogger(__name__)
 
@@ -95,33 +99,21 @@ OP_FMOD = OP["fmod"]
 OP_TRUNC = OP["trunc"]
 EPS = 1e-12  # logic.EPS: fparser's comparison tolerance
 
-# The row functions (numba dispatchers as globals: compiled into the interpreter).
-_sin_row = _E["sin"].row
-_cos_row = _E["cos"].row
-_tan_row = _E["tan"].row
-_asin_row = _E["asin"].row
-_acos_row = _E["acos"].row
-_atan_row = _E["atan"].row
-_sinh_row = _E["sinh"].row
-_cosh_row = _E["cosh"].row
-_tanh_row = _E["tanh"].row
-_asinh_row = _E["asinh"].row
-_acosh_row = _E["acosh"].row
-_atanh_row = _E["atanh"].row
-_exp_row = _E["exp"].row
-_log_row = _E["log"].row
-_log10_row = _E["log10"].row
-_cbrt_row = _E["cbrt"].row
-_atan2_vv = _E["atan2"].row_vv
-_atan2_vs = _E["atan2"].row_vs
-_atan2_sv = _E["atan2"].row_sv
+# pow's rows (:func:`_power_vs` and its kin apply the x^c convention to them).
 _pow_vv = _E["pow"].row_vv
 _pow_vs = _E["pow"].row_vs
 _pow_sv = _E["pow"].row_sv
-_atantan_row = _rt.atantan_row
-_asinsin_row = _rt.asinsin_row
-_acoscos_row = _rt.acoscos_row
-_acotcot_row = _rt.acotcot_row
+
+# The unary operations that run behind the row table (far.py): their slot by opcode, else -1.
+_UNARY_SLOT = np.full(max(OP.values()) + 1, -1, dtype=np.int64)
+for _name in ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh"):
+    _UNARY_SLOT[OP[_name]] = SLOT[_name]
+for _name in ("acosh", "atanh", "exp", "log", "log10", "cbrt", "atantan", "asinsin"):
+    _UNARY_SLOT[OP[_name]] = SLOT[_name]
+for _name in ("acoscos", "acotcot", "series", "segsum"):
+    _UNARY_SLOT[OP[_name]] = SLOT[_name]
+SLOT_POW_VV, SLOT_POW_VS, SLOT_POW_SV = SLOT["pow_vv"], SLOT["pow_vs"], SLOT["pow_sv"]
+SLOT_ATAN2_VV, SLOT_ATAN2_VS, SLOT_ATAN2_SV = SLOT["atan2_vv"], SLOT["atan2_vs"], SLOT["atan2_sv"]
 
 
 @intrinsic
@@ -244,7 +236,7 @@ def _pow_rule(u, e, p):
     return 1.0 if e == 0.0 else r
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _power_vs(W, d, a, s, n):
     """W[d] = W[a]^s: the shortcut loop for s in POW_SHORTCUTS, else surfgen's pow."""
     if s == 2.0 or s == 0.5 or s == -1.0 or s == 1.0 or s == 0.0:
@@ -255,7 +247,7 @@ def _power_vs(W, d, a, s, n):
         _pow_vs(W, d, a, s, n)
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _power_vv(W, d, a, b, n):
     """W[d] = W[a]^W[b] (d differs from a and b: the compiler never writes in place)."""
     _pow_vv(W, d, a, b, n)
@@ -263,7 +255,7 @@ def _power_vv(W, d, a, b, n):
         W[d, k] = _pow_rule(W[a, k], W[b, k], W[d, k])
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _power_sv(W, d, s, b, n):
     _pow_sv(W, d, s, b, n)
     for k in range(n):
@@ -306,7 +298,7 @@ def _series(x, r, p):
 # hundred points, is as expensive as the arithmetic.
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _segsum(W, d, a, n, consts, base):
     """W[d] = 0.5 * sum over segments of selector * line, in the reference's order."""
     kind = consts[base]
@@ -356,7 +348,7 @@ def _series_candidate(x, r, fp, i, out):
     return (0.0 + 2.0 * (x - lo)) if hit else out
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _series_row(W, d, a, n, consts, base):
     r = consts[base]
     p = int(consts[base + 1])
@@ -390,51 +382,14 @@ def _series_row(W, d, a, n, consts, base):
 @njit(**JIT_OPTIONS)
 def _unary(op, W, d, a, n, consts, imm, T):
     """The operations of one vector operand but the cheap ones (:func:`run_code` runs those)."""
-    if op == OP_SIN:
-        _sin_row(W, d, a, n)
-    elif op == OP_COS:
-        _cos_row(W, d, a, n)
-    elif op == OP_TAN:
-        _tan_row(W, d, a, n)
-    elif op == OP_ATAN:
-        _atan_row(W, d, a, n)
-    elif op == OP_ASIN:
-        _asin_row(W, d, a, n)
-    elif op == OP_ACOS:
-        _acos_row(W, d, a, n)
-    elif op == OP_ATANTAN:
-        _atantan_row(W, d, a, n)
-    elif op == OP_ACOTCOT:
-        _acotcot_row(W, d, a, n)
-    elif op == OP_ASINSIN:
-        _asinsin_row(W, d, a, n)
-    elif op == OP_ACOSCOS:
-        _acoscos_row(W, d, a, n)
+    slot = _UNARY_SLOT[op]
+    if slot >= 0:  # an elementary function, a round trip, a series: behind the row table
+        far_row(slot, W, d, a, 0, 0.0, n, consts, imm)
     elif op == OP_USIGN:
         for k in range(n):
             W[d, k] = _usign(W[a, k])
-    elif op == OP_EXP:
-        _exp_row(W, d, a, n)
-    elif op == OP_LOG:
-        _log_row(W, d, a, n)
-    elif op == OP_LOG10:
-        _log10_row(W, d, a, n)
-    elif op == OP_SINH:
-        _sinh_row(W, d, a, n)
-    elif op == OP_COSH:
-        _cosh_row(W, d, a, n)
-    elif op == OP_TANH:
-        _tanh_row(W, d, a, n)
-    elif op == OP_ASINH:
-        _asinh_row(W, d, a, n)
-    elif op == OP_ACOSH:
-        _acosh_row(W, d, a, n)
-    elif op == OP_ATANH:
-        _atanh_row(W, d, a, n)
-    elif op == OP_CBRT:
-        _cbrt_row(W, d, a, n)
     elif op == OP_POWI:  # programs of earlier versions: u^imm, now surfgen's pow
-        _power_vs(W, d, a, float(imm), n)
+        far_row(SLOT_POW_VS, W, d, a, 0, float(imm), n, consts, 0)
     elif op == OP_SIGN:
         for k in range(n):
             W[d, k] = _sign(W[a, k])
@@ -450,17 +405,13 @@ def _unary(op, W, d, a, n, consts, imm, T):
     elif op == OP_TRUNC:
         for k in range(n):
             W[d, k] = _trunc(W[a, k])
-    elif op == OP_SERIES:
-        _series_row(W, d, a, n, consts, imm)
-    elif op == OP_SEGSUM:
-        _segsum(W, d, a, n, consts, imm)
 
 
 @njit(**JIT_OPTIONS)
-def _binary_vv(op, W, d, a, b, n):
+def _binary_vv(op, W, d, a, b, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
-        _power_vv(W, d, a, b, n)
+        far_row(SLOT_POW_VV, W, d, a, b, 0.0, n, consts, 0)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(W[a, k], W[b, k])
@@ -468,7 +419,7 @@ def _binary_vv(op, W, d, a, b, n):
         for k in range(n):
             W[d, k] = _maximum(W[a, k], W[b, k])
     elif op == OP_ATAN2:
-        _atan2_vv(W, d, a, b, n)
+        far_row(SLOT_ATAN2_VV, W, d, a, b, 0.0, n, consts, 0)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], W[b, k])
@@ -478,10 +429,10 @@ def _binary_vv(op, W, d, a, b, n):
 
 
 @njit(**JIT_OPTIONS)
-def _binary_vs(op, W, d, a, s, n):
+def _binary_vs(op, W, d, a, s, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
-        _power_vs(W, d, a, s, n)
+        far_row(SLOT_POW_VS, W, d, a, 0, s, n, consts, 0)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(W[a, k], s)
@@ -489,7 +440,7 @@ def _binary_vs(op, W, d, a, s, n):
         for k in range(n):
             W[d, k] = _maximum(W[a, k], s)
     elif op == OP_ATAN2:
-        _atan2_vs(W, d, a, s, n)
+        far_row(SLOT_ATAN2_VS, W, d, a, 0, s, n, consts, 0)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(W[a, k], s)
@@ -499,10 +450,10 @@ def _binary_vs(op, W, d, a, s, n):
 
 
 @njit(**JIT_OPTIONS)
-def _binary_sv(op, W, d, s, b, n):
+def _binary_sv(op, W, d, s, b, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
-        _power_sv(W, d, s, b, n)
+        far_row(SLOT_POW_SV, W, d, 0, b, s, n, consts, 0)
     elif op == OP_MIN:
         for k in range(n):
             W[d, k] = _minimum(s, W[b, k])
@@ -510,7 +461,7 @@ def _binary_sv(op, W, d, s, b, n):
         for k in range(n):
             W[d, k] = _maximum(s, W[b, k])
     elif op == OP_ATAN2:
-        _atan2_sv(W, d, s, b, n)
+        far_row(SLOT_ATAN2_SV, W, d, 0, b, s, n, consts, 0)
     elif op == OP_RATIO1:
         for k in range(n):
             W[d, k] = _ratio1(s, W[b, k])
@@ -519,7 +470,7 @@ def _binary_sv(op, W, d, s, b, n):
             W[d, k] = _logic2(op, s, W[b, k])
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def run_code(code, c0, c1, consts, W, S, T, n, prof):
     """Run code rows [c0, c1) on the first n columns of W; with a non-empty ``prof``,
     add the cycles each row takes to ``prof[row]``.
@@ -555,7 +506,7 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
                 for k in range(n):
                     W[d, k] = W[a, k] / W[b, k]
             else:
-                _binary_vv(op, W, d, a, b, n)
+                _binary_vv(op, W, d, a, b, n, consts)
         elif mode == M_VS:
             s = S[b]
             if op == OP_MUL:
@@ -571,7 +522,7 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
                 for k in range(n):
                     W[d, k] = W[a, k] / s
             else:
-                _binary_vs(op, W, d, a, s, n)
+                _binary_vs(op, W, d, a, s, n, consts)
         elif mode == M_V:
             if op == OP_COPY:
                 for k in range(n):
@@ -608,7 +559,7 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
                 for k in range(n):
                     W[d, k] = s / W[b, k]
             else:
-                _binary_sv(op, W, d, s, b, n)
+                _binary_sv(op, W, d, s, b, n, consts)
         elif mode == M_S:
             s = S[a]
             for k in range(n):
@@ -620,9 +571,9 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
 # ----------------------------------------------------------------------------- behind a pointer
 #
 # numba links the code of every jitted function a kernel calls into that kernel, and LLVM
-# optimises and emits it again there: the interpreter (every elementary function's vector loop,
-# about a minute of LLVM) was compiled once more into the grid driver, the points kernels and
-# the walls' kernel, each time it or they changed. Instead the interpreter is compiled once, as
+# optimises and emits it again there: the interpreter (then with every elementary function's
+# vector loop, about a minute of LLVM) was compiled once more into the grid driver, the points
+# kernels and the walls' kernel, each time it or they changed. Instead the interpreter is compiled once, as
 # a C function (:data:`INTERPRETER`, cached by numba like the kernels), and the kernels call it
 # through a pointer (:func:`run_code_far`): their own compile is their own code only.
 #
@@ -660,12 +611,17 @@ _LOAD_LOCK = threading.Lock()
 
 
 def load_interpreter():
-    """Load the interpreter from numba's cache (or compile it, about a minute the first time on
-    a machine) and point the kernels' cell at it; returns numba's ``CFunc``. Thread-safe."""
+    """Load the interpreter and its rows (:func:`surfgen.generator.row_table.load_rows`) from
+    numba's cache (or compile them, about a minute on one CPU the first time on a machine) and
+    point the kernels' cell at it; returns numba's ``CFunc``. Thread-safe."""
     global INTERPRETER
+    from surfgen.generator.row_table import load_rows
+
     with _LOAD_LOCK:
         if INTERPRETER is None:
-            compiled = cfunc(_C_SIGNATURE, cache=True, error_model="numpy")(_run_code_c)
+            load_rows()  # first: the interpreter calls them
+            with evaluator_compile():  # numba's C functions send no compile event
+                compiled = cfunc(_C_SIGNATURE, cache=True, error_model="numpy")(_run_code_c)
             _CELL.value = compiled.address
             INTERPRETER = compiled
     return INTERPRETER
@@ -675,7 +631,9 @@ def interpreter_asm() -> str:
     """The interpreter's machine code (assembly), compiled first if need be; empty when it was
     loaded from numba's on-disk cache (numba keeps no assembly of cached code: inspect it in a
     process with an empty ``NUMBA_CACHE_DIR``)."""
-    return load_interpreter()._library.get_asm_str()
+    from surfgen.generator.row_table import rows_asm
+
+    return load_interpreter()._library.get_asm_str() + "\n" + rows_asm()
 
 
 def interpreter_loaded() -> bool:
@@ -694,7 +652,9 @@ def interpreter_cached() -> bool:
 
         return FunctionCache(_run_code_c), cpu_target.target_context.codegen()
 
-    return cached_on_disk(locate, "the interpreter")
+    from surfgen.generator.row_table import rows_cached
+
+    return cached_on_disk(locate, "the interpreter") and rows_cached()
 
 
 def _first_call(*args, _load=load_interpreter) -> None:

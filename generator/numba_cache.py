@@ -1,12 +1,13 @@
 """numba's on-disk cache, made to go stale with any of surfgen's numba sources.
 
 numba's cache checks only the source file of the cached function itself, but a cached function
-carries the machine code of every jitted function it calls from other files: the interpreter
-(``interpreter.py``) and the round trips compile the elementary functions *into* their own code,
-the walls' classification (``walls.py``) the points kernels (``points.py``), and so on; the
-kernels call the interpreter through a pointer whose calling convention (its arguments) they
-compile in. A change of ``trig.py`` or ``interpreter.py`` would leave those callers stale, with
-the old bits or the old convention. The locator installed here adds a digest of every
+carries the machine code of every jitted function it calls from other files: the row table's C
+functions (``row_table.py``) compile the elementary functions *into* their own code, the walls'
+classification (``walls.py``) the points kernels (``points.py``), and so on; the kernels call the
+interpreter through a pointer whose calling convention (its arguments) they compile in, and the
+interpreter its rows through the row table's (``far.py``). A change of ``trig.py`` or
+``interpreter.py`` would leave those callers stale, with the old bits or the old convention.
+The locator installed here adds a digest of every
 surfgen source that holds numba code to the freshness stamp of every cached function of surfgen
 (and, in a source checkout, of its tests and benchmarks).
 
@@ -32,7 +33,7 @@ log = logging.getLogger(__name__)
 _GENERATOR = os.path.dirname(os.path.abspath(__file__))
 _HERE = os.path.join(_GENERATOR, "elementary")
 _ROOT = os.path.dirname(_GENERATOR)  # surfgen's package (installed) or the checkout (editable)
-_NUMBA_MARKS = (b"njit", b"overload", b"_dual")
+_NUMBA_MARKS = (b"njit", b"overload", b"_dual", b"intrinsic", b"cfunc")
 
 
 def package_digest() -> str:

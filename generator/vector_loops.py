@@ -29,8 +29,10 @@ measurements: the count is part of numba's cache stamp, so each count compiles i
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+from collections.abc import Iterator
 
 from numba.core import event
 
@@ -95,6 +97,19 @@ class _Listener(event.Listener):
             if self._depth == 1:
                 self._set(INTERLEAVE)
 
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """The option on for a compile numba sends no event for (a C function's)."""
+        self._depth += 1
+        if self._depth == 1:
+            self._set(INTERLEAVE)
+        try:
+            yield
+        finally:
+            self._depth -= 1
+            if self._depth == 0:
+                self._set(0)
+
     def on_end(self, ev) -> None:
         # (an end without its start: the listener was installed in the middle of a compile)
         if self._depth > 0 and evaluator_function(_module_of(ev.data)):
@@ -121,3 +136,18 @@ def install() -> None:
         return
     _INSTALLED = _Listener()
     event.register("numba:compile", _INSTALLED)
+
+
+@contextlib.contextmanager
+def evaluator_compile() -> Iterator[None]:
+    """Within the block, numba compiles as for the evaluator's functions (four vectors per
+    iteration): for the C functions of :mod:`surfgen.generator.row_table`, whose compiles send
+    no ``numba:compile`` event. Nested compiles of dispatchers keep the option on. Holds numba's
+    (re-entrant) compiler lock, under which its events arrive too."""
+    from numba.core.compiler_lock import global_compiler_lock
+
+    if _INSTALLED is None:
+        yield
+        return
+    with global_compiler_lock, _INSTALLED.held():
+        yield

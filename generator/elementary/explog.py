@@ -708,7 +708,7 @@ def _apply2(kernel, x, y) -> np.ndarray:
 # in-place form (distance 0) and vectorises without a runtime overlap check.
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def exp_row(W, d, a, n):
     """W[d, :n] = exp(W[a, :n])."""
     if d == a:
@@ -730,7 +730,7 @@ def exp_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_exp"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def log_row(W, d, a, n):
     """W[d, :n] = log(W[a, :n])."""
     if d == a:
@@ -752,7 +752,7 @@ def log_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_log"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def pow_row_vv(W, d, a, b, n):
     """W[d, :n] = W[a, :n] ** W[b, :n] (C pow)."""
     if d == a:
@@ -766,7 +766,7 @@ def pow_row_vv(W, d, a, b, n):
             W[d, k] = _pow(W[a, k], W[b, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def pow_row_vs(W, d, a, s, n):
     """W[d, :n] = W[a, :n] ** s (s = 1.5 or 3: the exact-product loop when every lane allows)."""
     if s == 1.5 or s == 3.0:
@@ -795,7 +795,7 @@ def pow_row_vs(W, d, a, s, n):
             W[d, k] = _pow(W[a, k], s)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def pow_row_sv(W, d, s, b, n):
     """W[d, :n] = s ** W[b, :n]."""
     if d == b:
@@ -817,7 +817,7 @@ def pow_array(x, y) -> np.ndarray:
     return _apply2(_NP_GLOBALS["_pow"], x, y)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def log10_row(W, d, a, n):
     """W[d, :n] = log10(W[a, :n])."""
     if d == a:
@@ -839,7 +839,7 @@ def log10_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_log10"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def sinh_row(W, d, a, n):
     """W[d, :n] = sinh(W[a, :n])."""
     if d == a:
@@ -861,7 +861,7 @@ def sinh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_sinh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def cosh_row(W, d, a, n):
     """W[d, :n] = cosh(W[a, :n])."""
     if d == a:
@@ -883,7 +883,7 @@ def cosh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_cosh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def tanh_row(W, d, a, n):
     """W[d, :n] = tanh(W[a, :n])."""
     if d == a:
@@ -905,7 +905,7 @@ def tanh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_tanh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def asinh_row(W, d, a, n):
     """W[d, :n] = asinh(W[a, :n])."""
     if d == a:
@@ -927,7 +927,7 @@ def asinh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_asinh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def acosh_row(W, d, a, n):
     """W[d, :n] = acosh(W[a, :n])."""
     if d == a:
@@ -949,7 +949,7 @@ def acosh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_acosh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atanh_row(W, d, a, n):
     """W[d, :n] = atanh(W[a, :n])."""
     if d == a:
@@ -971,7 +971,7 @@ def atanh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_atanh"], x)
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def cbrt_row(W, d, a, n):
     """W[d, :n] = cbrt(W[a, :n])."""
     if d == a:

@@ -301,7 +301,7 @@ def acotcot_scalar(u):
 # loop 2 recomputes those, only when there are any. d != a (loop 2 reads the argument again).
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atantan_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -314,7 +314,7 @@ def atantan_row(W, d, a, n):
                 W[d, k] = atantan_scalar(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def asinsin_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -327,7 +327,7 @@ def asinsin_row(W, d, a, n):
                 W[d, k] = asinsin_scalar(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def acoscos_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -340,7 +340,7 @@ def acoscos_row(W, d, a, n):
                 W[d, k] = acoscos_scalar(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def acotcot_row(W, d, a, n):
     bad = 0
     for k in range(n):

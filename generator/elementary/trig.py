@@ -811,7 +811,7 @@ def _gather2(W, a, b, n, cnt, sa, sb):
     return idx, vy, vx
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def sin_row(W, d, a, n):
     """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
     cnt = 0
@@ -826,7 +826,7 @@ def sin_row(W, d, a, n):
             W[d, idx[j]] = _sin_slow(val[j])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def cos_row(W, d, a, n):
     """W[d, k] = cos(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
@@ -841,7 +841,7 @@ def cos_row(W, d, a, n):
             W[d, idx[j]] = _cos_slow(val[j])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def tan_row(W, d, a, n):
     """W[d, k] = tan(W[a, k]) for k < n (d may equal a)."""
     cnt = 0
@@ -856,28 +856,28 @@ def tan_row(W, d, a, n):
             W[d, idx[j]] = _tan_slow(val[j])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def asin_row(W, d, a, n):
     """W[d, k] = asin(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _asin_fast(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def acos_row(W, d, a, n):
     """W[d, k] = acos(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _acos_fast(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atan_row(W, d, a, n):
     """W[d, k] = atan(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _atan_fast(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atan2_row_vv(W, d, a, b, n):
     """W[d, k] = atan2(W[a, k], W[b, k]) for k < n (d may equal a or b)."""
     cnt = 0
@@ -892,7 +892,7 @@ def atan2_row_vv(W, d, a, b, n):
             W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atan2_row_vs(W, d, a, s, n):
     """W[d, k] = atan2(W[a, k], s) for k < n (d may equal a)."""
     cnt = 0
@@ -907,7 +907,7 @@ def atan2_row_vs(W, d, a, s, n):
             W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
 def atan2_row_sv(W, d, s, b, n):
     """W[d, k] = atan2(s, W[b, k]) for k < n (d may equal b)."""
     cnt = 0

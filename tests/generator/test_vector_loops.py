@@ -175,3 +175,56 @@ def test_zero_leaves_the_choice_to_llvm():
         check=True,
     )
     assert json.loads(done.stdout) == [0, True]
+
+
+def test_a_held_compile_keeps_the_option_through_nested_compiles_and_errors():
+    calls: list[int] = []
+    listener = _Listener(setter=calls.append)
+    row = _event("surfgen.generator.elementary.trig")
+    with listener.held():  # a row's C function: numba sends no event for it
+        listener.on_start(row)  # ... a helper it calls, compiled on the way
+        listener.on_end(row)
+        assert calls == [vector_loops.INTERLEAVE]  # still on
+    assert calls == [vector_loops.INTERLEAVE, 0]
+    calls.clear()
+    with pytest.raises(RuntimeError), listener.held():
+        raise RuntimeError("compile failed")
+    assert calls == [vector_loops.INTERLEAVE, 0]
+
+
+def test_a_c_function_compiled_as_the_evaluators_runs_four_vectors_per_iteration():
+    """What :mod:`surfgen.generator.row_table` does for its rows, on the probe loop: a C function
+    compiled inside :func:`vector_loops.evaluator_compile` gets the interleave, one compiled
+    outside it LLVM's choice; the same values."""
+    from numba import carray, cfunc
+    from numba import types as nt
+
+    from surfgen.generator import NO_VECTORIZE
+
+    inner = njit(inline="always", error_model="numpy")(_probe)
+
+    def c_probe(out_p, a_p, n):
+        inner(carray(out_p, n, np.float64), carray(a_p, n, np.float64), n)
+
+    sig = nt.void(nt.voidptr, nt.voidptr, nt.int64)
+
+    def compiled(held: bool):  # each cfunc() compiles afresh (no cache)
+        if held:
+            with vector_loops.evaluator_compile():
+                f = cfunc(sig, error_model="numpy")(c_probe)
+        else:
+            f = cfunc(sig, error_model="numpy")(c_probe)
+        a, out = np.linspace(-3.0, 3.0, 100), np.empty(100)
+        f.ctypes(out.ctypes.data, a.ctypes.data, 100)
+        asm = f._library.get_asm_str()
+        return len(re.findall(r"\bv?sqrtpd\b", asm)), out
+
+    (ours, ours_out), (other, other_out) = compiled(True), compiled(False)
+    assert np.array_equal(ours_out.view(np.int64), other_out.view(np.int64))
+    if NO_VECTORIZE:
+        assert ours == other == 0
+    elif vector_loops.INTERLEAVE == 0:
+        assert ours == other >= 1
+    else:
+        assert other >= 1, "the probe loop is not vectorised at all"
+        assert ours >= vector_loops.INTERLEAVE * other
