@@ -91,6 +91,26 @@ def load_rows() -> dict[str, object]:
     return COMPILED
 
 
+def run(name: str, W: np.ndarray, d: int, a: int, n: int, b: int = 0, s: float = 0.0) -> None:
+    """Row ``name`` from Python, through its compiled C function (the machine code the
+    interpreter runs): ``W[d, :n] = f(W[a, :n])`` (or of rows ``a`` and ``b``, row ``a`` and the
+    scalar ``s``, ... by the slot's operand mode). ``W``: a C-contiguous 2-d float64 array.
+    Without the constants the series and the segment sums need (the interpreter's only)."""
+    if name not in FUNCTIONS or name in ("series", "segsum"):
+        raise ValueError(f"unknown row {name!r}: expected one of {', '.join(far.ROWS[:-2])}")
+    if not (isinstance(W, np.ndarray) and W.dtype == np.float64 and W.ndim == 2):
+        raise ValueError("W must be a 2-d float64 array")
+    if not W.flags.c_contiguous or not W.flags.writeable:
+        raise ValueError("W must be C-contiguous and writable")
+    rows, cols = W.shape
+    if not all(0 <= int(i) < rows for i in (d, a, b)) or not 0 <= int(n) <= cols:
+        raise ValueError(f"rows d, a, b must be in [0, {rows}) and n in [0, {cols}]")
+    none = np.zeros(1)
+    load_rows()[name].ctypes(
+        W.ctypes.data, rows, cols, int(d), int(a), int(b), float(s), int(n), none.ctypes.data, 1, 0
+    )
+
+
 def rows_loaded() -> bool:
     """Whether this process has loaded (or compiled) every row."""
     return len(COMPILED) == len(far.ROWS)

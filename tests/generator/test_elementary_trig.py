@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 from numba import njit
 
+from surfgen.generator import row_table
 from surfgen.generator.elementary import trig as T
 
 UNARY = ["sin", "cos", "tan", "asin", "acos", "atan"]
@@ -106,7 +107,7 @@ def _row(name: str, x: np.ndarray, inplace: bool = False) -> np.ndarray:
     W = np.zeros((3, x.size))
     W[1] = x
     d = 1 if inplace else 2
-    getattr(T, f"{name}_row")(W, d, 1, x.size)
+    row_table.run(name, W, d, 1, x.size)  # the row's C function, as the interpreter calls it
     return W[d].copy()
 
 
@@ -131,7 +132,7 @@ def test_row_scalar_array_agree_bit_for_bit(name: str) -> None:
     # a few slow lanes in a long row of fast ones (the gather/patch path), partial rows
     W = np.full((2, 300), 7.0)
     W[0, :] = x[:300]
-    getattr(T, f"{name}_row")(W, 1, 0, 250)
+    row_table.run(name, W, 1, 0, 250)
     np.testing.assert_array_equal(_bits(W[1, :250]), _bits(want[:250]))
     assert np.all(W[1, 250:] == 7.0)
 
@@ -160,18 +161,18 @@ def test_atan2_rows_scalar_array_agree_bit_for_bit() -> None:
     want = T.atan2_array(y, x)
     W = np.zeros((3, y.size))
     W[0], W[1] = y, x
-    T.atan2_row_vv(W, 2, 0, 1, y.size)
+    row_table.run("atan2_vv", W, 2, 0, y.size, b=1)
     np.testing.assert_array_equal(_bits(W[2]), _bits(want))
-    T.atan2_row_vv(W, 0, 0, 1, y.size)  # in place
+    row_table.run("atan2_vv", W, 0, 0, y.size, b=1)  # in place
     np.testing.assert_array_equal(_bits(W[0]), _bits(want))
     got = np.array([T.atan2_scalar(a, b) for a, b in zip(y[::5], x[::5], strict=True)])
     np.testing.assert_array_equal(_bits(got), _bits(want[::5]))
     for s in [0.0, -0.0, 1.5, -2.5, np.inf, -np.inf, np.nan, 1e-320, 1e305]:
         W[0], W[1] = y, x
-        T.atan2_row_vs(W, 0, 0, s, y.size)
+        row_table.run("atan2_vs", W, 0, 0, y.size, s=s)
         np.testing.assert_array_equal(_bits(W[0]), _bits(T.atan2_array(y, s)))
         W[1] = x
-        T.atan2_row_sv(W, 1, s, 1, x.size)
+        row_table.run("atan2_sv", W, 1, 0, x.size, b=1, s=s)
         np.testing.assert_array_equal(_bits(W[1]), _bits(T.atan2_array(s, x)))
 
 
@@ -295,7 +296,7 @@ def test_atan2_special_cases(y: float, x: float, want: float) -> None:
     _check_case(T.atan2_scalar(y, x), want, f"atan2({y!r}, {x!r})")
     _check_case(float(T.atan2_array(y, x)), want, f"atan2_array({y!r}, {x!r})")
     W = np.array([[y], [x], [0.0]])
-    T.atan2_row_vv(W, 2, 0, 1, 1)
+    row_table.run("atan2_vv", W, 2, 0, 1, b=1)
     _check_case(W[2, 0], want, f"atan2_row_vv({y!r}, {x!r})")
 
 

@@ -5,6 +5,7 @@ of their code."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from numba import njit
 
 from surfgen.generator import far, interpreter, row_table
@@ -94,3 +95,26 @@ def test_the_interpreter_is_ready_only_with_its_rows(monkeypatch):
     assert interpreter.interpreter_cached()
     monkeypatch.setattr(row_table, "rows_cached", lambda: False)
     assert not interpreter.interpreter_cached()
+
+
+def test_run_calls_a_row_from_python_and_refuses_what_could_write_out_of_bounds():
+    x = _args()
+    W = np.zeros((2, x.size))
+    W[0] = x
+    row_table.run("tan", W, 1, 0, x.size)
+    with np.errstate(all="ignore"):
+        assert _same(W[1], REGISTRY["tan"].array(x))
+    bad = [
+        (("nope", W, 1, 0, 4), "unknown row 'nope'"),
+        (("series", W, 1, 0, 4), "unknown row 'series'"),  # needs the interpreter's constants
+        (("tan", np.zeros((2, 4), np.float32), 1, 0, 4), "float64"),
+        (("tan", W[:, ::2], 1, 0, 4), "C-contiguous"),
+        (("tan", W, 2, 0, 4), r"rows d, a, b must be in \[0, 2\)"),
+        (("tan", W, 1, -1, 4), "rows d, a, b"),
+        (("tan", W, 1, 0, x.size + 1), "n in"),
+    ]
+    for args, message in bad:
+        with pytest.raises(ValueError, match=message):
+            row_table.run(*args)
+    with pytest.raises(ValueError, match="rows d, a, b"):
+        row_table.run("atan2_vv", W, 1, 0, 4, b=5)
