@@ -205,7 +205,11 @@ def _join_child(child: subprocess.Popen) -> None:
         log.debug("the warm-up's child process failed: %s", err.decode(errors="replace"))
 
 
-def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | None = None) -> float:
+def warm_shape_kernels(
+    parallel: bool = True,
+    notice: Callable[[str], None] | None = None,
+    meanwhile: Callable[[], None] | None = None,
+) -> float:
     """Evaluate, mesh, classify, measure, describe and draw a tiny shape once; returns the
     seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
     ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
@@ -214,7 +218,9 @@ def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | No
     of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
     interpreter alone (``benchmarks/bench_cold_start.py``): this process compiles the
     interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
-    numba's on-disk cache; then this process loads the child's kernels from the cache."""
+    numba's on-disk cache; then this process loads the child's kernels from the cache.
+    ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
+    process waits for the child: only the interpreter need be loaded for it."""
     from surfgen.generator.fast import warm_interpreter
 
     t0 = time.perf_counter()
@@ -223,6 +229,8 @@ def warm_shape_kernels(parallel: bool = True, notice: Callable[[str], None] | No
     child = _start_child() if parallel else None
     try:
         log.debug("interpreter ready in %.1f s", warm_interpreter())
+        if meanwhile is not None:
+            meanwhile()
         if child is not None:
             _join_child(child)
             child = None

@@ -6,8 +6,9 @@ interpreter, the grid kernel, the walls' kernels, the mesh and picture kernels, 
 kernels only tests call directly (:meth:`PointsEvaluator.__call__` and ``.plain``,
 :func:`points.edge_lattice` and :func:`points.eval_edges`).  Here
 :func:`warmup.warm_shape_kernels` compiles the interpreter while a child compiles every kernel of
-a shape but that one; then this process compiles the test-only points kernels
-(:func:`warm_points_kernels`, a few seconds: the interpreter is called, not compiled into them).
+a shape but that one; once the interpreter is ready, this process compiles the test-only points
+kernels (:func:`warm_points_kernels`, about 10 s: the interpreter is called, not compiled into
+them) while the child finishes.
 
 Nothing is compiled when the cache is warm (a fraction of a second to tell).  ``tests/conftest.py``
 runs it for sessions of :data:`MIN_TESTS` tests or more; ``SURFGEN_TEST_WARMUP=0`` turns it off,
@@ -60,6 +61,5 @@ def warm_for_suite() -> float:
     from surfgen.pipelines.warmup import warm_shape_kernels
 
     t0 = time.perf_counter()
-    warm_shape_kernels(parallel=True)
-    warm_points_kernels()
+    warm_shape_kernels(parallel=True, meanwhile=warm_points_kernels)
     return time.perf_counter() - t0

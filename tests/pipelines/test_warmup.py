@@ -87,6 +87,29 @@ def test_a_cold_start_says_it_compiles_first(monkeypatch, caplog) -> None:
     assert warmup.COMPILE_NOTICE in caplog.messages  # the library logs it too
 
 
+def test_meanwhile_runs_once_the_interpreter_is_ready_before_the_child_is_awaited(
+    monkeypatch,
+) -> None:
+    from surfgen.generator import interpreter
+    from surfgen.pipelines import warmup
+
+    order: list[str] = []
+
+    class Child:  # a child still compiling: awaited after ``meanwhile``
+        returncode = 0
+
+        def communicate(self):
+            order.append("child awaited")
+            return b"", b""
+
+    monkeypatch.setattr(warmup, "_start_child", lambda: Child())
+    warmup.warm_shape_kernels(
+        parallel=True,
+        meanwhile=lambda: order.append(f"meanwhile {interpreter.interpreter_loaded()}"),
+    )
+    assert order == ["meanwhile True", "child awaited"]
+
+
 def test_sample_prints_the_compile_notice_once(monkeypatch, tmp_path, capsys) -> None:
     from surfgen.pipelines import warmup
     from surfgen.pipelines.cli import main
