@@ -150,14 +150,18 @@ def evaluations(cache_root: str, rounds: int, n: int, count: int, repeats: int) 
             runs[key].append(result)
     same = runs["llvm"][0]["sha256"] == runs["ours"][0]["sha256"]
     best = {k: np.min([run["best"] for run in v[1:]], axis=0) for k, v in runs.items()}
-    ratio = best["llvm"] / best["ours"]
-    q1, med, q3 = np.percentile(ratio, [25, 50, 75])
-    total = best["llvm"].sum() / best["ours"].sum()
     print(
-        f"  {len(ratio)} stored eq. (13) formulas at {n}^3, 1 thread: LLVM's choice / surfgen's"
-        f" {INTERLEAVE}: median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time"
-        f" {total:.3f}x; the same fields (sha256): {same}"
+        f"  {len(best['ours'])} stored eq. (13) formulas at {n}^3, 1 thread: LLVM's choice /"
+        f" surfgen's {INTERLEAVE}: {ratios(best['llvm'], best['ours'])}; the same fields"
+        f" (sha256): {same}"
     )
+
+
+def ratios(before: np.ndarray, after: np.ndarray) -> str:
+    """The per-formula time ratios before / after: median, quartiles, and the total's ratio."""
+    q1, med, q3 = np.percentile(before / after, [25, 50, 75])
+    total = before.sum() / after.sum()
+    return f"median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time {total:.3f}x"
 
 
 def main() -> int:

@@ -35,6 +35,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
 from bench_interleave import _CHILD as _EVALUATE  # noqa: E402
+from bench_interleave import ratios  # noqa: E402
 from bench_sample_grids import export_revision  # noqa: E402
 
 _LOAD = """
@@ -109,13 +110,10 @@ def main() -> int:
                 runs[key].append(_run(revisions[key], code, caches[key])[0])
         same = len({run["sha256"] for v in runs.values() for run in v}) == 1
         best = {k: np.min([run["best"] for run in v], axis=0) for k, v in runs.items()}
-        ratio = best["baseline"] / best["now"]
-        q1, med, q3 = np.percentile(ratio, [25, 50, 75])
-        total = best["baseline"].sum() / best["now"].sum()
         print(
-            f"\n{len(ratio)} stored eq. (13) formulas at {args.n}^3, 1 thread, {args.rounds} rounds:"
-            f" baseline / now median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time"
-            f" {total:.3f}x ({best['now'].sum():.2f} s now); the same fields (sha256): {same}"
+            f"\n{len(best['now'])} stored eq. (13) formulas at {args.n}^3, 1 thread,"
+            f" {args.rounds} rounds: baseline / now {ratios(best['baseline'], best['now'])}"
+            f" ({best['now'].sum():.2f} s now); the same fields (sha256): {same}"
         )
     return 0 if same else 1
 

@@ -100,33 +100,54 @@ def first_call(slot: int) -> int:
     return ctypes.cast(_FIRST_CALLS[slot], ctypes.c_void_p).value
 
 
+# ----------------------------------------------------------------------------- C calls
+# What an intrinsic that calls a C function of numba arrays needs (here and in interpreter.py).
+
+
+def require_c_arrays(who: str, arrays) -> None:
+    """Typing: each ``(type, ndim, dtype)`` is a C-contiguous array of that rank and dtype."""
+    for ty, ndim, dtype in arrays:
+        if not (isinstance(ty, types.Array) and ty.layout == "C" and ty.ndim == ndim):
+            raise TypingError(f"{who}: expected a C-contiguous {ndim}-d array, got {ty}")
+        if ty.dtype != dtype:
+            raise TypingError(f"{who}: expected {dtype} values, got {ty}")
+
+
+def require_integers(who: str, tys) -> None:
+    for ty in tys:
+        if not isinstance(ty, types.Integer):
+            raise TypingError(f"{who}: expected an integer, got {ty}")
+
+
+def c_arguments(context, builder, signature, args):
+    """Code generation: ``whole(k)``, argument k as an int64, and ``buffer(k)``, array argument
+    k as (its data as i8*, [its sizes])."""
+    tys = signature.args
+
+    def whole(k):
+        return context.cast(builder, args[k], tys[k], types.int64)
+
+    def buffer(k):
+        array = context.make_array(tys[k])(context, builder, args[k])
+        data = builder.bitcast(array.data, ir.IntType(8).as_pointer())
+        return data, cgutils.unpack_tuple(builder, array.shape, tys[k].ndim)
+
+    return whole, buffer
+
+
 @intrinsic
 def far_row(typingctx, slot, W, d, a, b, s, n, consts, base):
     """Row operation ``ROWS[slot]`` through the table: ``W`` a C-contiguous 2-d float64 array,
     ``consts`` a C-contiguous 1-d one, ``s`` a float, the rest integers."""
-    for ty, ndim in ((W, 2), (consts, 1)):
-        if not (isinstance(ty, types.Array) and ty.layout == "C" and ty.ndim == ndim):
-            raise TypingError(f"far_row: expected a C-contiguous {ndim}-d array, got {ty}")
-        if ty.dtype != types.float64:
-            raise TypingError(f"far_row: expected float64 values, got {ty}")
-    for ty in (slot, d, a, b, n, base):
-        if not isinstance(ty, types.Integer):
-            raise TypingError(f"far_row: expected an integer, got {ty}")
+    require_c_arrays("far_row", ((W, 2, types.float64), (consts, 1, types.float64)))
+    require_integers("far_row", (slot, d, a, b, n, base))
     if not isinstance(s, types.Float):
         raise TypingError(f"far_row: expected a float operand, got {s}")
     sig = types.void(slot, W, d, a, b, s, n, consts, base)
 
     def codegen(context, builder, signature, args):
         tys = signature.args
-
-        def whole(k):
-            return context.cast(builder, args[k], tys[k], types.int64)
-
-        def buffer(k):
-            array = context.make_array(tys[k])(context, builder, args[k])
-            data = builder.bitcast(array.data, ir.IntType(8).as_pointer())
-            return data, cgutils.unpack_tuple(builder, array.shape, tys[k].ndim)
-
+        whole, buffer = c_arguments(context, builder, signature, args)
         w_p, (w_rows, tile) = buffer(1)
         k_p, (n_k,) = buffer(7)
         s_value = context.cast(builder, args[5], tys[5], types.float64)

@@ -29,12 +29,11 @@ from llvmlite import binding as llvm
 from llvmlite import ir
 from numba import carray, cfunc, njit, types
 from numba.core import cgutils
-from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
-from surfgen.generator.far import SLOT, far_row
+from surfgen.generator.far import SLOT, c_arguments, far_row, require_c_arrays, require_integers
 from surfgen.generator.numba_cache import cached_on_disk
 from surfgen.generator.vector_loops import evaluator_compile
 
@@ -678,38 +677,18 @@ _CELL = ctypes.c_void_p(ctypes.cast(_FIRST_CALL, ctypes.c_void_p).value)
 llvm.add_symbol(_CELL_SYMBOL, ctypes.addressof(_CELL))
 
 
-def _c_array(context, builder, ty, value):
-    """(data as i8*, [sizes]) of a C-contiguous array argument."""
-    array = context.make_array(ty)(context, builder, value)
-    data = builder.bitcast(array.data, ir.IntType(8).as_pointer())
-    return data, cgutils.unpack_tuple(builder, array.shape, ty.ndim)
-
-
 @intrinsic
 def run_code_far(typingctx, code, c0, c1, consts, W, S, T, n, prof):
     """:func:`run_code`, called through the interpreter's pointer (its code is not compiled into
     the caller). Every array must be C-contiguous (the kernels' are)."""
     arrays = ((code, 2, types.int64), (consts, 1, types.float64), (W, 2, types.float64))
     arrays += ((S, 1, types.float64), (T, 2, types.float64), (prof, 1, types.float64))
-    for ty, ndim, dtype in arrays:
-        if not (isinstance(ty, types.Array) and ty.layout == "C" and ty.ndim == ndim):
-            raise TypingError(f"run_code_far: expected a C-contiguous {ndim}-d array, got {ty}")
-        if ty.dtype != dtype:
-            raise TypingError(f"run_code_far: expected {dtype} values, got {ty}")
-    for ty in (c0, c1, n):
-        if not isinstance(ty, types.Integer):
-            raise TypingError(f"run_code_far: expected an integer, got {ty}")
+    require_c_arrays("run_code_far", arrays)
+    require_integers("run_code_far", (c0, c1, n))
     sig = types.void(code, c0, c1, consts, W, S, T, n, prof)
 
     def codegen(context, builder, signature, args):
-        tys = signature.args
-
-        def whole(k):
-            return context.cast(builder, args[k], tys[k], types.int64)
-
-        def buffer(k):
-            return _c_array(context, builder, tys[k], args[k])
-
+        whole, buffer = c_arguments(context, builder, signature, args)
         code_p, (n_code, _) = buffer(0)
         consts_p, (n_consts,) = buffer(3)
         w_p, (w_rows, tile) = buffer(4)
