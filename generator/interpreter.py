@@ -34,7 +34,7 @@ from numba.extending import intrinsic
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
 from surfgen.generator.far import SLOT, c_arguments, far_row, require_c_arrays, require_integers
-from surfgen.generator.numba_cache import cached_on_disk
+from surfgen.generator.numba_cache import c_function_cached
 from surfgen.generator.vector_loops import evaluator_compile
 
 log = logging.getLogger(__name__)
@@ -46,23 +46,7 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "nogil": True}
 OP_COPY = OP["copy"]
 OP_NEG = OP["neg"]
 OP_ABS = OP["abs"]
-OP_SIN = OP["sin"]
-OP_COS = OP["cos"]
-OP_TAN = OP["tan"]
-OP_ASIN = OP["asin"]
-OP_ACOS = OP["acos"]
-OP_ATAN = OP["atan"]
-OP_SINH = OP["sinh"]
-OP_COSH = OP["cosh"]
-OP_TANH = OP["tanh"]
-OP_ASINH = OP["asinh"]
-OP_ACOSH = OP["acosh"]
-OP_ATANH = OP["atanh"]
-OP_EXP = OP["exp"]
-OP_LOG = OP["log"]
-OP_LOG10 = OP["log10"]
 OP_SQRT = OP["sqrt"]
-OP_CBRT = OP["cbrt"]
 OP_SIGN = OP["sign"]
 OP_FLOOR = OP["floor"]
 OP_CEIL = OP["ceil"]
@@ -70,8 +54,6 @@ OP_SQUARE = OP["square"]
 OP_RECIP = OP["recip"]
 OP_USIGN = OP["usign"]
 OP_POWI = OP["powi"]
-OP_SERIES = OP["series"]
-OP_SEGSUM = OP["segsum"]
 OP_ADD = OP["add"]
 OP_SUB = OP["sub"]
 OP_MUL = OP["mul"]
@@ -81,10 +63,6 @@ OP_MIN = OP["min"]
 OP_MAX = OP["max"]
 OP_ATAN2 = OP["atan2"]
 OP_RATIO1 = OP["ratio1"]
-OP_ATANTAN = OP["atantan"]
-OP_ASINSIN = OP["asinsin"]
-OP_ACOSCOS = OP["acoscos"]
-OP_ACOTCOT = OP["acotcot"]
 OP_LT = OP["lt"]
 OP_LE = OP["le"]
 OP_EQ = OP["eq"]
@@ -103,14 +81,12 @@ _pow_vv = _E["pow"].row_vv
 _pow_vs = _E["pow"].row_vs
 _pow_sv = _E["pow"].row_sv
 
-# The unary operations that run behind the row table (far.py): their slot by opcode, else -1.
+# The unary operations that run behind the row table (far.py): the slots named after an opcode
+# (the binary ones are named by operand mode), by opcode; -1 for the others.
 _UNARY_SLOT = np.full(max(OP.values()) + 1, -1, dtype=np.int64)
-for _name in ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh"):
-    _UNARY_SLOT[OP[_name]] = SLOT[_name]
-for _name in ("acosh", "atanh", "exp", "log", "log10", "cbrt", "atantan", "asinsin"):
-    _UNARY_SLOT[OP[_name]] = SLOT[_name]
-for _name in ("acoscos", "acotcot", "series", "segsum"):
-    _UNARY_SLOT[OP[_name]] = SLOT[_name]
+for _name, _slot in SLOT.items():
+    if _name in OP:
+        _UNARY_SLOT[OP[_name]] = _slot
 SLOT_POW_VV, SLOT_POW_VS, SLOT_POW_SV = SLOT["pow_vv"], SLOT["pow_vs"], SLOT["pow_sv"]
 SLOT_ATAN2_VV, SLOT_ATAN2_VS, SLOT_ATAN2_SV = SLOT["atan2_vv"], SLOT["atan2_vs"], SLOT["atan2_sv"]
 
@@ -572,9 +548,10 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
 # numba links the code of every jitted function a kernel calls into that kernel, and LLVM
 # optimises and emits it again there: the interpreter (then with every elementary function's
 # vector loop, about a minute of LLVM) was compiled once more into the grid driver, the points
-# kernels and the walls' kernel, each time it or they changed. Instead the interpreter is compiled once, as
-# a C function (:data:`INTERPRETER`, cached by numba like the kernels), and the kernels call it
-# through a pointer (:func:`run_code_far`): their own compile is their own code only.
+# kernels and the walls' kernel, each time it or they changed. Instead the interpreter is
+# compiled once, as a C function (:data:`INTERPRETER`, cached by numba like the kernels), and
+# the kernels call it through a pointer (:func:`run_code_far`): their own compile is their own
+# code only.
 #
 # The pointer lives in one cell of this process, an external symbol of the kernels' machine
 # code (so the code numba caches holds no address). Until the interpreter is loaded, the cell
@@ -644,16 +621,9 @@ def interpreter_cached() -> bool:
     """Whether numba's on-disk cache holds the interpreter for this machine and this code (then
     loading it takes a fraction of a second). True when that cannot be told (numba's internals
     moved): the caller then does what it always did."""
-
-    def locate():
-        from numba.core.caching import FunctionCache
-        from numba.core.registry import cpu_target
-
-        return FunctionCache(_run_code_c), cpu_target.target_context.codegen()
-
     from surfgen.generator.row_table import rows_cached
 
-    return cached_on_disk(locate, "the interpreter") and rows_cached()
+    return c_function_cached(_run_code_c, "the interpreter") and rows_cached()
 
 
 def _first_call(*args, _load=load_interpreter) -> None:

@@ -117,3 +117,15 @@ def cached_on_disk(locate: Callable[[], tuple[Any, Any]], name: str) -> bool:
     except Exception:
         log.debug("cannot read numba's cache index of %s", name, exc_info=True)
         return True
+
+
+def c_function_cached(py_func: Callable, name: str) -> bool:
+    """:func:`cached_on_disk` for the C function numba's ``cfunc`` makes of ``py_func``."""
+
+    def locate():
+        from numba.core.caching import FunctionCache
+        from numba.core.registry import cpu_target
+
+        return FunctionCache(py_func), cpu_target.target_context.codegen()
+
+    return cached_on_disk(locate, name)

@@ -24,7 +24,7 @@ from surfgen.generator import interpreter as _i
 from surfgen.generator.elementary import explog as _el
 from surfgen.generator.elementary import roundtrip as _rt
 from surfgen.generator.elementary import trig as _tr
-from surfgen.generator.numba_cache import cached_on_disk
+from surfgen.generator.numba_cache import c_function_cached
 
 _OPTIONS = {"cache": True, "error_model": "numpy"}
 
@@ -119,17 +119,7 @@ def rows_loaded() -> bool:
 def rows_cached() -> bool:
     """Whether numba's on-disk cache holds every row for this machine and this code. True when
     that cannot be told (numba's internals moved)."""
-
-    def locator(function):
-        def locate():
-            from numba.core.caching import FunctionCache
-            from numba.core.registry import cpu_target
-
-            return FunctionCache(function), cpu_target.target_context.codegen()
-
-        return locate
-
-    return all(cached_on_disk(locator(f), f"the {name} row") for name, f in FUNCTIONS.items())
+    return all(c_function_cached(f, f"the {name} row") for name, f in FUNCTIONS.items())
 
 
 def rows_asm() -> str:
