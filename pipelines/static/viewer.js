@@ -20,47 +20,9 @@
 
   // ------------------------------------------------------------------ helpers
 
-  function h(tag, attrs, ...children) {
-    const el = document.createElement(tag);
-    for (const [k, v] of Object.entries(attrs || {})) {
-      if (v === null || v === undefined || v === false) continue;
-      if (k === "class") el.className = v;
-      else if (k === "text") el.textContent = v;
-      else if (k.startsWith("on")) el.addEventListener(k.slice(2), v);
-      else el.setAttribute(k, v === true ? "" : v);
-    }
-    for (const c of children) if (c !== null && c !== undefined) el.append(c);
-    return el;
-  }
-  function fmt(v, digits) {
-    if (v === null || v === undefined) return "–";
-    if (typeof v === "number") {
-      if (Number.isInteger(v)) return v.toLocaleString("en");
-      return Number(v.toPrecision(digits || 4)).toString();
-    }
-    if (Array.isArray(v)) return v.map((x) => fmt(x, 3)).join(", ");
-    if (typeof v === "object") return JSON.stringify(v);
-    return String(v);
-  }
-  let toastTimer = null;
-  function toast(text, bad) {
-    const t = $("toast");
-    t.textContent = text;
-    t.className = "toast" + (bad ? " bad" : "");
-    t.hidden = false;
-    clearTimeout(toastTimer);
-    toastTimer = setTimeout(() => { t.hidden = true; }, bad ? 6000 : 2200);
-  }
-  async function api(path, body) {
-    const init = body === undefined ? {} : {
-      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
-    };
-    const res = await fetch("../api/" + path, init);
-    let data = null;
-    try { data = await res.json(); } catch (e) { data = null; }
-    if (!res.ok) throw new Error((data && data.error) || res.status + " " + res.statusText);
-    return data;
-  }
+  const { h, fmt } = window.SURFGEN_UI;
+  const toast = window.SURFGEN_UI.toaster(2200, 6000);
+  const api = window.SURFGEN_UI.apiAt("../api/");
 
   // ------------------------------------------------------------------ the scene
 

@@ -290,6 +290,7 @@ def test_detail_pages(cat_dir, keys, capsys, tmp_path) -> None:
     capsys.readouterr()
     page = (out / "shapes" / f"{torus}.html").read_text()
     assert '<canvas id="viewer"' in page and "../static/viewer.js" in page
+    assert page.index("../static/common.js") < page.index("../static/viewer.js")
     mesh_js = (out / "shapes" / f"{torus}.glb.js").read_text()
     assert mesh_js.startswith(f'window.SURFGEN_MESH_LOADED("{torus}","')
     for name in ("three-viewer.min.js", "LICENSE", "VERSION"):

@@ -325,6 +325,7 @@ def test_static_gallery(cat_dir, keys, capsys, tmp_path) -> None:
     data = page_data((out / "index.html").read_text())
     assert data["readonly"] is True and len(data["shapes"]) == 2
     assert (out / "static" / "gallery.js").is_file() and (out / "static" / "gallery.css").is_file()
+    assert (out / "static" / "common.js").is_file()  # the helpers gallery.js and viewer.js share
     for s in data["shapes"]:
         assert (out / s["thumb"]).is_file() and (out / s["turntable"]).is_file()
         assert s["mesh"] is None
