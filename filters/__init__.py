@@ -1,4 +1,5 @@
 """surfgen.filters: mesh metrics, verdicts, cleanup, remeshing and de-duplication."""
 
-# numba's cache stamp before any jitted function of this package (surfgen/generator/numba_cache.py)
+# surfgen.generator puts numba's settings (the cache stamp among them) in place for when numba is
+# first imported, before any jitted function of this package (surfgen/generator/numba_setup.py)
 import surfgen.generator  # noqa: F401

@@ -11,7 +11,9 @@ bit of a field: the evaluator's arithmetic has no FMA and no reassociation.
 On a CPU with AVX-512, numba compiles with 512-bit vectors (:func:`wide_vector_features`):
 LLVM's tuning for Intel's AVX-512 Xeons prefers 256-bit ones, which would halve the width of
 every loop of the evaluator there while numpy's own SIMD maths runs on 512 bits. Set
-``NUMBA_CPU_FEATURES`` (or ``NUMBA_ENABLE_AVX=0``) to keep numba's own choice.
+``NUMBA_CPU_FEATURES`` (or ``NUMBA_ENABLE_AVX=0``) to keep numba's own choice. That and
+surfgen's other numba settings apply when numba is first imported (:mod:`.numba_setup`):
+importing surfgen does not import numba.
 """
 
 import os as _os
@@ -40,51 +42,10 @@ if "NUMBA_CACHE_DIR" not in _os.environ and not _os.access(
         )
 
 
-def wide_vector_features(environ, host_features: str) -> str | None:
-    """The ``NUMBA_CPU_FEATURES`` that let LLVM use 512-bit vectors on an AVX-512 CPU: the host's
-    features with LLVM's tuning flag ``prefer-256-bit`` turned off; ``None`` where there is
-    nothing to do (no AVX-512, or the user chose the features or turned AVX off).
+# numba's settings (512-bit vectors on AVX-512 CPUs, the cache stamp, four vectors per
+# iteration in the evaluator's loops) are applied when numba is first imported, before any of
+# surfgen's jitted functions is defined: importing surfgen imports no numba (numba_setup.py).
+from surfgen.generator.numba_setup import install as _install_numba_setup  # noqa: E402
+from surfgen.generator.numba_setup import wide_vector_features  # noqa: E402, F401
 
-    LLVM tunes ``skylake-avx512``, ``icelake-server``, ``sapphirerapids`` ... to prefer 256-bit
-    vectors (512-bit instructions once lowered those Xeons' clocks), AMD's Zen 4 and 5 not. On
-    the Zen 5, with Intel's code generation (``NUMBA_CPU_NAME=skylake-avx512``) and numpy's
-    dispatch cut to that Xeon's, the median fast / numpy ratio of ``benchmarks/bench_eval.py``
-    was 2.3-2.4x with 256-bit vectors and 3.0-3.6x with 512-bit ones. Vector width changes no
-    bit: every operation is elementwise, without FMA.
-    """
-    if "NUMBA_CPU_FEATURES" in environ or environ.get("NUMBA_ENABLE_AVX", "") == "0":
-        return None
-    if "+avx512f" not in host_features.split(","):
-        return None
-    return host_features + ",-prefer-256-bit"
-
-
-def _use_wide_vectors() -> None:
-    try:
-        from llvmlite import binding
-    except ImportError:  # pragma: no cover (numba requires llvmlite)
-        return
-    features = wide_vector_features(_os.environ, binding.get_host_cpu_features().flatten())
-    if features is None:
-        return
-    _os.environ["NUMBA_CPU_FEATURES"] = features  # read by numba at import, and by workers
-    import sys
-
-    config = sys.modules.get("numba.core.config")
-    if config is not None:  # numba came first: its config has read the environment already
-        config.CPU_FEATURES = features
-
-
-_use_wide_vectors()
-
-# Last: numba reads the settings above when it is imported. Before any jitted function of
-# surfgen is defined (numba picks a function's cache locator then): see numba_cache.py.
-from surfgen.generator.numba_cache import install_cache_stamp as _install_cache_stamp  # noqa: E402
-
-_install_cache_stamp()
-
-# Before any of surfgen's functions is compiled too: four vectors per iteration in the
-# evaluator's loops (vector_loops.py).
-from surfgen.generator.vector_loops import install as _install_interleave  # noqa: E402
-
-_install_interleave()
+_install_numba_setup()

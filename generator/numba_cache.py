@@ -12,8 +12,9 @@ surfgen source that holds numba code to the freshness stamp of every cached func
 (and, in a source checkout, of its tests and benchmarks).
 
 numba picks a function's locator when the function is decorated, so this must run before any of
-surfgen's jitted functions is defined: ``surfgen.generator``'s ``__init__`` installs it, and
-``surfgen.filters`` and ``surfgen.pipelines`` import that first. (It was once installed by the
+surfgen's jitted functions is defined: it runs when numba is first imported (``numba_setup.py``,
+put in place by ``surfgen.generator``'s ``__init__``, which ``surfgen.filters`` and
+``surfgen.pipelines`` import first). (It was once installed by the
 elementary functions' package: a process that imported the mesh or the filters before them gave
 their kernels the plain stamp, one that imported them after the surfgen stamp, and each found the
 other's cache index stale: every ``surfgen sample`` after a test run, or the other way round,

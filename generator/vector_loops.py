@@ -32,9 +32,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-from collections.abc import Iterator
-
-from numba.core import event
+from collections.abc import Callable, Iterator
 
 log = logging.getLogger(__name__)
 
@@ -82,10 +80,12 @@ def _set_interleave(count: int) -> None:
     binding.set_option("surfgen", f"-force-vector-interleave={count}")
 
 
-class _Listener(event.Listener):
+class _Listener:
     """numba's ``numba:compile`` events: the option is on from the start of the outermost
     compile of an evaluator function to its end (an error included). numba delivers them under
-    its global compiler lock, one compile at a time."""
+    its global compiler lock, one compile at a time. (Registered as a subclass of numba's
+    ``event.Listener`` made in :func:`install`: this module imports no numba, since it is part
+    of what runs when numba is imported, see numba_setup.py.)"""
 
     def __init__(self, setter=_set_interleave) -> None:
         self._set = setter
@@ -129,13 +129,25 @@ _INSTALLED: _Listener | None = None
 
 
 def install() -> None:
-    """Register the listener with numba (once per process; ``surfgen.generator`` does it on
-    import, before any of its functions can be compiled)."""
+    """Register the listener with numba (once per process; numba_setup.py does it when numba is
+    imported, before any of surfgen's functions can be defined)."""
     global _INSTALLED
     if _INSTALLED is not None or INTERLEAVE == 0:
         return
-    _INSTALLED = _Listener()
+    from numba.core import event
+
+    _INSTALLED = make_listener()
     event.register("numba:compile", _INSTALLED)
+
+
+def make_listener(setter: Callable[[int], None] = _set_interleave) -> _Listener:
+    """A :class:`_Listener` that numba accepts (a subclass of its ``event.Listener``)."""
+    from numba.core import event
+
+    class _NumbaListener(_Listener, event.Listener):
+        pass
+
+    return _NumbaListener(setter)
 
 
 @contextlib.contextmanager

@@ -516,7 +516,7 @@ _REGISTER: list[str] = [
     "surfgen.pipelines.curation",
     "surfgen.pipelines.gallery",
     "surfgen.pipelines.report",
-    "surfgen.pipelines.export",
+    "surfgen.pipelines.export_cli",
     "surfgen.pipelines.dataset",
     "surfgen.pipelines.catalogue_check",
     "surfgen.pipelines.sweep",

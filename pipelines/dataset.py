@@ -34,18 +34,20 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
 
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.files import renaming, write_atomic
-from surfgen.generator.mesh import Mesh, load_mesh
 from surfgen.generator.reference import evaluate_points
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, open_catalogue
 from surfgen.pipelines.curation import CatalogueOption, select_shapes
+
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh import Mesh
 
 log = logging.getLogger(__name__)
 
@@ -198,6 +200,8 @@ def mesh_bytes(mesh_file: Path, fmt: str) -> bytes:
         return mesh_file.read_bytes()
     import trimesh
 
+    from surfgen.generator.mesh import load_mesh
+
     mesh = load_mesh(mesh_file)
     return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(file_type="glb")
 
@@ -238,6 +242,8 @@ def _members(
     if rec["thumb"] and (root / rec["thumb"]).is_file():
         out["thumb"] = (f"{key}.png", (root / rec["thumb"]).read_bytes())
     if options.points or options.sdf:
+        from surfgen.generator.mesh import load_mesh
+
         mesh = load_mesh(mesh_file)
         if options.points:
             data = npy_bytes(surface_points(mesh, options.points, key))
@@ -762,6 +768,8 @@ def _verify_row(root: Path, row: dict[str, Any], runs: dict[int, Any]) -> list[s
             regenerated = mesh_bytes(out.mesh_file, fmt)
             if _sha(regenerated) != row["mesh_sha256"]:
                 problems.append(f"{key}: regenerated mesh differs from {row['mesh_file']}")
+            from surfgen.generator.mesh import load_mesh
+
             mesh = load_mesh(out.mesh_file)
             if "points" in files:
                 n = np.load(io.BytesIO(files["points"])).shape[0]

@@ -45,10 +45,10 @@ from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.expr import Expr, format_number, to_string, walk
 from surfgen.generator.files import renaming
 from surfgen.generator.grid import MIN_POINTS, Box, Grid
-from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh import Mesh
     from surfgen.pipelines.catalogue import Catalogue
 
 log = logging.getLogger(__name__)

@@ -22,11 +22,10 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import numpy as np
 import trimesh
-import typer
 
 from surfgen.filters.cleanup import (
     MAX_TARGET_FACES,
@@ -47,7 +46,6 @@ from surfgen.generator.limits import (
     check_memory,
     estimate_memory,
     json_depth_ok,
-    parse_size,
 )
 from surfgen.generator.mesh import (
     CAP,
@@ -61,7 +59,6 @@ from surfgen.generator.mesh import (
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.generator.walls import WALL_MODES, extract_labelled
 from surfgen.pipelines.catalogue import DEFAULT_CATALOGUE, now, open_catalogue
-from surfgen.pipelines.curation import CatalogueOption
 
 log = logging.getLogger(__name__)
 
@@ -413,7 +410,7 @@ def prepare_export(source: Source, options: ExportOptions) -> Prepared:
     cleanup = options.cleanup
     if options.size is not None and cleanup.target_edge is not None:
         # The target is in millimetres: convert with the scale the repaired mesh would get.
-        estimate = options.size / _longest_side(result.mesh)
+        estimate = options.size / longest_side(result.mesh)
         cleanup = replace(cleanup, target_edge=cleanup.target_edge / estimate)
     if cleanup.target_edge is not None:  # a tiny edge would ask for billions of faces
         area = float(face_areas(result.mesh).sum())
@@ -505,7 +502,7 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def _longest_side(mesh: Mesh) -> float:
+def longest_side(mesh: Mesh) -> float:
     extent = mesh.vertices.max(axis=0) - mesh.vertices.min(axis=0)
     return float(extent.max())
 
@@ -513,7 +510,7 @@ def _longest_side(mesh: Mesh) -> float:
 def _scale_to(mesh: Mesh, size: float) -> tuple[Mesh, StepReport]:
     """Multiply coordinates so that the longest bbox side is ``size`` (about the origin)."""
     start = time.perf_counter()
-    longest = _longest_side(mesh)
+    longest = longest_side(mesh)
     if longest <= 0:
         raise ExportError("cannot scale a flat mesh (its bounding box has no extent)")
     factor = size / longest
@@ -537,7 +534,7 @@ def _encode(
     name = p.source.name
     path = out_dir / f"{name}.{options.format}"
     sidecar = out_dir / f"{name}.json"
-    text = json.dumps(_sidecar(p, path, options, out_dir), indent=2, default=_jsonable) + "\n"
+    text = json.dumps(_sidecar(p, path, options, out_dir), indent=2, default=jsonable) + "\n"
     data = encode_3mf(p.mesh) if options.format == "3mf" else mesh_bytes(p.mesh, path)
     return [(path, data), (sidecar, text.encode())], ExportResult(p, path, sidecar)
 
@@ -603,130 +600,10 @@ def _command(source: Source, options: ExportOptions, out_dir: Path) -> str:
     return shlex.join(str(a) for a in args)
 
 
-def _jsonable(value: Any) -> Any:
+def jsonable(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return str(value)
 
 
 # --- the command --------------------------------------------------------------------------------
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen export`` to ``app``."""
-    app.command("export")(export_command)
-
-
-def export_command(
-    inputs: Annotated[
-        list[str],
-        typer.Argument(
-            metavar="KEY|PREFIX|FILE",
-            help="Catalogue keys or unique key prefixes, spec .json files or mesh files.",
-        ),
-    ],
-    output: Annotated[Path, typer.Option("-o", "--output", help="Output folder.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    fmt: Annotated[
-        str,
-        typer.Option("--format", help="stl, obj, ply, glb, 3mf; or mathmod, k3dsurf (scripts)."),
-    ] = "stl",
-    remesh: Annotated[
-        bool, typer.Option("--remesh", help="Isotropic remeshing (same face count by default).")
-    ] = False,
-    target_edge: Annotated[
-        float | None,
-        typer.Option(help="Remesh to this edge length (mm with --size, else box units)."),
-    ] = None,
-    target_faces: Annotated[
-        int | None, typer.Option(help="Remesh to about this many faces.")
-    ] = None,
-    smooth: Annotated[int, typer.Option(help="Taubin smoothing steps (volume kept).")] = 0,
-    min_component: Annotated[
-        float, typer.Option(help="Drop components below this fraction of the total area.")
-    ] = CleanupOptions.min_component,
-    size: Annotated[
-        float | None, typer.Option(help="Scale the longest bbox side to SIZE millimetres.")
-    ] = None,
-    regrid: Annotated[
-        int | None, typer.Option(help="Re-evaluate the formula on N^3 points first.")
-    ] = None,
-    force: Annotated[
-        bool, typer.Option("--force", help="Write STL/3MF even if not watertight and manifold.")
-    ] = False,
-    walls: Annotated[
-        str,
-        typer.Option(
-            help="keep (the solid), remove (only the zero set: open) or mark (label poles and "
-            "jumps; ply/glb)."
-        ),
-    ] = "keep",
-    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,
-    max_memory: Annotated[
-        str | None,
-        typer.Option(
-            "--max-memory",
-            help="Refuse work estimated to need more memory than this (e.g. 4G; "
-            "default: the machine's available memory).",
-        ),
-    ] = None,
-) -> None:
-    """Clean up (and optionally remesh and smooth) shapes and write print- or render-ready files."""
-    import sys
-
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    limit = parse_size(max_memory) if max_memory is not None else None
-    from surfgen.pipelines.mathmod import SCRIPT_FORMATS, export_scripts
-
-    if fmt.lower() in SCRIPT_FORMATS:  # the formula itself, for MathMod or K3DSurf
-        for path in export_scripts(inputs, output, fmt, catalogue):
-            typer.echo(f"wrote {path}")
-        return
-    cleanup = CleanupOptions(
-        min_component=min_component,
-        remesh=remesh,
-        target_edge=target_edge,
-        target_faces=target_faces,
-        smooth=smooth,
-    )
-    options = ExportOptions(
-        format=fmt, cleanup=cleanup, size=size, regrid=regrid, force=force, walls=walls
-    )
-    with Progress(
-        TextColumn("export"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[name]}"),
-        TimeElapsedColumn(),
-        disable=not sys.stderr.isatty(),
-        transient=True,
-    ) as bar:
-        task = bar.add_task("export", total=len(inputs), name="")
-        results = export_shapes(
-            inputs,
-            output,
-            options,
-            catalogue,
-            progress=lambda i, n, name: bar.update(task, completed=i, total=n, name=name),
-            max_memory=limit,
-        )
-    for r in results:
-        for w in r.prepared.warnings:
-            typer.echo(f"warning: {w}", err=True)
-    if as_json:
-        typer.echo(json.dumps([r.summary() for r in results], indent=2, default=_jsonable))
-        return
-    for r in results:
-        p, a = r.prepared, r.prepared.after
-        state = "watertight" if a.watertight else f"open ({a.boundary_edges} boundary edges)"
-        genus = "" if a.genus is None else f", genus {a.genus}"
-        typer.echo(
-            f"{p.source.name}: {p.before.faces} -> {a.faces} faces, {state}{genus}, "
-            f"longest side {_longest_side(p.mesh):.6g}{' mm' if options.format in PRINTABLE else ''}, "
-            f"{p.seconds:.2f} s -> {r.file}"
-        )
-        for step in p.cleanup.steps:
-            typer.echo(f"  {step.describe()}")
-        for problem in p.problems:
-            typer.echo(f"  forced despite: {problem}")

@@ -9,7 +9,7 @@ import re
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
@@ -18,8 +18,10 @@ from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.files import write_all_atomic
 from surfgen.generator.mathmod import Model, load_model, read_script, to_script
-from surfgen.generator.mesh import MESH_SUFFIXES, Mesh, extract_mesh, mesh_bytes
 from surfgen.generator.spec import SurfaceSpec
+
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh import Mesh
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +57,7 @@ def render_model(
 ) -> dict[str, Any]:
     """Evaluate each component (or the chosen one) in its own box, mesh them into one mesh,
     write what is asked; returns the JSON summary ``render --json`` prints."""
+    from surfgen.generator.mesh import MESH_SUFFIXES, extract_mesh, mesh_bytes
     from surfgen.pipelines.render import build_spec, check_output_path
 
     if mesh_path is not None:
@@ -118,6 +121,8 @@ def render_model(
 
 def merge_meshes(parts: Sequence[Mesh]) -> Mesh:
     """One mesh holding every part (vertices are not merged: parts stay separate components)."""
+    from surfgen.generator.mesh import Mesh
+
     offsets = np.cumsum([0] + [p.n_vertices for p in parts[:-1]])
     vertices = np.concatenate([p.vertices for p in parts])
     faces = np.concatenate([p.faces + o for p, o in zip(parts, offsets, strict=True)])

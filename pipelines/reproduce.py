@@ -41,21 +41,21 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
 
-from surfgen.filters.compare import hausdorff, inside_iou
-from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.evaluate import evaluate
 from surfgen.generator.files import staged_into, write_all_atomic
 from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, save_mesh
 from surfgen.generator.presets import eq_a_formula, get_preset
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.warmup import compile_first
+
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh import Mesh
 
 log = logging.getLogger(__name__)
 
@@ -299,6 +299,7 @@ def _render_panel(folder: Path, name: str, grid_scale: float) -> Shape:
 
 
 def _draw_shape(folder: Path, name: str, spec: SurfaceSpec, field_: Field) -> Shape:
+    from surfgen.generator.mesh import extract_mesh, save_mesh
     from surfgen.pipelines.pictures import render_image, write_png
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -320,6 +321,8 @@ def _draw_shape(folder: Path, name: str, spec: SurfaceSpec, field_: Field) -> Sh
 
 
 def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, Any]:
+    from surfgen.filters.compare import hausdorff, inside_iou
+
     fine = min(FINE_GRID_MAX, scaled_grid(2 * max(*a.spec.grid, *b.spec.grid), grid_scale))
     iou = inside_iou(a.field, b.field, fine, a.spec.level)
     diag = _diagonal(a.field.grid.box, b.field.grid.box)
@@ -366,6 +369,8 @@ def relative_change(a: SurfaceSpec, b: SurfaceSpec) -> float:
 def _floor_iou(shape: Shape, fine: int) -> float:
     """IoU of ``shape`` with itself sampled on its grid shifted by half a cell: what sampling
     alone changes (near 1 for a smooth shape; low where the paper's poles and jumps rule)."""
+    from surfgen.filters.compare import inside_iou
+
     grid = shape.field.grid
     half = [0.5 * s for s in grid.spacing]
     box = Box(
@@ -445,6 +450,8 @@ def _faces(mesh: Mesh | None) -> int:
 
 
 def _mesh_summary(mesh: Mesh | None) -> dict[str, Any]:
+    from surfgen.filters.metrics import measure_mesh
+
     if mesh is None or mesh.n_faces == 0:
         return {"faces": 0, "components": 0, "genus": None}
     m = measure_mesh(mesh)

@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
@@ -34,10 +34,12 @@ import typer
 from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh
 from surfgen.generator.spec import SurfaceSpec
 from surfgen.pipelines.explore import apply_changes, mesh_stats
 from surfgen.pipelines.warmup import compile_first
+
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh import Mesh
 
 log = logging.getLogger(__name__)
 

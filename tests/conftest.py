@@ -217,3 +217,34 @@ def pytest_sessionfinish(session, exitstatus) -> None:
             str(session.config.rootpath)
         ):
             stop()
+
+
+# --- what a command loads ----------------------------------------------------------------------
+
+# What the commands that compute nothing must not load: numba and llvmlite (and scipy with
+# them), trimesh (with scipy and networkx), pymeshlab, scikit-image: about 1.5 s before `--help`
+# printed anything until numba_setup.py and the lazy imports (README, "Performance").
+HEAVY_MODULES = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
+
+_LOADED = """
+import json, sys
+from surfgen.pipelines.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)), file=sys.stderr)
+"""
+
+
+def heavy_modules_loaded(*args: str) -> list[str]:
+    """The :data:`HEAVY_MODULES` that ``surfgen ARGS`` loaded, run in a fresh process."""
+    import json
+    import subprocess
+    import sys
+
+    code = _LOADED.format(heavy=HEAVY_MODULES)
+    done = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120
+    )
+    return json.loads(done.stderr.strip().splitlines()[-1])

@@ -22,13 +22,11 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import importlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from types import ModuleType
 
 import numpy as np
-
-from surfgen.generator.elementary import explog, trig
 
 # ----------------------------------------------------------------------------- the registry
 
@@ -36,11 +34,13 @@ UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "a
 UNARY += ("acosh", "atanh", "exp", "log", "log10", "cbrt")
 BINARY = ("atan2", "pow")
 
-# Which module implements which function (API of LIBM.md).
-_PROVIDER: dict[str, ModuleType] = {
-    **{name: trig for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2")},
-    **{name: explog for name in ("exp", "log", "log10", "pow", "sinh", "cosh", "tanh")},
-    **{name: explog for name in ("asinh", "acosh", "atanh", "cbrt")},
+# Which module implements which function (API of LIBM.md). They are numba modules: imported
+# when a function is first needed (REGISTRY, call, power, round_trip), so that importing the
+# formula language (parser, spec, catalogue) costs no numba.
+_PROVIDER: dict[str, str] = {
+    **{name: "trig" for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2")},
+    **{name: "explog" for name in ("exp", "log", "log10", "pow", "sinh", "cosh", "tanh")},
+    **{name: "explog" for name in ("asinh", "acosh", "atanh", "cbrt")},
 }
 
 UFUNCS: dict[str, Callable[..., np.ndarray]] = {
@@ -82,7 +82,7 @@ class Elementary:
 
 
 def _entry(name: str) -> Elementary:
-    m = _PROVIDER[name]
+    m = importlib.import_module(f"{__name__}.{_PROVIDER[name]}")
     common = {
         "name": name,
         "scalar": getattr(m, f"{name}_scalar"),
@@ -101,7 +101,27 @@ def _entry(name: str) -> Elementary:
     return Elementary(arity=1, row=getattr(m, f"{name}_row"), **common)
 
 
-REGISTRY: dict[str, Elementary] = {name: _entry(name) for name in UNARY + BINARY}
+_REGISTRY: dict[str, Elementary] = {}
+
+
+def _registry() -> dict[str, Elementary]:
+    """:data:`REGISTRY`, built (and the numba modules imported) on first use."""
+    if not _REGISTRY:
+        _REGISTRY.update({name: _entry(name) for name in UNARY + BINARY})
+    return _REGISTRY
+
+
+def __getattr__(name: str):
+    # REGISTRY (every function's entry) and ROUND_TRIPS (the names of the closed-form round
+    # trips) live in the numba modules: they are loaded on first use (PEP 562).
+    if name == "REGISTRY":
+        return _registry()
+    if name == "ROUND_TRIPS":
+        from surfgen.generator.elementary import roundtrip
+
+        return roundtrip.ROUND_TRIPS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 # ----------------------------------------------------------------------------- numpy-level API
 
@@ -129,7 +149,7 @@ def call(name: str, *args) -> np.ndarray:
     """``name(*args)`` on arrays (float64, broadcasting) with surfgen's function."""
     if _BACKEND.get() == "numpy":
         return UFUNCS[name](*args)
-    return REGISTRY[name].array(*(np.asarray(a, np.float64) for a in args))
+    return _registry()[name].array(*(np.asarray(a, np.float64) for a in args))
 
 
 # ``x^c`` convention (numpy's fast path of np.power, kept as a rule applied per element by both
@@ -161,8 +181,8 @@ def power(u, e) -> np.ndarray:
     with np.errstate(all="ignore"):
         if e.ndim == 0:
             short = _pow_shortcut(u, float(e))
-            return short if short is not None else REGISTRY["pow"].array(u, e)
-        out = REGISTRY["pow"].array(u, e)
+            return short if short is not None else _registry()["pow"].array(u, e)
+        out = _registry()["pow"].array(u, e)
         out = np.where(e == 2.0, u * u, out)
         out = np.where(e == 0.5, np.sqrt(u), out)
         out = np.where(e == -1.0, 1.0 / u, out)
@@ -170,13 +190,10 @@ def power(u, e) -> np.ndarray:
         return np.where(e == 0.0, 1.0, out)
 
 
-from surfgen.generator.elementary import roundtrip  # noqa: E402
-
-ROUND_TRIPS = roundtrip.ROUND_TRIPS
-
-
 def round_trip(name: str, u) -> np.ndarray:
     """A closed-form round trip (``"atantan"`` = ``atan(tan(u))``, ...; see :mod:`.roundtrip`)."""
+    from surfgen.generator.elementary import roundtrip
+
     if _BACKEND.get() == "numpy":
         return roundtrip.direct_array(name, np.asarray(u, np.float64), UFUNCS)
     return roundtrip.ARRAYS[name](np.asarray(u, np.float64))

@@ -16,7 +16,7 @@ import pytest
 from numba import njit
 
 from surfgen.generator import numba_cache, vector_loops
-from surfgen.generator.vector_loops import _Listener, evaluator_function, interleave_from
+from surfgen.generator.vector_loops import evaluator_function, interleave_from, make_listener
 
 
 def _event(module: str | None):
@@ -49,7 +49,7 @@ def test_which_functions_are_the_evaluators():
 
 def test_the_option_is_on_from_the_outermost_evaluator_compile_to_its_end():
     calls: list[int] = []
-    listener = _Listener(setter=calls.append)
+    listener = make_listener(setter=calls.append)
     ours, other = _event("surfgen.generator.interpreter"), _event("surfgen.generator.mesh")
 
     listener.on_start(other)  # another kernel: LLVM's choice
@@ -84,7 +84,7 @@ def test_a_failed_compile_resets_the_option():
     from numba.core.errors import TypingError
 
     calls: list[int] = []
-    listener = _Listener(setter=calls.append)
+    listener = make_listener(setter=calls.append)
 
     def bad(x):
         return x.no_such_attribute
@@ -164,7 +164,7 @@ def test_an_evaluator_loop_runs_four_vectors_per_iteration_and_others_keep_llvms
 
 def test_zero_leaves_the_choice_to_llvm():
     code = (
-        "from surfgen.generator import vector_loops as v; import json;"
+        "from surfgen.generator import vector_loops as v; import json; import numba;"
         "print(json.dumps([v.INTERLEAVE, v._INSTALLED is None]))"
     )
     done = subprocess.run(
@@ -179,7 +179,7 @@ def test_zero_leaves_the_choice_to_llvm():
 
 def test_a_held_compile_keeps_the_option_through_nested_compiles_and_errors():
     calls: list[int] = []
-    listener = _Listener(setter=calls.append)
+    listener = make_listener(setter=calls.append)
     row = _event("surfgen.generator.elementary.trig")
     with listener.held():  # a row's C function: numba sends no event for it
         listener.on_start(row)  # ... a helper it calls, compiled on the way

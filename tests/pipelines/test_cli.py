@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CHECK_KEYS
+from conftest import CHECK_KEYS, heavy_modules_loaded
 
 from surfgen.generator.presets import PRESETS
 from surfgen.generator.reference import evaluate_reference
@@ -305,3 +305,11 @@ def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
         del half
     assert "half-built" not in capsys.readouterr().err
     assert "after the interrupt" in caplog.text and "half-built" in caplog.text
+
+
+def test_commands_that_compute_nothing_load_no_kernel_library(tmp_path: Path) -> None:
+    # (the catalogue commands: tests/pipelines/test_curation.py)
+    for args in (("--help",), ("export", "--help"), ("sample", "--help"), ("presets",)):
+        assert heavy_modules_loaded(*args) == [], args
+    # and the check can fail: a command that reads a mesh loads them
+    assert "trimesh" in heavy_modules_loaded("check", str(tmp_path / "none.ply"))

@@ -327,3 +327,19 @@ def test_cli_dedupe(cat_dir, keys, capsys) -> None:
     assert rc == 0 and f"{keys['sphere_fine']} duplicates {keys['sphere']}" in out
     rc, out, _ = run_cli(capsys, "catalogue", "list", "-C", str(cat_dir), "--where", "duplicate")
     assert keys["sphere_moved"] in out and f"dup:{keys['sphere'][:8]}" in out
+
+
+def test_catalogue_commands_load_no_kernel_library(cat_dir: Path, keys) -> None:
+    from conftest import heavy_modules_loaded
+
+    root, key = str(cat_dir), next(iter(keys.values()))
+    for args in (
+        ("catalogue", "list", "-C", root),
+        ("catalogue", "show", "-C", root, "--json", key),
+        ("catalogue", "tag", "-C", root, key, "light"),
+        ("catalogue", "star", "-C", root, key, "3"),
+    ):
+        assert heavy_modules_loaded(*args) == [], args
+    with open_catalogue(cat_dir, readonly=True) as cat:  # and they did their work
+        row = cat.shape(key)
+    assert row["stars"] == 3 and "light" in row["tags"]

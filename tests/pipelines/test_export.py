@@ -227,3 +227,11 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys, args, message):
     assert export(spec_file, *args, "-o", tmp_path / "out") == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
+
+
+def test_the_commands_default_is_the_cleanups() -> None:
+    # export_cli states min_component's default without importing the cleanup (pymeshlab)
+    from surfgen.filters.cleanup import CleanupOptions
+    from surfgen.pipelines.export_cli import MIN_COMPONENT
+
+    assert CleanupOptions().min_component == MIN_COMPONENT

@@ -1,0 +1,108 @@
+"""How long the commands that compute nothing take, against a baseline revision: ``--help``,
+``presets``, ``catalogue list``, ``catalogue show``, ``catalogue star``, each a fresh process.
+
+    python benchmarks/bench_cli_start.py --baseline REV [--runs 10]
+
+Both trees run the same commands on the same small catalogue (made first by this tree's
+``surfgen sample``), taking turns in ABBA order; each command is run once untimed per tree first,
+so that both have their bytecode cached (``PYTHONDONTWRITEBYTECODE`` is unset for the children,
+as on a user's machine). Prints the median wall time of each command for both trees and the
+ratio baseline / this tree (above 1: this tree starts faster), and which of the kernel libraries
+(numba, trimesh, pymeshlab, scipy, ...) each tree's process loaded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+from bench_sample_grids import export_revision  # noqa: E402
+
+HEAVY = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
+
+_CLI = """
+import json, sys
+from surfgen.pipelines.cli import main
+code = main(sys.argv[1:])
+print(json.dumps(sorted(m for m in %r if m in sys.modules)), file=sys.stderr)
+sys.exit(code)
+""" % (HEAVY,)
+
+
+def _env(path: Path | None) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    if path is not None:  # the baseline's packages shadow the installed ones
+        env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def run_cli(path: Path | None, args: list[str]) -> tuple[float, list[str]]:
+    """Wall time of ``surfgen ARGS`` in a fresh process, and the kernel libraries it loaded."""
+    t0 = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-c", _CLI, *args], env=_env(path), capture_output=True, text=True
+    )
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise SystemExit(f"surfgen {' '.join(args)} failed:\n{done.stderr}")
+    return seconds, json.loads(done.stderr.strip().splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--baseline", required=True, help="git revision to compare with")
+    ap.add_argument("--runs", type=int, default=10, help="timed runs per command and tree")
+    args = ap.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="bench-cli-start-") as tmp:
+        trees = {"baseline": export_revision(args.baseline, Path(tmp) / "base"), "now": None}
+        cat = Path(tmp) / "cat"
+        run_cli(None, ["sample", "--n", "3", "--seed", "1", "--grid", "24", "--out", str(cat)])
+        key = run_cli_output(["catalogue", "list", "-C", str(cat), "--json"])[0]["key"]
+        commands = {
+            "--help": ["--help"],
+            "presets": ["presets"],
+            "catalogue list": ["catalogue", "list", "-C", str(cat)],
+            "catalogue show": ["catalogue", "show", "-C", str(cat), key],
+            "catalogue star": ["catalogue", "star", "-C", str(cat), key, "4"],
+        }
+        print(
+            f"baseline {args.baseline} against this tree, {args.runs} runs each (ABBA); "
+            f"load average {os.getloadavg()[0]:.2f}"
+        )
+        print(f"{'command':<16} {'baseline':>9} {'now':>9} {'ratio':>7}  loaded (baseline | now)")
+        for name, cli_args in commands.items():
+            loaded = {tree: run_cli(path, cli_args)[1] for tree, path in trees.items()}
+            times: dict[str, list[float]] = {tree: [] for tree in trees}
+            for i in range(args.runs):
+                order = list(trees) if i % 4 in (0, 3) else list(reversed(trees))
+                for tree in order:
+                    times[tree].append(run_cli(trees[tree], cli_args)[0])
+            base, now = (statistics.median(times[t]) for t in ("baseline", "now"))
+            print(
+                f"{name:<16} {base:>8.3f}s {now:>8.3f}s {base / now:>6.2f}x  "
+                f"{','.join(loaded['baseline']) or '-'} | {','.join(loaded['now']) or '-'}"
+            )
+    return 0
+
+
+def run_cli_output(args: list[str]) -> object:
+    """The JSON that this tree's ``surfgen ARGS`` prints."""
+    done = subprocess.run(
+        [sys.executable, "-c", _CLI, *args], env=_env(None), capture_output=True, text=True
+    )
+    return json.loads(done.stdout)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
