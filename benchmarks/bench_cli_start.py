@@ -1,5 +1,6 @@
 """How long the commands that compute nothing take, against a baseline revision: ``--help``,
-``presets``, ``catalogue list``, ``catalogue show``, ``catalogue star``, each a fresh process.
+``presets``, ``config show``, ``catalogue list``, ``catalogue show``, ``catalogue star``, each a
+fresh process.
 
     python benchmarks/bench_cli_start.py --baseline REV [--runs 10]
 
@@ -72,6 +73,7 @@ def main() -> int:
         commands = {
             "--help": ["--help"],
             "presets": ["presets"],
+            "config show": ["config", "show"],
             "catalogue list": ["catalogue", "list", "-C", str(cat)],
             "catalogue show": ["catalogue", "show", "-C", str(cat), key],
             "catalogue star": ["catalogue", "star", "-C", str(cat), key, "4"],

@@ -13,15 +13,16 @@ import tomllib
 from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from surfgen.filters.verdict import FilterConfig
 from surfgen.generator.errors import SpecError
 from surfgen.generator.grid import MAX_POINTS, MIN_POINTS
 from surfgen.generator.limits import MAX_CONFIG_FILE_BYTES, MAX_JSON_DEPTH, json_depth_ok
 from surfgen.generator.sampler import SAMPLER_VERSION, SamplerConfig
 from surfgen.generator.settings import settings_from_mapping
-from surfgen.generator.walls import WALL_MODES
+
+if TYPE_CHECKING:  # numba modules, loaded when a config is built (`config show` needs neither)
+    from surfgen.filters.verdict import FilterConfig
 
 MAX_TIMEOUT = 86_400.0  # a day per shape: more is a typo
 
@@ -39,6 +40,8 @@ class RunSettings:
     walls: str = "keep"
 
     def __post_init__(self) -> None:
+        from surfgen.generator.walls import WALL_MODES
+
         if self.walls not in WALL_MODES:
             raise SpecError(
                 f"config [run]: walls must be one of {', '.join(WALL_MODES)}, got {self.walls!r}"
@@ -158,6 +161,8 @@ def load_config(path: Path | None = None) -> Config:
 def config_from_dict(data: dict[str, Any]) -> Config:
     """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``). Raises
     :class:`SpecError`."""
+    from surfgen.filters.verdict import FilterConfig
+
     run = settings_from_mapping(RunSettings, data["run"], "run")
     return Config(
         run, SamplerConfig.from_mapping(data["sampler"]), FilterConfig.from_mapping(data["filters"])

@@ -309,7 +309,8 @@ def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
 
 def test_commands_that_compute_nothing_load_no_kernel_library(tmp_path: Path) -> None:
     # (the catalogue commands: tests/pipelines/test_curation.py)
-    for args in (("--help",), ("export", "--help"), ("sample", "--help"), ("presets",)):
+    commands = [("--help",), ("export", "--help"), ("sample", "--help"), ("presets",)]
+    for args in [*commands, ("config", "show")]:
         assert heavy_modules_loaded(*args) == [], args
     # and the check can fail: a command that reads a mesh loads them
     assert "trimesh" in heavy_modules_loaded("check", str(tmp_path / "none.ply"))
