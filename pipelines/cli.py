@@ -27,6 +27,49 @@ app = typer.Typer(
     rich_markup_mode=None,
     help="Generate, filter, catalogue and export 3D surfaces from random implicit functions.",
 )
+# The libraries whose versions `surfgen --version` prints (a bug report wants them): read from
+# the installed packages' metadata, without importing them.
+VERSIONED = ("numpy", "numba", "llvmlite", "scikit-image", "trimesh", "pymeshlab", "scipy", "typer")
+
+
+def version_text() -> str:
+    """``surfgen 0.1.0`` and, on a second line, Python's and the libraries' versions."""
+    import platform
+    from importlib import metadata
+
+    from surfgen.generator import __version__
+
+    def installed(name: str) -> str:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    libraries = ", ".join(f"{name} {installed(name)}" for name in VERSIONED)
+    return f"surfgen {__version__}\npython {platform.python_version()}, {libraries}"
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(version_text())
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_print_version,
+            is_eager=True,
+            help="Print surfgen's version and its libraries', then exit.",
+        ),
+    ] = False,
+) -> None:
+    """Generate, filter, catalogue and export 3D surfaces from random implicit functions."""
+
+
 plot_app = typer.Typer(no_args_is_help=True, help="Plots of the paper's figures.")
 app.add_typer(plot_app, name="plot")
 config_app = typer.Typer(no_args_is_help=True, help="The sampling configuration.")

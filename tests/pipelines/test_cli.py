@@ -258,6 +258,23 @@ def test_help_and_unknown_commands(capsys) -> None:
     assert len(err) == 1 and "No such command 'nonsense'" in err[0] and "sample" in err[0]
 
 
+def test_version_names_surfgen_python_and_the_libraries(capsys) -> None:
+    import platform
+    from importlib import metadata
+
+    from surfgen.generator import __version__
+
+    assert main(["--version"]) == 0
+    first, second = capsys.readouterr().out.strip().splitlines()
+    assert first == f"surfgen {__version__}" == f"surfgen {metadata.version('surfgen')}"
+    assert second.startswith(f"python {platform.python_version()}, numpy {np.__version__}, ")
+    import numba
+    import trimesh
+
+    assert f"numba {numba.__version__}" in second and f"trimesh {trimesh.__version__}" in second
+    assert main(["--version", "nonsense"]) == 0  # eager: it answers before anything else
+
+
 # A Ctrl-C can land inside a constructor (one of llvmlite's while numba loads a kernel, say):
 # the half-built object's destructor fails when it is collected, after the one-line message.
 _INTERRUPTED_SAMPLE = """
@@ -309,7 +326,8 @@ def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
 
 def test_commands_that_compute_nothing_load_no_kernel_library(tmp_path: Path) -> None:
     # (the catalogue commands: tests/pipelines/test_curation.py)
-    commands = [("--help",), ("export", "--help"), ("sample", "--help"), ("presets",)]
+    commands = [("--help",), ("--version",), ("export", "--help"), ("sample", "--help")]
+    commands += [("presets",)]
     for args in [*commands, ("config", "show")]:
         assert heavy_modules_loaded(*args) == [], args
     # and the check can fail: a command that reads a mesh loads them
