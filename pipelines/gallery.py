@@ -180,24 +180,27 @@ def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | No
         return target
 
 
-def _thumbnail(cat: Catalogue, key: str, mesh: Any) -> Path:
-    """Draw the thumbnail of ``key`` and record it: the file and its row as one (a row that
-    cannot be written, e.g. on a full disk, takes the new file back)."""
-    from surfgen.pipelines.pictures import THUMBNAIL_SIZE, png_bytes, render_image
+_PICTURE_COLUMNS = {"thumb": "thumb_path", "turntable": "turntable_path"}
 
-    thumb = cat.thumbs / f"{key}.png"
-    staged = stage(thumb, png_bytes(render_image(mesh, size=THUMBNAIL_SIZE)))
+
+def _record_picture(cat: Catalogue, key: str, kind: str, data: bytes) -> Path:
+    """Write the ``kind`` picture of ``key`` (``thumbs/KEY.png`` or ``turntables/KEY.png``) and
+    record it: the file and its row as one (a row that cannot be written, e.g. on a full disk,
+    takes the new file back)."""
+    folder = cat.thumbs if kind == "thumb" else cat.turntables
+    target = folder / f"{key}.png"
+    staged = stage(target, data)
     try:
         with renaming() as tx:
-            tx.move(staged, thumb)
+            tx.move(staged, target)
             with cat.conn:
                 cat.conn.execute(
-                    "UPDATE shapes SET thumb_path=? WHERE key=?",
-                    (str(thumb.relative_to(cat.root)), key),
+                    f"UPDATE shapes SET {_PICTURE_COLUMNS[kind]}=? WHERE key=?",
+                    (str(target.relative_to(cat.root)), key),
                 )
     finally:
         staged.unlink(missing_ok=True)
-    return thumb
+    return target
 
 
 def render_pictures(
@@ -206,43 +209,49 @@ def render_pictures(
     where: str | None = None,
     progress: Callable[[int, int], None] | None = None,
     turntables: bool = True,
+    workers: int | None = None,
 ) -> PictureResult:
     """Render the missing thumbnails (256², ``thumbs/KEY.png``) and, with ``turntables``, the
     missing 12-view turntables (``turntables/KEY.png``) of the accepted shapes (all of them
-    with ``force``) from their meshes, and record their paths. Shapes whose mesh cannot be
+    with ``force``) from their meshes, on ``workers`` processes (default: one per core,
+    :mod:`surfgen.pipelines.picture_pool`), and record their paths. Shapes whose mesh cannot be
     read are listed in ``failed``, the others still rendered. Raises :class:`WhereError` for a
     bad ``where``."""
-    from surfgen.generator.mesh import load_mesh
+    from surfgen.pipelines.picture_pool import Job, draw_all
 
     cat.make_dirs()
     shapes = select_shapes(cat, where=where)
-    rendered = skipped = 0
     failed: list[tuple[str, str]] = []
 
     def have(rel: str | None) -> bool:
         return bool(rel) and (cat.root / rel).is_file() and not force  # type: ignore[operator]
 
-    for i, s in enumerate(shapes):
-        key = s["key"]
-        need_thumb = not have(s["thumb"])
-        need_turn = turntables and not have(s["turntable"])
-        if not need_thumb and not need_turn:
-            skipped += 1
-        elif not s["mesh"]:
-            failed.append((key, "no mesh recorded"))
-        else:
-            try:
-                if need_thumb:
-                    _thumbnail(cat, key, load_mesh(cat.root / s["mesh"]))
-                if need_turn:
-                    ensure_turntable(cat, key, force=force)
-            except SurfgenError as exc:
-                log.warning("shape %s: no pictures (%s)", key, exc)
-                failed.append((key, str(exc)))
-            else:
-                rendered += 1
+    jobs = []
+    for s in shapes:
+        kinds = ("thumb",) * (not have(s["thumb"]))
+        kinds += ("turntable",) * (turntables and not have(s["turntable"]))
+        if kinds and not s["mesh"]:
+            failed.append((s["key"], "no mesh recorded"))
+        elif kinds:
+            jobs.append(Job(s["key"], str(cat.root / s["mesh"]), kinds))
+    skipped = len(shapes) - len(jobs) - len(failed)
+    before = len(shapes) - len(jobs)
+
+    def advance(done: int, total: int) -> None:
         if progress is not None:
-            progress(i + 1, len(shapes))
+            progress(before + done, len(shapes))
+
+    if progress is not None and not jobs:
+        progress(len(shapes), len(shapes))
+    rendered = 0
+    for drawn in draw_all(jobs, workers, advance):
+        if drawn.error is not None:
+            log.warning("shape %s: no pictures (%s)", drawn.job.key, drawn.error)
+            failed.append((drawn.job.key, drawn.error))
+            continue
+        for kind, data in drawn.pictures.items():
+            _record_picture(cat, drawn.job.key, kind, data)
+        rendered += 1
     return PictureResult(rendered, skipped, failed)
 
 
@@ -341,12 +350,18 @@ def _static_dir() -> Path:
 
 
 def export_gallery(
-    root: Path, out: Path, where: str | None = None, meshes: bool = False
+    root: Path,
+    out: Path,
+    where: str | None = None,
+    meshes: bool = False,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[Path, int]:
     """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
     ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
-    Turntables not rendered yet are rendered first (and cached in the catalogue, if this user
-    may write it). The catalogue is read through a read-only connection. Everything is written
+    Turntables not rendered yet are rendered first, on ``workers`` processes (default: one per
+    core; ``progress(done, total)`` after each), and cached in the catalogue if this user may
+    write it. The catalogue is read through a read-only connection. Everything is written
     into a temporary folder beside ``out`` that replaces ``out`` at the end: an earlier gallery
     there is kept if anything fails; a folder with other files in it is refused.
 
@@ -378,15 +393,18 @@ def export_gallery(
         )
         fresh = missing
     elif missing:
+        from surfgen.pipelines.picture_pool import Job, draw_all
+
         with open_catalogue(root, must_exist=True) as cat:
             cat.make_dirs()
-            for s in missing:
-                try:
-                    made = ensure_turntable(cat, s["key"])
-                except SurfgenError as exc:
-                    log.warning("shape %s: no turntable (%s)", s["key"], exc)
+            by_key = {s["key"]: s for s in missing}
+            jobs = [Job(s["key"], str(cat.root / s["mesh"]), ("turntable",)) for s in missing]
+            for drawn in draw_all(jobs, workers, progress):
+                if drawn.error is not None:
+                    log.warning("shape %s: no turntable (%s)", drawn.job.key, drawn.error)
                     continue
-                s["turntable"] = str(made.relative_to(cat.root)) if made else None
+                made = _record_picture(cat, drawn.job.key, "turntable", drawn.pictures["turntable"])
+                by_key[drawn.job.key]["turntable"] = str(made.relative_to(cat.root))
     existed = out.exists()
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -654,12 +672,26 @@ def server_url(server: BaseWSGIServer) -> str:
 # ----------------------------------------------------------------------------- CLI
 
 
+WorkersOption = Annotated[
+    int | None,
+    typer.Option(help="Processes drawing the missing pictures (default: all cores)."),
+]
+
+
+def check_workers(workers: int | None) -> int | None:
+    """``--workers``: 1 to 256, as for ``sample``. Raises :class:`LimitError`."""
+    from surfgen.generator.limits import check_count
+
+    return None if workers is None else check_count(workers, "--workers", 1, 256)
+
+
 def thumbnails_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
     force: Annotated[bool, typer.Option(help="Render again even where pictures exist.")] = False,
     where: Annotated[
         str | None, typer.Option(help="Only these shapes (see `catalogue list`).")
     ] = None,
+    workers: WorkersOption = None,
 ) -> None:
     """Render missing thumbnails and turntables of the accepted shapes."""
     import sys
@@ -681,6 +713,7 @@ def thumbnails_cmd(
             force=force,
             where=where,
             progress=lambda i, n: bar.update(task, completed=i, total=n),
+            workers=check_workers(workers),
         )
     for key, why in res.failed:
         typer.echo(f"{key}: {why}", err=True)
@@ -740,9 +773,30 @@ def gallery_cmd(
         str | None, typer.Option(help="Only these shapes (see `catalogue list`).")
     ] = None,
     meshes: Annotated[bool, typer.Option(help="Copy the meshes too, for download.")] = False,
+    workers: WorkersOption = None,
 ) -> None:
     """Write the gallery as static, read-only files to publish or share."""
-    index, n = export_gallery(catalogue, output, where=where, meshes=meshes)
+    import sys
+
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = (TextColumn("turntables"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, disable=not sys.stderr.isatty(), transient=True) as bar:
+        task = bar.add_task("turntables", total=None)
+        index, n = export_gallery(
+            catalogue,
+            output,
+            where=where,
+            meshes=meshes,
+            workers=check_workers(workers),
+            progress=lambda i, total: bar.update(task, completed=i, total=total),
+        )
     typer.echo(f"wrote {index} ({n} shapes); open it in a browser")
 
 

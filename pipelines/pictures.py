@@ -837,6 +837,14 @@ def render_turntable(
     shape by stepping CSS ``background-position``. Raises :class:`MeshError` as
     :func:`render_image`.
     """
+    return write_png(turntable_image(mesh, views, size, azimuth, elevation), path)
+
+
+def turntable_image(
+    mesh: Mesh, views: int = 12, size: int = 256, azimuth: float = 30.0, elevation: float = 25.0
+) -> np.ndarray:
+    """The sprite strip of :func:`render_turntable`, in memory: uint8 ``(size, views * size,
+    3)`` on the pictures' background. Raises as :func:`render_turntable`."""
     if int(views) < 1:
         raise SurfgenError(f"a turntable needs at least one view, got {views}")
     scene = _prepare(mesh)
@@ -845,7 +853,7 @@ def render_turntable(
         _draw(scene, size, azimuth + 360.0 * i / views, elevation, _BACKGROUND)
         for i in range(int(views))
     ]
-    return write_png(np.concatenate(frames, axis=1), path)
+    return np.concatenate(frames, axis=1)
 
 
 _LABEL_COLOUR = (60, 60, 60)

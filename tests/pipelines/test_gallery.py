@@ -24,7 +24,7 @@ from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
-from surfgen.pipelines import pictures
+from surfgen.pipelines import gallery, pictures
 from surfgen.pipelines.catalogue import open_catalogue
 from surfgen.pipelines.cli import main
 from surfgen.pipelines.gallery import create_app, ensure_turntable, render_pictures
@@ -223,15 +223,23 @@ def without_turntables(root: Path) -> None:
 
 @pytest.fixture
 def renders(monkeypatch) -> list[str]:
-    """The file names render_turntable is asked to write, in order."""
+    """The file names of the turntables rendered, in order: by the live gallery
+    (render_turntable) or drawn for a batch, on any process, and recorded by the parent."""
     calls: list[str] = []
     real = pictures.render_turntable
+    record = gallery._record_picture
 
     def counting(mesh, path, **kwargs):
         calls.append(Path(path).name)
         return real(mesh, path, **kwargs)
 
+    def recording(cat, key, kind, data):
+        if kind == "turntable":
+            calls.append(f"{key}.png")
+        return record(cat, key, kind, data)
+
     monkeypatch.setattr(pictures, "render_turntable", counting)
+    monkeypatch.setattr(gallery, "_record_picture", recording)
     return calls
 
 
@@ -537,3 +545,20 @@ def test_browser_end_to_end(cat_dir, keys, tmp_path) -> None:
         browser.quit()
         stop_server(proc)
     assert (ARTEFACTS / "gallery.png").stat().st_size > 10_000
+
+
+def test_pictures_on_one_process_or_two_are_the_same_files(cat_dir, keys, capsys) -> None:
+    def pictures() -> dict[str, bytes]:
+        files = [*cat_dir.glob("thumbs/*.png"), *cat_dir.glob("turntables/*.png")]
+        return {f"{f.parent.name}/{f.name}": f.read_bytes() for f in files}
+
+    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir), "--force", "--workers", "1")
+    assert rc == 0 and stdout.startswith("rendered 4,")
+    one = pictures()
+    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir), "--force", "--workers", "2")
+    assert rc == 0 and stdout.startswith("rendered 4,")
+    assert pictures() == one and len(one) == 8
+    rc, _, err = cli(
+        capsys, "gallery", "-o", str(cat_dir.parent / "g"), "-C", str(cat_dir), "--workers", "0"
+    )
+    assert rc == 1 and err.strip() == "error: --workers must be a whole number from 1 to 256, got 0"
