@@ -1,11 +1,13 @@
 """Looking at the catalogue: thumbnails, contact sheets and the browser gallery.
 
-- :func:`render_pictures` renders missing thumbnails and turntables (``surfgen thumbnails``);
+- :func:`render_pictures` renders missing thumbnails and turntables (``surfgen thumbnails``), on
+  every core (:mod:`surfgen.pipelines.picture_pool`), and records them;
 - :func:`write_contact_sheet` composes thumbnails into one PNG (``surfgen contact-sheet``);
 - :func:`create_app` is the live gallery (``surfgen serve``): a Flask app over one catalogue,
   with a JSON API whose writes all go through :func:`surfgen.pipelines.curation.apply_action`,
   so every click is committed at once;
-- :func:`export_gallery` writes the same page as static, read-only files (``surfgen gallery``).
+- :func:`export_gallery` writes the same page as static, read-only files (``surfgen gallery``),
+  drawing the turntables it is missing first, on every core too.
 
 The page (``templates/gallery.html``, ``static/gallery.js``/``.css``) carries its data as JSON
 and loads nothing from the internet. JSON API of the live gallery:
