@@ -285,6 +285,23 @@ def descriptor_distances(a: np.ndarray, others: np.ndarray) -> np.ndarray:
     return _scaled(channel_distances(a, others))
 
 
+def nearest_distances(rows: np.ndarray) -> np.ndarray:
+    """Each row's distance (:func:`descriptor_distances`, the same bits) to its nearest other
+    row of ``rows`` ``(N, SIZE)``; ``inf`` when there is no other. The rows are split into
+    cumulative histograms and codes once, not once per row: a report's 1000 shapes take a
+    second, not twenty. Raises :class:`ValueError` for rows of another length."""
+    rows = np.asarray(rows, dtype=np.float64)
+    if rows.ndim != 2 or rows.shape[1] != SIZE:
+        raise ValueError(f"descriptors must have {SIZE} values, got {rows.shape}")
+    hist, codes = _split(rows)
+    out = np.full(len(rows), np.inf)
+    for i in range(len(rows)):
+        dist = _scaled(_channels(hist[i], codes[i], hist, codes))
+        dist[i] = np.inf
+        out[i] = dist.min()
+    return out
+
+
 class DescriptorSet:
     """A growing set of keyed descriptors with a fast nearest-neighbour query: cumulative
     histograms are computed once per descriptor, the placement is kept as its 8-bit codes, rows

@@ -315,20 +315,16 @@ def find_near_duplicates(
 ) -> list[tuple[str, str, float]]:
     """Greedy, in the dict's order: each shape closer than ``threshold`` to an earlier original
     is a duplicate of the nearest one. Returns ``(key, original key, distance)``."""
-    from surfgen.filters.descriptor import descriptor_distances
+    from surfgen.filters.descriptor import DescriptorSet
 
-    originals: list[str] = []
-    stack: list[np.ndarray] = []
+    originals = DescriptorSet()  # the distances of descriptor_distances, split once per shape
     marked = []
     for key, d in descriptors.items():
-        if stack:
-            dist = descriptor_distances(d, np.stack(stack))
-            j = int(np.argmin(dist))
-            if dist[j] < threshold:
-                marked.append((key, originals[j], float(dist[j])))
-                continue
-        originals.append(key)
-        stack.append(d)
+        nearest, dist = originals.nearest(d)
+        if nearest is not None and dist < threshold:
+            marked.append((key, nearest, dist))
+            continue
+        originals.add(key, d)
     return marked
 
 

@@ -44,7 +44,7 @@ def _entropy_bits(counts: Counter) -> float:
 
 def _nearest_by_key(cat: Catalogue, keys: list[str]) -> dict[str, float]:
     """Each accepted shape's descriptor distance to its nearest other shape (stored descriptors)."""
-    from surfgen.filters.descriptor import descriptor_distances, descriptor_from_text
+    from surfgen.filters.descriptor import descriptor_from_text, nearest_distances
 
     wanted = set(keys)
     rows = cat.conn.execute("SELECT key, descriptor FROM shapes WHERE verdict='accepted'")
@@ -52,13 +52,8 @@ def _nearest_by_key(cat: Catalogue, keys: list[str]) -> dict[str, float]:
     pairs = [(k, d) for k, d in pairs if d is not None]
     if len(pairs) < 2:
         return {}
-    stack = np.array([d for _, d in pairs])
-    out = {}
-    for i, (key, d) in enumerate(pairs):
-        dist = descriptor_distances(d, stack)
-        dist[i] = np.inf
-        out[key] = float(dist.min())
-    return out
+    nearest = nearest_distances(np.array([d for _, d in pairs]))
+    return {key: float(dist) for (key, _), dist in zip(pairs, nearest, strict=True)}
 
 
 def _nearest_distances(cat: Catalogue, keys: list[str]) -> list[float]:

@@ -24,6 +24,7 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
     is_near_duplicate,
+    nearest_distances,
 )
 from surfgen.generator.errors import MeshError
 from surfgen.generator.grid import Box, Grid
@@ -160,3 +161,19 @@ def test_text_round_trip(torus_mesh: Mesh) -> None:
         back[FORM_SIZE : FORM_SIZE + PLACE_SIZE], d[FORM_SIZE : FORM_SIZE + PLACE_SIZE]
     )
     assert len(descriptor_to_text(d)) < 6000
+
+
+def test_nearest_distances_are_the_one_by_one_distances_bit_for_bit() -> None:
+    rng = np.random.default_rng(3)
+    rows = rng.random((40, SIZE))
+    rows[7] = rows[3]  # an exact duplicate: 0 both ways
+    expected = []
+    for i in range(len(rows)):
+        dist = descriptor_distances(rows[i], rows)
+        dist[i] = np.inf
+        expected.append(dist.min())
+    got = nearest_distances(rows)
+    assert np.array_equal(got, np.array(expected)) and got[3] == got[7] == 0.0
+    assert nearest_distances(rows[:1]).tolist() == [np.inf]
+    with pytest.raises(ValueError, match=f"{SIZE} values"):
+        nearest_distances(rows[:, :-1])
