@@ -39,7 +39,7 @@ import re
 import shutil
 import threading
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from importlib import resources
@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from surfgen.generator.errors import SurfgenError
+from surfgen.generator.errors import MeshError, SurfgenError
 from surfgen.generator.files import renaming, stage, staged_folder
 from surfgen.pipelines.catalogue import (
     DB_NAME,
@@ -147,14 +147,13 @@ def turntable_url(rec: dict[str, Any]) -> dict[str, Any]:
 def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | None:
     """The turntable strip of accepted shape ``key``: the cached file if it is recorded and
     there, else rendered from the mesh now (atomic write into ``turntables/KEY.png``) and
-    recorded, so later requests and later servers serve the file.
+    recorded (the file and its row as one), so later requests and later servers serve the file.
 
     Returns None for a shape that is not accepted or has no mesh. Raises
     :class:`CatalogueError` for an unknown key and :class:`SurfgenError` (a ``MeshError``)
     if the mesh cannot be read or drawn.
     """
-    from surfgen.generator.mesh import load_mesh
-    from surfgen.pipelines.pictures import TURNTABLE_SIZE, TURNTABLE_VIEWS, render_turntable
+    from surfgen.pipelines.picture_pool import Job, draw
 
     with _RENDERING_GUARD:
         lock = _RENDERING.setdefault(key, threading.Lock())
@@ -172,9 +171,12 @@ def ensure_turntable(cat: Catalogue, key: str, force: bool = False) -> Path | No
             log.info("shape %s: no turntable (not accepted or no mesh)", key)
             return None
         if force or not target.is_file():  # else a file written by a process killed before
-            mesh = load_mesh(cat.root / row["mesh_path"])  # it could record it: keep it
-            render_turntable(mesh, target, views=TURNTABLE_VIEWS, size=TURNTABLE_SIZE)
+            # it could record it: keep it
+            drawn = draw(Job(key, str(cat.root / row["mesh_path"]), ("turntable",)))
+            if drawn.error is not None:
+                raise MeshError(drawn.error)
             log.info("rendered the turntable of %s", key)
+            return _record_picture(cat, key, "turntable", drawn.pictures["turntable"])
         rel = str(target.relative_to(cat.root))
         if recorded != rel:
             with cat.conn:
@@ -385,28 +387,35 @@ def export_gallery(
         ]
     # A static page cannot render on demand: make the turntables nobody asked for yet, cached
     # in the catalogue (so the next export copies them) — or, for a catalogue this user cannot
-    # write, in the gallery only.
-    fresh: list[dict[str, Any]] = []
-    if missing and not _writable_catalogue(Path(root)):
-        log.warning(
-            "catalogue %s is read-only: %d turntables are rendered for the gallery only",
-            root,
-            len(missing),
-        )
-        fresh = missing
-    elif missing:
+    # write, in the gallery only (``fresh``: their PNG bytes by key).
+    fresh: dict[str, bytes] = {}
+    if missing:
         from surfgen.pipelines.picture_pool import Job, draw_all
 
-        with open_catalogue(root, must_exist=True) as cat:
-            cat.make_dirs()
-            by_key = {s["key"]: s for s in missing}
-            jobs = [Job(s["key"], str(cat.root / s["mesh"]), ("turntable",)) for s in missing]
+        writable = _writable_catalogue(Path(root))
+        if not writable:
+            log.warning(
+                "catalogue %s is read-only: %d turntables are rendered for the gallery only",
+                root,
+                len(missing),
+            )
+        by_key = {s["key"]: s for s in missing}
+        jobs = [Job(s["key"], str(Path(root) / s["mesh"]), ("turntable",)) for s in missing]
+        with ExitStack() as stack:
+            cat = stack.enter_context(open_catalogue(root, must_exist=True)) if writable else None
+            if cat is not None:
+                cat.make_dirs()
             for drawn in draw_all(jobs, workers, progress):
-                if drawn.error is not None:
-                    log.warning("shape %s: no turntable (%s)", drawn.job.key, drawn.error)
-                    continue
-                made = _record_picture(cat, drawn.job.key, "turntable", drawn.pictures["turntable"])
-                by_key[drawn.job.key]["turntable"] = str(made.relative_to(cat.root))
+                shape, png = by_key[drawn.job.key], drawn.pictures.get("turntable")
+                if png is None:
+                    log.warning("shape %s: no turntable (%s)", shape["key"], drawn.error)
+                    shape["turntable"] = None
+                elif cat is None:
+                    fresh[shape["key"]] = png
+                    shape["turntable"] = f"turntables/{shape['key']}.png"
+                else:
+                    made = _record_picture(cat, shape["key"], "turntable", png)
+                    shape["turntable"] = str(made.relative_to(cat.root))
     existed = out.exists()
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -454,24 +463,13 @@ def _write_gallery(
     work: Path,
     data: dict[str, Any],
     meshes: bool,
-    fresh: Sequence[dict[str, Any]] = (),
+    fresh: Mapping[str, bytes] | None = None,
 ) -> None:
-    """Every file of the static gallery, into the (new, empty) folder ``work``; the shapes in
-    ``fresh`` get a turntable rendered from their mesh straight into it."""
-    from surfgen.generator.mesh import load_mesh
-    from surfgen.pipelines.pictures import TURNTABLE_SIZE, TURNTABLE_VIEWS, render_turntable
-
+    """Every file of the static gallery, into the (new, empty) folder ``work``; ``fresh``
+    turntables (PNG bytes by key, drawn for a read-only catalogue) go straight into it."""
     (work / "turntables").mkdir()
-    for s in fresh:
-        rel = f"turntables/{s['key']}.png"
-        try:
-            mesh = load_mesh(root / s["mesh"])
-            render_turntable(mesh, work / rel, views=TURNTABLE_VIEWS, size=TURNTABLE_SIZE)
-        except SurfgenError as exc:
-            log.warning("shape %s: no turntable (%s)", s["key"], exc)
-            s["turntable"] = None
-            continue
-        s["turntable"] = rel
+    for key, png in (fresh or {}).items():
+        (work / "turntables" / f"{key}.png").write_bytes(png)
     for sub in ("static", "thumbs", *(["meshes"] if meshes else [])):
         (work / sub).mkdir(parents=True, exist_ok=True)
     for f in _static_dir().iterdir():

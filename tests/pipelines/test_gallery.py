@@ -24,7 +24,7 @@ from surfgen.generator.mesh import extract_mesh
 from surfgen.generator.parser import parse
 from surfgen.generator.reference import evaluate_reference
 from surfgen.generator.spec import SurfaceSpec
-from surfgen.pipelines import gallery, pictures
+from surfgen.pipelines import gallery
 from surfgen.pipelines.catalogue import open_catalogue
 from surfgen.pipelines.cli import main
 from surfgen.pipelines.gallery import create_app, ensure_turntable, render_pictures
@@ -223,22 +223,16 @@ def without_turntables(root: Path) -> None:
 
 @pytest.fixture
 def renders(monkeypatch) -> list[str]:
-    """The file names of the turntables rendered, in order: by the live gallery
-    (render_turntable) or drawn for a batch, on any process, and recorded by the parent."""
+    """The file names of the turntables drawn and recorded in the catalogue, in order: by the
+    live gallery or for a batch (drawn on any process, recorded by the parent)."""
     calls: list[str] = []
-    real = pictures.render_turntable
     record = gallery._record_picture
-
-    def counting(mesh, path, **kwargs):
-        calls.append(Path(path).name)
-        return real(mesh, path, **kwargs)
 
     def recording(cat, key, kind, data):
         if kind == "turntable":
             calls.append(f"{key}.png")
         return record(cat, key, kind, data)
 
-    monkeypatch.setattr(pictures, "render_turntable", counting)
     monkeypatch.setattr(gallery, "_record_picture", recording)
     return calls
 
