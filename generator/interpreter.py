@@ -4,7 +4,8 @@ over lists of points, lattices and grid edges.
 
 Kernels are dumb: arrays and scalars in, arrays out; :mod:`surfgen.generator.fast` validates
 before calling. ``error_model='numpy'`` so that 0/0 and 1/0 give NaN and inf instead of raising;
-no fastmath (NaN and inf are normal values here), hence no FMA contraction either. Every
+no fastmath (NaN and inf are normal values here), hence no FMA contraction either (the one
+explicit FMA sequence, a row divided by a scalar, is proven to give the division's bits). Every
 transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`): a row function
 that runs a whole W row, whose numpy twin the reference evaluator calls, so results are
 bit-identical to the reference on every CPU. No C library maths is called here.
@@ -33,6 +34,7 @@ from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
+from surfgen.generator.elementary.division import ROW_DIVISION, div_row_by_scalar
 from surfgen.generator.far import SLOT, c_arguments, far_row, require_c_arrays, require_integers
 from surfgen.generator.numba_cache import c_function_cached
 from surfgen.generator.vector_loops import evaluator_compile
@@ -451,7 +453,8 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
     add the cycles each row takes to ``prof[row]``.
 
     The cheap operations (+, -, *, / in every operand mode; copy, neg, abs, square, recip,
-    sqrt) run here, inline; only the others call :func:`_unary` and ``_binary_*``. A call of
+    sqrt) run here, inline (a row divided by a scalar with FMAs: one division per row, the
+    same bits); only the others call :func:`_unary` and ``_binary_*``. A call of
     those costs 15-35 ns whatever ``n`` (numba increments and decrements the reference counts
     of its array arguments, atomic operations), as much as the loop of a cheap operation over
     a few hundred points; inline, one dispatch costs a few ns. The arithmetic is the same, so
@@ -494,8 +497,11 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
                 for k in range(n):
                     W[d, k] = W[a, k] - s
             elif op == OP_DIV:
-                for k in range(n):
-                    W[d, k] = W[a, k] / s
+                if ROW_DIVISION:  # one division per row, the same bits (elementary/division.py)
+                    div_row_by_scalar(W, d, a, s, n)
+                else:
+                    for k in range(n):
+                        W[d, k] = W[a, k] / s
             else:
                 _binary_vs(op, W, d, a, s, n, consts)
         elif mode == M_V:

@@ -96,11 +96,16 @@ import json, re, sys
 sys.path.insert(0, {here!r})
 from test_field_hashes import fast_hashes
 from surfgen.generator import NO_VECTORIZE
-from surfgen.generator.interpreter import interpreter_asm
+from surfgen.generator.interpreter import interpreter_asm, load_interpreter
+from surfgen.generator.row_table import rows_asm
+from surfgen.generator.elementary.division import ROW_DIVISION
 import numba, os
 from numpy._core._multiarray_umath import __cpu_features__ as cpu_features
 hashes = fast_hashes()
 asm = interpreter_asm()
+library = load_interpreter()._library
+ir = library.get_llvm_str()
+fma = r"\\bv?f(n)?m(add|sub)\\d"
 disabled = os.environ.get("NPY_DISABLE_CPU_FEATURES", "").split()
 print(json.dumps({{
     "cpu": numba.config.CPU_NAME,
@@ -110,7 +115,13 @@ print(json.dumps({{
     "hashes": hashes,
     "asm_chars": len(asm),
     "packed": len(re.findall(r"\\bv?(mul|add|sub|div)pd\\b", asm)),
-    "fma": len(re.findall(r"\\bv?f(n)?m(add|sub)\\d", asm)),
+    "fma_rows": len(re.findall(fma, rows_asm())),
+    "fma_interpreter": len(re.findall(fma, library.get_asm_str())),
+    "row_division": ROW_DIVISION,
+    "contract": len(re.findall(
+        r"= f(?:add|sub|mul|div|neg)(?: (?:nnan|ninf|nsz|arcp|afn))* (?:contract|reassoc|fast)\\b", ir
+    )),
+    "fmuladd": ir.count("llvm.fmuladd"),
     "zmm": len(re.findall(r"%zmm", asm)),
 }}))
 """
@@ -192,12 +203,21 @@ def _background_result(test: str) -> dict:
     return json.loads(stdout.strip().splitlines()[-1])
 
 
+def _no_contraction(result: dict) -> None:
+    """No multiply-add is ever fused behind the code's back: no FMA in the elementary functions'
+    rows, no contraction flag or ``fmuladd`` in the interpreter's IR; its only FMAs are the ones
+    it asks for, the row division's (elementary/division.py), on a CPU that has them."""
+    assert result["fma_rows"] == 0
+    assert result["contract"] == 0 and result["fmuladd"] == 0
+    assert (result["fma_interpreter"] > 0) == result["row_division"]
+
+
 def test_same_hashes_with_vectorisation_disabled():
     result = _background_result("test_same_hashes_with_vectorisation_disabled")
     assert result["switch"] is True
     assert result["asm_chars"] > 10_000  # the interpreter and everything it calls
     assert result["packed"] == 0, "vectorisation is still on"
-    assert result["fma"] == 0
+    _no_contraction(result)
     bad = _diff(result["hashes"], _pinned())
     assert not bad, f"{len(bad)} fields differ without vectorisation: {bad[:5]}"
 
@@ -213,7 +233,7 @@ def test_same_hashes_with_intel_code_generation():
     assert result["cpu"] == cpu, "numba did not compile for the Intel target"
     assert result["asm_chars"] > 10_000
     assert result["packed"] > 0, "the Intel build is not vectorised"
-    assert result["fma"] == 0
+    _no_contraction(result)
     assert result["features"] == disabled.split()
     assert not result["dispatched"], f"numpy still dispatches {result['dispatched']}"
     if cpu == "skylake-avx512":  # 512-bit vectors, not LLVM's 256-bit tuning for that Xeon
