@@ -34,7 +34,25 @@ from surfgen.generator.grid import Box, Field, Grid
 
 log = logging.getLogger(__name__)
 
-TILE_MAX = 1024  # points per W row (several z rows when nz <= 512): n_vector rows stay in L2
+
+def tile_max(cpu_name: str) -> int:
+    """Points per W row (several z rows when nz <= half of it) on the CPU LLVM calls
+    ``cpu_name``. Any length gives the same bits (every operation is elementwise); the best
+    one is the CPU's: ``benchmarks/bench_tiles.py`` (the 50 stored formulas at 128^3, one
+    thread) put 512 at 1.017x the time of 1024 on an AMD Zen 5 (the n_vector rows stay in its
+    L2 and a dispatch costs less per point), and 1024 at 1.07x the time of 512 on an Intel Xeon
+    (Sapphire Rapids), where 384 and 512 were the fastest. AMD's Zen cores get 1024 (also the
+    AVX2 Zen 3's, where 1024 meets the speed targets), every other CPU 512."""
+    return 1024 if cpu_name.startswith("znver") else 512
+
+
+def _host_cpu_name() -> str:
+    from llvmlite import binding
+
+    return str(binding.get_host_cpu_name())
+
+
+TILE_MAX = tile_max(_host_cpu_name())
 CHUNKS_PER_THREAD = 4  # slabs per thread, for load balance when threads are shared
 COMPILED_CACHE = 64  # programs kept by evaluate_fast, keyed by (tree, params)
 

@@ -624,3 +624,16 @@ def test_tiles_of_several_rows_give_the_same_bits(monkeypatch, tile_max, formula
         for threads in (1, 2):
             got = evaluate_program(program, grid, threads=threads).values
             assert_identical(got, want, f"{formula} {shape} tile<={tile_max} {threads}T")
+
+
+def test_the_tile_length_follows_the_cpu():
+    # measured: AMD's Zen cores run the 50 stored formulas fastest with 1024-point tiles, an
+    # Intel Xeon with 512 (bench_tiles.py); any length gives the same bits (the test above)
+    from surfgen.generator import fast
+
+    assert fast.tile_max("znver3") == 1024
+    assert fast.tile_max("znver5") == 1024
+    for intel in ("sapphirerapids", "rocketlake", "skylake-avx512", "icelake-server"):
+        assert fast.tile_max(intel) == 512
+    assert fast.tile_max(fast._host_cpu_name()) == fast.TILE_MAX
+    assert fast._tile(128) == fast.TILE_MAX  # several z rows of 128 to a tile
