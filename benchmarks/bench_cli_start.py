@@ -31,13 +31,13 @@ from bench_sample_grids import export_revision  # noqa: E402
 
 HEAVY = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
 
-_CLI = """
+_CLI = f"""
 import json, sys
 from surfgen.pipelines.cli import main
 code = main(sys.argv[1:])
-print(json.dumps(sorted(m for m in %r if m in sys.modules)), file=sys.stderr)
+print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)), file=sys.stderr)
 sys.exit(code)
-""" % (HEAVY,)
+"""
 
 
 def _env(path: Path | None) -> dict[str, str]:
