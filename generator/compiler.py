@@ -110,6 +110,11 @@ OPCODES: dict[str, tuple[int, int]] = {
     "asinsin": (50, 1),  # asin(sin u)
     "acoscos": (51, 1),  # acos(cos u)
     "acotcot": (52, 1),  # acot(cot u) = pi/2 - atan(1/tan u)
+    # 1/cos u, 1/sin u, 1/tan u in one row (the bits of the function, then recip): the
+    # division overlaps the function's arithmetic instead of a pass of its own (_fuse_reciprocals)
+    "sec": (53, 1),
+    "csc": (54, 1),
+    "cot": (55, 1),
 }
 OP = {name: num for name, (num, _) in OPCODES.items()}
 ARITY = {name: n for name, (_, n) in OPCODES.items()}
@@ -561,7 +566,36 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
     for node in postorder(tree, by_value=True):  # children first: lower() recurses once
         low.lower(node)
     root = low.lower(tree)
+    _fuse_reciprocals(low.dag, root)
     return _schedule(low.dag, root, tree)
+
+
+_FUSED_RECIPROCALS = {"cos": "sec", "sin": "csc", "tan": "cot"}
+
+
+def _fuse_reciprocals(dag: _Dag, root: int) -> None:
+    """``recip(cos u)`` (or ``1/cos u``) becomes ``sec u`` (and ``sin``, ``tan`` likewise:
+    ``csc``, ``cot``) where nothing else reads ``cos u``: one row computes the function and divides, so the
+    divider (about 2 cycles a value, idle during cos's arithmetic) overlaps it; the same bits
+    as the two operations, in a pass less. Rewrites ``dag.nodes`` in place (after lowering:
+    the hash-consing index is not used any more)."""
+    nodes = dag.nodes
+    order = _postorder(nodes, root)
+    readers: dict[int, int] = {}
+    for n in order:
+        for a in nodes[n].args:
+            readers[a] = readers.get(a, 0) + 1
+    for n in order:
+        node = nodes[n]
+        if node.op == "recip":
+            u = node.args[0]
+        elif node.op == "div" and dag.is_const(node.args[0]) and dag.value(node.args[0]) == 1.0:
+            u = node.args[1]  # 1/u written out: the same IEEE division
+        else:
+            continue
+        fused = _FUSED_RECIPROCALS.get(nodes[u].op)
+        if fused and readers[u] == 1 and u != root:
+            nodes[n] = _Node(fused, nodes[u].args, None, node.level)
 
 
 def _schedule(dag: _Dag, root: int, tree: Expr) -> Program:

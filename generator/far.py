@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 ROWS = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh")
 ROWS += ("atanh", "exp", "log", "log10", "cbrt", "atantan", "asinsin", "acoscos", "acotcot")
 ROWS += ("atan2_vv", "atan2_vs", "atan2_sv", "pow_vv", "pow_vs", "pow_sv", "series", "segsum")
+ROWS += ("sec", "csc", "cot")
 SLOT = {name: i for i, name in enumerate(ROWS)}
 
 _TABLE_SYMBOL = "surfgen_row_table_v1"

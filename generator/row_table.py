@@ -47,6 +47,9 @@ def _tan(w, r, c, d, a, b, s, n, k, nk, base): _tr.tan_row(_w(w, r, c), d, a, n)
 def _asin(w, r, c, d, a, b, s, n, k, nk, base): _tr.asin_row(_w(w, r, c), d, a, n)
 def _acos(w, r, c, d, a, b, s, n, k, nk, base): _tr.acos_row(_w(w, r, c), d, a, n)
 def _atan(w, r, c, d, a, b, s, n, k, nk, base): _tr.atan_row(_w(w, r, c), d, a, n)
+def _sec(w, r, c, d, a, b, s, n, k, nk, base): _tr.sec_row(_w(w, r, c), d, a, n)
+def _csc(w, r, c, d, a, b, s, n, k, nk, base): _tr.csc_row(_w(w, r, c), d, a, n)
+def _cot(w, r, c, d, a, b, s, n, k, nk, base): _tr.cot_row(_w(w, r, c), d, a, n)
 def _sinh(w, r, c, d, a, b, s, n, k, nk, base): _el.sinh_row(_w(w, r, c), d, a, n)
 def _cosh(w, r, c, d, a, b, s, n, k, nk, base): _el.cosh_row(_w(w, r, c), d, a, n)
 def _tanh(w, r, c, d, a, b, s, n, k, nk, base): _el.tanh_row(_w(w, r, c), d, a, n)
@@ -97,7 +100,8 @@ def run(name: str, W: np.ndarray, d: int, a: int, n: int, b: int = 0, s: float =
     scalar ``s``, ... by the slot's operand mode). ``W``: a C-contiguous 2-d float64 array.
     Without the constants the series and the segment sums need (the interpreter's only)."""
     if name not in FUNCTIONS or name in ("series", "segsum"):
-        raise ValueError(f"unknown row {name!r}: expected one of {', '.join(far.ROWS[:-2])}")
+        names = ", ".join(r for r in far.ROWS if r not in ("series", "segsum"))
+        raise ValueError(f"unknown row {name!r}: expected one of {names}")
     if not (isinstance(W, np.ndarray) and W.dtype == np.float64 and W.ndim == 2):
         raise ValueError("W must be a 2-d float64 array")
     if not W.flags.c_contiguous or not W.flags.writeable:

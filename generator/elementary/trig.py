@@ -857,6 +857,52 @@ def tan_row(W, d, a, n):
 
 
 @njit(inline="always", **_OPTS)
+def sec_row(W, d, a, n):
+    """W[d, k] = 1/cos(W[a, k]) for k < n, the bits of cos_row then 1/ (d may equal a):
+    one loop, so the division overlaps cos's arithmetic."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
+    for k in range(n):
+        W[d, k] = 1.0 / _cos_fast(W[a, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = 1.0 / _cos_slow(val[j])
+
+
+@njit(inline="always", **_OPTS)
+def csc_row(W, d, a, n):
+    """W[d, k] = 1/sin(W[a, k]) for k < n, the bits of sin_row then 1/ (d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
+    for k in range(n):
+        W[d, k] = 1.0 / _sin_fast(W[a, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = 1.0 / _sin_slow(val[j])
+
+
+@njit(inline="always", **_OPTS)
+def cot_row(W, d, a, n):
+    """W[d, k] = 1/tan(W[a, k]) for k < n, the bits of tan_row then 1/ (d may equal a)."""
+    cnt = 0
+    for k in range(n):
+        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
+    if cnt > 0:
+        idx, val = _gather1(W, a, n, cnt)
+    for k in range(n):
+        W[d, k] = 1.0 / _tan_fast(W[a, k])
+    if cnt > 0:
+        for j in range(cnt):
+            W[d, idx[j]] = 1.0 / _tan_slow(val[j])
+
+
+@njit(inline="always", **_OPTS)
 def asin_row(W, d, a, n):
     """W[d, k] = asin(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):

@@ -23,7 +23,7 @@ RELEASED = [
     "asinh", "acosh", "atanh", "exp", "log", "log10", "sqrt", "cbrt", "sign", "floor", "ceil",
     "square", "recip", "usign", "powi", "series", "segsum", "add", "sub", "mul", "div", "pow",
     "min", "max", "atan2", "ratio1", "lt", "le", "eq", "ne", "and", "or", "not", "pick", "pickn",
-    "fmod", "trunc", "atantan", "asinsin", "acoscos", "acotcot",
+    "fmod", "trunc", "atantan", "asinsin", "acoscos", "acotcot", "sec", "csc", "cot",
 ]  # fmt: skip
 
 
@@ -109,10 +109,28 @@ def test_pow_follows_numpy_fast_paths():
 
 
 def test_trigonometric_forms_are_lowered():
-    assert ops_at(compile_text("cot(x*y*z)"), 7) == ["mul", "tan", "recip"]
+    # cot = 1/tan, sec = 1/cos, csc = 1/sin: one fused row each (the function, then 1/)
+    assert ops_at(compile_text("cot(x*y*z)"), 7) == ["mul", "cot"]
     assert ops_at(compile_text("acot(x*y*z)"), 7) == ["mul", "atan", "sub"]
-    assert ops_at(compile_text("sec(x*y*z)"), 7) == ["mul", "cos", "recip"]
-    assert ops_at(compile_text("csc(x*y*z)"), 7) == ["mul", "sin", "recip"]
+    assert ops_at(compile_text("sec(x*y*z)"), 7) == ["mul", "sec"]
+    assert ops_at(compile_text("csc(x*y*z)"), 7) == ["mul", "csc"]
+    assert ops_at(compile_text("cos(x*y*z)^(-1)"), 7) == ["mul", "sec"]  # numpy's x^-1 is 1/x
+
+
+def test_a_reciprocal_is_fused_only_with_a_value_nothing_else_reads():
+    # tan(u) is read twice: computed once, its reciprocal a recip of its own
+    assert ops_at(compile_text("tan(x*y*z) + cot(x*y*z)"), 7) == ["mul", "tan", "recip", "add"]
+    assert ops_at(compile_text("1/sin(x*y*z) + sin(x*y*z)"), 7) == ["mul", "sin", "div", "add"]
+    assert ops_at(compile_text("1/sin(x*y*z)"), 7) == ["mul", "csc"]  # 1/u: the same division
+    assert ops_at(compile_text("2/sin(x*y*z)"), 7) == ["mul", "sin", "div"]
+    # a reciprocal of another function stays as it was
+    assert ops_at(compile_text("1/atan(x*y*z)"), 7)[-1] == "div"
+    assert ops_at(compile_text("atan(x*y*z)^(-1)"), 7)[-1] == "recip"
+    # in every block: here the xy block's
+    assert ops_at(compile_text("z*sec(x*y)"), 3) == ["mul", "sec"]
+    assert ops_at(compile_text("z*sec(x*y)"), 7) == ["mul"]
+    # nested: sec(sec(u)) fuses the inner and the outer reciprocal alike
+    assert ops_at(compile_text("sec(sec(x*y*z))"), 7) == ["mul", "sec", "sec"]
 
 
 def test_constituents_share_their_parts():

@@ -57,12 +57,12 @@ def test_every_elementary_function_and_round_trip_has_a_slot():
     for name, e in REGISTRY.items():
         names = [name] if e.arity == 1 else [f"{name}_{m}" for m in ("vv", "vs", "sv")]
         assert set(names) <= set(far.ROWS), name
-    for name in ("atantan", "asinsin", "acoscos", "acotcot", "series", "segsum"):
+    rest = ["atantan", "asinsin", "acoscos", "acotcot", "series", "segsum", "sec", "csc", "cot"]
+    for name in rest:
         assert interpreter._UNARY_SLOT[OP[name]] == far.SLOT[name]
     unary = [name for name, e in REGISTRY.items() if e.arity == 1]
     assert all(interpreter._UNARY_SLOT[OP[name]] == far.SLOT[name] for name in unary)
     slotted = {int(s) for s in interpreter._UNARY_SLOT if s >= 0}
-    rest = ["atantan", "asinsin", "acoscos", "acotcot", "series", "segsum"]
     assert slotted == {far.SLOT[name] for name in unary + rest}
 
 
@@ -75,6 +75,30 @@ def test_each_unary_slot_gives_the_numpy_twins_bits():
     for name in ("atantan", "asinsin", "acoscos", "acotcot"):
         with np.errstate(all="ignore"):
             assert _same(_run(name, x), round_trip(name, x)), name
+
+
+@pytest.mark.parametrize("name, function", [("sec", "cos"), ("csc", "sin"), ("cot", "tan")])
+def test_the_fused_reciprocals_give_the_bits_of_the_function_then_one_over(name, function):
+    # the slow lanes (|u| > 2**23: Payne-Hanek) included, in rows of every length
+    rng = np.random.default_rng(4)
+    huge = rng.uniform(2.0**23, 1e300, 40) * rng.choice([-1.0, 1.0], 40)
+    x = np.concatenate([_args(), huge, [2.0**23, np.nextafter(2.0**23, np.inf), 5e-324]])
+
+    def bits(got, want):  # signed zeros and infinities told apart; NaN is NaN
+        nan = np.isnan(want)
+        return np.array_equal(np.isnan(got), nan) and np.array_equal(
+            got[~nan].view(np.int64), want[~nan].view(np.int64)
+        )
+
+    with np.errstate(all="ignore"):
+        want = 1.0 / REGISTRY[function].array(x)
+    assert bits(_run(name, x), want), name
+    for n in (1, 7, 8, 9, 64):
+        part = rng.permutation(x)[:n]
+        with np.errstate(all="ignore"):
+            assert bits(_run(name, part), 1.0 / REGISTRY[function].array(part)), (name, n)
+    zeros = _run(name, np.array([0.0, -0.0]))
+    assert list(zeros) == ([1.0, 1.0] if name == "sec" else [np.inf, -np.inf])
 
 
 def test_the_binary_slots_give_the_numpy_twins_bits_in_every_operand_mode():
