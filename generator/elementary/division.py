@@ -2,11 +2,12 @@
 
 The interpreter's ``x / s`` with ``s`` the same for a whole row (operand mode ``vs``: a divisor
 that depends on x, y or both, not on z) is 43 % of the divisions in the stored eq. (13) formulas'
-per-point blocks. A hardware division costs about 2 cycles a value on every x86 core (``vdivpd``
-is not pipelined), five times a multiplication; on an Intel Xeon the divider bounds the median
-formula. Here the row pays one division, for ``y = 1/s``, and each value five fused
-multiply-adds, with **the bits of** ``x / s`` (IEEE division, round to nearest), which is what
-the numpy reference computes: nothing changes but the time.
+per-point blocks. A hardware division (``vdivpd``, barely pipelined) costs about 2 cycles a
+value on the Intel Xeon, six times a product in the same loop, and there the divider bounds the
+median formula. Here the row pays one division, for ``y = 1/s``, and each value a product and
+four fused multiply-adds, with **the bits of** ``x / s`` (IEEE division, round to nearest),
+which is what the numpy reference computes: nothing changes but the time (2.4-2.7x faster on
+the Xeon: ``benchmarks/bench_division.py``).
 
 For each ``x`` (``u = 2**-53``; the FMA rounds once):
 
@@ -30,8 +31,8 @@ sign; the two corrections would turn ``-0`` into ``+0``).
 
 The fast loop writes the destination row while it checks, so it runs only when that row is not
 the dividend's (the row is recomputed from an intact source; the compiler's register allocation
-never writes a per-point operation over its operand, and an in-place loop would not vectorise
-anyway). It needs the FMA instruction (``llvm.fma``; without it LLVM calls the C library's
+frees an operand's row only after the result has its own, and an in-place loop would not
+vectorise anyway). It needs the FMA instruction (``llvm.fma``; without it LLVM calls the C library's
 ``fma``, exact but slow): :data:`ROW_DIVISION` says whether the CPU numba compiles for has it.
 
 Tests: ``tests/generator/test_division.py`` (random quotients over the whole exponent range,
