@@ -17,11 +17,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from surfgen.generator.elementary import division as D
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
+from test_division import midpoint_row  # noqa: E402
 
 
 @njit(**D.JIT)
@@ -57,65 +61,45 @@ def speed(repeats: int) -> None:
     )
 
 
-def bits(cases: int) -> None:
-    """Random dividends over the whole fast range, and random bit patterns, in rows of 2**20."""
-    rng = np.random.default_rng(1)
+def random_rows(rng: np.random.Generator):
+    """Rows of about 2**20 dividends with one divisor: random over the whole fast range, and
+    random bit patterns (kept to the fast range), in turn."""
     n = 1 << 20
-    done = wrong = fast = rows = 0
+    while True:
+        x = rng.uniform(-1, 1, n) * np.exp2(rng.integers(-899, 901, n))
+        s = float(rng.uniform(-2, 2) * 2.0 ** rng.integers(-99, 100))
+        yield x[np.abs(x) >= D.X_MIN], s
+        x = rng.integers(0, 1 << 64, n, dtype=np.uint64).view(np.float64)
+        s = float(rng.integers(0, 1 << 64, 1, dtype=np.uint64).view(np.float64)[0])
+        if not (D.S_MIN <= abs(s) <= D.S_MAX):
+            s = float(np.ldexp(abs(s) % 1.0 + 1.0, int(rng.integers(-100, 100))))
+        yield x[np.isfinite(x) & (np.abs(x) >= D.X_MIN) & (np.abs(x) <= D.X_MAX)], s
+
+
+def hard_rows(rng: np.random.Generator):
+    """Rows of quotients next to a rounding midpoint, each with its own divisor (the tests'
+    ``midpoint_row``: within 2**-46 of an ulp of the midpoint)."""
+    while True:
+        row = midpoint_row(rng)
+        if row is not None:
+            yield row
+
+
+def tally(label: str, rows, cases: int) -> None:
+    """Divide rows until ``cases`` quotients are done; print how many differ from numpy's."""
+    done = wrong = fast = count = 0
     t0 = time.perf_counter()
-    while done < cases:
-        if rows % 2 == 0:
-            x = rng.uniform(-1, 1, n) * np.exp2(rng.integers(-899, 901, n))
-            x = x[np.abs(x) >= D.X_MIN]
-            s = float(rng.uniform(-2, 2) * 2.0 ** rng.integers(-99, 100))
-        else:
-            x = rng.integers(0, 1 << 64, n, dtype=np.uint64).view(np.float64)
-            s = float(rng.integers(0, 1 << 64, 1, dtype=np.uint64).view(np.float64)[0])
-            if not (D.S_MIN <= abs(s) <= D.S_MAX):
-                s = float(np.ldexp(abs(s) % 1.0 + 1.0, int(rng.integers(-100, 100))))
-            x = x[np.isfinite(x) & (np.abs(x) >= D.X_MIN) & (np.abs(x) <= D.X_MAX)]
+    for x, s in rows:
+        if done >= cases:
+            break
         wrong_row, fast_row = _check(x, s)
         wrong += wrong_row
         fast += fast_row
-        rows += 1
+        count += 1
         done += x.size
     print(
-        f"{done} random quotients against numpy's /: {wrong} differ; {fast} of {rows} rows of "
-        f"about {n} took the FMA path ({time.perf_counter() - t0:.0f} s)"
-    )
-
-
-def hard(cases: int) -> None:
-    """Quotients next to a rounding midpoint: for a random odd 53-bit divisor S and each odd
-    t in [-63, 63], the 53-bit X with X * 2**54 = S*M + t, M odd (a midpoint of 53-bit
-    quotients), so that X/S lies within |t|/S of an ulp (below 2**-46) of that midpoint; one
-    row per divisor, both scaled by random powers of two and signs."""
-    rng = np.random.default_rng(3)
-    done = wrong = fast = rows = 0
-    t0 = time.perf_counter()
-    while done < cases:
-        S = int(rng.integers(1 << 52, 1 << 53)) | 1
-        inv = pow(S, -1, 1 << 54)
-        xs = []
-        for t in range(-63, 64, 2):
-            M = (-t * inv) % (1 << 54)
-            if M >= (1 << 53):
-                X = (S * M + t) >> 54
-                if (1 << 52) <= X < (1 << 53):
-                    xs.append(float(X))
-        if not xs:
-            continue
-        sign = float(rng.choice([-1.0, 1.0]))
-        x = np.ldexp(np.array(xs), int(rng.integers(-840, 840))) * sign
-        s = float(np.ldexp(float(S), int(rng.integers(-150, 40))))
-        wrong_row, fast_row = _check(x, s)
-        wrong += wrong_row
-        fast += fast_row
-        rows += 1
-        done += x.size
-    print(
-        f"{done} quotients next to a rounding midpoint: {wrong} differ; {fast} of {rows} rows "
-        f"took the FMA path ({time.perf_counter() - t0:.0f} s)"
+        f"{done} {label} against numpy's /: {wrong} differ; {fast} of {count} rows took the "
+        f"FMA path ({time.perf_counter() - t0:.0f} s)"
     )
 
 
@@ -135,8 +119,8 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
     speed(args.repeats)
-    bits(args.cases)
-    hard(args.hard)
+    tally("random quotients", random_rows(np.random.default_rng(1)), args.cases)
+    tally("quotients next to a rounding midpoint", hard_rows(np.random.default_rng(3)), args.hard)
     return 0
 
 

@@ -47,9 +47,9 @@ def _tan(w, r, c, d, a, b, s, n, k, nk, base): _tr.tan_row(_w(w, r, c), d, a, n)
 def _asin(w, r, c, d, a, b, s, n, k, nk, base): _tr.asin_row(_w(w, r, c), d, a, n)
 def _acos(w, r, c, d, a, b, s, n, k, nk, base): _tr.acos_row(_w(w, r, c), d, a, n)
 def _atan(w, r, c, d, a, b, s, n, k, nk, base): _tr.atan_row(_w(w, r, c), d, a, n)
-def _sec(w, r, c, d, a, b, s, n, k, nk, base): _tr.sec_row(_w(w, r, c), d, a, n)
-def _csc(w, r, c, d, a, b, s, n, k, nk, base): _tr.csc_row(_w(w, r, c), d, a, n)
-def _cot(w, r, c, d, a, b, s, n, k, nk, base): _tr.cot_row(_w(w, r, c), d, a, n)
+def _sec(w, r, c, d, a, b, s, n, k, nk, base): _tr.trig_row(_w(w, r, c), d, a, n, _tr.COS, True)  # noqa: E501
+def _csc(w, r, c, d, a, b, s, n, k, nk, base): _tr.trig_row(_w(w, r, c), d, a, n, _tr.SIN, True)  # noqa: E501
+def _cot(w, r, c, d, a, b, s, n, k, nk, base): _tr.trig_row(_w(w, r, c), d, a, n, _tr.TAN, True)  # noqa: E501
 def _sinh(w, r, c, d, a, b, s, n, k, nk, base): _el.sinh_row(_w(w, r, c), d, a, n)
 def _cosh(w, r, c, d, a, b, s, n, k, nk, base): _el.cosh_row(_w(w, r, c), d, a, n)
 def _tanh(w, r, c, d, a, b, s, n, k, nk, base): _el.tanh_row(_w(w, r, c), d, a, n)

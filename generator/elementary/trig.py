@@ -812,94 +812,65 @@ def _gather2(W, a, b, n, cnt, sa, sb):
 
 
 @njit(inline="always", **_OPTS)
-def sin_row(W, d, a, n):
-    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
+def _trig_value(kind, x):
+    """sin (kind 0), cos (1) or tan (2) of x, fast path; ``kind`` is a constant at each call,
+    so only its branch is compiled into the row."""
+    if kind == 0:
+        return _sin_fast(x)
+    if kind == 1:
+        return _cos_fast(x)
+    return _tan_fast(x)
+
+
+@njit(inline="always", **_OPTS)
+def _trig_slow_value(kind, x):
+    """The same, for the arguments beyond the fast range (Payne-Hanek)."""
+    if kind == 0:
+        return _sin_slow(x)
+    if kind == 1:
+        return _cos_slow(x)
+    return _tan_slow(x)
+
+
+SIN, COS, TAN = 0, 1, 2  # trig_row's kinds
+
+
+@njit(inline="always", **_OPTS)
+def trig_row(W, d, a, n, kind, recip):
+    """W[d, k] = f(W[a, k]) for k < n, f = sin, cos or tan (``kind``: SIN, COS, TAN), or 1/f
+    with ``recip`` (csc, sec, cot: the function, then the division, in one loop, so the divider
+    works while the function's arithmetic does; the bits of the two operations). d may equal
+    a: the slow lanes' arguments are gathered first. Both flags are constants at each call."""
     cnt = 0
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
     if cnt > 0:
         idx, val = _gather1(W, a, n, cnt)
     for k in range(n):
-        W[d, k] = _sin_fast(W[a, k])
+        v = _trig_value(kind, W[a, k])
+        W[d, k] = 1.0 / v if recip else v
     if cnt > 0:
         for j in range(cnt):
-            W[d, idx[j]] = _sin_slow(val[j])
+            v = _trig_slow_value(kind, val[j])
+            W[d, idx[j]] = 1.0 / v if recip else v
+
+
+@njit(inline="always", **_OPTS)
+def sin_row(W, d, a, n):
+    """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
+    trig_row(W, d, a, n, SIN, False)
 
 
 @njit(inline="always", **_OPTS)
 def cos_row(W, d, a, n):
     """W[d, k] = cos(W[a, k]) for k < n (d may equal a)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
-    for k in range(n):
-        W[d, k] = _cos_fast(W[a, k])
-    if cnt > 0:
-        for j in range(cnt):
-            W[d, idx[j]] = _cos_slow(val[j])
+    trig_row(W, d, a, n, COS, False)
 
 
 @njit(inline="always", **_OPTS)
 def tan_row(W, d, a, n):
     """W[d, k] = tan(W[a, k]) for k < n (d may equal a)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
-    for k in range(n):
-        W[d, k] = _tan_fast(W[a, k])
-    if cnt > 0:
-        for j in range(cnt):
-            W[d, idx[j]] = _tan_slow(val[j])
-
-
-@njit(inline="always", **_OPTS)
-def sec_row(W, d, a, n):
-    """W[d, k] = 1/cos(W[a, k]) for k < n, the bits of cos_row then 1/ (d may equal a):
-    one loop, so the division overlaps cos's arithmetic."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
-    for k in range(n):
-        W[d, k] = 1.0 / _cos_fast(W[a, k])
-    if cnt > 0:
-        for j in range(cnt):
-            W[d, idx[j]] = 1.0 / _cos_slow(val[j])
-
-
-@njit(inline="always", **_OPTS)
-def csc_row(W, d, a, n):
-    """W[d, k] = 1/sin(W[a, k]) for k < n, the bits of sin_row then 1/ (d may equal a)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
-    for k in range(n):
-        W[d, k] = 1.0 / _sin_fast(W[a, k])
-    if cnt > 0:
-        for j in range(cnt):
-            W[d, idx[j]] = 1.0 / _sin_slow(val[j])
-
-
-@njit(inline="always", **_OPTS)
-def cot_row(W, d, a, n):
-    """W[d, k] = 1/tan(W[a, k]) for k < n, the bits of tan_row then 1/ (d may equal a)."""
-    cnt = 0
-    for k in range(n):
-        cnt += 1 if _trig_slow_lane(W[a, k]) else 0
-    if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
-    for k in range(n):
-        W[d, k] = 1.0 / _tan_fast(W[a, k])
-    if cnt > 0:
-        for j in range(cnt):
-            W[d, idx[j]] = 1.0 / _tan_slow(val[j])
+    trig_row(W, d, a, n, TAN, False)
 
 
 @njit(inline="always", **_OPTS)
