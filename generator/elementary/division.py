@@ -1,8 +1,8 @@
 """Division of a row by one scalar, correctly rounded, without a division per value.
 
 The interpreter's ``x / s`` with ``s`` the same for a whole row (operand mode ``vs``: a divisor
-that depends on x, y or both, not on z) is 43 % of the divisions in the stored eq. (13) formulas'
-per-point blocks. A hardware division (``vdivpd``, barely pipelined) costs about 2 cycles a
+that depends on x, y or both, not on z) is 49 of the 114 divisions in the per-point blocks of the
+50 stored eq. (13) formulas. A hardware division (``vdivpd``, barely pipelined) costs about 2 cycles a
 value on the Intel Xeon, six times a product in the same loop, and there the divider bounds the
 median formula. Here the row pays one division, for ``y = 1/s``, and each value a product and
 four fused multiply-adds, with **the bits of** ``x / s`` (IEEE division, round to nearest),
