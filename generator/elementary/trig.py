@@ -811,13 +811,16 @@ def _gather2(W, a, b, n, cnt, sa, sb):
     return idx, vy, vx
 
 
+SIN, COS, TAN = 0, 1, 2  # trig_row's kinds
+
+
 @njit(inline="always", **_OPTS)
 def _trig_value(kind, x):
-    """sin (kind 0), cos (1) or tan (2) of x, fast path; ``kind`` is a constant at each call,
-    so only its branch is compiled into the row."""
-    if kind == 0:
+    """sin, cos or tan (``kind``) of x, fast path; ``kind`` is a constant at each call, so
+    only its branch is compiled into the row."""
+    if kind == SIN:
         return _sin_fast(x)
-    if kind == 1:
+    if kind == COS:
         return _cos_fast(x)
     return _tan_fast(x)
 
@@ -825,14 +828,11 @@ def _trig_value(kind, x):
 @njit(inline="always", **_OPTS)
 def _trig_slow_value(kind, x):
     """The same, for the arguments beyond the fast range (Payne-Hanek)."""
-    if kind == 0:
+    if kind == SIN:
         return _sin_slow(x)
-    if kind == 1:
+    if kind == COS:
         return _cos_slow(x)
     return _tan_slow(x)
-
-
-SIN, COS, TAN = 0, 1, 2  # trig_row's kinds
 
 
 @njit(inline="always", **_OPTS)
