@@ -34,7 +34,7 @@ from numba.extending import intrinsic
 
 from surfgen.generator.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.elementary import REGISTRY as _E
-from surfgen.generator.elementary.division import div_row_by_scalar
+from surfgen.generator.elementary.division import ROW_DIVISION, div_row_by_scalar
 from surfgen.generator.far import SLOT, c_arguments, far_row, require_c_arrays, require_integers
 from surfgen.generator.numba_cache import c_function_cached
 from surfgen.generator.vector_loops import evaluator_compile
@@ -496,8 +496,12 @@ def run_code(code, c0, c1, consts, W, S, T, n, prof):
             elif op == OP_SUB:
                 for k in range(n):
                     W[d, k] = W[a, k] - s
-            elif op == OP_DIV:  # one division per row, the same bits (elementary/division.py)
-                div_row_by_scalar(W, d, a, s, n)
+            elif op == OP_DIV:
+                if ROW_DIVISION:  # one division per row, the same bits (elementary/division.py)
+                    div_row_by_scalar(W, d, a, s, n)
+                else:
+                    for k in range(n):
+                        W[d, k] = W[a, k] / s
             else:
                 _binary_vs(op, W, d, a, s, n, consts)
         elif mode == M_V:

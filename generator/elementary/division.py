@@ -88,9 +88,8 @@ ROW_DIVISION = _codegen_has_fma()
 @njit(inline="always", **JIT)
 def div_row_by_scalar(W, d, a, s, n):
     """``W[d, k] = W[a, k] / s`` for ``k < n``, the bits of IEEE division (module docstring);
-    returns whether the FMA path gave them (else the row was divided plainly: no FMA on this
-    CPU, the destination is the dividend's row, or a value out of the fast range)."""
-    if ROW_DIVISION and d != a and abs(s) >= S_MIN and abs(s) <= S_MAX:
+    returns whether the FMA path gave them (else the row was divided plainly)."""
+    if d != a and abs(s) >= S_MIN and abs(s) <= S_MAX:
         y = 1.0 / s
         ms = -s
         bad = False
