@@ -30,18 +30,19 @@ from pathlib import Path
 
 import numpy as np
 
-import surfgen.generator.mesh as mesh_module
-import surfgen.generator.walls as walls_module
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.fast import points_evaluator
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import JUMP, POLE, ROOT
-from surfgen.generator.parser import parse
+import surfgen.generator.mesh.mesh as mesh_module
+import surfgen.generator.mesh.walls as walls_module
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.tape import points_evaluator
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import JUMP, POLE, ROOT
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_walls import NAMED, sampled_shapes  # noqa: E402
-from walls_main import main_classify  # noqa: E402
+
+from tests.support.walls_main import main_classify  # noqa: E402
 
 AMBIGUOUS = 255
 NAMES = {ROOT: "root", POLE: "pole", JUMP: "jump"}

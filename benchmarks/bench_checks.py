@@ -41,9 +41,9 @@ from surfgen.filters.metrics import Metrics
 from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import quick_metrics, shape_metrics
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh, face_areas, load_mesh
-from surfgen.pipelines import pictures as pic
-from surfgen.pipelines.pictures import (
+from surfgen.generator.mesh.mesh import Mesh, face_areas, load_mesh
+from surfgen.pipelines.pictures import raster as pic
+from surfgen.pipelines.pictures.raster import (
     _FILL_STRENGTH,
     _GROUND_AMBIENT,
     _KEY_STRENGTH,
@@ -475,8 +475,8 @@ def new_thumbnail(mesh: Mesh) -> bytes:
 
 def sample_meshes(n: int, seed: int) -> list[Mesh]:
     """The meshes of the accepted shapes among the first ``n`` draws (as written to disk)."""
-    from surfgen.pipelines.config import load_config
-    from surfgen.pipelines.sampling import make_shape
+    from surfgen.pipelines.run.config import load_config
+    from surfgen.pipelines.run.sampling import make_shape
 
     config = load_config(None)
     out = []

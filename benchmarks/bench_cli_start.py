@@ -33,7 +33,7 @@ HEAVY = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "netwo
 
 _CLI = f"""
 import json, sys
-from surfgen.pipelines.cli import main
+from surfgen.pipelines.cli.main import main
 code = main(sys.argv[1:])
 print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)), file=sys.stderr)
 sys.exit(code)

@@ -3,7 +3,7 @@
     python benchmarks/bench_cold_start.py [--rounds 1]
 
 Each run is a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``, a new temporary
-folder) that calls :func:`surfgen.pipelines.warmup.warm_shape_kernels`, as ``surfgen sample``
+folder) that calls :func:`surfgen.pipelines.run.warmup.warm_shape_kernels`, as ``surfgen sample``
 does before it forks its workers: once with ``parallel=False`` (everything compiled in one
 process, the baseline) and once with ``parallel=True`` (every kernel but the interpreter
 compiled by a child process while this one compiles the interpreter), taking turns ``--rounds``
@@ -27,15 +27,15 @@ import time
 
 _RUN = """
 import json, sys, time
-from surfgen.pipelines.warmup import warm_shape_kernels
+from surfgen.pipelines.run.warmup import warm_shape_kernels
 seconds = warm_shape_kernels(parallel=sys.argv[1] == "parallel")
 print(json.dumps({"warm_up": seconds}))
 """
 
 _CHECK = """
 import json
-from surfgen.generator import kernels
-from surfgen.pipelines.warmup import grid_kernel_cached, warm_grid_kernel
+from surfgen.generator.eval import grid_driver as kernels
+from surfgen.pipelines.run.warmup import grid_kernel_cached, warm_grid_kernel
 cached = grid_kernel_cached()
 warm_grid_kernel()
 print(json.dumps({"cached": cached, "misses": sum(kernels.run_grid.stats.cache_misses.values())}))

@@ -36,7 +36,7 @@ def table(root: Path) -> list[tuple]:
 
 
 def timed_run(executor: str, args, config, out: Path) -> dict[str, float]:
-    from surfgen.pipelines.sampling import run_sample
+    from surfgen.pipelines.run.sampling import run_sample
 
     marks: list[float] = []
     start = time.perf_counter()
@@ -66,8 +66,8 @@ def driver_commit_rate(catalogue: Path, repeats: int = 200) -> tuple[float, floa
     """Accepted shapes per second one driver stages (bytes -> file) and commits, using the
     real files of ``catalogue``; and the mean bytes per accepted shape."""
     from surfgen.filters.verdict import Verdict
-    from surfgen.pipelines.catalogue import open_catalogue
-    from surfgen.pipelines.sampling import ShapeOutcome, _commit, _stage
+    from surfgen.pipelines.catalogue.store import open_catalogue
+    from surfgen.pipelines.run.sampling import ShapeOutcome, _commit, _stage
 
     with open_catalogue(catalogue, must_exist=True) as cat:
         rows = cat.shapes(verdict="accepted")
@@ -113,8 +113,8 @@ def chunk_overhead(workers: int, tasks: int = 200) -> float:
 
 
 def main() -> None:
-    from surfgen.generator.fast import warm_up
-    from surfgen.pipelines.config import load_config
+    from surfgen.generator.eval.tape import warm_up
+    from surfgen.pipelines.run.config import load_config
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=60)

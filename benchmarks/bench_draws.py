@@ -24,8 +24,8 @@ from bench_sample_grids import export_revision, run_code  # noqa: E402
 _CHILD = """
 import json, sys, time
 from dataclasses import replace
-from surfgen.generator import families
-from surfgen.generator.sampler import SamplerConfig
+from surfgen.generator.model import families
+from surfgen.generator.model.sampler import SamplerConfig
 n, seed = int(sys.argv[1]), int(sys.argv[2])
 cfg = replace(SamplerConfig(), family="sculpture")
 for i in range(5):

@@ -30,12 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfgen.generator.compiler import LEVEL_NAMES, OPNAMES, Program, compile_tree
-from surfgen.generator.expr import Expr
-from surfgen.generator.fast import evaluate_program, profile_program, scratch_bytes, warm_up
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.presets import get_preset
-from surfgen.generator.reference import evaluate_points, evaluate_reference
+from surfgen.generator.eval.compiler import LEVEL_NAMES, OPNAMES, Program, compile_tree
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_points, evaluate_reference
+from surfgen.generator.eval.tape import evaluate_program, profile_program, scratch_bytes, warm_up
+from surfgen.generator.formula.expr import Expr
+from surfgen.generator.model.presets import get_preset
 
 # A second, naive baseline: numpy on dense (Nx, Ny, Nz) coordinate arrays, so every
 # sub-expression is computed per point (what an evaluator without hoisting does). The numpy
@@ -53,7 +53,7 @@ def random_eq13(rng: np.random.Generator) -> Expr:
     """An eq. (13) formula drawn the way the sampler draws them (1-2 sums of 1-2 factors, power
     functions of 1-3 terms, real exponents on absolute values, trigonometric and constituent
     H and G, absolute values on elements)."""
-    from surfgen.generator import equation13 as eq
+    from surfgen.generator.model import equation13 as eq
 
     def power() -> eq.PowerFunction:
         absolute = bool(rng.random() < 0.6)
@@ -114,14 +114,14 @@ def kept_eq13(rng: np.random.Generator, tries: int = 100) -> Expr:
     return tree
 
 
-STORED = os.path.join(os.path.dirname(__file__), "..", "tests", "generator", "data")
+STORED = os.path.join(os.path.dirname(__file__), "..", "tests", "support", "data")
 STORED = os.path.join(STORED, "eq13_formulas.jsonl")
 
 
 def stored_eq13(count: int) -> list[tuple[Expr, Box]]:
     """The 50 eq. (13) formulas stored for the field-hash test (drawn once by the sampler,
     seed 7): the same formulas whatever the sampler becomes."""
-    from surfgen.generator.parser import parse
+    from surfgen.generator.formula.parser import parse
 
     with open(STORED) as f:
         rows = [json.loads(line) for line in f][:count]
@@ -132,7 +132,7 @@ def sampled_eq13(seed: int, count: int) -> list[tuple[Expr, Box]]:
     """The first ``count`` formulas of the project's sampler (default config) that get a d,
     with their boxes; falls back to :func:`kept_eq13` when the sampler is not there."""
     try:
-        from surfgen.generator.sampler import SamplerConfig, choose_d, draw_equation
+        from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
     except ImportError:
         rngs = (np.random.default_rng(np.random.SeedSequence([seed, i])) for i in range(count))
         return [(kept_eq13(rng), Box.cube(2.0)) for rng in rngs]
@@ -301,7 +301,7 @@ def thread_calibration() -> tuple[float, float]:
 _STARTUP = """
 import json, time
 t0 = time.perf_counter()
-from surfgen.generator.fast import warm_up
+from surfgen.generator.eval.tape import warm_up
 t1 = time.perf_counter()
 serial = warm_up(parallel=False)
 both = warm_up(parallel=True) if {parallel} else 0.0
@@ -322,10 +322,10 @@ def startup(cache_dir: str | None, parallel: bool) -> dict:
 
 _MEMORY = """
 import json, numpy as np
-from surfgen.generator.compiler import compile_tree
-from surfgen.generator.fast import evaluate_program, warm_up
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.presets import get_preset
+from surfgen.generator.eval.compiler import compile_tree
+from surfgen.generator.eval.tape import evaluate_program, warm_up
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.model.presets import get_preset
 
 def status(key):
     for line in open("/proc/self/status"):
@@ -493,7 +493,7 @@ def main() -> int:
             )
         else:
             cached = startup(None, parallel=True)
-        print(f"  import surfgen.generator.fast: {cached['import']:.2f} s")
+        print(f"  import surfgen.generator.eval.tape: {cached['import']:.2f} s")
         print(
             f"  from cache: serial kernel {cached['serial']:.2f} s, parallel kernel {cached['parallel']:.2f} s"
         )

@@ -45,8 +45,8 @@ def get(url: str) -> bytes:
 
 def typical_key(root: Path) -> tuple[str, int, float]:
     """The accepted shape with the median face count: key, faces, d."""
-    from surfgen.pipelines.catalogue import open_catalogue
-    from surfgen.pipelines.curation import select_shapes
+    from surfgen.pipelines.catalogue.curation import select_shapes
+    from surfgen.pipelines.catalogue.store import open_catalogue
 
     with open_catalogue(root, must_exist=True) as cat:
         shapes = [s for s in select_shapes(cat, sort="faces") if s["d"] is not None]
@@ -62,10 +62,10 @@ def main() -> None:
     ap.add_argument("--cli", type=int, default=5)
     args = ap.parse_args()
 
-    from surfgen.generator.spec import SurfaceSpec
-    from surfgen.pipelines.catalogue import open_catalogue
-    from surfgen.pipelines.explore import apply_changes, warm_up
-    from surfgen.pipelines.gallery import make_server, server_url
+    from surfgen.generator.model.spec import SurfaceSpec
+    from surfgen.pipelines.catalogue.store import open_catalogue
+    from surfgen.pipelines.pictures.gallery import make_server, server_url
+    from surfgen.pipelines.studies.explore import apply_changes, warm_up
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-explore-"))
     root = args.catalogue

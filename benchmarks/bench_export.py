@@ -26,10 +26,10 @@ import trimesh
 
 from surfgen.filters.cleanup import CleanupOptions, edge_lengths, refine_mesh, repair_mesh
 from surfgen.filters.metrics import measure_mesh
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 GYROID = "sin(x)*cos(y)+sin(y)*cos(z)+sin(z)*cos(x)"
 TARGET_SECONDS = 5.0

@@ -60,7 +60,7 @@ def rows(repeats: int) -> list[tuple[str, float, bool]]:
     from numba import njit
 
     from surfgen.generator.elementary import REGISTRY
-    from surfgen.generator.vector_loops import INTERLEAVE
+    from surfgen.generator.jit.interleave import INTERLEAVE
 
     rng = np.random.default_rng(7)
     cases = []
@@ -112,9 +112,9 @@ _CHILD = r"""
 import hashlib, json, sys, time
 sys.path.insert(0, {here!r})
 from bench_eval import stored_eq13
-from surfgen.generator.compiler import compile_tree
-from surfgen.generator.fast import evaluate_program, warm_interpreter
-from surfgen.generator.grid import Grid
+from surfgen.generator.eval.compiler import compile_tree
+from surfgen.generator.eval.tape import evaluate_program, warm_interpreter
+from surfgen.generator.eval.grid import Grid
 t0 = time.perf_counter()
 warm_interpreter()
 compile_s = time.perf_counter() - t0
@@ -133,7 +133,7 @@ print(json.dumps({{"best": best, "sha256": digest.hexdigest(), "compile": compil
 
 
 def evaluations(cache_root: str, rounds: int, n: int, count: int, repeats: int) -> None:
-    from surfgen.generator.vector_loops import INTERLEAVE
+    from surfgen.generator.jit.interleave import INTERLEAVE
 
     code = _CHILD.format(here=HERE, n=n, count=count, repeats=repeats)
     runs: dict[str, list[dict]] = {"llvm": [], "ours": []}

@@ -26,8 +26,8 @@ from bench_sample_grids import export_revision, run_code  # noqa: E402
 _CHILD = r"""
 import json, resource, sys, tempfile, time
 from pathlib import Path
-import surfgen.pipelines.sampling as sampling
-from surfgen.pipelines.config import load_config
+import surfgen.pipelines.run.sampling as sampling
+from surfgen.pipelines.run.config import load_config
 n, seed, workers = (int(a) for a in sys.argv[1:4])
 config = load_config().with_run(timeout=3600.0)
 def cpu():

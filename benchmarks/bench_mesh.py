@@ -6,7 +6,7 @@ grid, 64³, capped as the sampler does).  On each, in the same run, best of ``--
 
 - ``old``: the step-by-step numpy version (``tests/generator/mesh_reference.py``: offsets,
   separation, pad, marching cubes on every cell, placement, merge);
-- ``new``: :func:`surfgen.generator.mesh.extract_with_edges` (numba kernels around marching
+- ``new``: :func:`surfgen.generator.mesh.mesh.extract_with_edges` (numba kernels around marching
   cubes, marching cubes only on the cells with both signs);
 - ``mc``/``mc mask``: scikit-image's marching cubes alone on the same input, all cells and
   masked.
@@ -30,13 +30,13 @@ from pathlib import Path
 import numpy as np
 from skimage.measure import marching_cubes
 
-import surfgen.generator.mesh as mesh_module
-import surfgen.pipelines.sampling as sampling
+import surfgen.generator.mesh.mesh as mesh_module
+import surfgen.pipelines.run.sampling as sampling
 from surfgen.generator.errors import EmptySurface
-from surfgen.pipelines.config import load_config
+from surfgen.pipelines.run.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-from mesh_reference import reference_extract_with_edges  # noqa: E402
+from tests.support.mesh_reference import reference_extract_with_edges  # noqa: E402
 
 
 def sampler_fields(draws: int, seed: int) -> list[tuple]:

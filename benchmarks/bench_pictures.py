@@ -4,7 +4,7 @@ one process against all cores, on the same meshes in the same run.
     python benchmarks/bench_pictures.py --catalogue out/catalogue [--n 200] [--rounds 2]
 
 Takes the first ``--n`` accepted shapes of the catalogue and draws their turntables (12 views of
-256², what ``gallery -o`` makes for each shape) with :func:`surfgen.pipelines.picture_pool.
+256², what ``gallery -o`` makes for each shape) with :func:`surfgen.pipelines.pictures.pool.
 draw_all`, on one process and on ``--workers`` (default: every core), in turns (ABBA), in
 memory (the catalogue is not changed). Prints the wall times, the ratio one process / all cores
 and whether the PNG bytes are the same.
@@ -18,9 +18,9 @@ import platform
 import time
 from pathlib import Path
 
-from surfgen.pipelines.catalogue import open_catalogue
-from surfgen.pipelines.curation import select_shapes
-from surfgen.pipelines.picture_pool import Job, default_workers, draw_all
+from surfgen.pipelines.catalogue.curation import select_shapes
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.pictures.pool import Job, default_workers, draw_all
 
 
 def _timed(jobs: list[Job], workers: int) -> tuple[float, dict[str, bytes]]:

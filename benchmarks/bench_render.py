@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 from skimage import measure
 
-from surfgen.generator.mesh import Mesh
-from surfgen.pipelines.pictures import render_image, render_thumbnail, render_turntable
+from surfgen.generator.mesh.mesh import Mesh
+from surfgen.pipelines.pictures.raster import render_image, render_thumbnail, render_turntable
 
 
 def gyroid_mesh(grid: int, half_periods: float) -> Mesh:

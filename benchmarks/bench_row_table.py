@@ -5,10 +5,10 @@ evaluation speed, each revision in turn in fresh processes.
     python benchmarks/bench_row_table.py --baseline REV [--rounds 2] [--skip-warm-up]
 
 1. **Cold compile**: a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``) loads the
-   interpreter (:func:`surfgen.generator.fast.warm_interpreter`: with the row table, its rows
+   interpreter (:func:`surfgen.generator.eval.tape.warm_interpreter`: with the row table, its rows
    too); then a second process loads it from that cache (the import of surfgen included).
 2. **Warm-up** (unless ``--skip-warm-up``): what ``surfgen sample`` runs first on a fresh machine,
-   :func:`surfgen.pipelines.warmup.warm_shape_kernels` on two processes, on an empty cache.
+   :func:`surfgen.pipelines.run.warmup.warm_shape_kernels` on two processes, on an empty cache.
 3. **Evaluation**: the 50 stored eq. (13) formulas of the field-hash test at 128^3 on one thread,
    best of 3 each, in the caches of step 1, revisions taking turns ``--rounds`` times (which
    goes first alternates: the first run of a round tends to be the fastest); the
@@ -41,14 +41,14 @@ from bench_sample_grids import export_revision  # noqa: E402
 _LOAD = """
 import json, time
 t0 = time.perf_counter()
-from surfgen.generator.fast import warm_interpreter
+from surfgen.generator.eval.tape import warm_interpreter
 warm_interpreter()
 print(json.dumps({"seconds": time.perf_counter() - t0}))
 """
 
 _WARM_UP = """
 import json
-from surfgen.pipelines.warmup import warm_shape_kernels
+from surfgen.pipelines.run.warmup import warm_shape_kernels
 print(json.dumps({"seconds": warm_shape_kernels(parallel=True)}))
 """
 

@@ -20,11 +20,11 @@ import time
 from pathlib import Path
 
 from surfgen.filters.metrics import measure_mesh
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.mesh import extract_mesh
-from surfgen.generator.presets import get_preset
-from surfgen.pipelines.config import load_config
-from surfgen.pipelines.sampling import run_sample
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.presets import get_preset
+from surfgen.pipelines.run.config import load_config
+from surfgen.pipelines.run.sampling import run_sample
 
 
 def baseline_per_minute(grid: int, repeats: int = 5) -> float:
@@ -43,8 +43,8 @@ def crossing_rates(seed: int, draws: int, config) -> dict[str, float]:
     """How often the surface F = 0 crosses the box (coarse grid), for three ways to pick d."""
     import numpy as np
 
-    from surfgen.generator.grid import Grid
-    from surfgen.generator.sampler import choose_d, draw_equation
+    from surfgen.generator.eval.grid import Grid
+    from surfgen.generator.model.sampler import choose_d, draw_equation
 
     cfg = config.sampler
     rng = np.random.default_rng(seed)

@@ -33,8 +33,8 @@ PACKAGES = ("generator", "filters", "pipelines")
 _CHILD = r"""
 import json, sys, tempfile, time
 from pathlib import Path
-import surfgen.pipelines.sampling as sampling
-from surfgen.pipelines.config import load_config
+import surfgen.pipelines.run.sampling as sampling
+from surfgen.pipelines.run.config import load_config
 n, seed, grid, workers = (int(a) for a in sys.argv[1:5])
 config = load_config().with_grid(grid).with_run(timeout=3600.0)
 with tempfile.TemporaryDirectory() as tmp:

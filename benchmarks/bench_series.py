@@ -20,7 +20,7 @@ import time
 import numpy as np
 from numba import njit
 
-from surfgen.generator import interpreter
+from surfgen.generator.eval import interpreter
 
 N = 1024
 CASES = [(0.5, 6, 4.0), (0.37, 12, 6.0), (1.0, 1, 3.0), (2.5, 40, 120.0)]  # r, p, |x| range

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_tiles.py [--grid 128] [--formulas 50] [--tiles 512 1024 2048]
 
-The 50 stored eq. (13) formulas (``tests/generator/data/eq13_formulas.jsonl``), each evaluated
+The 50 stored eq. (13) formulas (``tests/support/data/eq13_formulas.jsonl``), each evaluated
 on one thread at every tile length in turn (best of ``--repeat`` rounds, interleaved, so a busy
 moment hits them alike). Prints, per tile length, the median over the formulas of its time
 divided by the first tile length's, and the total time. The fields are the same bits at every
@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-import surfgen.generator.fast as fast
-from surfgen.generator.compiler import compile_tree
-from surfgen.generator.grid import Grid
+import surfgen.generator.eval.tape as fast
+from surfgen.generator.eval.compiler import compile_tree
+from surfgen.generator.eval.grid import Grid
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_eval import stored_eq13  # noqa: E402

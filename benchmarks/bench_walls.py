@@ -46,21 +46,21 @@ from pathlib import Path
 
 import numpy as np
 
-import surfgen.generator.mesh as mesh_module
-import surfgen.generator.walls as walls_module
+import surfgen.generator.mesh.mesh as mesh_module
+import surfgen.generator.mesh.walls as walls_module
 from surfgen.filters.verdict import screen_field
 from surfgen.generator.errors import EmptySurface
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.parser import parse
-from surfgen.generator.sampler import choose_d, draw_equation
-from surfgen.generator.walls import extract_labelled, label_walls
-from surfgen.pipelines.config import load_config
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.walls import extract_labelled, label_walls
+from surfgen.generator.model.sampler import choose_d, draw_equation
+from surfgen.pipelines.run.config import load_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-from mesh_reference import reference_extract_with_edges  # noqa: E402
-from walls_main import main_classify  # noqa: E402
-from walls_reference import reference_classify_edges  # noqa: E402
+from tests.support.mesh_reference import reference_extract_with_edges  # noqa: E402
+from tests.support.walls_main import main_classify  # noqa: E402
+from tests.support.walls_reference import reference_classify_edges  # noqa: E402
 
 NAMED = [
     # (name, formula, half side of the box); walls first

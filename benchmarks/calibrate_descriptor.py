@@ -25,9 +25,9 @@ from surfgen.filters.descriptor import (
     descriptor,
     descriptor_distances,
 )
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.mesh import extract_mesh, load_mesh
-from surfgen.generator.spec import SurfaceSpec
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.mesh.mesh import extract_mesh, load_mesh
+from surfgen.generator.model.spec import SurfaceSpec
 
 
 def main() -> None:

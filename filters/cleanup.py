@@ -43,7 +43,7 @@ from scipy.sparse.csgraph import connected_components
 
 from surfgen.filters import meshlab
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
+from surfgen.generator.mesh.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
 
 logger = logging.getLogger(__name__)
 

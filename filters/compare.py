@@ -5,7 +5,7 @@ about (Figure 3's I3, I4 and I5 are one formula sampled on three grids):
 
 - :func:`inside_iou` reads each field as the trilinear interpolant of its samples (the function
   marching cubes triangulates the zero set of), with non-finite samples outside as in
-  :func:`surfgen.generator.mesh.extract_mesh`, and everything outside a field's box outside too.
+  :func:`surfgen.generator.mesh.mesh.extract_mesh`, and everything outside a field's box outside too.
   Both interpolants are sampled on one grid over the union of the boxes; the IoU is
   |A ∩ B| / |A ∪ B| of the inside samples (1.0 when both are empty).
 - :func:`hausdorff` is the symmetric Hausdorff distance between two meshes, estimated from
@@ -19,8 +19,8 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 from scipy.spatial import cKDTree
 
-from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 OUTSIDE = 1e300  # what a non-finite sample becomes before interpolation: far outside
 

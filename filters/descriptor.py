@@ -49,7 +49,7 @@ from scipy.spatial import cKDTree
 
 from surfgen.filters.geometry import weighted_centres
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh, face_cross
+from surfgen.generator.mesh.mesh import Mesh, face_cross
 
 log = logging.getLogger(__name__)
 

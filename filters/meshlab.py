@@ -2,7 +2,7 @@
 
 pymeshlab renames filters and parameters between releases, so this module speaks exactly one
 version (:data:`PYMESHLAB_VERSION`, pinned in ``pyproject.toml``) and keeps every filter name it
-uses in :data:`FILTERS`.  Functions take and return :class:`~surfgen.generator.mesh.Mesh` or
+uses in :data:`FILTERS`.  Functions take and return :class:`~surfgen.generator.mesh.mesh.Mesh` or
 plain numbers; every repair returns a new mesh without unreferenced vertices.
 
 Never call ``MeshSet.save_snapshot``: it aborts the process (SIGABRT) without a display.
@@ -20,7 +20,7 @@ import numpy as np
 import pymeshlab
 
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
+from surfgen.generator.mesh.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
 
 logger = logging.getLogger(__name__)
 

@@ -16,7 +16,7 @@ import numpy as np
 from surfgen.filters import meshlab
 from surfgen.filters.geometry import column_bounds, edge_counts, used_mask, volume_terms
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,7 +17,7 @@ import trimesh
 
 from surfgen.filters import meshlab
 from surfgen.filters.metrics import measure_mesh
-from surfgen.generator.mesh import Mesh, bbox_diagonal
+from surfgen.generator.mesh.mesh import Mesh, bbox_diagonal
 
 MERGE_FRACTION = 1e-6  # MeshLab's merge threshold, as a fraction of the bbox diagonal
 _KEYS = ("components", "euler", "genus", "watertight", "nonmanifold_edges", "nonmanifold_vertices")

@@ -29,7 +29,7 @@ from surfgen.filters.geometry import (
     used_mask,
     weighted_centres,
 )
-from surfgen.generator.mesh import Mesh, face_areas
+from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
 SYMMETRY_SEED = 20251201  # fixed: the measure is a function of the mesh alone

@@ -22,8 +22,12 @@ from surfgen.filters.geometry import corner_angle_sums, used_mask
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh import Mesh, face_areas
-from surfgen.generator.settings import require_fractions, settings_from_mapping, settings_to_dict
+from surfgen.generator.mesh.mesh import Mesh, face_areas
+from surfgen.generator.model.settings import (
+    require_fractions,
+    settings_from_mapping,
+    settings_to_dict,
+)
 
 REASONS = (
     "no_crossing",  # no d gives a surface (the sum is constant or non-finite on the coarse grid)
@@ -159,7 +163,7 @@ def quick_metrics(
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
     ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
     (area of the largest component / total).  ``areas``: the mesh's
-    :func:`~surfgen.generator.mesh.face_areas`, where the caller has them already."""
+    :func:`~surfgen.generator.mesh.mesh.face_areas`, where the caller has them already."""
     areas = face_areas(mesh) if areas is None else areas
     total = float(areas.sum()) or 1.0
     lo = np.array(box[0::2])

@@ -45,7 +45,7 @@ if "NUMBA_CACHE_DIR" not in _os.environ and not _os.access(
 # numba's settings (512-bit vectors on AVX-512 CPUs, the cache stamp, four vectors per
 # iteration in the evaluator's loops) are applied when numba is first imported, before any of
 # surfgen's jitted functions is defined: importing surfgen imports no numba (numba_setup.py).
-from surfgen.generator.numba_setup import install as _install_numba_setup  # noqa: E402
-from surfgen.generator.numba_setup import wide_vector_features  # noqa: E402, F401
+from surfgen.generator.jit.setup import install as _install_numba_setup  # noqa: E402
+from surfgen.generator.jit.setup import wide_vector_features  # noqa: E402, F401
 
 _install_numba_setup()

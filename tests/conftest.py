@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import pytest
 
-from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 # The keys `surfgen check --json` promises (the issue's list, in its order).
 CHECK_KEYS = [
@@ -139,8 +139,8 @@ def catalogue_shapes(root, items, *, seed: int = 0, grid: int = 40) -> list[str]
     import json
 
     from surfgen.filters.verdict import shape_metrics
-    from surfgen.generator.mesh import save_mesh
-    from surfgen.pipelines.catalogue import open_catalogue
+    from surfgen.generator.mesh.mesh import save_mesh
+    from surfgen.pipelines.catalogue.store import open_catalogue
 
     keys = []
     with open_catalogue(root) as cat:
@@ -192,7 +192,7 @@ def pytest_collection_modifyitems(config, items) -> None:
 def _warm_kernels(config, selected: int) -> None:
     import os
 
-    import kernel_warmup
+    from tests.support import kernel_warmup
 
     switch = os.environ.get("SURFGEN_TEST_WARMUP", "")
     if switch == "0" or (switch != "1" and selected < kernel_warmup.MIN_TESTS):
@@ -228,7 +228,7 @@ HEAVY_MODULES = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage"
 
 _LOADED = """
 import json, sys
-from surfgen.pipelines.cli import main
+from surfgen.pipelines.cli.main import main
 try:
     main(sys.argv[1:])
 except SystemExit:

@@ -16,10 +16,10 @@ from surfgen.filters.cleanup import (
     target_edge_for_faces,
 )
 from surfgen.filters.metrics import measure_mesh
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 TORUS = "(sqrt(x^2+y^2)-1)^2+z^2-0.16"
 CHAIN = (

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from surfgen.filters.compare import hausdorff, inside_iou, inside_samples, union_box
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Box, Field, Grid
-from surfgen.generator.mesh import extract_mesh
-from surfgen.generator.parser import parse
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
 
 
 def _sphere(radius: float, half: float = 1.5, n: int = 40) -> Field:

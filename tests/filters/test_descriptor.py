@@ -27,10 +27,10 @@ from surfgen.filters.descriptor import (
     nearest_distances,
 )
 from surfgen.generator.errors import MeshError
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 
 def _mesh(formula: str, half: float, n: int) -> Mesh:

@@ -16,11 +16,11 @@ from scipy.sparse.csgraph import connected_components
 from surfgen.filters import verdict
 from surfgen.filters.meshlab import face_components
 from surfgen.generator.elementary.trig import acos_array
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh, face_areas
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
-from surfgen.pipelines import pictures
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_areas
+from surfgen.pipelines.pictures import raster as pictures
 
 
 @pytest.fixture(scope="module")

@@ -16,10 +16,10 @@ from surfgen.filters.descriptor import descriptor as fast_descriptor
 from surfgen.filters.metrics import _edge_counts
 from surfgen.filters.verdict import _total_abs_curvature
 from surfgen.generator.elementary.trig import acos_array
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 
 def mesh_of(formula: str, half: float = 1.6, n: int = 24, cap: bool = True) -> Mesh:

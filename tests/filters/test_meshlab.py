@@ -12,10 +12,10 @@ import pytest
 from surfgen.filters import meshlab
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import MeshError
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import Mesh, extract_mesh
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 ROOT = Path(__file__).resolve().parents[2]
 

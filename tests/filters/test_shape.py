@@ -13,11 +13,11 @@ from surfgen.filters.shape import (
     symmetry_metrics,
 )
 from surfgen.filters.verdict import FilterConfig, judge
-from surfgen.generator.evaluate import evaluate
-from surfgen.generator.families import envelope_departure
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import extract_mesh
-from surfgen.generator.parser import parse
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.families import envelope_departure
 
 GRID = 40
 

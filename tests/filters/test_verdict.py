@@ -14,10 +14,10 @@ from surfgen.filters.verdict import (
     shape_metrics,
 )
 from surfgen.generator.errors import SpecError
-from surfgen.generator.grid import Box, Grid
-from surfgen.generator.mesh import extract_mesh
-from surfgen.generator.parser import parse
-from surfgen.generator.reference import evaluate_reference
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
 
 CFG = FilterConfig(min_faces=100)
 
@@ -57,7 +57,7 @@ def test_quick_metrics_agree_with_full_metrics() -> None:
 
 
 def test_quick_metrics_take_the_face_areas_a_caller_has() -> None:
-    from surfgen.generator.mesh import face_areas
+    from surfgen.generator.mesh.mesh import face_areas
 
     slab, g = mesh_of("z-0.5+0.2*sin(3*x)", 1.0, 24)
     areas = face_areas(slab)

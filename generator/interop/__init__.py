@@ -1,0 +1,1 @@
+"""surfgen.generator.interop."""

@@ -1,0 +1,134 @@
+"""surfgen's settings for numba, applied when numba is first imported, and not before.
+
+Three things must happen around numba's import, whoever imports it first (surfgen's kernels, a
+test, the user's own code):
+
+- before: on a CPU with AVX-512, ``NUMBA_CPU_FEATURES`` without LLVM's ``prefer-256-bit``
+  (:func:`wide_vector_features`), which numba reads when it is imported;
+- after, before any of surfgen's jitted functions is defined: the cache locator that stamps
+  surfgen's numba sources (:mod:`surfgen.generator.jit.cache`) and the listener that compiles
+  the evaluator's loops with four vectors per iteration (:mod:`surfgen.generator.jit.interleave`).
+
+They used to run when ``surfgen.generator`` was imported, which imported numba (and llvmlite,
+and through them scipy) into every process: about a second before ``surfgen --help`` or
+``surfgen catalogue list`` could print anything, for commands that never compile. :func:`install`
+instead puts a finder first on ``sys.meta_path`` that wraps numba's loader once: the import of
+numba itself runs the settings, at the same moment as before relative to numba, and a command
+that needs no kernel never pays for them. If numba is already imported, they run at once.
+"""
+
+from __future__ import annotations
+
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import os
+import sys
+import threading
+from collections.abc import Mapping
+from types import ModuleType
+from typing import Any
+
+_LOCK = threading.Lock()
+_DONE = False
+
+
+def wide_vector_features(environ: Mapping[str, str], host_features: str) -> str | None:
+    """The ``NUMBA_CPU_FEATURES`` that let LLVM use 512-bit vectors on an AVX-512 CPU: the host's
+    features with LLVM's tuning flag ``prefer-256-bit`` turned off; ``None`` where there is
+    nothing to do (no AVX-512, or the user chose the features or turned AVX off).
+
+    LLVM tunes ``skylake-avx512``, ``icelake-server``, ``sapphirerapids`` ... to prefer 256-bit
+    vectors (512-bit instructions once lowered those Xeons' clocks), AMD's Zen 4 and 5 not. On
+    the Zen 5, with Intel's code generation (``NUMBA_CPU_NAME=skylake-avx512``) and numpy's
+    dispatch cut to that Xeon's, the median fast / numpy ratio of ``benchmarks/bench_eval.py``
+    was 2.3-2.4x with 256-bit vectors and 3.0-3.6x with 512-bit ones. Vector width changes no
+    bit: every operation is elementwise, without FMA.
+    """
+    if "NUMBA_CPU_FEATURES" in environ or environ.get("NUMBA_ENABLE_AVX", "") == "0":
+        return None
+    if "+avx512f" not in host_features.split(","):
+        return None
+    return host_features + ",-prefer-256-bit"
+
+
+def _use_wide_vectors() -> None:
+    try:
+        from llvmlite import binding
+    except ImportError:  # pragma: no cover (numba requires llvmlite)
+        return
+    features = wide_vector_features(os.environ, binding.get_host_cpu_features().flatten())
+    if features is None:
+        return
+    os.environ["NUMBA_CPU_FEATURES"] = features  # read by numba at import, and by workers
+    config = sys.modules.get("numba.core.config")
+    if config is not None:  # numba came first: its config has read the environment already
+        config.CPU_FEATURES = features
+
+
+def _after_numba() -> None:
+    """What must follow numba's import and precede surfgen's first jitted function."""
+    global _DONE
+    with _LOCK:
+        if _DONE:
+            return
+        from surfgen.generator.jit.cache import install_cache_stamp
+        from surfgen.generator.jit.interleave import install as install_interleave
+
+        install_cache_stamp()
+        install_interleave()
+        _DONE = True
+
+
+def installed() -> bool:
+    """Whether numba has been imported and given surfgen's settings in this process."""
+    return _DONE
+
+
+class _Loader(importlib.abc.Loader):
+    """numba's own loader, with surfgen's settings before and after it runs numba's
+    ``__init__``; everything else (resources, code, file names) is the wrapped loader's."""
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        return self._inner.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        _use_wide_vectors()
+        self._inner.exec_module(module)
+        _after_numba()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+
+class _Finder(importlib.abc.MetaPathFinder):
+    """Finds nothing but numba, once: its spec as the other finders give it, the loader
+    wrapped. Then it leaves ``sys.meta_path``."""
+
+    def find_spec(
+        self, fullname: str, path: Any = None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        if fullname != "numba":
+            return None
+        _remove_finder()
+        spec = importlib.util.find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _Loader(spec.loader)
+        return spec
+
+
+def _remove_finder() -> None:
+    sys.meta_path[:] = [f for f in sys.meta_path if not isinstance(f, _Finder)]
+
+
+def install() -> None:
+    """Apply surfgen's numba settings when numba is imported (at once if it already is)."""
+    if "numba" in sys.modules:
+        _use_wide_vectors()
+        _after_numba()
+        return
+    if not any(isinstance(f, _Finder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _Finder())

@@ -1,0 +1,1 @@
+"""surfgen.pipelines.catalogue.store."""

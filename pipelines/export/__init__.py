@@ -1,0 +1,1 @@
+"""surfgen.pipelines.export.meshes."""

@@ -1,0 +1,286 @@
+"""MathMod and K3DSurf interop: ``render --mathmod``, ``surfgen import mathmod``, and scripts for
+``export --format mathmod|k3dsurf`` (the format is :mod:`surfgen.generator.interop.mathmod`)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import numpy as np
+import typer
+
+from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.files import write_all_atomic
+from surfgen.generator.interop.mathmod import Model, load_model, read_script, to_script
+from surfgen.generator.model.spec import SurfaceSpec
+
+if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
+    from surfgen.generator.mesh.mesh import Mesh
+
+log = logging.getLogger(__name__)
+
+SCRIPT_FORMATS = ("mathmod", "k3dsurf")
+
+
+def read_model(
+    path: Path,
+    name: str | None = None,
+    *,
+    slider: int | None = None,
+    params: Mapping[str, float] | None = None,
+    grid: int | None = None,
+) -> Model:
+    """The model ``name`` of the MathMod script at ``path``; notices go to the log."""
+    model = load_model(read_script(path), name, slider_set=slider, params=params, grid=grid)
+    for notice in model.notices:
+        log.warning("%s: %s", model.name, notice)
+    return model
+
+
+def render_model(
+    model: Model,
+    *,
+    component: str | None = None,
+    box: Sequence[float] | None = None,
+    grid: Sequence[int] | None = None,
+    level: float | None = None,
+    cap: bool = False,
+    evaluator: str = "fast",
+    mesh_path: Path | None = None,
+    png_path: Path | None = None,
+) -> dict[str, Any]:
+    """Evaluate each component (or the chosen one) in its own box, mesh them into one mesh,
+    write what is asked; returns the JSON summary ``render --json`` prints."""
+    from surfgen.generator.mesh.mesh import MESH_SUFFIXES, extract_mesh, mesh_bytes
+    from surfgen.pipelines.export.render import build_spec, check_output_path
+
+    if mesh_path is not None:
+        check_output_path(Path(mesh_path), MESH_SUFFIXES, "mesh file")
+    if png_path is not None:
+        check_output_path(Path(png_path), (".png",), "picture")
+    chosen = [model.component(component)] if component is not None else list(model.components)
+    start = time.perf_counter()
+    parts: list[Mesh] = []
+    summaries = []
+    nonfinite = 0
+    for comp in chosen:
+        spec = build_spec(base=comp.spec, box=box, grid=grid, level=level)
+        field = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator=evaluator)
+        nonfinite += field.nonfinite
+        try:
+            mesh = extract_mesh(field, spec.level, cap=cap)
+        except EmptySurface as exc:
+            if len(chosen) == 1:
+                raise
+            log.warning("component %s: %s", comp.name, exc)
+            mesh = None
+        if mesh is not None:
+            parts.append(mesh)
+        summaries.append(
+            {
+                "component": comp.name,
+                "key": spec.key,
+                "formula": spec.formula,
+                "box": list(spec.box),
+                "grid": list(spec.grid),
+                "params": dict(spec.params),
+                "faces": None if mesh is None else mesh.n_faces,
+            }
+        )
+    if not parts:
+        raise EmptySurface(f"model {model.name}: no component has a surface in its box")
+    mesh = merge_meshes(parts)
+    # Both files made in memory, then written all or nothing (an older mesh is kept if the
+    # picture cannot be written).
+    outputs: dict[str, tuple[Path, bytes]] = {}
+    if mesh_path is not None:
+        outputs["mesh"] = (Path(mesh_path), mesh_bytes(mesh, Path(mesh_path)))
+    if png_path is not None:
+        from surfgen.pipelines.pictures.raster import png_bytes, render_image
+
+        outputs["png"] = (Path(png_path), png_bytes(render_image(mesh, size=512)))
+    write_all_atomic(list(outputs.values()))
+    files = {kind: str(path) for kind, (path, _) in outputs.items()}
+    return {
+        "model": model.name,
+        "description": model.description,
+        "components": summaries,
+        "vertices": mesh.n_vertices,
+        "faces": mesh.n_faces,
+        "nonfinite": nonfinite,
+        "seconds": round(time.perf_counter() - start, 6),
+        "files": files,
+    }
+
+
+def merge_meshes(parts: Sequence[Mesh]) -> Mesh:
+    """One mesh holding every part (vertices are not merged: parts stay separate components)."""
+    from surfgen.generator.mesh.mesh import Mesh
+
+    offsets = np.cumsum([0] + [p.n_vertices for p in parts[:-1]])
+    vertices = np.concatenate([p.vertices for p in parts])
+    faces = np.concatenate([p.faces + o for p, o in zip(parts, offsets, strict=True)])
+    return Mesh(vertices, faces)
+
+
+# ----------------------------------------------------------------------------- import
+
+
+def _stem(text: str) -> str:
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._")
+    return stem or "model"
+
+
+def import_script(
+    path: Path,
+    out_dir: Path,
+    *,
+    name: str | None = None,
+    slider: int | None = None,
+    params: Mapping[str, float] | None = None,
+) -> list[Path]:
+    """Write one spec JSON per component of every Iso3D model (or of model ``name``) of the
+    script into ``out_dir``; all files or none. Returns the paths."""
+    from surfgen.generator.interop.mathmod import build_model, model_names
+
+    models = read_script(path)
+    names = model_names(models)
+    if name is not None and name not in names:
+        raise SpecError(f"no model '{name}' in the script (models: {', '.join(names)})")
+    chosen = [m for m, n in zip(models, names, strict=True) if (name is None or n == name)]
+    implicit = [m for m in chosen if "Iso3D" in m]
+    if not implicit:
+        load_model(chosen, None)  # raises the "not supported: parametric" message
+    written: dict[Path, bytes] = {}
+    for raw in implicit:
+        model = build_model(raw, slider_set=slider, params=params)
+        for notice in model.notices:
+            log.warning("%s: %s", model.name, notice)
+        single = len(model.components) == 1
+        for comp in model.components:
+            stem = _stem(model.name if single else f"{model.name}-{comp.name}")
+            target = Path(out_dir) / f"{stem}.json"
+            if target in written:
+                raise SpecError(f"two models would both be written to {target.name}")
+            written[target] = (comp.spec.to_json() + "\n").encode()
+    return write_all(Path(out_dir), written)
+
+
+def write_all(out_dir: Path, files: Mapping[Path, bytes]) -> list[Path]:
+    """Write every file or none (:func:`write_all_atomic`: a file that was there before and
+    would have been replaced is put back if a later one fails)."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        return write_all_atomic(list(files.items()))
+    except OSError as exc:
+        raise SpecError(f"cannot write {exc.filename or out_dir}: {exc.strerror}") from None
+
+
+# ----------------------------------------------------------------------------- export
+
+
+def script_bytes(
+    fmt: str, name: str, specs: Sequence[tuple[str, SurfaceSpec]], note: str = ""
+) -> bytes:
+    """The text of a MathMod script (JSON) or a K3DSurf formula file for ``specs``."""
+    if fmt == "mathmod":
+        return (json.dumps(to_script(specs, name, note), indent=2) + "\n").encode()
+    if fmt == "k3dsurf":
+        return k3dsurf_text(name, specs).encode()
+    raise SpecError(f"unknown script format '{fmt}' (allowed: {', '.join(SCRIPT_FORMATS)})")
+
+
+def k3dsurf_text(name: str, specs: Sequence[tuple[str, SurfaceSpec]]) -> str:
+    """K3DSurf's implicit-surface fields, one block per component, constants substituted
+    (K3DSurf has no named constants)."""
+    from surfgen.generator.formula.expr import substitute_params, to_string
+    from surfgen.generator.interop.builtins import expand_builtins
+
+    lines = [f"# K3DSurf implicit surface: {name}", "# written by surfgen"]
+    for comp, spec in specs:
+        tree = substitute_params(expand_builtins(spec.tree(), spec.params), spec.params)
+        xmin, xmax, ymin, ymax, zmin, zmax = spec.box
+        nx, ny, nz = spec.grid
+        lines += [
+            "",
+            f"[{comp}]",
+            f"F(x,y,z) = {to_string(tree)}",
+            f"X = [{xmin!r}, {xmax!r}]",
+            f"Y = [{ymin!r}, {ymax!r}]",
+            f"Z = [{zmin!r}, {zmax!r}]",
+            f"Grid = [{nx}, {ny}, {nz}]",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+SCRIPT_SUFFIX = {"mathmod": ".mathmod.json", "k3dsurf": ".k3dsurf.txt"}
+
+
+def export_scripts(inputs: Sequence[str], out_dir: Path, fmt: str, catalogue: Path) -> list[Path]:
+    """One script per input (catalogue key or prefix, or spec file) in ``out_dir``; all or none."""
+    from surfgen.pipelines.export.meshes import resolve_sources
+
+    fmt = fmt.lower()
+    if fmt not in SCRIPT_FORMATS:
+        raise SpecError(f"unknown script format '{fmt}' (allowed: {', '.join(SCRIPT_FORMATS)})")
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SpecError(f"--output {out_dir} exists and is not a folder")
+    files: dict[Path, bytes] = {}
+    for source in resolve_sources(inputs, catalogue):
+        if source.spec is None:
+            raise SpecError(
+                f"{source.argument}: a mesh file has no formula; --format {fmt} needs catalogue "
+                "keys or spec files"
+            )
+        files[out_dir / f"{source.name}{SCRIPT_SUFFIX[fmt]}"] = script_bytes(
+            fmt, source.name, [(source.name, source.spec)]
+        )
+    return write_all(out_dir, files)
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+import_app = typer.Typer(help="Bring shapes in from other programs.", no_args_is_help=True)
+
+
+@import_app.command("mathmod")
+def import_mathmod_cmd(
+    script: Annotated[Path, typer.Argument(help="A MathMod script (JSON).")],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", help="Folder for the spec files.")
+    ] = Path("out/mathmod"),
+    name: Annotated[str | None, typer.Option(help="Only the model of this Name.")] = None,
+    slider: Annotated[int | None, typer.Option(help="Slider set K (default 0).")] = None,
+    param: Annotated[
+        list[str] | None, typer.Option(help="NAME=VALUE (t, constants, sliders).")
+    ] = None,
+) -> None:
+    """Write one spec JSON per component of the script's implicit (Iso3D) models."""
+    from surfgen.pipelines.cli.main import parse_params
+
+    for path in import_script(script, output, name=name, slider=slider, params=parse_params(param)):
+        typer.echo(f"wrote {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``surfgen import mathmod`` to the CLI."""
+    app.add_typer(import_app, name="import")
+
+
+__all__ = [
+    "SCRIPT_FORMATS",
+    "import_script",
+    "k3dsurf_text",
+    "merge_meshes",
+    "read_model",
+    "render_model",
+    "script_bytes",
+]

@@ -1,0 +1,286 @@
+"""Load (or compile, the first time on a machine) every numba kernel a shape goes through.
+
+The sampling driver calls :func:`warm_shape_kernels` before it forks its workers, so they
+start with the kernels in memory: on a fresh checkout, compiling them took a worker a minute
+or more, longer than a shape's ``timeout`` on a loaded machine, and the first shapes were then
+rejected as ``timeout`` — a catalogue that depended on the cache. Dask's shape processes get
+the same through :mod:`surfgen.pipelines.run.dask_preload`, imported by their forkserver. ``render``,
+``sweep`` and ``reproduce`` call :func:`compile_first`: on a cold cache, the same warm-up on two
+processes before they evaluate.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+# A small ball with a pole inside the box (so the walls' classification runs its kernel) and
+# one cut by the box (caps).
+WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
+WARM_HALF, WARM_POINTS = 1.1, 14
+
+# The child that compiles the grid kernel, and what follows a mesh but the walls, while this
+# process compiles the walls' kernels.
+_CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child()"
+
+
+def _tiny_shape(evaluator: str = "fast"):
+    """The warm-up's formula, its box and its field (``evaluator``: fast or reference, the same
+    values)."""
+    from surfgen.generator.eval.evaluate import evaluate
+    from surfgen.generator.eval.grid import Box, Grid
+    from surfgen.generator.formula.parser import parse
+
+    tree = parse(WARM_FORMULA)
+    box = Box.cube(WARM_HALF)
+    return tree, box, evaluate(tree, Grid(box, (WARM_POINTS,) * 3), evaluator=evaluator, threads=1)
+
+
+def warm_grid_kernel() -> None:
+    """Load (or compile) the fast evaluator's grid kernel, as :func:`warm_shape_kernels` uses it."""
+    _tiny_shape("fast")
+
+
+def warm_in_child() -> None:
+    """The child's part of a parallel warm-up: every kernel of a shape but the interpreter, which
+    the parent compiles meanwhile. The kernels that call the interpreter (the grid's, the walls')
+    are compiled for the tiny shape's argument types, not run (:func:`without_interpreter`);
+    the mesh, filter and picture kernels run on the field the reference evaluator samples (the
+    same values)."""
+    from surfgen.generator.eval import grid_driver as kernels
+    from surfgen.generator.mesh import walls
+
+    with without_interpreter((kernels, "run_grid"), (walls, "_bisect_kernel")):
+        _tiny_shape("fast")
+        tree, box, field = _tiny_shape("reference")
+        _warm_the_rest(field, box, _warm_mesh(field, tree))
+
+
+@contextlib.contextmanager
+def without_interpreter(*kernels: tuple[object, str]) -> Iterator[None]:
+    """Within the block the interpreter is not loaded, and each ``(module, name)`` numba
+    dispatcher, a kernel that calls it, is compiled (or loaded from numba's cache) for the types
+    of the arguments it is called with, not run: the call returns 0 and writes nothing. A
+    kernel's compile needs only the interpreter's calling convention
+    (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
+    import numba
+
+    from surfgen.generator.eval import interpreter
+
+    def compiling(dispatcher):
+        def compile_for(*args):
+            dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            return 0
+
+        return compile_for
+
+    originals = {(module, name): getattr(module, name) for module, name in kernels}
+    load = interpreter.load_interpreter
+    try:
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, compiling(dispatcher))
+        interpreter.load_interpreter = lambda: None
+        yield
+    finally:
+        interpreter.load_interpreter = load
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, dispatcher)
+
+
+def grid_kernel_cached() -> bool:
+    """Whether numba's on-disk cache holds the grid kernel and the interpreter it calls for this
+    machine and this code (then loading them takes a fraction of a second). True when that
+    cannot be told: the caller then does what it always did."""
+    from surfgen.generator.eval import grid_driver as kernels
+    from surfgen.generator.eval.interpreter import interpreter_cached
+
+    return interpreter_cached() and kernel_cached(kernels.run_grid)
+
+
+def kernel_cached(dispatcher) -> bool:
+    """Whether numba's on-disk cache holds a compiled ``dispatcher`` (any signature) for this
+    machine and this code. True when that cannot be told (numba's internals moved)."""
+    from surfgen.generator.jit.cache import cached_on_disk
+
+    # dispatcher._cache: numba's own cache (a NullCache where caching is off)
+    return cached_on_disk(lambda: (dispatcher._cache, dispatcher.targetctx.codegen()), dispatcher)
+
+
+# What a cold start looks like to a user: shown once, before the warm-up compiles.
+COMPILE_NOTICE = (
+    "compiling surfgen's numba kernels: about 1-2 minutes on the first run on this machine "
+    "(or after an update); they are cached for later runs"
+)
+
+
+def compile_notice(echo: Callable[[str], None], *, background: bool = False) -> bool:
+    """For a command about to evaluate with the fast evaluator: ``echo`` :data:`COMPILE_NOTICE`
+    (also logged) when its grid kernel is not in numba's cache — compiling it and the mesh's
+    kernels takes a minute or two, once. ``background``: the compile runs beside the command (a
+    server's warm-up). Returns whether it spoke."""
+    if grid_kernel_cached():
+        return False
+    _announce(
+        COMPILE_NOTICE + (", in the background: the first step waits for it" if background else ""),
+        echo,
+    )
+    return True
+
+
+def compile_first(echo: Callable[[str], None]) -> bool:
+    """For a command about to evaluate with the fast evaluator (render, sweep, reproduce): on a
+    cold cache, ``echo`` :data:`COMPILE_NOTICE` and, with a second CPU, compile every kernel of
+    a shape first, on two processes (:func:`warm_shape_kernels`), instead of one after the other
+    as the command reaches them: a first ``surfgen render`` with a PNG took 107 s that way on a
+    2-core Zen 3, the warm-up on two processes 76 s. Returns whether the cache was cold."""
+    if not compile_notice(echo):
+        return False
+    if _cpus() >= 2:
+        warm_shape_kernels(parallel=True)
+    return True
+
+
+def _announce(text: str, echo: Callable[[str], None] | None) -> None:
+    """The library logs a compile notice; the CLI's ``echo`` prints it."""
+    log.info(text)
+    if echo is not None:
+        echo(text)
+
+
+def shape_kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the interpreter and the kernels a shape goes through
+    (one of each stage: the grid, the walls, the mesh, the metrics, the pictures) for this
+    machine and this code, so that :func:`warm_shape_kernels` only loads them."""
+    from surfgen.generator.eval.interpreter import interpreter_cached
+
+    return interpreter_cached() and _kernels_cached()
+
+
+def _kernels_cached() -> bool:
+    """:func:`shape_kernels_cached` but the interpreter."""
+    from surfgen.filters import geometry
+    from surfgen.generator.eval import grid_driver as kernels
+    from surfgen.generator.mesh import mesh, walls
+    from surfgen.pipelines.pictures import raster as pictures
+
+    stages = (kernels.run_grid, walls._bisect_kernel, mesh._offsets_kernel)
+    stages += (geometry.corner_angle_sums, pictures._rasterise)
+    return all(kernel_cached(d) for d in stages)
+
+
+def _cpus() -> int:
+    """The CPUs this process may run on (all of them where the OS cannot tell, as on macOS)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _start_child() -> subprocess.Popen | None:
+    """On a cold cache with a second CPU: start the child (:func:`warm_in_child`), which compiles
+    every kernel but the interpreter while this process compiles that."""
+    if _cpus() < 2 or _kernels_cached():
+        return None
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", _CHILD],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+    except OSError as exc:  # no second process: compile it all here, as before
+        log.debug("cannot start the warm-up's child process: %s", exc)
+        return None
+
+
+def _join_child(child: subprocess.Popen) -> None:
+    _, err = child.communicate()
+    if child.returncode != 0:  # compiled here instead, by what follows
+        log.debug("the warm-up's child process failed: %s", err.decode(errors="replace"))
+
+
+def warm_shape_kernels(
+    parallel: bool = True,
+    notice: Callable[[str], None] | None = None,
+    meanwhile: Callable[[], None] | None = None,
+) -> float:
+    """Evaluate, mesh, classify, measure, describe and draw a tiny shape once; returns the
+    seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
+    ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
+
+    The first time on a machine this compiles every kernel, about two minutes on one CPU, most
+    of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
+    interpreter alone (``benchmarks/bench_cold_start.py``): this process compiles the
+    interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
+    numba's on-disk cache; then this process loads the child's kernels from the cache.
+    ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
+    process waits for the child: only the interpreter need be loaded for it."""
+    from surfgen.generator.eval.tape import warm_interpreter
+
+    t0 = time.perf_counter()
+    if not shape_kernels_cached():
+        _announce(COMPILE_NOTICE, notice)
+    child = _start_child() if parallel else None
+    try:
+        log.debug("interpreter ready in %.1f s", warm_interpreter())
+        if meanwhile is not None:
+            meanwhile()
+        if child is not None:
+            _join_child(child)
+            child = None
+        tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
+        _warm_the_rest(field, box, _warm_mesh(field, tree))
+    finally:
+        if child is not None:  # interrupted: leave no compiler behind
+            child.kill()
+            child.wait()
+    seconds = time.perf_counter() - t0
+    log.debug("shape kernels ready in %.2f s", seconds)
+    return seconds
+
+
+def _warm_mesh(field, tree, walls: bool = True):
+    """The mesh kernels and (``walls``) the walls' classification on the tiny shape's field;
+    returns the mesh."""
+    from surfgen.generator.mesh.mesh import extract_with_edges
+    from surfgen.generator.mesh.walls import label_walls
+
+    mesh, edges = extract_with_edges(field, 0.0, cap=True)
+    if walls:
+        label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
+    return mesh
+
+
+def _warm_the_rest(field, box, mesh) -> None:
+    """Every kernel after the mesh and the walls, on the tiny shape."""
+    from surfgen.filters.descriptor import descriptor
+    from surfgen.filters.shape import quality_metrics
+    from surfgen.filters.verdict import quick_metrics, shape_metrics
+    from surfgen.generator.eval.grid import Field
+    from surfgen.generator.mesh.mesh import _merge_same, extract_with_edges
+    from surfgen.generator.model.families import envelope_departure, pieces
+    from surfgen.pipelines.pictures.raster import render_image
+
+    quick = quick_metrics(mesh, box.bounds())
+    quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
+    descriptor(mesh)
+    render_image(mesh, size=16)
+    # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
+    envelope_departure(field.values, field.values)
+    envelope_departure(field.values + 0.0, field.values)
+    pieces(field.values)
+    # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
+    # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
+    # sample) given an offset from their neighbours; the warm ball has neither.
+    _merge_same(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int64), np.arange(3))
+    holed = field.values.copy()
+    holed[7, 7, 7] = np.nan
+    extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's

@@ -1,0 +1,35 @@
+"""The killable worker pool: results, timeouts and crashes, and the run goes on."""
+
+from __future__ import annotations
+
+import os
+import time
+
+from surfgen.pipelines.run.executor import KillablePool
+
+
+def work(task: int) -> int:
+    if task == 3:
+        time.sleep(30)  # overruns the pool's timeout
+    if task == 5:
+        os._exit(7)  # the worker process dies
+    if task == 6:
+        raise ValueError("a bug in one shape")
+    return task * task
+
+
+def test_results_timeouts_and_crashes() -> None:
+    with KillablePool(work, workers=2, timeout=2.0) as pool:
+        results = {r.task: r for r in pool.run(range(9))}
+    assert sorted(results) == list(range(9))
+    for t in (0, 1, 2, 4, 7, 8):
+        assert results[t].status == "ok" and results[t].value == t * t
+    assert results[3].status == "timeout" and "longer than 2 s" in results[3].message
+    assert results[5].status == "crashed" and "exit code 7" in results[5].message
+    assert results[6].status == "crashed" and "ValueError: a bug in one shape" in results[6].message
+
+
+def test_one_worker_keeps_going_after_a_crash() -> None:
+    with KillablePool(work, workers=1, timeout=5.0) as pool:
+        statuses = [(r.task, r.status) for r in pool.run([5, 1, 2])]
+    assert statuses == [(5, "crashed"), (1, "ok"), (2, "ok")]

@@ -1,0 +1,1 @@
+"""Reference implementations and helpers the tests (and benchmarks) share."""
