@@ -81,6 +81,8 @@ INTERNAL_FUNCTIONS = (
     "psh",
     "csd",
 )
+DOT_TOKEN = "DOTSYMBOL"  # MathMod's files write the decimal point so (any locale reads them)
+OLD_DOT_TOKEN = "$DOT$"  # the same, in older collections
 _BOUNDS = ("Xmin", "Xmax", "Ymin", "Ymax", "Zmin", "Zmax")
 _DEFINITION = re.compile(r"^\s*([A-Za-z_][A-Za-z_0-9]*)\s*=(?!=)(.*)$", re.S)
 
@@ -133,12 +135,19 @@ def read_script(path: Path) -> list[dict[str, Any]]:
 
 
 def parse_script(raw: bytes | str, where: str = "script") -> list[dict[str, Any]]:
-    """The models of a MathMod script given as text."""
+    """The models of a MathMod script given as text.
+
+    Read as MathMod reads it (``ParisoMathObject::ReadJsonFile``): the token ``DOTSYMBOL`` (and
+    the older ``$DOT$``) is the decimal point, and line breaks and tabs are removed from the text
+    before the JSON is parsed, so a formula may span lines inside its string.
+    """
     try:
         text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
-        data = json.loads(text)
     except UnicodeDecodeError:
         raise SpecError(f"{where}: not UTF-8 text") from None
+    text = text.strip().replace(DOT_TOKEN, ".").replace(OLD_DOT_TOKEN, ".")
+    try:
+        data = _loads(text)
     except json.JSONDecodeError as exc:
         raise SpecError(f"{where}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except RecursionError:
@@ -147,22 +156,45 @@ def parse_script(raw: bytes | str, where: str = "script") -> list[dict[str, Any]
         raise SpecError(f"{where}: a MathMod script is a JSON object, got {type(data).__name__}")
     if "MathModels" in data:
         models = data["MathModels"]
-        extra = sorted(set(data) - {"MathModels"})
-        if extra:
-            raise SpecError(f"{where}: unknown key '{extra[0]}' beside MathModels")
         if not isinstance(models, list) or not all(isinstance(m, dict) for m in models):
             raise SpecError(f"{where}: MathModels must be a list of models (JSON objects)")
     else:
         models = [data]
-    for m in models:
-        unknown = sorted(set(m) - set(MODEL_KEYS))
-        if unknown:
-            raise SpecError(
-                f"{where}: unknown key '{unknown[0]}' in a model (allowed: {', '.join(MODEL_KEYS)})"
-            )
     if not models:
         raise SpecError(f"{where}: the script has no model")
     return models
+
+
+def _loads(text: str) -> Any:
+    """JSON as MathMod reads it: when the text is not valid as it stands, again without its line
+    breaks and tabs (MathMod drops them first, so its strings may hold raw ones). The error
+    raised is the first one, whose line number points into the file as written."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        first = exc
+    try:
+        return json.loads(text.replace("\r\n", "").replace("\n", "").replace("\t", ""))
+    except json.JSONDecodeError:
+        raise first from None
+
+
+def _known_keys(
+    raw: Mapping[str, Any], allowed: Sequence[str], where: str, notices: list[str]
+) -> dict[str, Any]:
+    """The keys MathMod uses, as MathMod reads them: other keys are ignored (with a notice), and a
+    key that differs from a known one only by blanks around it (``"Description "``, as some of
+    MathMod's own files have) counts as that key unless the exact key is there too."""
+    out = {k: v for k, v in raw.items() if k in allowed}
+    for key, value in raw.items():
+        if key in allowed:
+            continue
+        name = key.strip()
+        if name in allowed and name not in raw:
+            out[name] = value
+        else:
+            notices.append(f"ignored: unknown key '{key}' in {where}")
+    return out
 
 
 def model_names(models: Sequence[Mapping[str, Any]]) -> list[str]:
@@ -213,17 +245,16 @@ def build_model(
     grid: int | None = None,
 ) -> Model:
     """Turn one raw model into specs (one per component)."""
+    notices: list[str] = []
+    model = _known_keys(model, MODEL_KEYS, "a model", notices)
     if "Iso3D" not in model:
         _refuse_parametric(model, model_names([model])[0])
     iso = model["Iso3D"]
     if not isinstance(iso, dict):
         raise SpecError("Iso3D must be a JSON object")
-    unknown = sorted(set(iso) - set(ISO3D_KEYS))
-    if unknown:
-        raise SpecError(f"unknown key '{unknown[0]}' in Iso3D (allowed: {', '.join(ISO3D_KEYS)})")
+    iso = _known_keys(iso, ISO3D_KEYS, "Iso3D", notices)
     fields = {k: _strings(iso, k) for k in iso}
     name = _first(fields.get("Name")) or "mathmod"
-    notices = []
     for key in ("Texture", "Pigment"):
         if key in model:
             notices.append(f"ignored: {key} (colour formulas)")
@@ -232,7 +263,7 @@ def build_model(
     for key, what in (("Vect", "vector constants"), ("Import", "imported C++ functions")):
         if any(s.strip() for s in fields.get(key, [])):
             raise SpecError(f"not supported: {key} ({what}) in model {name}")
-    values = _slider_values(model.get("Sliders"), slider_set, name)
+    values = _slider_values(model.get("Sliders"), slider_set, name, notices)
     values.setdefault("t", 0.0)
     overrides = dict(params or {})
     unknown_params = sorted(set(overrides) - set(values) - {"t"})
@@ -292,7 +323,7 @@ def _strings(iso: Mapping[str, Any], key: str) -> list[str]:
         value = [value]
     if not isinstance(value, list) or not all(isinstance(v, (str, int, float)) for v in value):
         raise SpecError(f"Iso3D {key} must be a list of strings")
-    return [str(v).replace("$DOT$", ".") for v in value]
+    return [str(v) for v in value]
 
 
 def _first(value: Any) -> str:
@@ -305,18 +336,16 @@ def _num(v: float) -> Expr:
     return Expr("num", (), float(v))
 
 
-def _slider_values(sliders: Any, chosen: int | None, model: str) -> dict[str, float]:
+def _slider_values(
+    sliders: Any, chosen: int | None, model: str, notices: list[str]
+) -> dict[str, float]:
     if sliders is None:
         if chosen not in (None, 0):
             raise SpecError(f"model {model} has no Sliders (so no --slider {chosen})")
         return {}
     if not isinstance(sliders, dict):
         raise SpecError(f"model {model}: Sliders must be a JSON object")
-    unknown = sorted(set(sliders) - set(SLIDER_KEYS))
-    if unknown:
-        raise SpecError(
-            f"model {model}: unknown key '{unknown[0]}' in Sliders (allowed: {', '.join(SLIDER_KEYS)})"
-        )
+    sliders = _known_keys(sliders, SLIDER_KEYS, "Sliders", notices)
     names = [str(n).strip() for n in sliders.get("Name", [])]
     positions = sliders.get("Position", [])
     if not names or not isinstance(positions, list) or not positions:
@@ -333,7 +362,7 @@ def _slider_values(sliders: Any, chosen: int | None, model: str) -> dict[str, fl
     out = {}
     for j, n in enumerate(names):
         try:
-            out[n] = float(str(positions[k * len(names) + j]).replace("$DOT$", "."))
+            out[n] = float(str(positions[k * len(names) + j]))
         except ValueError:
             raise SpecError(f"model {model}: slider {n} position is not a number") from None
         if not math.isfinite(out[n]):

@@ -142,8 +142,6 @@ def test_texture_is_a_notice_and_description_is_kept() -> None:
     [
         ("{not json", "not valid JSON"),
         ("[1, 2]", "a MathMod script is a JSON object"),
-        (iso(Colour=["red"]), "unknown key 'Colour' in Iso3D"),
-        ({"Iso3D": {}, "Shader": 1}, "unknown key 'Shader' in a model"),
         (iso(Fxyz=["NoiseW(x,y,z,1,2,0)"]), "not supported: NoiseW"),
         (iso(Fxyz=["x+CmpId(0)"]), "not supported: CmpId"),
         (iso(Xmin=["abc"]), "Xmin: unknown variable 'abc'"),

@@ -1,0 +1,100 @@
+"""MathMod's files as MathMod writes them: DOTSYMBOL decimal points, keys with stray blanks,
+strings broken over lines, and the models surfgen refuses (Vect, Import) with one clear line."""
+
+from __future__ import annotations
+
+import pytest
+
+from surfgen.generator.errors import SpecError
+from surfgen.generator.interop.mathmod import build_model, load_model, parse_script
+
+# Written the way MathMod's own collection files are: tabs, DOTSYMBOL in every decimal number
+# (formulas, bounds, constants, Funct bodies, slider positions), a key with a trailing blank.
+COLLECTION = """{
+\t"MathModels": [{
+\t\t"Iso3D": {
+\t\t\t"Name": ["Blob"],
+\t\t\t"Component": ["Blob"],
+\t\t\t"Const": ["c=0DOTSYMBOL5", "r=c+1DOTSYMBOL25"],
+\t\t\t"Funct": ["Sph=x^2+y^2+z^2-r^2", "Bump=Sph(x,y,z,t)+0DOTSYMBOL2*cos(4*x)*cos(4*y)"],
+\t\t\t"Fxyz": ["Bump(x,y,z,t)*A"],
+\t\t\t"Xmin": ["-2DOTSYMBOL5"], "Xmax": ["2DOTSYMBOL5"],
+\t\t\t"Ymin": ["-2DOTSYMBOL5"], "Ymax": ["2DOTSYMBOL5"],
+\t\t\t"Zmin": ["-2DOTSYMBOL5"], "Zmax": ["2DOTSYMBOL5"],
+\t\t\t"Grid": ["24"],
+\t\t\t"Description ": ["A blob by somebody, DOTSYMBOL-free text"]
+\t\t},
+\t\t"Sliders": {"Name": ["A"], "Position": ["1DOTSYMBOL5", "2"], "Min": ["0"], "Max": ["3"]},
+\t\t"Texture": {"Colors": ["R=0DOTSYMBOL8", "G=0DOTSYMBOL6", "B=0DOTSYMBOL4", "T=1"]}
+\t}]
+}"""
+
+
+def test_dotsymbol_is_the_decimal_point_everywhere() -> None:
+    model = load_model(parse_script(COLLECTION))
+    spec = model.components[0].spec
+    assert spec.box == (-2.5, 2.5, -2.5, 2.5, -2.5, 2.5)
+    assert spec.params == {"A": 1.5, "r": 1.75}
+    assert "0.2" in spec.formula and "DOTSYMBOL" not in spec.formula
+    # the first slider set, then the second
+    assert load_model(parse_script(COLLECTION), slider_set=1).components[0].spec.params["A"] == 2.0
+
+
+def test_the_older_dot_token_too() -> None:
+    text = COLLECTION.replace("DOTSYMBOL", "$DOT$")
+    assert load_model(parse_script(text)).components[0].spec.box[0] == -2.5
+
+
+def test_a_key_with_a_trailing_blank_is_read_as_the_key() -> None:
+    model = load_model(parse_script(COLLECTION))
+    assert model.description.startswith("A blob by somebody")
+    assert model.notices == ("ignored: Texture (colour formulas)",)
+
+
+def test_keys_mathmod_does_not_use_are_ignored_with_a_notice() -> None:
+    doc = parse_script(
+        '{"Iso3D": {"Name": ["S"], "Fxyz": ["x^2+y^2+z^2-1"], "Xmin": ["-2"], "Xmax": ["2"],'
+        ' "Ymin": ["-2"], "Ymax": ["2"], "Zmin": ["-2"], "Zmax": ["2"], "Colour": ["red"]},'
+        ' "Shader": 1}'
+    )
+    model = build_model(doc[0])
+    assert model.notices == (
+        "ignored: unknown key 'Shader' in a model",
+        "ignored: unknown key 'Colour' in Iso3D",
+    )
+    # the exact key wins over a blank-padded copy, which is then ignored
+    both = {"Iso3D": {**doc[0]["Iso3D"], "Name": ["Exact"], "Name ": ["Padded"]}}
+    model = build_model(both)
+    assert model.name == "Exact" and "ignored: unknown key 'Name ' in Iso3D" in model.notices
+
+
+def test_a_formula_broken_over_lines_reads_as_mathmod_reads_it() -> None:
+    # raw line breaks inside a JSON string: invalid JSON, but MathMod drops them before parsing
+    text = COLLECTION.replace('"Bump(x,y,z,t)*A"', '"Bump(x,y,z,t)\n*A"')
+    assert load_model(parse_script(text)).components[0].spec.formula == (
+        load_model(parse_script(COLLECTION)).components[0].spec.formula
+    )
+
+
+def test_invalid_json_still_names_its_line_in_the_file() -> None:
+    text = COLLECTION.replace('"Grid": ["24"],', '"Grid": ["24"],,')
+    with pytest.raises(SpecError, match=r"not valid JSON \(.* at line 12\)"):
+        parse_script(text)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("Vect", ["v=1,2,3"], "not supported: Vect (vector constants) in model S"),
+        ("Import", ["libfoo.so"], "not supported: Import (imported C++ functions) in model S"),
+    ],
+)
+def test_vect_and_import_are_refused_in_one_line(key: str, value: list, message: str) -> None:
+    doc = parse_script(
+        '{"Iso3D": {"Name": ["S"], "Fxyz": ["x^2+y^2+z^2-1"], "Xmin": ["-2"], "Xmax": ["2"],'
+        ' "Ymin": ["-2"], "Ymax": ["2"], "Zmin": ["-2"], "Zmax": ["2"]}}'
+    )
+    doc[0]["Iso3D"][key] = value
+    with pytest.raises(SpecError) as err:
+        build_model(doc[0])
+    assert str(err.value) == message
