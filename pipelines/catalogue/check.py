@@ -102,8 +102,11 @@ def check_catalogue(
             f"catalogue {root} is open in another process (a `sample` or `serve`?): stop it "
             "before --repair"
         )
+    empty = False
     try:
-        identify(db)  # a foreign file raises here, before anything is written
+        # a foreign file raises here, before anything is written; an empty database (a 0-byte
+        # file is one to SQLite) is an empty catalogue, which `sample` fills
+        empty = identify(db) is None
         conn = connect_readonly(db)
         rows = conn.execute("PRAGMA integrity_check(20)").fetchall()
         problems = [r[0] for r in rows if r[0] != "ok"]
@@ -115,7 +118,7 @@ def check_catalogue(
     report.integrity = problems
     if problems and repair:
         _salvage(db, report)
-    shapes = _read_shapes(db, report)
+    shapes = [] if empty else _read_shapes(db, report)
     report.shapes = len(shapes)
     referenced: set[str] = set()
     for row in shapes:

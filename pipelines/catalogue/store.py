@@ -428,7 +428,13 @@ def open_catalogue(
             f"{db} has schema version {version}; this surfgen reads up to {SCHEMA_VERSION} "
             "(upgrade surfgen)"
         )
-    if readonly:
+    if readonly and version is None:
+        # an empty database (a 0-byte file is one, to SQLite): an empty catalogue, read from a
+        # schema in memory so that the file stays as it is
+        conn = sqlite3.connect(":memory:")
+        conn.row_factory = sqlite3.Row
+        conn.executescript(SCHEMA + META)
+    elif readonly:
         try:
             conn = connect_readonly(db)
         except sqlite3.Error as exc:
