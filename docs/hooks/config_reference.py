@@ -74,7 +74,11 @@ def render_config_reference() -> str:
             note = notes.get((table, key))
             if note:
                 out.append(f"| **{_cell(note)}** | | | |")
-            meaning = comments.get((table, key)) or source.get(key, "")
+            meaning = (
+                comments.get((table, key))
+                or source.get(key)
+                or _paired_meaning(key, keys, comments, table)
+            )
             kind = describe_type(hints[key]) if key in hints else ""
             default = json.dumps(_plain(getattr(obj, key)))
             out.append(
@@ -83,6 +87,30 @@ def render_config_reference() -> str:
             )
         out.append("")
     return "\n".join(out)
+
+
+def _paired_meaning(
+    key: str, keys: list[str], comments: dict[tuple[str, str], str], table: str
+) -> str:
+    """Words for an uncommented key from its partner: ``X_weights`` weighs the choices ``X``
+    (``Xs``, ``X_choices``), and ``max_X`` bounds what ``min_X`` does from above."""
+    if key.endswith("_weights"):
+        stem = key.removesuffix("_weights")
+        for partner in (stem, stem + "s", stem + "_choices"):
+            if partner in keys:
+                return f"how often each of `{partner}` is drawn"
+    for partner in (key + "_weights", key.removesuffix("s") + "_weights"):
+        if partner in keys and partner != key:
+            note = comments.get((table, partner), "")
+            return f"the choices, drawn with `{partner}`" + (f" ({note})" if note else "")
+    if key.removesuffix("_choices") + "_weights" in keys:
+        return f"the choices, drawn with `{key.removesuffix('_choices')}_weights`"
+    for low, high in (("max_", "min_"), ("min_", "max_")):
+        partner = high + key.removeprefix(low)
+        if key.startswith(low) and partner in keys and comments.get((table, partner)):
+            bound = "upper" if low == "max_" else "lower"
+            return f"the {bound} bound beside `{partner}` ({comments[(table, partner)]})"
+    return "—"
 
 
 def _is_table(value: Any) -> bool:
