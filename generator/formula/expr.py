@@ -220,6 +220,18 @@ def postorder(tree: Expr, by_value: bool = False) -> list[Expr]:
     return out
 
 
+def tree_size(tree: Expr) -> int:
+    """Nodes of the tree as written out (a shared sub-tree counts once per place it stands):
+    the size of its canonical text, counted in time linear in the *distinct* nodes. A function
+    inlined many times (MathMod's ``Funct``) shares its sub-trees, so this can be far more than
+    ``len(postorder(tree))``; it is what printing, parsing the printed form and every walk with
+    repetitions cost."""
+    size: dict[int, int] = {}
+    for node in postorder(tree):
+        size[id(node)] = 1 + sum(size[id(a)] for a in node.args)
+    return size[id(tree)]
+
+
 def depth_of(tree: Expr) -> int:
     """Nodes on the longest path from the root to a leaf (1 for a leaf)."""
     depth: dict[int, int] = {}
@@ -229,11 +241,11 @@ def depth_of(tree: Expr) -> int:
 
 
 def variables_of(tree: Expr) -> frozenset[str]:
-    return frozenset(n.value for n in walk(tree) if n.op == "var")  # type: ignore[misc]
+    return frozenset(n.value for n in postorder(tree) if n.op == "var")  # type: ignore[misc]
 
 
 def params_of(tree: Expr) -> frozenset[str]:
-    return frozenset(n.value for n in walk(tree) if n.op == "param")  # type: ignore[misc]
+    return frozenset(n.value for n in postorder(tree) if n.op == "param")  # type: ignore[misc]
 
 
 def substitute_params(tree: Expr, values: Mapping[str, float]) -> Expr:

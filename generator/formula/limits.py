@@ -10,17 +10,25 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from surfgen.generator.errors import SurfgenError
+from surfgen.generator.errors import FormulaSyntaxError, SurfgenError
 
-# Formulas: the tree has at most MAX_FORMULA_NODES nodes, and neither the text nor its canonical
-# form nests parentheses (grouping and function calls) deeper than MAX_FORMULA_NESTING. Long
-# flat sums and chains of signs or powers are fine up to the node limit: everything that walks a
-# tree does so without recursion. The text limits are cheap guards checked before parsing, set
-# so that the canonical form of any accepted tree is itself accepted (parse(print(t)) == t).
-MAX_FORMULA_NODES = 20_000
+# Formulas: the tree, written out, has at most MAX_FORMULA_NODES nodes, and neither the text nor
+# its canonical form nests parentheses (grouping and function calls) deeper than
+# MAX_FORMULA_NESTING. Nothing that walks a tree recurses (parser, printer, compiler), so the
+# node limit follows what time and memory allow: reading a formula (parsing with MathMod's
+# ``Funct``s inlined, printing it, parsing the printed form back) and compiling it cost about
+# 0.1 ms and 0.5 KB per node on this project's 2-core machine (measured on MathMod models of
+# 28,000 and 120,000 nodes), so the largest formula takes about a minute and 250 MB before it is
+# evaluated. The size is counted before that work: a chain of inlined functions whose written
+# form would be too large is refused as soon as its definition is read (counting shares
+# sub-trees, so it costs nothing). The text limits follow from the node limit so that the
+# canonical form of any accepted tree is itself accepted (parse(print(t)) == t): at most 4
+# tokens and 24 characters (the longest number) per node.
+MAX_FORMULA_NODES = 500_000
+FORMULA_BYTES_PER_NODE = 1024  # the 0.5 KB measured, doubled for the compiler's tables
 MAX_FORMULA_NESTING = 64
-MAX_FORMULA_TOKENS = 100_000
-MAX_FORMULA_LENGTH = 1_000_000
+MAX_FORMULA_TOKENS = 4 * MAX_FORMULA_NODES
+MAX_FORMULA_LENGTH = 24 * MAX_FORMULA_NODES
 
 # ``--where`` expressions: characters, conditions and nesting (parentheses).
 MAX_WHERE_LENGTH = 4_000
@@ -31,7 +39,7 @@ MAX_WHERE_NESTING = 50
 MAX_STARS = 5
 
 # Input files read whole into memory.
-MAX_SPEC_FILE_BYTES = 1 << 20  # a spec (or export sidecar) JSON: 1 MiB
+MAX_SPEC_FILE_BYTES = MAX_FORMULA_LENGTH + (1 << 20)  # a spec (or export sidecar) JSON
 MAX_CONFIG_FILE_BYTES = 1 << 20  # a config TOML: 1 MiB
 MAX_JSON_DEPTH = 32  # nesting of JSON arrays/objects in a spec file or a web request
 
@@ -43,6 +51,10 @@ MAX_COUNT = 2**63 - 1
 
 class LimitError(SurfgenError):
     """An input beyond one of the documented limits (size, depth, memory, range)."""
+
+
+class FormulaSizeError(LimitError, FormulaSyntaxError):
+    """A formula beyond the size its reading and compiling can afford."""
 
 
 def read_bounded(path: str | os.PathLike, limit: int, what: str) -> bytes:
@@ -186,6 +198,22 @@ def parse_size(text: str, option: str = "--max-memory") -> int:
             f"{option} must be a positive size such as 512M, 4G or 1.5GiB, got '{text}'"
         )
     return int(value * _UNITS[unit])
+
+
+def check_formula_size(nodes: int) -> None:
+    """Refuse a formula of ``nodes`` nodes (written out) beyond :data:`MAX_FORMULA_NODES` or
+    beyond what the available memory holds, before it is printed, parsed back or compiled.
+    Raises :class:`FormulaSizeError` (a :class:`LimitError`)."""
+    if nodes > MAX_FORMULA_NODES:
+        raise FormulaSizeError(
+            f"formula too large: {nodes} nodes once written out (at most {MAX_FORMULA_NODES})"
+        )
+    need, have = nodes * FORMULA_BYTES_PER_NODE, available_memory()
+    if need > have:
+        raise FormulaSizeError(
+            f"formula too large: {nodes} nodes need about {format_bytes(need)} of memory, more "
+            f"than the {format_bytes(have)} available"
+        )
 
 
 def check_memory(parts: dict[str, int], limit: int | None, what: str, times: int = 1) -> int:

@@ -34,14 +34,14 @@ from surfgen.generator.formula.expr import (
     num,
     postorder,
     printed_nesting,
-    walk,
+    tree_size,
 )
 from surfgen.generator.formula.functions import FUNCTIONS, MACROS
 from surfgen.generator.formula.limits import (
     MAX_FORMULA_LENGTH,
     MAX_FORMULA_NESTING,
-    MAX_FORMULA_NODES,
     MAX_FORMULA_TOKENS,
+    check_formula_size,
 )
 
 _TOKEN = re.compile(
@@ -92,9 +92,25 @@ class _Parser:
         self.text = text
         self.params = params
         self.functions = dict(functions or {})
+        self.shapes: dict[str, tuple[int, tuple[int, ...]]] = {}  # see inlined_size
         self.tokens = tokenize(text)
         self.i = 0
         self.open_parens: list[int] = []  # columns of the open '(': also the nesting depth
+
+    def inlined_size(self, name: str, body: Expr, args: list[Expr]) -> int:
+        """:func:`tree_size` of ``body`` with its formals replaced by ``args``, without building
+        it: the body's size and how often each formal stands in it (once per function)."""
+        if name not in self.shapes:
+            counts: dict[int, tuple[int, ...]] = {}
+            for node in postorder(body):
+                hit = FORMALS.index(node) if node in FORMALS else -1
+                own = tuple(int(k == hit) for k in range(len(FORMALS)))
+                counts[id(node)] = tuple(
+                    sum(c) for c in zip(own, *(counts[id(a)] for a in node.args), strict=True)
+                )
+            self.shapes[name] = (tree_size(body), counts[id(body)])
+        size, uses = self.shapes[name]
+        return size + sum(n * (tree_size(a) - 1) for n, a in zip(uses, args, strict=False))
 
     # -- helpers
     @property
@@ -260,7 +276,10 @@ class _Parser:
                     f"{name} takes at most {len(FORMALS)} arguments (x, y, z, t), got {len(args)}",
                     t.column,
                 )
-            return inline_call(self.functions[name], args)
+            body = self.functions[name]
+            # the size written out, counted before the inlining builds it
+            check_formula_size(self.inlined_size(name, body, args))
+            return inline_call(body, args)
         if name not in FUNCTIONS and name not in MACROS:
             hint = _did_you_mean(name, [*FUNCTIONS, *MACROS])
             raise FormulaSyntaxError(f"unknown function '{_short(name)}'", t.column, hint)
@@ -341,7 +360,7 @@ def inline_call(body: Expr, args: list[Expr]) -> Expr:
 
 def is_constant(tree: Expr) -> bool:
     """True when the tree uses no variable x, y, z."""
-    return all(n.op != "var" for n in walk(tree))
+    return all(n.op != "var" for n in postorder(tree))
 
 
 def _expand_powf(args: list[Expr], column: int) -> Expr:
@@ -384,9 +403,7 @@ def parse(
         raise FormulaSyntaxError(f"parameter name '{bad[0]}' is reserved")
     _ensure_stack(FRAMES_PER_NESTING * MAX_FORMULA_NESTING)
     tree = _Parser(text, frozenset(params), functions).parse()
-    nodes = len(postorder(tree))
-    if nodes > MAX_FORMULA_NODES:
-        raise FormulaSyntaxError(f"formula too large: {nodes} nodes (at most {MAX_FORMULA_NODES})")
+    check_formula_size(tree_size(tree))  # before anything prints or walks it written out
     if printed_nesting(tree) > MAX_FORMULA_NESTING:
         raise FormulaSyntaxError(
             f"formula nested too deeply: its canonical form needs more than "

@@ -3,9 +3,13 @@ strings broken over lines, and the models surfgen refuses (Vect, Import) with on
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from surfgen.generator.errors import SpecError
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.formula import limits
+from surfgen.generator.formula.parser import tokenize
 from surfgen.generator.interop.mathmod import build_model, load_model, parse_script
 
 # Written the way MathMod's own collection files are: tabs, DOTSYMBOL in every decimal number
@@ -98,3 +102,37 @@ def test_vect_and_import_are_refused_in_one_line(key: str, value: list, message:
     with pytest.raises(SpecError) as err:
         build_model(doc[0])
     assert str(err.value) == message
+
+
+def chain(levels: int, width: int) -> str:
+    """A generated model, as MathMod's generators write them: each Funct calls the previous one
+    ``width`` times, shifted, so the formula written out grows as width^levels."""
+    functs = ['"f0=x^2+y^2+z^2-1DOTSYMBOL0+0DOTSYMBOL01*x*y*z-0DOTSYMBOL02*x*y"']
+    for i in range(1, levels):
+        terms = "+".join(
+            f"0DOTSYMBOL{j + 1}*f{i - 1}(x+0DOTSYMBOL0{j},y,z,t)" for j in range(width)
+        )
+        functs.append(f'"f{i}=({terms})/{width}"')
+    return (
+        '{"Iso3D": {"Name": ["Chain"], "Funct": [' + ", ".join(functs) + "],"
+        f' "Fxyz": ["f{levels - 1}(x,y,z,t)"], "Xmin": ["-2"], "Xmax": ["2"], "Ymin": ["-2"],'
+        ' "Ymax": ["2"], "Zmin": ["-2"], "Zmax": ["2"], "Grid": ["10"]}}'
+    )
+
+
+def test_a_long_generated_model_renders() -> None:
+    # over 100,000 tokens once its Functs are inlined (the old token limit), a fraction of the
+    # node limit: an ordinary MathMod model, read, printed, parsed back and evaluated
+    spec = load_model(parse_script(chain(8, 3))).components[0].spec
+    assert len(tokenize(spec.formula)) > 100_000
+    field = evaluate(spec.tree(), spec.to_grid(), spec.params)
+    assert np.isfinite(field.values).all() and (field.values < 0).any() and (field.values > 0).any()
+
+
+def test_a_model_too_large_once_inlined_is_one_line_naming_the_funct(monkeypatch) -> None:
+    monkeypatch.setattr(limits, "MAX_FORMULA_NODES", 20_000)  # reached in a few levels
+    with pytest.raises(SpecError) as err:
+        load_model(parse_script(chain(40, 2)))
+    message = str(err.value)
+    assert message.startswith("model Chain, Funct f") and "formula too large" in message
+    assert "\n" not in message
