@@ -1,7 +1,7 @@
 """Benchmark: cleanup + isotropic remesh of a ~200k-face marching-cubes mesh (target < 5 s).
 
 The mesh is a capped gyroid made the way the catalogue makes shapes (evaluate, then
-``extract_mesh(cap=True)``).  Times are the best of ``--repeat`` runs of
+``extract_mesh(cap=True)``).  Times are the best of ``--repeats`` runs of
 
 - ``repair_mesh``: merge, duplicate/degenerate faces, non-manifold repairs, small components,
   holes, orientation;

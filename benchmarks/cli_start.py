@@ -2,7 +2,7 @@
 ``presets``, ``config show``, ``catalogue list``, ``catalogue show``, ``catalogue star``, each a
 fresh process.
 
-    python benchmarks/bench_cli_start.py --baseline REV [--runs 10]
+    python -m benchmarks.cli_start --baseline REV [--runs 10] [--json PATH]
 
 Both trees run the same commands on the same small catalogue (made first by this tree's
 ``surfgen sample``), taking turns in ABBA order; each command is run once untimed per tree first,
@@ -14,9 +14,7 @@ ratio baseline / this tree (above 1: this tree starts faster), and which of the 
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -24,10 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-
-from bench_sample_grids import export_revision  # noqa: E402
+from benchmarks import harness
 
 HEAVY = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
 
@@ -40,18 +35,14 @@ sys.exit(code)
 """
 
 
-def _env(path: Path | None) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    if path is not None:  # the baseline's packages shadow the installed ones
-        env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
 def run_cli(path: Path | None, args: list[str]) -> tuple[float, list[str]]:
     """Wall time of ``surfgen ARGS`` in a fresh process, and the kernel libraries it loaded."""
     t0 = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-c", _CLI, *args], env=_env(path), capture_output=True, text=True
+        [sys.executable, "-c", _CLI, *args],
+        env=harness.child_env(path, with_root=False, write_bytecode=True),
+        capture_output=True,
+        text=True,
     )
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
@@ -59,14 +50,16 @@ def run_cli(path: Path | None, args: list[str]) -> tuple[float, list[str]]:
     return seconds, json.loads(done.stderr.strip().splitlines()[-1])
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--baseline", required=True, help="git revision to compare with")
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__, baseline="required")
     ap.add_argument("--runs", type=int, default=10, help="timed runs per command and tree")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    run = harness.Run("cli_start", args)
 
-    with tempfile.TemporaryDirectory(prefix="bench-cli-start-") as tmp:
-        trees = {"baseline": export_revision(args.baseline, Path(tmp) / "base"), "now": None}
+    with (
+        harness.revisions(args.baseline) as trees,
+        tempfile.TemporaryDirectory(prefix="bench-cli-start-") as tmp,
+    ):
         cat = Path(tmp) / "cat"
         run_cli(None, ["sample", "--n", "3", "--seed", "1", "--grid", "24", "--out", str(cat)])
         key = run_cli_output(["catalogue", "list", "-C", str(cat), "--json"])[0]["key"]
@@ -78,11 +71,8 @@ def main() -> int:
             "catalogue show": ["catalogue", "show", "-C", str(cat), key],
             "catalogue star": ["catalogue", "star", "-C", str(cat), key, "4"],
         }
-        print(
-            f"baseline {args.baseline} against this tree, {args.runs} runs each (ABBA); "
-            f"load average {os.getloadavg()[0]:.2f}"
-        )
-        print(f"{'command':<16} {'baseline':>9} {'now':>9} {'ratio':>7}  loaded (baseline | now)")
+        run.say(f"baseline {args.baseline} against this tree, {args.runs} runs each (ABBA)")
+        run.say(f"{'command':<16} {'baseline':>9} {'now':>9} {'ratio':>7}  loaded (baseline | now)")
         for name, cli_args in commands.items():
             loaded = {tree: run_cli(path, cli_args)[1] for tree, path in trees.items()}
             times: dict[str, list[float]] = {tree: [] for tree in trees}
@@ -91,17 +81,24 @@ def main() -> int:
                 for tree in order:
                     times[tree].append(run_cli(trees[tree], cli_args)[0])
             base, now = (statistics.median(times[t]) for t in ("baseline", "now"))
-            print(
-                f"{name:<16} {base:>8.3f}s {now:>8.3f}s {base / now:>6.2f}x  "
+            run.say(
+                f"{name:<16} {base:>8.3f}s {now:>8.3f}s {harness.ratio(base, now):>6.2f}x  "
                 f"{','.join(loaded['baseline']) or '-'} | {','.join(loaded['now']) or '-'}"
             )
+            run.record(
+                **{name: {"median_seconds": {"baseline": base, "now": now}, "loaded": loaded}}
+            )
+    run.save()
     return 0
 
 
 def run_cli_output(args: list[str]) -> object:
     """The JSON that this tree's ``surfgen ARGS`` prints."""
     done = subprocess.run(
-        [sys.executable, "-c", _CLI, *args], env=_env(None), capture_output=True, text=True
+        [sys.executable, "-c", _CLI, *args],
+        env=harness.child_env(None, with_root=False, write_bytecode=True),
+        capture_output=True,
+        text=True,
     )
     return json.loads(done.stdout)
 

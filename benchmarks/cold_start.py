@@ -1,6 +1,6 @@
 """The first run on a machine: compiling every kernel a sampled shape needs, on one CPU and on two.
 
-    python benchmarks/bench_cold_start.py [--rounds 1]
+    python -m benchmarks.cold_start [--rounds 1] [--json PATH]
 
 Each run is a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``, a new temporary
 folder) that calls :func:`surfgen.pipelines.run.warmup.warm_shape_kernels`, as ``surfgen sample``
@@ -16,14 +16,11 @@ to compile). Needs two CPUs to show a gain.
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import resource
-import subprocess
-import sys
 import tempfile
-import time
+
+from benchmarks import harness
 
 _RUN = """
 import json, sys, time
@@ -43,43 +40,40 @@ print(json.dumps({"cached": cached, "misses": sum(kernels.run_grid.stats.cache_m
 
 
 def _run(mode: str, cache: str) -> dict:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    """A warm-up in ``mode`` on the empty cache ``cache``, then the check of what it left."""
+    env = {"NUMBA_CACHE_DIR": cache}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    out = subprocess.run(
-        [sys.executable, "-c", _RUN, mode], env=env, capture_output=True, text=True, check=True
-    )
-    wall = time.perf_counter() - t0
+    result, wall = harness.timed_child(None, _RUN, mode, env=env)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    check = subprocess.run(
-        [sys.executable, "-c", _CHECK], env=env, capture_output=True, text=True, check=True
-    )
-    return {"wall": wall, "cpu": cpu, **result, **json.loads(check.stdout.strip().splitlines()[-1])}
+    check = harness.run_child(None, _CHECK, env=env)
+    return {"wall": wall, "cpu": cpu, **result, **check}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = harness.parser(__doc__)
     ap.add_argument("--rounds", type=int, default=1)
-    args = ap.parse_args()
-    print(f"CPUs: {len(os.sched_getaffinity(0))}, load average {os.getloadavg()[0]:.1f}")
+    args = ap.parse_args(argv)
+    run = harness.Run("cold_start", args)
     best: dict[str, float] = {}
     for round_ in range(args.rounds):
         for mode in ("serial", "parallel"):
             with tempfile.TemporaryDirectory(prefix="surfgen-cold-") as cache:
                 r = _run(mode, cache)
             best[mode] = min(best.get(mode, float("inf")), r["wall"])
-            print(
+            run.record(**{f"round {round_ + 1} {mode}": r})
+            run.say(
                 f"round {round_ + 1} {mode:8s}: {r['wall']:6.1f} s wall, {r['cpu']:6.1f} s CPU "
                 f"(warm-up {r['warm_up']:.1f} s); then a fresh process finds the grid kernel "
                 f"cached: {r['cached']}, compiles it again: {r['misses'] > 0}"
             )
-    print(
+    run.say(
         f"first run's compile, two CPUs / one: {best['parallel']:.1f} s / {best['serial']:.1f} s "
         f"= {best['parallel'] / best['serial']:.2f}"
     )
-    print(f"load average after the runs {os.getloadavg()[0]:.1f}")
+    run.say(f"load average after the runs {os.getloadavg()[0]:.1f}")
+    run.record(best_wall=best)
+    run.save()
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """What forcing LLVM's interleave count gains (generator/vector_loops.py), measured in one run.
 
-    python benchmarks/bench_interleave.py              # rows, then the 50 stored formulas
-    python benchmarks/bench_interleave.py --rows-only  # the elementary rows alone (a minute)
+    python -m benchmarks.interleave              # rows, then the 50 stored formulas
+    python -m benchmarks.interleave --rows-only  # the elementary rows alone (a minute)
 
 1. **The elementary functions' rows**, in this process: each row function compiled twice from
    its own source, once as surfgen compiles it (``SURFGEN_INTERLEAVE``, default 4 vectors per
@@ -18,18 +18,17 @@ Ratios are LLVM's choice's time over surfgen's: above 1, surfgen's compile is fa
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import subprocess
 import sys
 import tempfile
-import time
 import types
 
 import numpy as np
+from numba import njit
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+from benchmarks import harness
+from surfgen.generator.elementary import REGISTRY
+from surfgen.generator.jit.interleave import INTERLEAVE
+
 N = 1024  # a W row of the interpreter's tile
 
 UNARY = {  # name: argument range
@@ -56,12 +55,8 @@ def _copy(func, module: str):
     return f
 
 
-def rows(repeats: int) -> list[tuple[str, float, bool]]:
-    from numba import njit
-
-    from surfgen.generator.elementary import REGISTRY
-    from surfgen.generator.jit.interleave import INTERLEAVE
-
+def rows(run: harness.Run, repeats: int) -> list[tuple[str, float, bool]]:
+    """Each row function compiled both ways, timed in turns: (name, LLVM's / ours, same bits)."""
     rng = np.random.default_rng(7)
     cases = []
     for name, (lo, hi) in UNARY.items():
@@ -82,36 +77,41 @@ def rows(repeats: int) -> list[tuple[str, float, bool]]:
     out = []
     for name, func, args, W in cases:
         ours = njit(**opts)(_copy(func, func.__module__))  # as surfgen compiles it
-        llvms = njit(**opts)(_copy(func, "bench_interleave"))  # LLVM's own choice
+        llvms = njit(**opts)(_copy(func, "benchmarks.interleave"))  # LLVM's own choice
         results = []
         for f in (ours, llvms):
             W[1] = 0.0
             f(*args)
             results.append(W[1].copy())
         same = np.array_equal(results[0].view(np.int64), results[1].view(np.int64))
-        best = {"ours": np.inf, "llvm": np.inf}
-        for _ in range(repeats):
-            for key, f in (("ours", ours), ("llvm", llvms)):
-                t = time.perf_counter()
-                for _ in range(200):
-                    f(*args)
-                best[key] = min(best[key], (time.perf_counter() - t) / 200)
-        out.append((name, best["llvm"] / best["ours"], same))
-        print(
+        timings = harness.take_turns(
+            {key: _calls(f, args, 200) for key, f in (("ours", ours), ("llvm", llvms))}, repeats
+        )
+        best = {key: t.best / 200 for key, t in timings.items()}
+        out.append((name, harness.ratio(best["llvm"], best["ours"]), same))
+        run.say(
             f"  {name:14s} {best['ours'] / N * 1e9:6.2f} ns/value with {INTERLEAVE} vectors per"
             f" iteration, {best['llvm'] / N * 1e9:6.2f} with LLVM's choice:"
-            f" {best['llvm'] / best['ours']:.2f}x{'' if same else '  BITS DIFFER'}",
-            flush=True,
+            f" {best['llvm'] / best['ours']:.2f}x{'' if same else '  BITS DIFFER'}"
         )
     return out
+
+
+def _calls(f, args: tuple, calls: int):
+    """``f(*args)`` ``calls`` times, as one timed candidate."""
+
+    def repeat() -> None:
+        for _ in range(calls):
+            f(*args)
+
+    return repeat
 
 
 # ----------------------------------------------------------------------------- whole evaluations
 
 _CHILD = r"""
 import hashlib, json, sys, time
-sys.path.insert(0, {here!r})
-from bench_eval import stored_eq13
+from benchmarks.workloads import stored_eq13
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.tape import evaluate_program, warm_interpreter
 from surfgen.generator.eval.grid import Grid
@@ -132,63 +132,56 @@ print(json.dumps({{"best": best, "sha256": digest.hexdigest(), "compile": compil
 """
 
 
-def evaluations(cache_root: str, rounds: int, n: int, count: int, repeats: int) -> None:
-    from surfgen.generator.jit.interleave import INTERLEAVE
-
-    code = _CHILD.format(here=HERE, n=n, count=count, repeats=repeats)
+def evaluations(
+    run: harness.Run, cache_root: str, rounds: int, n: int, count: int, repeats: int
+) -> None:
+    """The stored formulas in subprocesses compiled both ways, alternately (round 0 compiles)."""
+    code = _CHILD.format(n=n, count=count, repeats=repeats)
     runs: dict[str, list[dict]] = {"llvm": [], "ours": []}
     for r in range(rounds + 1):  # round 0 compiles (and fills each cache)
         for key, count_env in (("llvm", "0"), ("ours", str(INTERLEAVE))):
-            env = dict(os.environ, SURFGEN_INTERLEAVE=count_env, OMP_NUM_THREADS="1")
-            env["NUMBA_CACHE_DIR"] = os.path.join(cache_root, f"interleave-{count_env}")
-            done = subprocess.run(
-                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
-            )
-            result = json.loads(done.stdout.strip().splitlines()[-1])
+            env = {"SURFGEN_INTERLEAVE": count_env, "OMP_NUM_THREADS": "1"}
+            env["NUMBA_CACHE_DIR"] = f"{cache_root}/interleave-{count_env}"
+            result = harness.run_child(None, code, env=env)
             if r == 0:
-                print(f"  interpreter compile, {key}: {result['compile']:.1f} s", flush=True)
+                run.say(f"  interpreter compile, {key}: {result['compile']:.1f} s")
             runs[key].append(result)
     same = runs["llvm"][0]["sha256"] == runs["ours"][0]["sha256"]
     best = {k: np.min([run["best"] for run in v[1:]], axis=0) for k, v in runs.items()}
-    print(
+    run.say(
         f"  {len(best['ours'])} stored eq. (13) formulas at {n}^3, 1 thread: LLVM's choice /"
-        f" surfgen's {INTERLEAVE}: {ratios(best['llvm'], best['ours'])}; the same fields"
-        f" (sha256): {same}"
+        f" surfgen's {INTERLEAVE}: {harness.ratio_summary(best['llvm'], best['ours'])}; the same"
+        f" fields (sha256): {same}"
     )
+    run.record(evaluations={"llvm": best["llvm"], "ours": best["ours"], "same": same})
 
 
-def ratios(before: np.ndarray, after: np.ndarray) -> str:
-    """The per-formula time ratios before / after: median, quartiles, and the total's ratio."""
-    q1, med, q3 = np.percentile(before / after, [25, 50, 75])
-    total = before.sum() / after.sum()
-    return f"median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time {total:.3f}x"
-
-
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__, repeats=25)
     ap.add_argument("--rows-only", action="store_true", help="skip the whole evaluations")
-    ap.add_argument("--repeats", type=int, default=25, help="timings per row function")
     ap.add_argument("--rounds", type=int, default=3, help="alternate evaluation passes")
     ap.add_argument("--n", type=int, default=128, help="grid of the formulas")
     ap.add_argument("--formulas", type=int, default=50, help="stored formulas (at most 50)")
     ap.add_argument("--cache-dir", default=None, help="keep the two numba caches here")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    run = harness.Run("interleave", args)
 
-    print("elementary rows (same process, compiled both ways, timed in turn):", flush=True)
-    results = rows(args.repeats)
+    run.say("elementary rows (same process, compiled both ways, timed in turn):")
+    results = rows(run, args.repeats)
     ratios = [r for _, r, _ in results]
-    print(
+    run.record(rows={name: {"llvm_over_ours": r, "same_bits": same} for name, r, same in results})
+    run.say(
         f"  median {np.median(ratios):.2f}x over {len(ratios)} functions;"
         f" the same bits in every case: {all(same for *_, same in results)}"
     )
-    if args.rows_only:
-        return 0
-    print("\nwhole evaluations (subprocesses, alternately):", flush=True)
-    if args.cache_dir:
-        evaluations(args.cache_dir, args.rounds, args.n, args.formulas, 3)
-    else:
-        with tempfile.TemporaryDirectory() as tmp:
-            evaluations(tmp, args.rounds, args.n, args.formulas, 3)
+    if not args.rows_only:
+        run.say("\nwhole evaluations (subprocesses, alternately):")
+        if args.cache_dir:
+            evaluations(run, args.cache_dir, args.rounds, args.n, args.formulas, 3)
+        else:
+            with tempfile.TemporaryDirectory() as tmp:
+                evaluations(run, tmp, args.rounds, args.n, args.formulas, 3)
+    run.save()
     return 0
 
 

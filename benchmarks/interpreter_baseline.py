@@ -1,8 +1,9 @@
-"""The row table (``generator/far.py``, ``generator/row_table.py``) against a baseline revision:
-the interpreter's cold compile, its load from the cache, the warm-up of a fresh machine, and
-evaluation speed, each revision in turn in fresh processes.
+"""The interpreter against a baseline revision (written for the row table,
+``generator/eval/row_calls.py`` and ``row_functions.py``): its cold compile, its load from the
+cache, the warm-up of a fresh machine, and evaluation speed, each revision in turn in fresh
+processes.
 
-    python benchmarks/bench_row_table.py --baseline REV [--rounds 2] [--skip-warm-up]
+    python -m benchmarks.interpreter_baseline --baseline REV [--rounds 2] [--skip-warm-up]
 
 1. **Cold compile**: a fresh process with an empty numba cache (``NUMBA_CACHE_DIR``) loads the
    interpreter (:func:`surfgen.generator.eval.tape.warm_interpreter`: with the row table, its rows
@@ -20,23 +21,14 @@ tree is faster).
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-
-from bench_interleave import _CHILD as _EVALUATE  # noqa: E402
-from bench_interleave import ratios  # noqa: E402
-from bench_sample_grids import export_revision  # noqa: E402
+from benchmarks import harness
+from benchmarks.interleave import _CHILD as _EVALUATE
 
 _LOAD = """
 import json, time
@@ -54,67 +46,66 @@ print(json.dumps({"seconds": warm_shape_kernels(parallel=True)}))
 
 
 def _run(path: Path | None, code: str, cache: str) -> tuple[dict, float]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, OMP_NUM_THREADS="1")
-    if path is not None:  # the baseline's packages shadow the installed ones
-        env["PYTHONPATH"] = str(path) + os.pathsep + env.get("PYTHONPATH", "")
-    t0 = time.perf_counter()
-    done = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1]), time.perf_counter() - t0
+    """``code`` in a fresh process of the revision at ``path``, numba's cache at ``cache``."""
+    env = {"NUMBA_CACHE_DIR": cache, "OMP_NUM_THREADS": "1"}
+    return harness.timed_child(path, code, env=env)
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--baseline", required=True, help="git revision to compare with")
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__, baseline="required")
     ap.add_argument("--rounds", type=int, default=4, help="evaluation rounds per revision")
     ap.add_argument("--n", type=int, default=128, help="grid of the formulas")
     ap.add_argument("--skip-warm-up", action="store_true")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    run = harness.Run("interpreter_baseline", args)
 
-    with tempfile.TemporaryDirectory(prefix="bench-row-table-") as tmp:
-        revisions = {"baseline": export_revision(args.baseline, Path(tmp) / "base"), "now": None}
+    with (
+        harness.revisions(args.baseline) as revisions,
+        tempfile.TemporaryDirectory(prefix="bench-interpreter-") as tmp,
+    ):
         caches = {k: os.path.join(tmp, f"cache-{k}") for k in revisions}
-        print(f"baseline {args.baseline} against this tree; load average {os.getloadavg()[0]:.2f}")
+        run.say(f"baseline {args.baseline} against this tree")
 
-        print("\ncold compile of the interpreter (empty cache), then its load from the cache:")
+        run.say("\ncold compile of the interpreter (empty cache), then its load from the cache:")
         cold = {}
         for key, path in revisions.items():
             result, _ = _run(path, _LOAD, caches[key])
             warm, wall = _run(path, _LOAD, caches[key])
             cold[key] = result["seconds"]
-            print(
+            run.say(
                 f"  {key:8s} compile {result['seconds']:6.1f} s; load {warm['seconds']:.2f} s"
-                f" ({wall:.2f} s with the process)",
-                flush=True,
+                f" ({wall:.2f} s with the process)"
             )
-        print(f"  compile: baseline / now {cold['baseline'] / cold['now']:.2f}x")
+        run.say(f"  compile: baseline / now {harness.ratio(cold['baseline'], cold['now']):.2f}x")
+        run.record(compile_seconds=cold)
 
         if not args.skip_warm_up:
-            print("\nthe warm-up of a fresh machine (two processes, empty cache):")
+            run.say("\nthe warm-up of a fresh machine (two processes, empty cache):")
             warm_up = {}
             for key, path in revisions.items():
                 cache = os.path.join(tmp, f"warm-{key}")
                 result, wall = _run(path, _WARM_UP, cache)
                 warm_up[key] = wall
-                print(
-                    f"  {key:8s} {result['seconds']:6.1f} s ({wall:.1f} s with the process)",
-                    flush=True,
-                )
-            print(f"  warm-up: baseline / now {warm_up['baseline'] / warm_up['now']:.2f}x")
+                run.say(f"  {key:8s} {result['seconds']:6.1f} s ({wall:.1f} s with the process)")
+            speed = harness.ratio(warm_up["baseline"], warm_up["now"])
+            run.say(f"  warm-up: baseline / now {speed:.2f}x")
+            run.record(warm_up_seconds=warm_up)
 
-        code = _EVALUATE.format(here=HERE, n=args.n, count=50, repeats=3)
+        code = _EVALUATE.format(n=args.n, count=50, repeats=3)
         runs: dict[str, list[dict]] = {k: [] for k in revisions}
         for r in range(args.rounds):  # ABBA: the first run of a round is often the fastest
             for key in sorted(revisions, reverse=r % 2 == 1):
                 runs[key].append(_run(revisions[key], code, caches[key])[0])
         same = len({run["sha256"] for v in runs.values() for run in v}) == 1
         best = {k: np.min([run["best"] for run in v], axis=0) for k, v in runs.items()}
-        print(
+        run.say(
             f"\n{len(best['now'])} stored eq. (13) formulas at {args.n}^3, 1 thread,"
-            f" {args.rounds} rounds: baseline / now {ratios(best['baseline'], best['now'])}"
+            f" {args.rounds} rounds: baseline / now"
+            f" {harness.ratio_summary(best['baseline'], best['now'])}"
             f" ({best['now'].sum():.2f} s now); the same fields (sha256): {same}"
         )
+        run.record(evaluation_seconds=best, same_fields=same)
+    run.save()
     return 0 if same else 1
 
 

@@ -2,9 +2,9 @@
 
 The fields are the sampler's own: the first ``--draws`` draws of ``--seed`` go through
 ``make_shape`` (default config, no pictures) and every field it meshes is kept (at the config's
-grid, 64³, capped as the sampler does).  On each, in the same run, best of ``--repeat``:
+grid, 64³, capped as the sampler does).  On each, in the same run, best of ``--repeats``:
 
-- ``old``: the step-by-step numpy version (``tests/generator/mesh_reference.py``: offsets,
+- ``old``: the step-by-step numpy version (``tests/support/mesh_reference.py``: offsets,
   separation, pad, marching cubes on every cell, placement, merge);
 - ``new``: :func:`surfgen.generator.mesh.mesh.extract_with_edges` (numba kernels around marching
   cubes, marching cubes only on the cells with both signs);
@@ -15,16 +15,13 @@ Checks that both give bit-identical vertices, faces and edges, and prints totals
 per-field ratio old/new and the split of the new stage.  Shared machines are noisy: ratios
 measured in one run are what to quote.
 
-    python benchmarks/bench_mesh.py [--draws 100] [--seed 7] [--repeat 3]
+    python -m benchmarks.mesh_stage [--draws 100] [--seed 7] [--repeats 3] [--json PATH]
 """
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -32,11 +29,10 @@ from skimage.measure import marching_cubes
 
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.pipelines.run.sampling as sampling
+from benchmarks import harness
 from surfgen.generator.errors import EmptySurface
 from surfgen.pipelines.run.config import load_config
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-from tests.support.mesh_reference import reference_extract_with_edges  # noqa: E402
+from tests.support.mesh_reference import reference_extract_with_edges
 
 
 def sampler_fields(draws: int, seed: int) -> list[tuple]:
@@ -63,12 +59,7 @@ def sampler_fields(draws: int, seed: int) -> list[tuple]:
 
 def best(repeat: int, fn, *args, **kwargs) -> float:
     """Least wall time of ``fn(*args, **kwargs)`` over ``repeat`` calls."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn(*args, **kwargs)
-        times.append(time.perf_counter() - start)
-    return min(times)
+    return harness.best_of(lambda: fn(*args, **kwargs), repeat, warmup=0).best
 
 
 def same(a, b) -> bool:
@@ -79,12 +70,12 @@ def same(a, b) -> bool:
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=3)
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seed", type=int, default=7)
-    parser.add_argument("--repeat", type=int, default=3)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    run = harness.Run("mesh_stage", args)
     fields = sampler_fields(args.draws, args.seed)
     rows, identical, meshed = [], 0, 0
     for field, level, cap in fields:
@@ -99,26 +90,39 @@ def main() -> None:
         if cap:
             work = mesh_module._pad_outside(work)
         mask = mesh_module._mixed_cells(work)
-        r = args.repeat
+        r = args.repeats
         t_old = best(r, reference_extract_with_edges, field, level, cap)
         t_new = best(r, mesh_module.extract_with_edges, field, level, cap)
         t_mc = best(r, marching_cubes, work, 0.0, gradient_direction="descent")
         t_mask = best(r, marching_cubes, work, 0.0, gradient_direction="descent", mask=mask)
         rows.append((t_old, t_new, t_mc, t_mask, old[0].n_faces))
     a = np.array(rows)
-    print(f"{len(fields)} fields meshed by the sampler in {args.draws} draws of seed {args.seed}")
-    print(f"bit-identical vertices, faces and edges: {identical} of {meshed}")
-    print(f"best of {args.repeat}, ms per field (mean): old {1000 * a[:, 0].mean():.1f}, "
-          f"new {1000 * a[:, 1].mean():.1f}; faces {a[:, 4].mean():.0f}")  # fmt: skip
+    run.say(f"{len(fields)} fields meshed by the sampler in {args.draws} draws of seed {args.seed}")
+    run.say(f"bit-identical vertices, faces and edges: {identical} of {meshed}")
+    run.say(
+        f"best of {args.repeats}, ms per field (mean): old {1000 * a[:, 0].mean():.1f}, "
+        f"new {1000 * a[:, 1].mean():.1f}; faces {a[:, 4].mean():.0f}"
+    )
     ratio = a[:, 0] / a[:, 1]
-    print(f"old / new: total {a[:, 0].sum() / a[:, 1].sum():.2f}, median per field "
-          f"{statistics.median(ratio):.2f} (p10 {np.percentile(ratio, 10):.2f}, "
-          f"p90 {np.percentile(ratio, 90):.2f})")  # fmt: skip
-    print(f"marching cubes alone (ms, mean): every cell {1000 * a[:, 2].mean():.1f}, "
-          f"mixed cells only {1000 * a[:, 3].mean():.1f} "
-          f"(x{a[:, 2].sum() / a[:, 3].sum():.2f}); the new stage is "
-          f"{a[:, 3].sum() / a[:, 1].sum():.0%} masked marching cubes, "
-          f"the old {a[:, 2].sum() / a[:, 0].sum():.0%} marching cubes")  # fmt: skip
+    run.say(
+        f"old / new: total {a[:, 0].sum() / a[:, 1].sum():.2f}, median per field "
+        f"{statistics.median(ratio):.2f} (p10 {np.percentile(ratio, 10):.2f}, "
+        f"p90 {np.percentile(ratio, 90):.2f})"
+    )
+    run.say(
+        f"marching cubes alone (ms, mean): every cell {1000 * a[:, 2].mean():.1f}, "
+        f"mixed cells only {1000 * a[:, 3].mean():.1f} "
+        f"(x{a[:, 2].sum() / a[:, 3].sum():.2f}); the new stage is "
+        f"{a[:, 3].sum() / a[:, 1].sum():.0%} masked marching cubes, "
+        f"the old {a[:, 2].sum() / a[:, 0].sum():.0%} marching cubes"
+    )
+    run.record(
+        identical=identical,
+        meshed=meshed,
+        seconds={"old": a[:, 0], "new": a[:, 1], "mc": a[:, 2], "mc_mask": a[:, 3]},
+        faces=a[:, 4],
+    )
+    run.save()
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 Prints seconds per 256² render, per thumbnail PNG, per 12-view turntable strip, and the
 speed-up over matplotlib's ``plot_trisurf`` (Agg, no display) drawing the same mesh at the
-same size in the same run. Times are the best of ``--repeat`` runs (shared machines are
+same size in the same run. Times are the best of ``--repeats`` runs (shared machines are
 noisy; ratios are more reliable than absolute figures).
 
     python benchmarks/bench_render.py [--grid 128] [--box 1.3] [--repeat 5] [--full-baseline]

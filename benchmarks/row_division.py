@@ -1,7 +1,7 @@
 """The interpreter's row divided by a scalar (``generator/elementary/division.py``): its speed
 against the plain division loop it replaces, and its bits against numpy's ``/`` on many cases.
 
-    python benchmarks/bench_division.py [--cases 1000000000] [--hard 10000000] [--repeats 7]
+    python -m benchmarks.row_division [--cases 1000000000] [--hard 10000000] [--repeats 7]
 
 1. **Speed**: ``W[d] = W[a] / s`` over rows of 1024 (the interpreter's tile), the FMA row
    division against a numba loop of ``/`` compiled with the same options, taking turns, best of
@@ -14,18 +14,15 @@ against the plain division loop it replaces, and its bits against numpy's ``/`` 
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
+from benchmarks import harness
 from surfgen.generator.elementary import division as D
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-from test_division import midpoint_row  # noqa: E402
+from tests.support.division_cases import midpoint_row
 
 
 @njit(**D.JIT)
@@ -43,22 +40,26 @@ def _repeat(fast, W, s, n, reps):
             _plain(W, 1, 0, s, n)
 
 
-def speed(repeats: int) -> None:
+def speed(run: harness.Run, repeats: int) -> None:
+    """The FMA row division against the plain loop, taking turns, best of ``repeats``."""
     n, reps = 1024, 20000
     W = np.random.default_rng(0).standard_normal((2, n)) * 1e3
-    best = {True: np.inf, False: np.inf}
     for fast in (True, False):
         _repeat(fast, W, 2.7, n, 1)
-    for _ in range(repeats):
-        for fast in (True, False):
-            t = time.perf_counter()
-            _repeat(fast, W, 2.7, n, reps)
-            best[fast] = min(best[fast], time.perf_counter() - t)
-    ns = {k: v / reps / n * 1e9 for k, v in best.items()}
-    print(
-        f"rows of {n}: FMA row division {ns[True]:.3f} ns a value, plain division "
-        f"{ns[False]:.3f} ns: {ns[False] / ns[True]:.2f}x faster (ROW_DIVISION={D.ROW_DIVISION})"
+    timings = harness.take_turns(
+        {
+            "fma": lambda: _repeat(True, W, 2.7, n, reps),
+            "plain": lambda: _repeat(False, W, 2.7, n, reps),
+        },
+        repeats,
     )
+    ns = {k: t.best / reps / n * 1e9 for k, t in timings.items()}
+    run.say(
+        f"rows of {n}: FMA row division {ns['fma']:.3f} ns a value, plain division "
+        f"{ns['plain']:.3f} ns: {harness.ratio(ns['plain'], ns['fma']):.2f}x faster"
+        f" (ROW_DIVISION={D.ROW_DIVISION})"
+    )
+    run.record(ns_per_value=ns)
 
 
 def random_rows(rng: np.random.Generator):
@@ -85,7 +86,7 @@ def hard_rows(rng: np.random.Generator):
             yield row
 
 
-def tally(label: str, rows, cases: int) -> None:
+def tally(run: harness.Run, label: str, rows, cases: int) -> None:
     """Divide rows until ``cases`` quotients are done; print how many differ from numpy's."""
     done = wrong = fast = count = 0
     t0 = time.perf_counter()
@@ -97,10 +98,11 @@ def tally(label: str, rows, cases: int) -> None:
         fast += fast_row
         count += 1
         done += x.size
-    print(
+    run.say(
         f"{done} {label} against numpy's /: {wrong} differ; {fast} of {count} rows took the "
         f"FMA path ({time.perf_counter() - t0:.0f} s)"
     )
+    run.record(**{label: {"cases": done, "differ": wrong, "fma_rows": fast, "rows": count}})
 
 
 def _check(x: np.ndarray, s: float) -> tuple[int, bool]:
@@ -112,15 +114,17 @@ def _check(x: np.ndarray, s: float) -> tuple[int, bool]:
     return int((W[1].view(np.uint64) != want.view(np.uint64)).sum()), bool(took)
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__, repeats=7)
     ap.add_argument("--cases", type=int, default=1_000_000_000)
     ap.add_argument("--hard", type=int, default=10_000_000, help="quotients next to a midpoint")
-    ap.add_argument("--repeats", type=int, default=7)
-    args = ap.parse_args()
-    speed(args.repeats)
-    tally("random quotients", random_rows(np.random.default_rng(1)), args.cases)
-    tally("quotients next to a rounding midpoint", hard_rows(np.random.default_rng(3)), args.hard)
+    args = ap.parse_args(argv)
+    run = harness.Run("row_division", args)
+    speed(run, args.repeats)
+    tally(run, "random quotients", random_rows(np.random.default_rng(1)), args.cases)
+    hard = hard_rows(np.random.default_rng(3))
+    tally(run, "quotients next to a rounding midpoint", hard, args.hard)
+    run.save()
     return 0
 
 

@@ -5,21 +5,18 @@ Draws ``--n`` sculptures of ``--seed`` (``family = "sculpture"``, every other se
 default of each checkout) in a child process per checkout and round, the checkouts taking turns
 (``--rounds``), and prints per checkout the best round's milliseconds per sculpture drawn, the
 ornaments tried per sculpture (from the structure each draw records) and milliseconds per
-ornament tried, then the ratios new / baseline. The child warms the kernels on five draws of
-other indices first. Shared machines are noisy: the ratios of one run are the figures to quote.
+ornament tried, then the ratios. The child warms the kernels on five draws of
+other indices first. Ratios are baseline / now (above 1: this checkout is faster). Shared
+machines are noisy: the ratios of one run are the figures to quote.
 
-    python benchmarks/bench_draws.py [--n 150] [--seed 7] [--rounds 2] [--baseline REV]
+    python -m benchmarks.sculpture_draws [--n 150] [--seed 7] [--rounds 2] [--baseline REV]
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
-import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sample_grids import export_revision, run_code  # noqa: E402
+from benchmarks import harness
 
 _CHILD = """
 import json, sys, time
@@ -41,20 +38,18 @@ print(json.dumps({"code": families.__file__, "wall": wall, "n": n, "tries": trie
 
 
 def run_child(path: Path | None, n: int, seed: int) -> dict:
-    return run_code(path, _CHILD, n, seed)
+    """Draw ``n`` sculptures in a child process with the code at ``path`` (None: this one)."""
+    return harness.run_child(path, _CHILD, n, seed)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = harness.parser(__doc__, baseline="optional")
     ap.add_argument("--n", type=int, default=150)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--baseline", default=None, help="git revision to compare against")
-    args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        versions: dict[str, Path | None] = {"new": None}
-        if args.baseline:
-            versions = {"baseline": export_revision(args.baseline, Path(tmp)), "new": None}
+    args = ap.parse_args(argv)
+    run = harness.Run("sculpture_draws", args)
+    with harness.revisions(args.baseline) as versions:
         best: dict[str, dict] = {}
         for _ in range(args.rounds):
             for label, path in versions.items():
@@ -64,16 +59,19 @@ def main() -> None:
     for label, r in best.items():
         per = 1000 * r["wall"] / r["n"]
         per_try = 1000 * r["wall"] / r["tries"]
-        print(
+        run.say(
             f"{label:<9} {per:6.1f} ms per sculpture  {r['tries'] / r['n']:.2f} ornaments "
             f"tried per sculpture  {per_try:5.1f} ms per ornament tried"
         )
     if "baseline" in best:
-        b, a = best["baseline"], best["new"]
-        print(
-            f"ratio new/baseline: per sculpture x{a['wall'] / b['wall']:.2f}, per ornament "
-            f"tried x{(a['wall'] / a['tries']) / (b['wall'] / b['tries']):.2f}"
+        b, a = best["baseline"], best["now"]
+        per_try = harness.ratio(b["wall"] / b["tries"], a["wall"] / a["tries"])
+        run.say(
+            f"ratio baseline / now: per sculpture x{harness.ratio(b['wall'], a['wall']):.2f}, "
+            f"per ornament tried x{per_try:.2f}"
         )
+    run.record(best=best)
+    run.save()
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The series row (``interpreter._series_row``: the sum of eqs. (2)-(4) in saw1, tri1, stair1)
 against the scalar loop it replaced, measured in one run.
 
-    python benchmarks/bench_series.py [--repeats 20]
+    python -m benchmarks.series_row [--repeats 20] [--json PATH]
 
 The baseline is the loop of the revision before: ``W[d, k] = _series(W[a, k], r, p)`` per
 value, an early exit and a search that LLVM cannot vectorise. The row now runs a branch-free
@@ -13,13 +13,12 @@ the same bits.
 
 from __future__ import annotations
 
-import argparse
 import sys
-import time
 
 import numpy as np
 from numba import njit
 
+from benchmarks import harness
 from surfgen.generator.eval import interpreter
 
 N = 1024
@@ -35,10 +34,20 @@ def _scalar_row(W, d, a, n, consts, base):
         W[d, k] = interpreter._series(W[a, k], r, p)
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeats", type=int, default=20)
-    args = ap.parse_args()
+def _calls(row, W, d: int, consts: np.ndarray, calls: int = 500):
+    """``row`` into ``W[d]`` ``calls`` times, as one timed candidate."""
+
+    def repeat() -> None:
+        for _ in range(calls):
+            row(W, d, 0, N, consts, 0)
+
+    return repeat
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__, repeats=20)
+    args = ap.parse_args(argv)
+    run = harness.Run("series_row", args)
     rng = np.random.default_rng(7)
     ratios = []
     for r, p, span in CASES:
@@ -48,22 +57,24 @@ def main() -> int:
         _scalar_row(W, 1, 0, N, consts, 0)
         interpreter._series_row(W, 2, 0, N, consts, 0)
         same = np.array_equal(W[1].view(np.int64), W[2].view(np.int64))
-        best = {"before": np.inf, "now": np.inf}
-        for _ in range(args.repeats):
-            for key, row, d in (("before", _scalar_row, 1), ("now", interpreter._series_row, 2)):
-                t = time.perf_counter()
-                for _ in range(500):
-                    row(W, d, 0, N, consts, 0)
-                best[key] = min(best[key], (time.perf_counter() - t) / 500)
-        ratio = best["before"] / best["now"]
+        timings = harness.take_turns(
+            {
+                "before": _calls(_scalar_row, W, 1, consts),
+                "now": _calls(interpreter._series_row, W, 2, consts),
+            },
+            args.repeats,
+        )
+        best = {key: t.best / 500 for key, t in timings.items()}
+        ratio = harness.ratio(best["before"], best["now"])
         ratios.append(ratio)
-        print(
+        run.record(**{f"r={r}, p={p}": {"seconds_per_row": best, "same_bits": same}})
+        run.say(
             f"r = {r}, p = {p}, |x| < {span}: {best['now'] / N * 1e9:.2f} ns per value now,"
             f" {best['before'] / N * 1e9:.2f} before: {ratio:.2f}x"
-            f"{'' if same else '  BITS DIFFER'}",
-            flush=True,
+            f"{'' if same else '  BITS DIFFER'}"
         )
-    print(f"median {np.median(ratios):.2f}x")
+    run.say(f"median {np.median(ratios):.2f}x")
+    run.save()
     return 0
 
 

@@ -11,7 +11,7 @@ meshes in the same run, and checks that both give the same metrics, descriptors 
 
 Meshes: the accepted shapes among the first ``--n`` draws of ``--seed`` (default config, made
 in-process), or the meshes of an existing catalogue (``--catalogue DIR``). Per mesh and check,
-the best of ``--repeat`` calls; old and new alternate, so load changes hit both alike.
+the best of ``--repeats`` calls; old and new alternate, so load changes hit both alike.
 
     python benchmarks/bench_checks.py [--n 60] [--seed 7] [--repeat 3] [--catalogue DIR]
 """

@@ -1,39 +1,44 @@
 """The interpreter's tile length (``fast.TILE_MAX``, points per W row) against time, in one run.
 
-    python benchmarks/bench_tiles.py [--grid 128] [--formulas 50] [--tiles 512 1024 2048]
+    python -m benchmarks.tile_length [--grid 128] [--formulas 50] [--tiles 512 1024 2048]
 
 The 50 stored eq. (13) formulas (``tests/support/data/eq13_formulas.jsonl``), each evaluated
-on one thread at every tile length in turn (best of ``--repeat`` rounds, interleaved, so a busy
+on one thread at every tile length in turn (best of ``--repeats`` rounds, interleaved, so a busy
 moment hits them alike). Prints, per tile length, the median over the formulas of its time
 divided by the first tile length's, and the total time. The fields are the same bits at every
-tile length (every operation is elementwise; ``tests/generator/test_fast.py`` checks it).
+tile length (every operation is elementwise; ``tests/generator/eval/test_tape.py`` checks it).
 """
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import sys
-import time
-from pathlib import Path
 
 import numpy as np
 
 import surfgen.generator.eval.tape as fast
+from benchmarks import harness
+from benchmarks.workloads import stored_eq13
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Grid
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_eval import stored_eq13  # noqa: E402
+
+def _with_tile(tile: int, program, grid: Grid):
+    """One evaluation on one thread with ``fast.TILE_MAX = tile``, as a timed candidate."""
+
+    def evaluate() -> None:
+        fast.TILE_MAX = tile
+        fast.evaluate_program(program, grid, threads=1)
+
+    return evaluate
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=3)
     parser.add_argument("--grid", type=int, default=128)
     parser.add_argument("--formulas", type=int, default=50)
-    parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--tiles", type=int, nargs="+", default=[512, 1024, 2048])
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    run = harness.Run("tile_length", args)
     keep = fast.TILE_MAX
     programs = [
         (compile_tree(tree), Grid(box, (args.grid,) * 3))
@@ -42,26 +47,24 @@ def main() -> None:
     times: dict[int, list[float]] = {t: [] for t in args.tiles}
     try:
         for program, grid in programs:
-            best = dict.fromkeys(args.tiles, float("inf"))
-            for _ in range(args.repeat):
-                for tile in args.tiles:
-                    fast.TILE_MAX = tile
-                    start = time.perf_counter()
-                    fast.evaluate_program(program, grid, threads=1)
-                    best[tile] = min(best[tile], time.perf_counter() - start)
+            timings = harness.take_turns(
+                {tile: _with_tile(tile, program, grid) for tile in args.tiles}, args.repeats
+            )
             for tile in args.tiles:
-                times[tile].append(best[tile])
+                times[tile].append(timings[tile].best)
     finally:
         fast.TILE_MAX = keep
     base = np.array(times[args.tiles[0]])
-    print(f"{len(programs)} formulas at {args.grid}^3, 1 thread, best of {args.repeat}")
+    run.say(f"{len(programs)} formulas at {args.grid}^3, 1 thread, best of {args.repeats}")
     for tile in args.tiles:
         ratio = np.array(times[tile]) / base
-        print(
+        run.say(
             f"TILE_MAX {tile:>5}: median time / TILE_MAX {args.tiles[0]}'s "
             f"{statistics.median(ratio):.3f} (quartiles {np.percentile(ratio, 25):.3f} / "
             f"{np.percentile(ratio, 75):.3f}), total {sum(times[tile]):.3f} s"
         )
+    run.record(seconds_by_tile=times)
+    run.save()
 
 
 if __name__ == "__main__":

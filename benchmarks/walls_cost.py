@@ -6,7 +6,7 @@ Two sets of shapes, each field evaluated once on ``--grid``³ (64 by default, as
   ``stair1``, ``stair2``, ``saw1``) and without (sphere, torus, gyroid);
 - *sampled*: the first ``--n`` draws of ``--seed`` whose coarse field passes the sampler's screen.
 
-On each, in the same run, best of ``--repeat``:
+On each, in the same run, best of ``--repeats``:
 
 - ``placement``: ``extract_mesh`` with the merge-robust vertex placement switched off (the mesh
   stage as it was before issue 11);
@@ -20,10 +20,10 @@ On each, in the same run, best of ``--repeat``:
   them), given the faces' areas as the sampler gives them (its filters need them too: it
   computes them once);
 - ``main``: the same with main's classification before the second cost work
-  (``tests/generator/walls_main.py``: the secant point, then bisections over the whole formula
+  (``tests/support/walls_main.py``: the secant point, then bisections over the whole formula
   at every point);
 - ``previous``: the same with the classification before any cost work
-  (``tests/generator/walls_reference.py``: secant point and two rounds of three points over
+  (``tests/support/walls_reference.py``: secant point and two rounds of three points over
   the whole edge).
 
 Prints per shape the extra time of each classification over the mesh stage (the target: at
@@ -32,22 +32,20 @@ now differs from main's (share of the area whose kind changed, wall_fraction of 
 median, 90th percentile and maximum per set, over the shapes with walls too.
 Shared machines are noisy: ratios measured in one run are what to quote.
 
-    python benchmarks/bench_walls.py [--n 24] [--seed 7] [--grid 64] [--repeat 5]
+    python -m benchmarks.walls_cost [--n 24] [--seed 7] [--grid 64] [--repeats 5] [--json PATH]
 """
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.generator.mesh.walls as walls_module
+from benchmarks import harness
 from surfgen.filters.verdict import screen_field
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import evaluate
@@ -56,11 +54,9 @@ from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.walls import extract_labelled, label_walls
 from surfgen.generator.model.sampler import choose_d, draw_equation
 from surfgen.pipelines.run.config import load_config
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-from tests.support.mesh_reference import reference_extract_with_edges  # noqa: E402
-from tests.support.walls_main import main_classify  # noqa: E402
-from tests.support.walls_reference import reference_classify_edges  # noqa: E402
+from tests.support.mesh_reference import reference_extract_with_edges
+from tests.support.walls_main import main_classify
+from tests.support.walls_reference import reference_classify_edges
 
 NAMED = [
     # (name, formula, half side of the box); walls first
@@ -78,12 +74,8 @@ NAMED = [
 
 
 def best(fn: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
+    """Least wall time of ``fn()`` over ``repeat`` calls."""
+    return harness.best_of(fn, repeat, warmup=0).best
 
 
 def old_placement(field, level):
@@ -111,7 +103,7 @@ def labelled_with(classify, field, tree):
         walls_module._classify = keep
 
 
-def measure(name, tree, field, repeat):
+def measure(run: harness.Run, name, tree, field, repeat):
     """One row: times, ratios, points, and the change from main's classification."""
     mesh, report = extract_labelled(field, tree, {}, 0.0, cap=True, walls="mark")
     before, before_report = labelled_with(main_classify, field, tree)
@@ -151,14 +143,13 @@ def measure(name, tree, field, repeat):
             t_mesh = min(t_mesh, mesh_time)
             times[k] = min(times[k], label_time)
     t_walls, t_main, t_prev = times
-    print(
+    run.say(
         f"{name:>10} {mesh.n_faces:>7} {100 * report.wall_fraction:>6.1f} "
         f"{100 * before_report.wall_fraction:>6.1f} {100 * changed:>6.2f} {report.refined:>7} "
         f"{report.points:>7} {before_report.points:>7} {1000 * t_mesh:>7.1f} "
         f"{1000 * t_walls:>7.1f} {1000 * t_main:>7.1f} {1000 * t_prev:>7.1f} "
         f"{t_walls / t_mesh:>+7.0%} {t_main / t_mesh:>+7.0%} {t_prev / t_mesh:>+7.0%} "
-        f"{t_walls / t_old_mesh:>+7.0%}",
-        flush=True,
+        f"{t_walls / t_old_mesh:>+7.0%}"
     )
     return {
         "placement": t_mesh / t_old,
@@ -180,7 +171,7 @@ def _stats(values: np.ndarray) -> str:
     )
 
 
-def summary(title, rows):
+def summary(run: harness.Run, title, rows):
     if not rows:
         return
     pad = " " * len(title)
@@ -189,13 +180,13 @@ def summary(title, rows):
     prev = np.array([r["previous"] for r in rows])
     speedup = np.array([r["speedup"] for r in rows])
     walls = np.array([r["walls"] for r in rows])
-    print(
+    run.say(
         f"{title}: {len(rows)} shapes; classification over the mesh stage: {_stats(extra)}; "
         f"within +20 %: {np.count_nonzero(extra <= 0.2)} of {len(rows)}"
     )
     for label, mask in (("with walls", walls), ("without walls", ~walls)):
         if mask.any():
-            print(
+            run.say(
                 f"{pad}  {label} ({np.count_nonzero(mask)}): now {_stats(extra[mask])}, within "
                 f"+20 %: {np.count_nonzero(extra[mask] <= 0.2)}; main's: {_stats(main_[mask])}; "
                 f"before the cost work: {_stats(prev[mask])}; main's time / now: median "
@@ -204,7 +195,7 @@ def summary(title, rows):
     changed = np.array([r["changed"] for r in rows])
     wf = np.array([r["wf_change"] for r in rows])
     over_old = np.array([r["over_old"] for r in rows])
-    print(
+    run.say(
         f"{pad}  area whose kind changed from main's: median {statistics.median(changed):.2%}, "
         f"p90 {np.percentile(changed, 90):.2%}, max {changed.max():.2%}; |wall_fraction "
         f"change| median {statistics.median(wf):.4f}, p90 {np.percentile(wf, 90):.4f}, max "
@@ -237,35 +228,39 @@ def sampled_shapes(n: int, seed: int, grid: int):
         yield f"#{index - 1}", tree, field
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=5)
     parser.add_argument("--n", type=int, default=24)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--grid", type=int, default=64)
-    parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-named", action="store_true")
-    args = parser.parse_args()
-    print(f"{'shape':>10} {'faces':>7} {'walls%':>6} {'main%':>6} {'chg%':>6} {'suspect':>7} "
-          f"{'points':>7} {'p.main':>7} {'mesh ms':>7} {'walls':>7} {'main':>7} {'prev.':>7} "
-          f"{'+walls':>7} {'+main':>7} {'+prev':>7} {'/oldm':>7}")  # fmt: skip
+    args = parser.parse_args(argv)
+    run = harness.Run("walls_cost", args)
+    run.say(
+        f"{'shape':>10} {'faces':>7} {'walls%':>6} {'main%':>6} {'chg%':>6} {'suspect':>7} "
+        f"{'points':>7} {'p.main':>7} {'mesh ms':>7} {'walls':>7} {'main':>7} {'prev.':>7} "
+        f"{'+walls':>7} {'+main':>7} {'+prev':>7} {'/oldm':>7}"
+    )
     named = []
     if not args.no_named:
         for name, formula, half in NAMED:
             tree = parse(formula)
             field = evaluate(tree, Grid(Box.cube(half), (args.grid,) * 3), threads=1)
-            named.append(measure(name, tree, field, args.repeat))
+            named.append(measure(run, name, tree, field, args.repeats))
     rows = [
-        measure(name, tree, field, args.repeat)
+        measure(run, name, tree, field, args.repeats)
         for name, tree, field in sampled_shapes(args.n, args.seed, args.grid)
     ]
-    print(f"\nat {args.grid}^3, best of {args.repeat}")
-    summary("named", named)
-    summary(f"sampled (seed {args.seed})", rows)
+    run.say(f"\nat {args.grid}^3, best of {args.repeats}")
+    summary(run, "named", named)
+    summary(run, f"sampled (seed {args.seed})", rows)
     placement = np.array([r["placement"] for r in named + rows])
-    print(
+    run.say(
         f"robust placement / the same without separation: median {statistics.median(placement):.2f}, "
         f"p90 {np.percentile(placement, 90):.2f}, max {placement.max():.2f}"
     )
+    run.record(named=named, sampled=rows)
+    run.save()
 
 
 if __name__ == "__main__":
