@@ -11,19 +11,17 @@ and, measured in the same run as baselines, the marching-cubes extraction of the
 trimesh's own processing of the same mesh (``process=True, validate=True`` plus its
 watertightness check).  Shared machines are noisy: the ratios are more reliable than the times.
 
-    python benchmarks/bench_export.py [--grid 102] [--repeat 3] [--iterations 1]
+    python -m benchmarks.cleanup_remesh [--grid 102] [--repeats 3] [--iterations 1] [--json PATH]
 """
 
 from __future__ import annotations
 
-import argparse
-import statistics
-import time
 from collections.abc import Callable
 
 import numpy as np
 import trimesh
 
+from benchmarks import harness
 from surfgen.filters.cleanup import CleanupOptions, edge_lengths, refine_mesh, repair_mesh
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.eval.evaluate import evaluate
@@ -37,12 +35,8 @@ TARGET_SECONDS = 5.0
 
 def timed(fn: Callable[[], object], repeat: int) -> tuple[float, float, object]:
     """Best and median wall-clock seconds of ``repeat`` calls, and the last result."""
-    times, out = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - start)
-    return min(times), statistics.median(times), out
+    timing = harness.best_of(fn, repeat, warmup=0)
+    return timing.best, timing.median, timing.result
 
 
 def slivers(mesh: Mesh, degrees: float = 10.0) -> float:
@@ -62,48 +56,58 @@ def trimesh_process(mesh: Mesh) -> bool:
     return bool(tm.is_watertight)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=3)
     parser.add_argument("--grid", type=int, default=102, help="points per axis (102: ~197k faces)")
     parser.add_argument("--half", type=float, default=4.0, help="box is [-half, half]^3")
-    parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--iterations", type=int, default=1, help="remeshing iterations")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    run = harness.Run("cleanup_remesh", args)
 
     field: Field = evaluate(parse(GYROID), Grid(Box.cube(args.half), (args.grid,) * 3))
-    mc_best, mc_med, mesh = timed(lambda: extract_mesh(field, 0.0, cap=True), args.repeat)
+    mc_best, mc_med, mesh = timed(lambda: extract_mesh(field, 0.0, cap=True), args.repeats)
     assert isinstance(mesh, Mesh)
-    print(f"mesh: capped gyroid {args.grid}³, {mesh.n_faces:,} faces, {mesh.n_vertices:,} vertices")
+    run.say(
+        f"mesh: capped gyroid {args.grid}³, {mesh.n_faces:,} faces, {mesh.n_vertices:,} vertices"
+    )
 
     options = CleanupOptions(remesh=True, remesh_iterations=args.iterations)
-    rep_best, rep_med, repaired = timed(lambda: repair_mesh(mesh, options), args.repeat)
-    ref_best, ref_med, refined = timed(lambda: refine_mesh(repaired.mesh, options), args.repeat)
-    tm_best, tm_med, _ = timed(lambda: trimesh_process(mesh), args.repeat)
+    rep_best, rep_med, repaired = timed(lambda: repair_mesh(mesh, options), args.repeats)
+    ref_best, ref_med, refined = timed(lambda: refine_mesh(repaired.mesh, options), args.repeats)
+    tm_best, tm_med, _ = timed(lambda: trimesh_process(mesh), args.repeats)
 
     out = refined.mesh
     m = measure_mesh(out)
     target = refined.steps[0].details["target_edge"]
     edges = edge_lengths(out) / target
     total = rep_best + ref_best
-    print(f"cleanup (repair_mesh)             : {rep_best:.2f} s (median {rep_med:.2f})")
-    print(
+    run.say(f"cleanup (repair_mesh)             : {rep_best:.2f} s (median {rep_med:.2f})")
+    run.say(
         f"remesh ({args.iterations} iterations, edge {target:.4f}): {ref_best:.2f} s "
         f"(median {ref_med:.2f}) -> {out.n_faces:,} faces, edge/target median "
         f"{np.median(edges):.2f}, p10 {np.percentile(edges, 10):.2f}, p90 {np.percentile(edges, 90):.2f}"
     )
-    print(
+    run.say(
         f"result: watertight {m.watertight}, non-manifold vertices {m.nonmanifold_vertices}, "
         f"genus {m.genus}, components {m.components}; triangles with an angle < 10°: "
         f"{slivers(mesh):.1f}% -> {slivers(out):.2f}%"
     )
-    print(f"cleanup + remesh                  : {total:.2f} s (target < {TARGET_SECONDS:g} s)")
-    print(f"baseline marching cubes (skimage) : {mc_best:.2f} s (median {mc_med:.2f})")
-    print(f"baseline trimesh process+validate : {tm_best:.2f} s (median {tm_med:.2f})")
-    print(
+    run.say(f"cleanup + remesh                  : {total:.2f} s (target < {TARGET_SECONDS:g} s)")
+    run.say(f"baseline marching cubes (skimage) : {mc_best:.2f} s (median {mc_med:.2f})")
+    run.say(f"baseline trimesh process+validate : {tm_best:.2f} s (median {tm_med:.2f})")
+    run.say(
         f"ratio: cleanup + remesh = {total / mc_best:.1f}x marching cubes, "
         f"{total / tm_best:.1f}x trimesh processing; cleanup alone = "
         f"{rep_best / tm_best:.1f}x trimesh processing"
     )
+    run.record(
+        faces=mesh.n_faces,
+        seconds={"repair": rep_best, "remesh": ref_best, "marching_cubes": mc_best},
+        trimesh_seconds=tm_best,
+        remeshed_faces=out.n_faces,
+        watertight=m.watertight,
+    )
+    run.save()
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The Dask executor against the local one, in one run, and what limits scale.
 
-    python benchmarks/bench_dask.py [--n 60] [--seed 7] [--workers 2] [--grid 64] [--repeats 2]
+    python -m benchmarks.dask_executor [--n 60] [--seed 7] [--workers 2] [--grid 64] [--repeats 2]
 
 1. The same sampling run (same seed, options and config) with the local executor and with a
    ``LocalCluster`` of as many worker processes: accepted shapes per minute, with and without
@@ -16,7 +16,6 @@ The machine is shared: times are noisy, the ratios are what to quote.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sqlite3
@@ -24,6 +23,13 @@ import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+
+from benchmarks import harness
+from surfgen.filters.verdict import Verdict
+from surfgen.generator.eval.tape import warm_up
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.run.config import load_config
+from surfgen.pipelines.run.sampling import ShapeOutcome, _commit, _stage, run_sample
 
 
 def table(root: Path) -> list[tuple]:
@@ -36,8 +42,7 @@ def table(root: Path) -> list[tuple]:
 
 
 def timed_run(executor: str, args, config, out: Path) -> dict[str, float]:
-    from surfgen.pipelines.run.sampling import run_sample
-
+    """One sampling run with ``executor``: seconds, time to the first commit, shapes/min."""
     marks: list[float] = []
     start = time.perf_counter()
     s = run_sample(
@@ -65,10 +70,6 @@ def timed_run(executor: str, args, config, out: Path) -> dict[str, float]:
 def driver_commit_rate(catalogue: Path, repeats: int = 200) -> tuple[float, float]:
     """Accepted shapes per second one driver stages (bytes -> file) and commits, using the
     real files of ``catalogue``; and the mean bytes per accepted shape."""
-    from surfgen.filters.verdict import Verdict
-    from surfgen.pipelines.catalogue.store import open_catalogue
-    from surfgen.pipelines.run.sampling import ShapeOutcome, _commit, _stage
-
     with open_catalogue(catalogue, must_exist=True) as cat:
         rows = cat.shapes(verdict="accepted")
     payloads = []
@@ -98,7 +99,7 @@ def driver_commit_rate(catalogue: Path, repeats: int = 200) -> tuple[float, floa
 
 def chunk_overhead(workers: int, tasks: int = 200) -> float:
     """Seconds per empty task round trip on a LocalCluster (what one chunk costs the scheduler)."""
-    import distributed
+    import distributed  # deferred: the optional dask extra, needed only here
 
     with (
         distributed.LocalCluster(
@@ -112,17 +113,14 @@ def chunk_overhead(workers: int, tasks: int = 200) -> float:
         return (time.perf_counter() - start) / tasks
 
 
-def main() -> None:
-    from surfgen.generator.eval.tape import warm_up
-    from surfgen.pipelines.run.config import load_config
-
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    p = harness.parser(__doc__, repeats=2)
     p.add_argument("--n", type=int, default=60)
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     p.add_argument("--grid", type=int, default=64)
-    p.add_argument("--repeats", type=int, default=2, help="runs of each executor (best kept)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
+    run = harness.Run("dask_executor", args)
     config = load_config().with_grid(args.grid)
     warm_up(parallel=False)
     runs: dict[str, list[dict[str, float]]] = {"local": [], "dask": []}
@@ -157,13 +155,15 @@ def main() -> None:
         "accepted_per_second_at_1_gbit": round(125e6 / size, 1),
         "scheduler_seconds_per_chunk": round(overhead, 5),
     }
-    print(json.dumps(out, indent=2))
+    run.say(json.dumps(out, indent=2))
+    run.record(**out)
     per_core = local["steady_per_minute"] / 60 / args.workers
-    print(
+    run.say(
         f"one core makes {per_core:.2f} accepted shapes/s here: one driver's commits saturate at "
         f"about {commits / per_core:.0f} cores, a 1 Gbit/s link at about "
         f"{125e6 / size / per_core:.0f} cores"
     )
+    run.save()
 
 
 if __name__ == "__main__":

@@ -8,16 +8,14 @@ and times ``--steps`` round trips over HTTP; the baseline is the same changed sp
 ``surfgen render --spec STEP.json --cap -o STEP.glb`` in a new process, as a person without the
 viewer would do, timed in the same run.
 
-    python benchmarks/bench_explore.py [--catalogue DIR] [--key KEY] [--steps 30] [--cli 5]
+    python -m benchmarks.explore_step [--catalogue DIR] [--key KEY] [--steps 30] [--cli 5]
 
 Without ``--catalogue`` it samples a small one first (``surfgen sample --n 12 --seed 7``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -26,6 +24,13 @@ import threading
 import time
 import urllib.request
 from pathlib import Path
+
+from benchmarks import harness
+from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.catalogue.curation import select_shapes
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.pictures.gallery import make_server, server_url
+from surfgen.pipelines.studies.explore import apply_changes, warm_up
 
 SURFGEN = str(Path(sys.executable).parent / "surfgen")  # the venv's console script
 
@@ -45,33 +50,26 @@ def get(url: str) -> bytes:
 
 def typical_key(root: Path) -> tuple[str, int, float]:
     """The accepted shape with the median face count: key, faces, d."""
-    from surfgen.pipelines.catalogue.curation import select_shapes
-    from surfgen.pipelines.catalogue.store import open_catalogue
-
     with open_catalogue(root, must_exist=True) as cat:
         shapes = [s for s in select_shapes(cat, sort="faces") if s["d"] is not None]
     s = shapes[len(shapes) // 2]
     return s["key"], s["faces"], s["d"]
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> None:
+    ap = harness.parser(__doc__)
     ap.add_argument("--catalogue", type=Path)
     ap.add_argument("--key")
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--cli", type=int, default=5)
-    args = ap.parse_args()
-
-    from surfgen.generator.model.spec import SurfaceSpec
-    from surfgen.pipelines.catalogue.store import open_catalogue
-    from surfgen.pipelines.pictures.gallery import make_server, server_url
-    from surfgen.pipelines.studies.explore import apply_changes, warm_up
+    args = ap.parse_args(argv)
+    run = harness.Run("explore_step", args)
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-explore-"))
     root = args.catalogue
     if root is None:
         root = tmp / "cat"
-        print("sampling a catalogue of 12 shapes (64³) ...", flush=True)
+        run.say("sampling a catalogue of 12 shapes (64³) ...")
         subprocess.run(
             [SURFGEN, "sample", "--n", "12", "--seed", "7",
              "--out", str(root), "--no-thumbnails"],
@@ -85,7 +83,7 @@ def main() -> None:
         key, faces, d = typical_key(root)
     with open_catalogue(root, must_exist=True) as cat:
         base = cat.spec(key)
-    print(f"shape {key}: {faces} faces, grid {'x'.join(map(str, base.grid))}, d = {d:g}")
+    run.say(f"shape {key}: {faces} faces, grid {'x'.join(map(str, base.grid))}, d = {d:g}")
 
     warm_up()
     server = make_server(root, "127.0.0.1", 0)
@@ -128,24 +126,33 @@ def main() -> None:
     med = statistics.median(rounds)
     p90 = sorted(rounds)[int(0.9 * (len(rounds) - 1))]
     ms = lambda v: f"{1000 * v:.0f} ms"  # noqa: E731
-    print(f"slider steps: {len(rounds)}, faces {min(step_faces)}-{max(step_faces)}")
-    print(f"  round trip (POST /api/explore + GET the GLB): median {ms(med)}, p90 {ms(p90)}, "
+    run.say(f"slider steps: {len(rounds)}, faces {min(step_faces)}-{max(step_faces)}")
+    run.say(f"  round trip (POST /api/explore + GET the GLB): median {ms(med)}, p90 {ms(p90)}, "
           f"best {ms(min(rounds))}")  # fmt: skip
-    print(
+    run.say(
         f"  server evaluate + mesh + GLB: median {ms(statistics.median(server_side))} "
         + "("
         + ", ".join(f"{k} {ms(statistics.median(v))}" for k, v in parts.items() if k != "cpu")
         + ")"
     )
     cpu = statistics.median(parts["cpu"])
-    print(f"  CPU time of the server thread per step (its cost on a quiet core): median {ms(cpu)}")
-    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
-    print(f"  load average after the run: {' '.join(load)} on {os.cpu_count()} cores")
-    print(
+    run.say(
+        f"  CPU time of the server thread per step (its cost on a quiet core): median {ms(cpu)}"
+    )
+    run.say(f"  load average after the run: {harness.machine()['load']}")
+    run.say(
         f"baseline, the same step through the CLI (new process): median {ms(statistics.median(cli))}"
     )
-    print(f"ratio CLI / viewer step: {statistics.median(cli) / med:.1f}x")
-    print(f"target < 150 ms per step: {'met' if med < 0.150 else 'NOT met'} (median round trip)")
+    run.say(f"ratio CLI / viewer step: {statistics.median(cli) / med:.1f}x")
+    run.say(f"target < 150 ms per step: {'met' if med < 0.150 else 'NOT met'} (median round trip)")
+    run.record(
+        round_trip_seconds=rounds,
+        server_seconds=server_side,
+        parts=parts,
+        cli_seconds=cli,
+        cli_over_viewer=statistics.median(cli) / med,
+    )
+    run.save()
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The missing pictures of a catalogue (``surfgen thumbnails``, ``surfgen gallery -o``) drawn on
 one process against all cores, on the same meshes in the same run.
 
-    python benchmarks/bench_pictures.py --catalogue out/catalogue [--n 200] [--rounds 2]
+    python -m benchmarks.picture_workers --catalogue out/catalogue [--n 200] [--rounds 2]
 
 Takes the first ``--n`` accepted shapes of the catalogue and draws their turntables (12 views of
 256², what ``gallery -o`` makes for each shape) with :func:`surfgen.pipelines.pictures.pool.
@@ -12,12 +12,10 @@ and whether the PNG bytes are the same.
 
 from __future__ import annotations
 
-import argparse
-import os
-import platform
 import time
 from pathlib import Path
 
+from benchmarks import harness
 from surfgen.pipelines.catalogue.curation import select_shapes
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.pictures.pool import Job, default_workers, draw_all
@@ -29,22 +27,20 @@ def _timed(jobs: list[Job], workers: int) -> tuple[float, dict[str, bytes]]:
     return time.perf_counter() - t0, drawn
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    ap = harness.parser(__doc__)
     ap.add_argument("--catalogue", type=Path, default=Path("out/catalogue"))
     ap.add_argument("--n", type=int, default=200, help="shapes (the first accepted ones)")
     ap.add_argument("--workers", type=int, default=default_workers())
     ap.add_argument("--rounds", type=int, default=2, help="ABBA rounds")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    run = harness.Run("picture_workers", args)
 
     with open_catalogue(args.catalogue, must_exist=True, readonly=True) as cat:
         shapes = [s for s in select_shapes(cat) if s["mesh"]][: args.n]
         jobs = [Job(s["key"], str(cat.root / s["mesh"]), ("turntable",)) for s in shapes]
     _timed(jobs[:1], 1)  # the renderer's kernels loaded before either is timed
-    print(
-        f"{len(jobs)} turntables from {args.catalogue}; {platform.processor() or 'cpu'}, "
-        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}"
-    )
+    run.say(f"{len(jobs)} turntables from {args.catalogue}")
     times: dict[int, list[float]] = {1: [], args.workers: []}
     results = {}
     for r in range(args.rounds):
@@ -52,13 +48,19 @@ def main() -> int:
         for w in order:
             seconds, results[w] = _timed(jobs, w)
             times[w].append(seconds)
-            print(f"  round {r + 1}: {w} process{'es' if w > 1 else ''}: {seconds:.1f} s")
+            run.say(f"  round {r + 1}: {w} process{'es' if w > 1 else ''}: {seconds:.1f} s")
     one, many = min(times[1]), min(times[args.workers])
-    print(
+    run.say(
         f"best of {args.rounds}: 1 process {one:.1f} s ({one / len(jobs) * 1000:.0f} ms per "
         f"turntable), {args.workers} processes {many:.1f} s: {one / many:.2f}x; "
         f"the same PNG bytes: {results[1] == results[args.workers]}"
     )
+    run.record(
+        seconds={str(w): t for w, t in times.items()},
+        shapes=len(jobs),
+        same_png=results[1] == results[args.workers],
+    )
+    run.save()
     return 0
 
 

@@ -5,13 +5,11 @@ speed-up over matplotlib's ``plot_trisurf`` (Agg, no display) drawing the same m
 same size in the same run. Times are the best of ``--repeats`` runs (shared machines are
 noisy; ratios are more reliable than absolute figures).
 
-    python benchmarks/bench_render.py [--grid 128] [--box 1.3] [--repeat 5] [--full-baseline]
+    python -m benchmarks.render_speed [--grid 128] [--box 1.3] [--repeats 5] [--full-baseline]
 """
 
 from __future__ import annotations
 
-import argparse
-import statistics
 import tempfile
 import time
 from collections.abc import Callable
@@ -20,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from skimage import measure
 
+from benchmarks import harness
 from surfgen.generator.mesh.mesh import Mesh
 from surfgen.pipelines.pictures.raster import render_image, render_thumbnail, render_turntable
 
@@ -35,17 +34,13 @@ def gyroid_mesh(grid: int, half_periods: float) -> Mesh:
 
 def timed(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
     """Best and median wall-clock seconds of ``repeat`` calls."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times), statistics.median(times)
+    timing = harness.best_of(fn, repeat, warmup=0)
+    return timing.best, timing.median
 
 
 def matplotlib_render(mesh: Mesh, size: int, azimuth: float = 30.0) -> np.ndarray:
     """The baseline: ``plot_trisurf`` at ``size``² pixels with Agg, returned as RGB."""
-    import matplotlib
+    import matplotlib  # deferred: optional, and the backend is chosen before pyplot loads
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -63,20 +58,20 @@ def matplotlib_render(mesh: Mesh, size: int, azimuth: float = 30.0) -> np.ndarra
     return image
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=5)
     parser.add_argument("--grid", type=int, default=128)
     parser.add_argument("--box", type=float, default=1.3, help="half-width in units of π")
     parser.add_argument("--size", type=int, default=256)
-    parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument(
         "--full-baseline", action="store_true", help="also time 12 matplotlib views"
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    run = harness.Run("render_speed", args)
 
     start = time.perf_counter()
     mesh = gyroid_mesh(args.grid, args.box)
-    print(
+    run.say(
         f"mesh: gyroid {args.grid}³, {mesh.n_faces:,} faces, {mesh.n_vertices:,} vertices "
         f"({time.perf_counter() - start:.2f} s to build)"
     )
@@ -85,32 +80,42 @@ def main() -> None:
         out = Path(folder)
         start = time.perf_counter()
         render_image(mesh, size=args.size)
-        print(f"first call (numba cache load or compile): {time.perf_counter() - start:.3f} s")
+        run.say(f"first call (numba cache load or compile): {time.perf_counter() - start:.3f} s")
 
-        image_best, image_med = timed(lambda: render_image(mesh, size=args.size), args.repeat)
+        image_best, image_med = timed(lambda: render_image(mesh, size=args.size), args.repeats)
         thumb_best, thumb_med = timed(
-            lambda: render_thumbnail(mesh, out / "thumb.png", size=args.size), args.repeat
+            lambda: render_thumbnail(mesh, out / "thumb.png", size=args.size), args.repeats
         )
         spin_best, spin_med = timed(
             lambda: render_turntable(mesh, out / "spin.png", views=12, size=args.size),
-            max(1, args.repeat // 2),
+            max(1, args.repeats // 2),
         )
         base_best, base_med = timed(lambda: matplotlib_render(mesh, args.size), 2)
 
-        print(f"render_image {args.size}²      : {image_best:.3f} s (median {image_med:.3f})")
-        print(f"render_thumbnail (PNG)   : {thumb_best:.3f} s (median {thumb_med:.3f})")
-        print(f"render_turntable 12 views: {spin_best:.3f} s (median {spin_med:.3f})")
-        print(f"matplotlib plot_trisurf  : {base_best:.3f} s (median {base_med:.3f})")
-        print(f"speed-up, thumbnail vs matplotlib: {base_best / thumb_best:.0f}x")
+        run.say(f"render_image {args.size}²      : {image_best:.3f} s (median {image_med:.3f})")
+        run.say(f"render_thumbnail (PNG)   : {thumb_best:.3f} s (median {thumb_med:.3f})")
+        run.say(f"render_turntable 12 views: {spin_best:.3f} s (median {spin_med:.3f})")
+        run.say(f"matplotlib plot_trisurf  : {base_best:.3f} s (median {base_med:.3f})")
+        run.say(f"speed-up, thumbnail vs matplotlib: {base_best / thumb_best:.0f}x")
         if args.full_baseline:
             start = time.perf_counter()
             for i in range(12):
                 matplotlib_render(mesh, args.size, azimuth=30.0 + 30.0 * i)
             base_spin = time.perf_counter() - start
-            print(f"matplotlib 12 views      : {base_spin:.3f} s")
-            print(f"speed-up, turntable vs matplotlib: {base_spin / spin_best:.0f}x")
+            run.say(f"matplotlib 12 views      : {base_spin:.3f} s")
+            run.say(f"speed-up, turntable vs matplotlib: {base_spin / spin_best:.0f}x")
         else:
-            print(f"speed-up, turntable vs 12 x matplotlib: {12 * base_best / spin_best:.0f}x")
+            run.say(f"speed-up, turntable vs 12 x matplotlib: {12 * base_best / spin_best:.0f}x")
+    run.record(
+        faces=mesh.n_faces,
+        seconds={
+            "render_image": image_best,
+            "render_thumbnail": thumb_best,
+            "render_turntable": spin_best,
+            "matplotlib": base_best,
+        },
+    )
+    run.save()
 
 
 if __name__ == "__main__":

@@ -13,17 +13,14 @@ Meshes: the accepted shapes among the first ``--n`` draws of ``--seed`` (default
 in-process), or the meshes of an existing catalogue (``--catalogue DIR``). Per mesh and check,
 the best of ``--repeats`` calls; old and new alternate, so load changes hit both alike.
 
-    python benchmarks/bench_checks.py [--n 60] [--seed 7] [--repeat 3] [--catalogue DIR]
+    python -m benchmarks.shape_checks [--n 60] [--seed 7] [--repeats 3] [--catalogue DIR]
 """
 
 from __future__ import annotations
 
-import argparse
 import io
 import math
-import platform
 import tempfile
-import time
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -34,6 +31,7 @@ import numpy as np
 from PIL import Image
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
+from benchmarks import harness
 from surfgen.filters import descriptor as desc
 from surfgen.filters import meshlab, shape
 from surfgen.filters.descriptor import descriptor
@@ -52,6 +50,8 @@ from surfgen.pipelines.pictures.raster import (
     png_bytes,
     render_image,
 )
+from surfgen.pipelines.run.config import load_config
+from surfgen.pipelines.run.sampling import make_shape
 
 # -- the baseline: the checks as they were before issue 13 -------------------------------------
 
@@ -475,9 +475,6 @@ def new_thumbnail(mesh: Mesh) -> bytes:
 
 def sample_meshes(n: int, seed: int) -> list[Mesh]:
     """The meshes of the accepted shapes among the first ``n`` draws (as written to disk)."""
-    from surfgen.pipelines.run.config import load_config
-    from surfgen.pipelines.run.sampling import make_shape
-
     config = load_config(None)
     out = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -488,32 +485,13 @@ def sample_meshes(n: int, seed: int) -> list[Mesh]:
     return out
 
 
-def best(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return min(times), result
-
-
-def cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> None:
+    parser = harness.parser(__doc__, repeats=3)
     parser.add_argument("--n", type=int, default=60, help="draws to take accepted meshes from")
     parser.add_argument("--seed", type=int, default=7)
-    parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--catalogue", type=Path, help="take the meshes of this catalogue")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    run = harness.Run("shape_checks", args)
 
     if args.catalogue:
         meshes = [load_mesh(p) for p in sorted((args.catalogue / "meshes").glob("*.ply"))]
@@ -522,8 +500,10 @@ def main() -> None:
     if not meshes:
         raise SystemExit("error: no meshes to measure (no accepted shape)")
     faces = [m.n_faces for m in meshes]
-    print(f"{len(meshes)} meshes, {min(faces)}-{max(faces)} faces (median {int(np.median(faces))})")
-    print(f"CPU: {cpu_name()}; numba {numba.__version__}; best of {args.repeat}")
+    run.say(
+        f"{len(meshes)} meshes, {min(faces)}-{max(faces)} faces (median {int(np.median(faces))});"
+        f" best of {args.repeats}"
+    )
 
     # the quick metrics are measured before either version runs (shared input, as in the sampler)
     inputs = []
@@ -553,8 +533,10 @@ def main() -> None:
                 calls = (partial(old, m, metrics), partial(new, m, metrics))
             else:
                 calls = (partial(old, m), partial(new, m))
-            t_old, r_old = best(calls[0], args.repeat)
-            t_new, r_new = best(calls[1], args.repeat)
+            # old and new take turns, so load changes hit both alike
+            timings = harness.take_turns({"old": calls[0], "new": calls[1]}, args.repeats)
+            t_old, r_old = timings["old"].best, timings["old"].result
+            t_new, r_new = timings["new"].best, timings["new"].result
             totals[name][0] += t_old
             totals[name][1] += t_new
             if name == "shape":
@@ -567,16 +549,25 @@ def main() -> None:
             else:
                 same[name] += r_old == r_new
     k = len(meshes)
-    print(f"\n{'check':12s} {'old ms':>8s} {'new ms':>8s} {'ratio':>7s}  identical")
+    run.say(f"\n{'check':12s} {'old ms':>8s} {'new ms':>8s} {'ratio':>7s}  identical")
     for name, (t_old, t_new) in totals.items():
         what = "pixels" if name == "thumbnail" else "values"
-        print(
+        run.say(
             f"{name:12s} {1000 * t_old / k:8.1f} {1000 * t_new / k:8.1f} "
             f"{t_old / t_new:6.2f}x  {same[name]}/{k} {what}"
         )
     t_old = sum(t for t, _ in totals.values())
     t_new = sum(t for _, t in totals.values())
-    print(f"{'total':12s} {1000 * t_old / k:8.1f} {1000 * t_new / k:8.1f} {t_old / t_new:6.2f}x")
+    run.say(f"{'total':12s} {1000 * t_old / k:8.1f} {1000 * t_new / k:8.1f} {t_old / t_new:6.2f}x")
+    run.record(
+        meshes=k,
+        seconds={
+            "old": {n: t[0] for n, t in totals.items()},
+            "new": {n: t[1] for n, t in totals.items()},
+        },
+        identical=same,
+    )
+    run.save()
 
 
 if __name__ == "__main__":
