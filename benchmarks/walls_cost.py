@@ -46,31 +46,14 @@ import numpy as np
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.generator.mesh.walls as walls_module
 from benchmarks import harness
-from surfgen.filters.verdict import screen_field
-from surfgen.generator.errors import EmptySurface
+from benchmarks.workloads import NAMED, sampled_shapes
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.walls import extract_labelled, label_walls
-from surfgen.generator.model.sampler import choose_d, draw_equation
-from surfgen.pipelines.run.config import load_config
 from tests.support.mesh_reference import reference_extract_with_edges
 from tests.support.walls_main import main_classify
 from tests.support.walls_reference import reference_classify_edges
-
-NAMED = [
-    # (name, formula, half side of the box); walls first
-    ("tan", "tan(x)+0.3*y", 3.0),
-    ("tan*tan", "tan(x)*tan(y)-z", 3.0),
-    ("1/x", "1/x+y+z", 2.0),
-    ("atan(tan)", "atan(tan(2*x))+0.5-0.3*y*z", 3.0),
-    ("stair1", "stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),
-    ("stair2", "stair2(x*y,0.7,1)-z", 2.0),
-    ("saw1", "saw1(x+y,0.6,4)-0.3*z^2", 2.0),
-    ("sphere", "x^2+y^2+z^2-1", 1.3),
-    ("torus", "(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.5),
-    ("gyroid", "sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
-]
 
 
 def best(fn: Callable[[], object], repeat: int) -> float:
@@ -202,30 +185,6 @@ def summary(run: harness.Run, title, rows):
         f"{wf.max():.4f}; over the numpy mesh stage before issue 13: median "
         f"{statistics.median(over_old):+.0%}"
     )
-
-
-def sampled_shapes(n: int, seed: int, grid: int):
-    """The first ``n`` draws of ``seed`` whose coarse field passes the sampler's screen and
-    whose ``grid``³ field has a surface: ``(name, tree, field)``, named ``#index``."""
-    config = load_config()
-    found = index = 0
-    while found < n and index < 50 * n:
-        draw = draw_equation(seed, index, config.sampler)
-        index += 1
-        d = choose_d(draw, config.sampler, threads=1)
-        if d is None:
-            continue
-        tree = draw.equation.with_d(d).to_tree()
-        coarse = evaluate(tree, Grid(draw.box, (config.filters.coarse_grid,) * 3), threads=1)
-        if not screen_field(coarse.values, 0.0, config.filters, coarse=True).accepted:
-            continue
-        field = evaluate(tree, Grid(draw.box, (grid,) * 3), threads=1)
-        try:
-            mesh_module.extract_mesh(field, 0.0, cap=True)
-        except EmptySurface:
-            continue
-        found += 1
-        yield f"#{index - 1}", tree, field
 
 
 def main(argv: list[str] | None = None) -> None:

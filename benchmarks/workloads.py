@@ -1,19 +1,26 @@
-"""The formulas the evaluation benchmarks time: eq. (13) drawn at random, by the sampler, or
-the 50 stored for the field-hash test (``tests/support/data/eq13_formulas.jsonl``)."""
+"""The workloads the benchmarks share: eq. (13) formulas drawn at random, by the sampler, or
+the 50 stored for the field-hash test (``tests/support/data/eq13_formulas.jsonl``); the shapes
+with and without walls of ``walls_cost`` and ``tools/accuracy_walls.py``."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 
 import numpy as np
 
 from benchmarks.harness import ROOT
-from surfgen.generator.eval.grid import Box, Grid
+from surfgen.filters.verdict import screen_field
+from surfgen.generator.errors import EmptySurface
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model import equation13 as eq
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
+from surfgen.pipelines.run.config import load_config
 
 
 def random_eq13(rng: np.random.Generator) -> Expr:
@@ -103,3 +110,44 @@ def sampled_eq13(seed: int, count: int) -> list[tuple[Expr, Box]]:
         if d is not None:
             out.append((draw.equation.with_d(d).to_tree(), draw.box))
     return out
+
+
+# ----------------------------------------------------------------------- shapes with walls
+
+NAMED = [
+    # (name, formula, half side of the box); walls first
+    ("tan", "tan(x)+0.3*y", 3.0),
+    ("tan*tan", "tan(x)*tan(y)-z", 3.0),
+    ("1/x", "1/x+y+z", 2.0),
+    ("atan(tan)", "atan(tan(2*x))+0.5-0.3*y*z", 3.0),
+    ("stair1", "stair1(x,0.5,1,4)+stair1(y,0.5,1,4)-z", 2.0),
+    ("stair2", "stair2(x*y,0.7,1)-z", 2.0),
+    ("saw1", "saw1(x+y,0.6,4)-0.3*z^2", 2.0),
+    ("sphere", "x^2+y^2+z^2-1", 1.3),
+    ("torus", "(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.5),
+    ("gyroid", "sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", 2.0),
+]
+
+
+def sampled_shapes(n: int, seed: int, grid: int) -> Iterator[tuple[str, Expr, Field]]:
+    """The first ``n`` draws of ``seed`` whose coarse field passes the sampler's screen and
+    whose ``grid``³ field has a surface: ``(name, tree, field)``, named ``#index``."""
+    config = load_config()
+    found = index = 0
+    while found < n and index < 50 * n:
+        draw = draw_equation(seed, index, config.sampler)
+        index += 1
+        d = choose_d(draw, config.sampler, threads=1)
+        if d is None:
+            continue
+        tree = draw.equation.with_d(d).to_tree()
+        coarse = evaluate(tree, Grid(draw.box, (config.filters.coarse_grid,) * 3), threads=1)
+        if not screen_field(coarse.values, 0.0, config.filters, coarse=True).accepted:
+            continue
+        field = evaluate(tree, Grid(draw.box, (grid,) * 3), threads=1)
+        try:
+            extract_mesh(field, 0.0, cap=True)
+        except EmptySurface:
+            continue
+        found += 1
+        yield f"#{index - 1}", tree, field

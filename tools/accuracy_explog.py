@@ -1,7 +1,7 @@
 """Accuracy and speed of surfgen's exp/log/pow family (``generator/elementary/explog.py``).
 
-    nice -n 10 .venv/bin/python benchmarks/accuracy_explog.py            # 10^6 arguments each
-    .venv/bin/python benchmarks/accuracy_explog.py --n 20000 --quick     # a smoke run
+    nice -n 10 .venv/bin/python -m tools.accuracy_explog            # 10^6 arguments each
+    .venv/bin/python -m tools.accuracy_explog --n 20000 --quick     # a smoke run
 
 Accuracy: for every function, n arguments (random over several scales plus each function's
 hard ranges, listed in ``arguments``) are evaluated by the numpy twin (checked bit-identical to

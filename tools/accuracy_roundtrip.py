@@ -1,7 +1,7 @@
 """Accuracy and speed of the closed-form round trips (``generator/elementary/roundtrip.py``).
 
-    nice -n 10 .venv/bin/python benchmarks/accuracy_roundtrip.py             # 10^6 arguments
-    .venv/bin/python benchmarks/accuracy_roundtrip.py --n 20000              # a smoke run
+    nice -n 10 .venv/bin/python -m tools.accuracy_roundtrip             # 10^6 arguments
+    .venv/bin/python -m tools.accuracy_roundtrip --n 20000              # a smoke run
 
 Arguments: a quarter uniform in [-20, 20], a quarter log-uniform in magnitude up to 2^24 (the
 vectorised reduction's range), an eighth in (2^24, 2^50] (the per-lane Dekker reduction), and

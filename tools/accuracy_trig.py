@@ -11,15 +11,14 @@ checked here on a sample and in the tests).
 Speed, in one run and on the same arguments: ``NAME_row`` over rows of 1024 points, a numba
 loop calling ``math.NAME`` (the C library), and numpy's ufunc. Prints a markdown table::
 
-    nice -n 10 .venv/bin/python benchmarks/accuracy_trig.py            # 10**6 each
-    .venv/bin/python benchmarks/accuracy_trig.py --n 20000 --quick      # a smoke run
+    nice -n 10 .venv/bin/python -m tools.accuracy_trig            # 10**6 each
+    .venv/bin/python -m tools.accuracy_trig --n 20000 --quick      # a smoke run
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import subprocess
 import time
 from multiprocessing import Pool
 
@@ -27,6 +26,7 @@ import mpmath as mp
 import numpy as np
 from numba import njit
 
+from benchmarks.harness import machine_line
 from surfgen.generator.elementary import trig as T
 
 UNARY = ["sin", "cos", "tan", "asin", "acos", "atan"]
@@ -271,17 +271,6 @@ def speeds(name: str) -> tuple[float, float, float]:
 # ----------------------------------------------------------------------------- main
 
 
-def _cpu() -> str:
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name:"):
-                return line.split(":", 1)[1].strip()
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    return "unknown CPU"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=10**6, help="arguments per function")
@@ -289,7 +278,7 @@ def main() -> None:
     ap.add_argument("--speed-only", action="store_true", help="skip the accuracy measurement")
     args = ap.parse_args()
     if args.speed_only:
-        print(f"CPU: {_cpu()}; numpy {np.__version__}; rows of 1024 points, one thread")
+        print(f"{machine_line()}; rows of 1024 points, one thread")
         print(
             "| function | `NAME_row` (M/s) | `math.NAME` loop in numba (M/s) | numpy ufunc (M/s) |"
         )
@@ -336,7 +325,7 @@ def main() -> None:
                 flush=True,
             )
     print()
-    print(f"CPU: {_cpu()}; numpy {np.__version__}; rows of 1024 points, one thread")
+    print(f"{machine_line()}; rows of 1024 points, one thread")
     print()
     print(
         "| function | arguments | max ulp | share > 0.5 ulp | `NAME_row` (M/s) "

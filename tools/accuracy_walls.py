@@ -2,8 +2,8 @@
 edge itself, looked at closely.
 
 For every suspect crossing (the crossings the samples alone do not settle, ``walls._crossings``)
-of the shapes of ``bench_walls.py`` (the named ones and the first ``--n`` screened draws of
-``--seed``, at ``--grid``³), the *truth*: F sampled at ``--fine`` points along the edge (the
+of the shapes of ``benchmarks/walls_cost.py`` (the named ones and the first ``--n`` screened
+draws of ``--seed``, at ``--grid``³), the *truth*: F sampled at ``--fine`` points along the edge (the
 plain points evaluator, nothing shared); where F changes side exactly once, that change is
 bisected ``--bisect`` more times (to about 2^-44 of the edge), and the kind read from |F| at the
 two ends of the last bracket, against the samples' scale ``S = |fa| + |fb|``:
@@ -15,34 +15,28 @@ two ends of the last bracket, against the samples' scale ``S = |fa| + |fb|``:
   sampling resolves, or more than one crossing in one edge) or ends in neither band.
 
 Prints per shape and in all: the suspects, the unambiguous ones, how many the classification now
-gets wrong and main's before the second cost work (``tests/generator/walls_main.py``) in the
+gets wrong and main's before the second cost work (``tests/support/walls_main.py``) in the
 same run, the points each evaluated, and the confusions (truth -> got).
 
-    python benchmarks/accuracy_walls.py [--n 24] [--seed 7] [--grid 64] [--no-named]
+    python -m tools.accuracy_walls [--n 24] [--seed 7] [--grid 64] [--no-named]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.generator.mesh.walls as walls_module
+from benchmarks.workloads import NAMED, sampled_shapes
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import JUMP, POLE, ROOT
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_walls import NAMED, sampled_shapes  # noqa: E402
-
-from tests.support.walls_main import main_classify  # noqa: E402
+from tests.support.walls_main import main_classify
 
 AMBIGUOUS = 255
 NAMES = {ROOT: "root", POLE: "pole", JUMP: "jump"}

@@ -6,7 +6,7 @@ scale is a percentile (default 95) of those same-shape distances. Then, with the
 :data:`surfgen.filters.descriptor.CHANNEL_SCALES`, it prints the near-duplicate rate of the
 catalogue (overall and per family) and writes a picture of its closest pairs to look at.
 
-    python benchmarks/calibrate_descriptor.py out/catalogue --pairs out/closest-pairs.png
+    python -m tools.calibrate_descriptor out/catalogue --pairs out/closest-pairs.png
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import sqlite3
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 from surfgen.filters.descriptor import (
     CHANNEL_SCALES,
@@ -92,8 +93,6 @@ def main() -> None:
 
 
 def _pairs_sheet(args, rows, nearest, partner) -> None:
-    from PIL import Image, ImageDraw
-
     seen, pairs = set(), []
     for i in np.argsort(nearest):
         pair = frozenset((int(i), partner[i]))

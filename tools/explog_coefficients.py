@@ -5,7 +5,7 @@ digits, then rounded to float64; the script prints the coefficients as Python li
 maximum error of the *rounded* polynomial measured on a dense grid, so a change of interval or
 degree can be checked before pasting the numbers into the module.
 
-    .venv/bin/python benchmarks/explog_coefficients.py
+    .venv/bin/python -m tools.explog_coefficients
 
 Kernels (w = r^2 where the function is even):
 - ``EXP_Q``:   Q(r) = (e^r - 1 - r - r^2/2) / r^3           on |r| <= ln2/2 (+ margin)

@@ -1,6 +1,6 @@
 """Check that two sampling runs made the same catalogue: keys, specs, verdicts and metrics.
 
-    python benchmarks/same_catalogue.py CATALOGUE_A CATALOGUE_B
+    python -m tools.same_catalogue CATALOGUE_A CATALOGUE_B
 
 Used to show that a speed change altered nothing a user can see: run
 ``surfgen sample --n 100 --seed 7 --grid 32`` with the old code into A and the new code into

@@ -5,7 +5,7 @@ polynomial ``P(z)`` of degree ``deg`` minimising the largest *relative* error ``
 (linear Remez exchange on a dense grid, mpmath at 90 digits). The coefficients are then rounded
 to doubles and the error of the rounded polynomial is measured again. Run::
 
-    python benchmarks/fit_trig.py            # prints the tables pasted into trig.py
+    python -m tools.trig_coefficients            # prints the tables pasted into trig.py
 
 and compare with the constants in ``trig.py`` (about 80 s; ``tests/generator/
 test_elementary_trig.py`` checks the relative error of every kernel's polynomial against
