@@ -1,5 +1,5 @@
 """The environment of a child Python that imports from the checkout (``tests.support``, a test
-module by its dotted name), instead of a ``sys.path.insert`` in the child's code."""
+module by its dotted name) without editing ``sys.path`` in the child's code."""
 
 from __future__ import annotations
 
