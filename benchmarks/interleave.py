@@ -1,4 +1,4 @@
-"""What forcing LLVM's interleave count gains (generator/vector_loops.py), measured in one run.
+"""What forcing LLVM's interleave count gains (generator/jit/interleave.py), measured in one run.
 
     python -m benchmarks.interleave              # rows, then the 50 stored formulas
     python -m benchmarks.interleave --rows-only  # the elementary rows alone (a minute)

@@ -1,4 +1,4 @@
-"""The interpreter's tile length (``fast.TILE_MAX``, points per W row) against time, in one run.
+"""The interpreter's tile length (``tape.TILE_MAX``, points per W row) against time, in one run.
 
     python -m benchmarks.tile_length [--grid 128] [--formulas 50] [--tiles 512 1024 2048]
 
@@ -15,19 +15,19 @@ import statistics
 
 import numpy as np
 
-import surfgen.generator.eval.tape as fast
 from benchmarks import harness
 from benchmarks.workloads import stored_eq13
+from surfgen.generator.eval import tape
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Grid
 
 
 def _with_tile(tile: int, program, grid: Grid):
-    """One evaluation on one thread with ``fast.TILE_MAX = tile``, as a timed candidate."""
+    """One evaluation on one thread with ``tape.TILE_MAX = tile``, as a timed candidate."""
 
     def evaluate() -> None:
-        fast.TILE_MAX = tile
-        fast.evaluate_program(program, grid, threads=1)
+        tape.TILE_MAX = tile
+        tape.evaluate_program(program, grid, threads=1)
 
     return evaluate
 
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tiles", type=int, nargs="+", default=[512, 1024, 2048])
     args = parser.parse_args(argv)
     run = harness.Run("tile_length", args)
-    keep = fast.TILE_MAX
+    keep = tape.TILE_MAX
     programs = [
         (compile_tree(tree), Grid(box, (args.grid,) * 3))
         for tree, box in stored_eq13(args.formulas)
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> None:
             for tile in args.tiles:
                 times[tile].append(timings[tile].best)
     finally:
-        fast.TILE_MAX = keep
+        tape.TILE_MAX = keep
     base = np.array(times[args.tiles[0]])
     run.say(f"{len(programs)} formulas at {args.grid}^3, 1 thread, best of {args.repeats}")
     for tile in args.tiles:

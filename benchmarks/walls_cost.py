@@ -10,7 +10,7 @@ On each, in the same run, best of ``--repeats``:
 
 - ``placement``: ``extract_mesh`` with the merge-robust vertex placement switched off (the mesh
   stage as it was before issue 11);
-- ``old mesh``: the numpy mesh stage before issue 13 (``tests/generator/mesh_reference.py``);
+- ``old mesh``: the numpy mesh stage before issue 13 (``tests/support/mesh_reference.py``);
 - ``mesh``: ``extract_with_edges`` (robust placement, numba around marching cubes: the mesh
   stage now; capped, as the sampler);
 - ``walls``: what ``extract_labelled(..., walls="mark")`` adds to it: ``label_walls`` on the

@@ -15,7 +15,7 @@ CHECK_KEYS = [
 
 # What the commands that compute nothing must not load: numba and llvmlite (and scipy with
 # them), trimesh (with scipy and networkx), pymeshlab, scikit-image: about 1.5 s before `--help`
-# printed anything until numba_setup.py and the lazy imports (README, "Performance").
+# printed anything until generator/jit/setup.py and the lazy imports (README, "Performance").
 HEAVY_MODULES = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
 
 _LOADED = """
