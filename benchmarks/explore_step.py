@@ -127,8 +127,10 @@ def main(argv: list[str] | None = None) -> None:
     p90 = sorted(rounds)[int(0.9 * (len(rounds) - 1))]
     ms = lambda v: f"{1000 * v:.0f} ms"  # noqa: E731
     run.say(f"slider steps: {len(rounds)}, faces {min(step_faces)}-{max(step_faces)}")
-    run.say(f"  round trip (POST /api/explore + GET the GLB): median {ms(med)}, p90 {ms(p90)}, "
-          f"best {ms(min(rounds))}")  # fmt: skip
+    run.say(
+        f"  round trip (POST /api/explore + GET the GLB): median {ms(med)}, p90 {ms(p90)}, "
+        f"best {ms(min(rounds))}"
+    )
     run.say(
         f"  server evaluate + mesh + GLB: median {ms(statistics.median(server_side))} "
         + "("

@@ -34,17 +34,18 @@ import sys
 import tarfile
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("generator", "filters", "pipelines")  # mapped to surfgen.* by pyproject.toml
 Clock = Callable[[], float]
+K = TypeVar("K", bound=Hashable)
 
 # ----------------------------------------------------------------------------------- timing
 
@@ -82,12 +83,12 @@ def best_of(
 
 
 def take_turns(
-    fns: Mapping[str, Callable[[], Any]],
+    fns: Mapping[K, Callable[[], Any]],
     repeats: int = 5,
     *,
     warmup: int = 0,
     clock: Clock = time.perf_counter,
-) -> dict[str, Timing]:
+) -> dict[K, Timing]:
     """Time every candidate once per round, ``repeats`` rounds, the order reversed every other
     round (ABBA): a burst of load then hits all candidates alike."""
     if repeats < 1:
@@ -95,8 +96,8 @@ def take_turns(
     for fn in fns.values():
         for _ in range(warmup):
             fn()
-    times: dict[str, list[float]] = {name: [] for name in fns}
-    results: dict[str, Any] = {}
+    times: dict[K, list[float]] = {name: [] for name in fns}
+    results: dict[K, Any] = {}
     for r in range(repeats):
         for name in list(fns) if r % 2 == 0 else list(reversed(fns)):
             start = clock()
@@ -116,7 +117,8 @@ def ratio_summary(before: Sequence[float], after: Sequence[float]) -> str:
     """Per-case time ratios before / after: median, quartiles, and the totals' ratio."""
     b, a = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
     q1, med, q3 = np.percentile(b / a, [25, 50, 75])
-    return f"median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time {ratio(b.sum(), a.sum()):.3f}x"
+    total = ratio(b.sum(), a.sum())
+    return f"median {med:.3f}x (quartiles {q1:.3f}x / {q3:.3f}x), total time {total:.3f}x"
 
 
 # ---------------------------------------------------------------------------------- machine
