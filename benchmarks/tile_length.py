@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     run = harness.Run("tile_length", args)
     keep = tape.TILE_MAX
+    tape.warm_up(parallel=False)  # the interpreter loaded (or compiled) before any timing
     programs = [
         (compile_tree(tree), Grid(box, (args.grid,) * 3))
         for tree, box in stored_eq13(args.formulas)
