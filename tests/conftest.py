@@ -24,12 +24,6 @@ from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
-# The keys `surfgen check --json` promises (the issue's list, in its order).
-CHECK_KEYS = [
-    "vertices", "faces", "components", "euler", "genus", "watertight", "boundary_edges",
-    "nonmanifold_edges", "nonmanifold_vertices", "area", "volume", "bbox",
-]  # fmt: skip
-
 
 @dataclass(frozen=True)
 class Shape:
@@ -130,42 +124,6 @@ def two_spheres_mesh(shape_mesh: Callable[..., Mesh]) -> Mesh:
     return shape_mesh("two_spheres")
 
 
-# --- small catalogues -------------------------------------------------------------------------
-
-
-def catalogue_shapes(root, items, *, seed: int = 0, grid: int = 40) -> list[str]:
-    """Catalogue ``items`` — ``(spec, mesh)`` pairs — as the accepted shapes of one run, the way
-    a sampling run does (mesh file, metrics, columns). Returns their keys in order."""
-    import json
-
-    from surfgen.filters.verdict import shape_metrics
-    from surfgen.generator.mesh.mesh import save_mesh
-    from surfgen.pipelines.catalogue.store import open_catalogue
-
-    keys = []
-    with open_catalogue(root) as cat:
-        cat.make_dirs()
-        run = cat.create_run(seed, len(items), grid, {}, f"test{seed}", 1, {"surfgen": "test"})
-        for i, (spec, mesh) in enumerate(items):
-            metrics = shape_metrics(mesh, spec.box)
-            save_mesh(mesh, cat.meshes / f"{spec.key}.ply")
-            columns = ("faces", "vertices", "components", "genus", "euler", "area", "volume")
-            row = {
-                "key": spec.key,
-                "spec": spec.to_json(),
-                "formula": spec.formula,
-                "identity": spec.key,
-                "verdict": "accepted",
-                "reasons": "[]",
-                "metrics": json.dumps(metrics),
-                "mesh_path": f"meshes/{spec.key}.ply",
-                **{k: metrics[k] for k in columns},
-            }
-            cat.record_shape(run.id, i, row, True, {})
-            keys.append(spec.key)
-    return keys
-
-
 @pytest.fixture
 def cat_dir(template, tmp_path):
     """A fresh copy of the test module's ``template`` catalogue ``(root, keys)``, to write to."""
@@ -217,34 +175,3 @@ def pytest_sessionfinish(session, exitstatus) -> None:
             str(session.config.rootpath)
         ):
             stop()
-
-
-# --- what a command loads ----------------------------------------------------------------------
-
-# What the commands that compute nothing must not load: numba and llvmlite (and scipy with
-# them), trimesh (with scipy and networkx), pymeshlab, scikit-image: about 1.5 s before `--help`
-# printed anything until numba_setup.py and the lazy imports (README, "Performance").
-HEAVY_MODULES = ("numba", "llvmlite", "scipy", "trimesh", "pymeshlab", "skimage", "networkx")
-
-_LOADED = """
-import json, sys
-from surfgen.pipelines.cli.main import main
-try:
-    main(sys.argv[1:])
-except SystemExit:
-    pass
-print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)), file=sys.stderr)
-"""
-
-
-def heavy_modules_loaded(*args: str) -> list[str]:
-    """The :data:`HEAVY_MODULES` that ``surfgen ARGS`` loaded, run in a fresh process."""
-    import json
-    import subprocess
-    import sys
-
-    code = _LOADED.format(heavy=HEAVY_MODULES)
-    done = subprocess.run(
-        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120
-    )
-    return json.loads(done.stderr.strip().splitlines()[-1])

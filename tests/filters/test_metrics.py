@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import CHECK_KEYS
 
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import MeshError
@@ -14,6 +13,7 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
+from tests.support.commands import CHECK_KEYS
 
 KEYS = CHECK_KEYS
 

@@ -10,13 +10,12 @@ import urllib.request
 from collections.abc import Callable
 from pathlib import Path
 
-from conftest import catalogue_shapes
-
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
+from tests.support.catalogues import catalogue_shapes
 
 SHAPES = {
     "sphere": ("x^2+y^2+z^2-1", 1.5),

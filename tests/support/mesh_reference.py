@@ -1,7 +1,7 @@
 """The mesh stage before its numba rewrite (issue 13): numpy, step by step, as it was on main.
 
 A straightforward reference for the fast path in :mod:`surfgen.generator.mesh.mesh`: the tests
-compare meshes and edges bit for bit with it, and ``benchmarks/bench_mesh.py`` times it as the
+compare meshes and edges bit for bit with it, and ``benchmarks/mesh_stage.py`` times it as the
 baseline.  Not part of the library.
 """
 

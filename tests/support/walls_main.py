@@ -2,7 +2,7 @@
 frozen to compare against: the third-difference smoothness test, then for every suspect the
 secant point ``t* = fa / (fa - fb)`` (kept 1 % of the edge from the samples), two bisections of
 the part where the side changes and two more where it still ends at a sample, decided by
-``_decide`` (a copy).  ``benchmarks/bench_walls.py`` times it against the classification now and
+``_decide`` (a copy).  ``benchmarks/walls_cost.py`` times it against the classification now and
 reports where their kinds differ.
 """
 

@@ -3,7 +3,7 @@
 Step 1 without the third-difference test, then for every suspect the secant point and two
 rounds of three points over the whole edge (seven points an edge the secant does not show to be
 a root), decided by ``_decide`` (from ``walls_main.py``, main's classifier before the second
-cost work).  ``benchmarks/bench_walls.py`` times both against the classification now and
+cost work).  ``benchmarks/walls_cost.py`` times both against the classification now and
 reports where their kinds differ.
 """
 

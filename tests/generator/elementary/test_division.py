@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from surfgen.generator.elementary import division as D
+from tests.support.division_cases import midpoint_row
 
 DIV = D.div_row_by_scalar_call
 
@@ -104,26 +105,6 @@ def test_quotients_next_to_a_rounding_midpoint():
             s = float(np.ldexp(si, shift_s - 52))
             row = np.array([xi, -xi, 0.5 * xi])
             _assert_bits(row, s, _divide(row, s, fast=True))
-
-
-def midpoint_row(rng: np.random.Generator) -> tuple[np.ndarray, float] | None:
-    """One row of quotients next to a rounding midpoint with their own divisor: for a random
-    odd 53-bit S and each odd t in [-63, 63], the 53-bit X with X * 2**54 = S*M + t, M an odd
-    54-bit midpoint of 53-bit quotients, so X/S is within |t|/S of an ulp (below 2**-46) of
-    M / 2**54; dividends and divisor scaled by random powers of two, a random sign. None when
-    no t gives a 53-bit X (rare). Also used by ``benchmarks/bench_division.py``."""
-    S = int(rng.integers(1 << 52, 1 << 53)) | 1
-    inv = pow(S, -1, 1 << 54)
-    xs = []
-    for t in range(-63, 64, 2):
-        M = (-t * inv) % (1 << 54)
-        X = (S * M + t) >> 54
-        if M >= (1 << 53) and (1 << 52) <= X < (1 << 53):
-            xs.append(float(X))
-    if not xs:
-        return None
-    x = np.ldexp(np.array(xs), int(rng.integers(-840, 840))) * float(rng.choice([-1.0, 1.0]))
-    return x, float(np.ldexp(float(S), int(rng.integers(-150, 40))))
 
 
 def test_rows_of_quotients_next_to_a_midpoint_with_their_own_divisor():

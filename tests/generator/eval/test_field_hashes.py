@@ -33,6 +33,7 @@ from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.eval.tape import evaluate_fast
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.presets import PRESETS
+from tests.support.processes import python_env
 
 DATA = Path(__file__).resolve().parents[2] / "support" / "data"
 FORMULAS = DATA / "eq13_formulas.jsonl"
@@ -93,8 +94,7 @@ def test_the_reference_gives_the_pinned_hashes_too():
 
 _SUBPROCESS = """
 import json, re, sys
-sys.path.insert(0, {here!r})
-from test_field_hashes import fast_hashes
+from tests.generator.eval.test_field_hashes import fast_hashes
 from surfgen.generator import NO_VECTORIZE
 from surfgen.generator.eval.interpreter import interpreter_asm, load_interpreter
 from surfgen.generator.eval.row_functions import rows_asm
@@ -167,8 +167,8 @@ def start_in_background(test: str) -> None:
     # A fresh numba cache: numba's cache key ignores the vectoriser flags, and a fresh compile
     # lets us read the machine code (no packed arithmetic left, no FMA; the target's registers).
     cache = tempfile.mkdtemp(prefix="surfgen-hashes-")
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, **_background_env(test))
-    code = _SUBPROCESS.format(here=str(Path(__file__).parent))
+    env = python_env(NUMBA_CACHE_DIR=cache, **_background_env(test))
+    code = _SUBPROCESS.format()
     proc = subprocess.Popen(
         [sys.executable, "-c", code],
         env=env,
@@ -244,9 +244,8 @@ def test_same_hashes_with_intel_code_generation():
 
 _NUMPY_SUBPROCESS = """
 import json, sys
-sys.path.insert(0, {here!r})
 from numpy._core._multiarray_umath import __cpu_features__ as features
-from test_field_hashes import cases, field_hash
+from tests.generator.eval.test_field_hashes import cases, field_hash
 from surfgen.generator.eval.reference import evaluate_reference
 print(json.dumps({{
     "x86_v3": bool(features.get("X86_V3")),
@@ -265,8 +264,8 @@ def test_the_reference_ignores_numpys_simd_dispatch():
 
     if platform.machine() not in ("x86_64", "AMD64"):
         raise AssertionError(f"this test names x86 features; add {platform.machine()}'s")
-    env = dict(os.environ, NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR")
-    code = _NUMPY_SUBPROCESS.format(here=str(Path(__file__).parent))
+    env = python_env(NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR")
+    code = _NUMPY_SUBPROCESS.format()
     proc = subprocess.run(
         [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600
     )

@@ -9,7 +9,6 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-from conftest import catalogue_shapes
 
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
@@ -23,6 +22,8 @@ from surfgen.pipelines.catalogue.curation import (
 )
 from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
 from surfgen.pipelines.cli.main import main
+from tests.support.catalogues import catalogue_shapes
+from tests.support.commands import heavy_modules_loaded
 
 SPHERE = "x^2+y^2+z^2-1"
 # name: (formula, half box, grid); sphere_moved and sphere_fine copy the sphere by construction.
@@ -330,8 +331,6 @@ def test_cli_dedupe(cat_dir, keys, capsys) -> None:
 
 
 def test_catalogue_commands_load_no_kernel_library(cat_dir: Path, keys) -> None:
-    from conftest import heavy_modules_loaded
-
     root, key = str(cat_dir), next(iter(keys.values()))
     for args in (
         ("catalogue", "list", "-C", root),

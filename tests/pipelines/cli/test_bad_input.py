@@ -10,7 +10,6 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-from conftest import catalogue_shapes
 
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula import limits
@@ -19,6 +18,7 @@ from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
+from tests.support.catalogues import catalogue_shapes
 
 SHAPES = {"sphere": ("x^2+y^2+z^2-1", 1.5), "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6)}
 

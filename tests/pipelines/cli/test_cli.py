@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CHECK_KEYS, heavy_modules_loaded
 
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.model.presets import PRESETS
 from surfgen.pipelines.cli.main import main
+from tests.support.commands import CHECK_KEYS, heavy_modules_loaded
 
 CANONICAL = {
     # name: (formula, box, grid, components, genus)

@@ -21,7 +21,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from conftest import catalogue_shapes
 
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
@@ -29,6 +28,7 @@ from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.warmup import COMPILE_NOTICE
+from tests.support.catalogues import catalogue_shapes
 
 SHAPES = {"sphere": ("x^2+y^2+z^2-1", 1.5), "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6)}
 NOBODY = 65534

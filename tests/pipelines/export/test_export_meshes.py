@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from conftest import catalogue_shapes
 
 from surfgen.filters.cleanup import edge_lengths
 from surfgen.filters.metrics import measure_mesh
@@ -20,6 +19,7 @@ from surfgen.generator.mesh.mesh import Mesh, extract_mesh, load_mesh, save_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.export.meshes import FORMATS
+from tests.support.catalogues import catalogue_shapes
 
 TORUS = "(sqrt(x^2+y^2)-1)^2+z^2-0.16"
 

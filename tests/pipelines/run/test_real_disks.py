@@ -16,11 +16,11 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from conftest import catalogue_shapes
 
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
+from tests.support.catalogues import catalogue_shapes
 
 CLI = [
     sys.executable,

@@ -23,6 +23,7 @@ from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.config import default_config_text, load_config
 from surfgen.pipelines.run.sampling import make_shape, run_sample
 from tests.support.catalogue_rows import computed_rows, mesh_bytes
+from tests.support.processes import python_env
 
 GRID = 20
 N = 4
@@ -77,9 +78,7 @@ def test_same_catalogue_with_one_and_two_workers(reference_run: Path, tmp_path: 
 
 # The child makes numpy's transcendentals inexact (numpy_maths.py) before surfgen is imported, by
 # 1 + 2^-26: enough to show through the 10 significant digits of the stored metrics.
-SHIFT_NUMPY = f"""
-import sys
-sys.path.insert(0, {str(Path(__file__).resolve().parents[3])!r})
+SHIFT_NUMPY = """
 import numpy as np
 from tests.support.numpy_maths import shift_numpy
 plain_arccos = np.arccos
@@ -96,7 +95,9 @@ def test_same_catalogue_when_numpys_maths_differ(reference_run: Path, tmp_path: 
     run_cli = "from surfgen.pipelines.cli.main import main; raise SystemExit(main())"
     code = SHIFT_NUMPY + run_cli
     args = sample_args(cfg_file, tmp_path / "cat", workers=1)
-    proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, env=python_env()
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert computed_rows(tmp_path / "cat") == computed_rows(reference_run)
     assert mesh_bytes(tmp_path / "cat") == mesh_bytes(reference_run)

@@ -1,0 +1,1 @@
+"""Tools: coefficient generators, calibration and checks, ``python -m tools.NAME`` (README.md)."""
