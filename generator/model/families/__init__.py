@@ -67,10 +67,19 @@ def describe_families() -> str:
     return "\n".join([*lines, f"{MIX}: one of the families per shape, drawn with mix_weights"])
 
 
+def family_list() -> str:
+    """The families in words: ``'sculpture, lattice or free'``."""
+    return _in_words(family_names())
+
+
 def family_help() -> str:
-    """The help of ``surfgen sample --family``."""
-    names = family_choices()
-    return f"{', '.join(names[:-1])} or {names[-1]} (default from the config: {MIX})."
+    """The help of ``surfgen sample --family``: ``'sculpture, lattice, free or mix (default
+    from the config: mix).'``"""
+    return f"{_in_words(family_choices())} (default from the config: {MIX})."
+
+
+def _in_words(names: tuple[str, ...]) -> str:
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
 
 
 def default_mix() -> tuple[str, ...]:
