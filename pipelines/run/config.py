@@ -46,6 +46,7 @@ class RunSettings:
     walls: str = "keep"
 
     def __post_init__(self) -> None:
+        # deferred on purpose: the mesher's module loads numba (`config show` needs none)
         from surfgen.generator.mesh.walls import WALL_MODES
 
         if self.walls not in WALL_MODES:
@@ -157,6 +158,7 @@ def load_config(path: Path | None = None) -> Config:
         if family.settings is not None:
             data["sampler"].setdefault(family.name, settings_to_dict(family.settings()))
     if path is not None:
+        # deferred on purpose: the export modules load numba and trimesh
         from surfgen.pipelines.export.render import read_text_file
 
         text = read_text_file(Path(path), MAX_CONFIG_FILE_BYTES, "config")
@@ -198,7 +200,7 @@ def _merge(into: dict[str, Any], values: dict[str, Any], table: str, path: Path)
 def config_from_dict(data: dict[str, Any]) -> Config:
     """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``) or the nested
     layout of the TOML. Raises :class:`SpecError`."""
-    from surfgen.filters.verdict import FilterConfig
+    from surfgen.filters.verdict import FilterConfig  # deferred on purpose: loads numba
 
     run = settings_from_mapping(RunSettings, data["run"], "run")
     return Config(

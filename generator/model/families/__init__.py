@@ -30,10 +30,12 @@ from contextlib import contextmanager
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.model.draw import Family
-from surfgen.generator.model.families import free, lattice, sculpture
+from surfgen.generator.model.families.free import FAMILY as FREE
+from surfgen.generator.model.families.lattice import FAMILY as LATTICE
+from surfgen.generator.model.families.sculpture import FAMILY as SCULPTURE
 
 MIX = "mix"  # not a family: a weighted pick of one per shape
-BUILT_IN: tuple[Family, ...] = (sculpture.FAMILY, lattice.FAMILY, free.FAMILY)
+BUILT_IN: tuple[Family, ...] = (SCULPTURE, LATTICE, FREE)
 _NAME = re.compile(r"[a-z][a-z0-9]*\Z")  # `{name}_{key}` must split at the first "_"
 _REGISTRY: dict[str, Family] = {f.name: f for f in BUILT_IN}
 

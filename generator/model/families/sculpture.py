@@ -285,7 +285,7 @@ def _coarse_ornament(
     :func:`~.carving.unit_samples`."""
     # Deferred on purpose: numba kernels and scipy, loaded by the first sculpture drawn, so that
     # reading the registry (``--help``, ``config show``, ``catalogue list``) loads neither.
-    from surfgen.generator.model.families import carving
+    import surfgen.generator.model.families.carving as carving
 
     n = s.feature_grid
     e = None if envelope is None else _eval(envelope, box, n)

@@ -14,11 +14,11 @@ import pytest
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.model.families import (
+    FREE,
     describe_families,
     family_choices,
     family_help,
     family_names,
-    free,
     register_family,
     registered,
     unregister_family,
@@ -151,7 +151,7 @@ def test_an_unregistered_family_is_an_unknown_one(tmp_path: Path) -> None:
         load_config(config_file(tmp_path, "[sampler.toy]\nmargin = 2.0\n"))
     assert "toy" not in family_choices()
     with pytest.raises(SpecError, match="family 'free' is registered already"):
-        register_family(free.FAMILY)
+        register_family(FREE)
     with pytest.raises(SpecError, match="family 'free' is built in"):
         unregister_family("free")
 
