@@ -125,10 +125,13 @@ class SamplerConfig(DrawSettings):
         return out
 
     def _shared_dict(self) -> dict[str, Any]:
-        names = [f.name for f in fields(self) if f.name != "tables"]
-        return {
-            k: list(v) if isinstance(v, tuple) else v for k in names for v in [getattr(self, k)]
-        }
+        """The keys of ``[sampler]`` itself, lists for tuples (JSON- and TOML-ready)."""
+        out = {}
+        for f in fields(self):
+            if f.name != "tables":
+                value = getattr(self, f.name)
+                out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
 
 
 def _complete_tables(tables: Any) -> tuple[tuple[str, Any], ...]:
