@@ -21,19 +21,19 @@ from benchmarks import harness
 _CHILD = """
 import json, sys, time
 from dataclasses import replace
-from surfgen.generator.model import families
-from surfgen.generator.model.sampler import SamplerConfig
+from surfgen.generator.model import sampler
+from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 n, seed = int(sys.argv[1]), int(sys.argv[2])
 cfg = replace(SamplerConfig(), family="sculpture")
 for i in range(5):
-    families.draw_sculpture(seed, 100_000 + i, cfg)
+    draw_equation(seed, 100_000 + i, cfg)
 t = time.perf_counter()
 tries = 0
 for i in range(n):
-    draw = families.draw_sculpture(seed, i, cfg)
+    draw = draw_equation(seed, i, cfg)
     tries += draw.structure["ornament"].get("tries", 1)
 wall = time.perf_counter() - t
-print(json.dumps({"code": families.__file__, "wall": wall, "n": n, "tries": tries}))
+print(json.dumps({"code": sampler.__file__, "wall": wall, "n": n, "tries": tries}))
 """
 
 

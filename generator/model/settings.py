@@ -149,3 +149,47 @@ def require_fractions(obj: Any, names: Iterable[str], table: str, noun: str = ""
         if not 0 <= v <= 1:
             what = f"{noun} in [0, 1]" if noun else "in [0, 1]"
             raise SpecError(f"config [{table}]: {name} must be {what}, got {v}")
+
+
+def require_weighted_pairs(obj: Any, pairs: Iterable[tuple[str, str]], table: str) -> None:
+    """Each ``(choices, weights)`` pair: non-empty lists of one length, weights non-negative
+    and not all zero."""
+    for a, b in pairs:
+        if len(getattr(obj, a)) != len(getattr(obj, b)) or not getattr(obj, a):
+            raise SpecError(
+                f"config [{table}]: {a} and {b} must be non-empty lists of the same length"
+            )
+        if any(w < 0 for w in getattr(obj, b)) or sum(getattr(obj, b)) <= 0:
+            raise SpecError(f"config [{table}]: {b} must be non-negative and not all zero")
+
+
+def require_low_high(obj: Any, names: Iterable[str], table: str) -> None:
+    """Each named field is ``[low, high]`` with low <= high."""
+    for name in names:
+        if len(getattr(obj, name)) != 2:
+            raise SpecError(f"config [{table}]: {name} must be [low, high]")
+        lo, hi = getattr(obj, name)
+        if not lo <= hi:
+            raise SpecError(f"config [{table}]: {name} must be [low, high] with low <= high")
+
+
+def require_names(obj: Any, name: str, allowed: Iterable[str], table: str) -> None:
+    """Field ``name`` lists names from ``allowed``, none twice (one-line errors saying what is
+    allowed)."""
+    allowed = tuple(allowed)
+    values = getattr(obj, name)
+    bad = [v for v in values if v not in allowed]
+    if bad:
+        raise SpecError(
+            f"config [{table}]: {name} has unknown {bad[0]!r} (allowed: {', '.join(allowed)})"
+        )
+    if len(set(values)) != len(values):
+        raise SpecError(f"config [{table}]: {name} lists a name twice")
+
+
+def require_numbers(obj: Any, names: Iterable[str], table: str) -> None:
+    """Each named field is a list of finite numbers (not booleans)."""
+    for name in names:
+        for w in getattr(obj, name):
+            if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w):
+                raise SpecError(f"config [{table}]: {name} must be numbers, got {w!r}")

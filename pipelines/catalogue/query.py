@@ -27,6 +27,7 @@ from surfgen.generator.formula.limits import (
     MAX_WHERE_LENGTH,
     MAX_WHERE_NESTING,
 )
+from surfgen.generator.model.families import family_list
 from surfgen.pipelines.catalogue.store import CatalogueError
 
 MAX_SORT_FIELDS = 8
@@ -98,8 +99,9 @@ FIELDS: dict[str, Field] = {
     ),
     "family": Field(
         "text",
+        # shapes drawn before families were free draws (their models name no family)
         "COALESCE(json_extract(shapes.model, '$.family'), 'free')",
-        "sampler family: sculpture, lattice or free",
+        f"sampler family: {family_list()}",
     ),
     "wall_fraction": Field(
         "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"

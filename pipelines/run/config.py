@@ -1,8 +1,13 @@
 """The sampling configuration: a TOML file over built-in defaults, validated and hashed.
 
-The defaults live in ``default_config.toml`` beside this module (``surfgen config show``).
-Unknown tables or keys are errors; the canonical JSON of the resolved config is hashed and the
-hash is recorded with every shape, so a catalogue says exactly how each shape was drawn.
+The defaults live in ``default_config.toml`` beside this module (``surfgen config show``):
+``[run]``, ``[sampler]`` with one sub-table per sampler family (``[sampler.sculpture]``, ...)
+and ``[filters]``. Unknown tables or keys are errors. Configs written before the family tables
+(``sculpture_exponent = ...`` in ``[sampler]``) still read: the sampler maps their keys
+(:func:`~surfgen.generator.model.sampler.nest_legacy_keys`, the one place). The canonical JSON
+of the resolved config (:meth:`Config.to_dict`: the family tables flattened, as before them)
+is hashed and the hash is recorded with every shape, so a catalogue says exactly how each shape
+was drawn, and the same values give the same hash in either layout.
 """
 
 from __future__ import annotations
@@ -18,8 +23,9 @@ from typing import TYPE_CHECKING, Any
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
 from surfgen.generator.formula.limits import MAX_CONFIG_FILE_BYTES, MAX_JSON_DEPTH, json_depth_ok
-from surfgen.generator.model.sampler import SAMPLER_VERSION, SamplerConfig
-from surfgen.generator.model.settings import settings_from_mapping
+from surfgen.generator.model.families import families
+from surfgen.generator.model.sampler import SAMPLER_VERSION, SamplerConfig, nest_legacy_keys
+from surfgen.generator.model.settings import settings_from_mapping, settings_to_dict
 
 if TYPE_CHECKING:  # numba modules, loaded when a config is built (`config show` needs neither)
     from surfgen.filters.verdict import FilterConfig
@@ -40,6 +46,7 @@ class RunSettings:
     walls: str = "keep"
 
     def __post_init__(self) -> None:
+        # deferred on purpose: the mesher's module loads numba (`config show` needs none)
         from surfgen.generator.mesh.walls import WALL_MODES
 
         if self.walls not in WALL_MODES:
@@ -68,18 +75,23 @@ class Config:
     filters: FilterConfig
 
     def to_dict(self) -> dict[str, Any]:
+        """The canonical form: what a catalogue stores (``runs.config``) and the hash covers,
+        the sampler's family tables flattened (:meth:`SamplerConfig.canonical_dict`)."""
         return {
-            "run": {
-                "grid": self.run.grid,
-                "cap": self.run.cap,
-                "timeout": self.run.timeout,
-                "thumbnails": self.run.thumbnails,
-                "dedupe": self.run.dedupe,
-                "dedupe_threshold": self.run.dedupe_threshold,
-                "walls": self.run.walls,
-            },
-            "sampler": self.sampler.to_dict(),
+            "run": self._run_dict(),
+            "sampler": self.sampler.canonical_dict(),
             "filters": self.filters.to_dict(),
+        }
+
+    def _run_dict(self) -> dict[str, Any]:
+        return {
+            "grid": self.run.grid,
+            "cap": self.run.cap,
+            "timeout": self.run.timeout,
+            "thumbnails": self.run.thumbnails,
+            "dedupe": self.run.dedupe,
+            "dedupe_threshold": self.run.dedupe_threshold,
+            "walls": self.run.walls,
         }
 
     def shape_dict(self) -> dict[str, Any]:
@@ -99,14 +111,12 @@ class Config:
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
     def to_toml(self) -> str:
-        """The whole config as a TOML file that :func:`load_config` reads back to an equal one."""
+        """The whole config as a TOML file that :func:`load_config` reads back to an equal one
+        (in the layout of ``config show``: one sub-table per sampler family)."""
         lines: list[str] = []
-        for table, values in self.to_dict().items():
-            lines.append(f"[{table}]")
-            lines += [
-                f"{k} = {json.dumps(v)}" for k, v in values.items()
-            ]  # JSON scalars/lists are TOML
-            lines.append("")
+        tables = {"run": self._run_dict(), "sampler": self.sampler.to_dict()}
+        for table, values in (tables | {"filters": self.filters.to_dict()}).items():
+            _toml_table(lines, table, values)
         return "\n".join(lines)
 
     def with_grid(self, grid: int | None) -> Config:
@@ -126,6 +136,17 @@ class Config:
         return Config(replace(self.run, **changes), self.sampler, self.filters)
 
 
+def _toml_table(lines: list[str], name: str, values: dict[str, Any]) -> None:
+    """``[name]`` with its keys, then its sub-tables (``[name.key]``)."""
+    lines.append(f"[{name}]")
+    # JSON scalars/lists are TOML
+    lines += [f"{k} = {json.dumps(v)}" for k, v in values.items() if not isinstance(v, dict)]
+    lines.append("")
+    for k, v in values.items():
+        if isinstance(v, dict):
+            _toml_table(lines, f"{name}.{k}", v)
+
+
 def default_config_text() -> str:
     return resources.files("surfgen.pipelines.run").joinpath("default_config.toml").read_text()
 
@@ -133,7 +154,11 @@ def default_config_text() -> str:
 def load_config(path: Path | None = None) -> Config:
     """The defaults, overridden by the TOML file at ``path``. Raises :class:`SpecError`."""
     data = tomllib.loads(default_config_text())
+    for family in families():  # a registered family's table defaults to its dataclass's
+        if family.settings is not None:
+            data["sampler"].setdefault(family.name, settings_to_dict(family.settings()))
     if path is not None:
+        # deferred on purpose: the export modules load numba and trimesh
         from surfgen.pipelines.export.render import read_text_file
 
         text = read_text_file(Path(path), MAX_CONFIG_FILE_BYTES, "config")
@@ -151,17 +176,31 @@ def load_config(path: Path | None = None) -> Config:
         for table, values in user.items():
             if not isinstance(values, dict):
                 raise SpecError(f"config {path}: '{table}' must be a table")
-            bad = sorted(set(values) - set(data[table]))
-            if bad:
-                raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
-            data[table].update(values)
+            if table == "sampler":  # keys of the layout before the family tables
+                values = nest_legacy_keys(values)
+            _merge(data[table], values, table, path)
     return config_from_dict(data)
 
 
+def _merge(into: dict[str, Any], values: dict[str, Any], table: str, path: Path) -> None:
+    """``values`` (a table of the user's file) over ``into`` (the defaults), sub-tables key by
+    key; :class:`SpecError` for a key the defaults do not have."""
+    bad = sorted(set(values) - set(into))
+    if bad:
+        raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
+    for key, value in values.items():
+        if isinstance(into[key], dict):
+            if not isinstance(value, dict):
+                raise SpecError(f"config {path}: '{table}.{key}' must be a table")
+            _merge(into[key], value, f"{table}.{key}", path)
+        else:
+            into[key] = value
+
+
 def config_from_dict(data: dict[str, Any]) -> Config:
-    """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``). Raises
-    :class:`SpecError`."""
-    from surfgen.filters.verdict import FilterConfig
+    """A config from its :meth:`Config.to_dict` (a catalogue's ``runs.config``) or the nested
+    layout of the TOML. Raises :class:`SpecError`."""
+    from surfgen.filters.verdict import FilterConfig  # deferred on purpose: loads numba
 
     run = settings_from_mapping(RunSettings, data["run"], "run")
     return Config(

@@ -63,8 +63,9 @@ from surfgen.generator.formula.limits import (
 )
 from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas, mesh_bytes
 from surfgen.generator.mesh.walls import label_walls
-from surfgen.generator.model.families import envelope_departure
-from surfgen.generator.model.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
+from surfgen.generator.model.draw import Draw
+from surfgen.generator.model.families.carving import envelope_departure
+from surfgen.generator.model.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import ensure_descriptors
 from surfgen.pipelines.catalogue.store import DB_NAME, Catalogue, CatalogueError, open_catalogue

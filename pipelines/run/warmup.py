@@ -266,7 +266,7 @@ def _warm_the_rest(field, box, mesh) -> None:
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.eval.grid import Field
     from surfgen.generator.mesh.mesh import _merge_same, extract_with_edges
-    from surfgen.generator.model.families import envelope_departure, pieces
+    from surfgen.generator.model.families.carving import envelope_departure, pieces
     from surfgen.pipelines.pictures.raster import render_image
 
     quick = quick_metrics(mesh, box.bounds())

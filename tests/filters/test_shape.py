@@ -17,7 +17,7 @@ from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
-from surfgen.generator.model.families import envelope_departure
+from surfgen.generator.model.families.carving import envelope_departure
 
 GRID = 40
 

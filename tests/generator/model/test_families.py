@@ -12,15 +12,12 @@ import pytest
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.model.draw import choose, draw_transform, rng_for
 from surfgen.generator.model.equation13 import Equation13
-from surfgen.generator.model.families import _feature_size, _stray_share, pick_family
-from surfgen.generator.model.sampler import (
-    LATTICE_PATTERNS,
-    SamplerConfig,
-    _choice,
-    choose_d,
-    draw_equation,
-)
+from surfgen.generator.model.families import carving, sculpture
+from surfgen.generator.model.families.carving import envelope_departure, pieces
+from surfgen.generator.model.families.lattice import LATTICE_PATTERNS
+from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation, pick_family
 
 # sha256 (16 hex digits) of {"model", "box", "q"} of shapes 0..29 of seed 7, recorded from the
 # sampler before families existed: family = "free" must keep drawing exactly these models.
@@ -57,7 +54,7 @@ def test_choice_is_numpys_weighted_choice() -> None:
             values = list(range(len(weights)))
             p = np.asarray(weights, dtype=np.float64)
             for _ in range(5):
-                assert _choice(ours, values, weights) == numpys.choice(len(values), p=p / p.sum())
+                assert choose(ours, values, weights) == numpys.choice(len(values), p=p / p.sum())
             assert ours.random() == numpys.random()
 
 
@@ -81,7 +78,9 @@ def test_draws_are_pure_functions_of_seed_index_and_config(name: str) -> None:
     first = [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]
     assert first == [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]  # any order
     assert first[0] != draw_equation(4, 4, cfg).model_dict()  # another seed
-    other = replace(cfg, sculpture_depth=(0.5, 0.6), lattice_periods=(3.0, 4.0))
+    other = cfg.with_settings("sculpture", depth=(0.5, 0.6)).with_settings(
+        "lattice", periods=(3.0, 4.0)
+    )
     assert first[0] != draw_equation(3, 4, other).model_dict()  # another config
 
 
@@ -138,12 +137,12 @@ _TPMS = {  # the textbook formulas, in units of one period 2 pi
 
 @pytest.mark.parametrize("pattern", sorted(_TPMS))
 def test_minimal_surface_lattices_are_the_textbook_formulas(pattern: str) -> None:
-    cfg = replace(
-        family("lattice"),
-        lattice_patterns=(pattern,),
-        lattice_pattern_weights=(1.0,),
-        lattice_constituent_prob=0.0,
-        lattice_anisotropy_prob=0.0,
+    cfg = family("lattice").with_settings(
+        "lattice",
+        patterns=(pattern,),
+        pattern_weights=(1.0,),
+        constituent_prob=0.0,
+        anisotropy_prob=0.0,
     )
     for i in range(4):
         draw = draw_equation(11, i, cfg)
@@ -166,7 +165,7 @@ def test_minimal_surface_lattices_are_the_textbook_formulas(pattern: str) -> Non
 
 
 def test_anisotropic_lattices_scale_each_axis() -> None:
-    cfg = replace(family("lattice"), lattice_anisotropy_prob=1.0, lattice_constituent_prob=0.0)
+    cfg = family("lattice").with_settings("lattice", anisotropy_prob=1.0, constituent_prob=0.0)
     draws = [draw_equation(3, i, cfg) for i in range(10)]
     scales = [d.structure["axis_scales"] for d in draws]
     assert all(0.6 <= s <= 1.6 for sc in scales for s in sc)
@@ -181,34 +180,34 @@ def test_feature_size_measures_the_ornament_wavelength() -> None:
     n = 32
     x, y, z = np.broadcast_arrays(*Grid(box, (n,) * 3).open_axes())
     sphere = x**2 + y**2 + z**2 - 0.6**2
-    coarse = _feature_size(sphere, np.sin(3 * x), box)
-    fine = _feature_size(sphere, np.sin(12 * x), box)
+    coarse = carving.feature_size(sphere, np.sin(3 * x), box)
+    fine = carving.feature_size(sphere, np.sin(12 * x), box)
     assert fine < coarse / 2.5  # four times the frequency: a quarter of the size, roughly
-    assert _feature_size(sphere, np.ones_like(sphere), box) == 0.0  # constant: no features
-    assert _feature_size(sphere, np.full_like(sphere, np.nan), box) == 0.0
+    assert carving.feature_size(sphere, np.ones_like(sphere), box) == 0.0  # constant: no features
+    assert carving.feature_size(sphere, np.full_like(sphere, np.nan), box) == 0.0
 
 
 def test_stray_share_sees_debris_away_from_the_envelope() -> None:
     box = Box.cube(1.5)
     x, y, z = np.broadcast_arrays(*Grid(box, (32,) * 3).open_axes())
     sphere = x**2 + y**2 + z**2 - 1.0
-    carving = np.sin(3 * x) * np.sin(3 * y)  # bounded: the surface stays near the envelope
+    carves = np.sin(3 * x) * np.sin(3 * y)  # bounded: the surface stays near the envelope
     debris = np.sin(3 * x) * np.sin(3 * y) * np.exp(2.5 * (x**2 + y**2 + z**2))  # outgrows it
-    assert _stray_share(sphere, carving, box, 0.2) < 0.02
-    assert _stray_share(sphere, debris, box, 0.2) > 0.1
-    assert _stray_share(sphere, np.ones_like(sphere), box, 0.2) == 1.0  # cannot tell
+    assert carving.stray_share(sphere, carves, box, 0.2) < 0.02
+    assert carving.stray_share(sphere, debris, box, 0.2) > 0.1
+    assert carving.stray_share(sphere, np.ones_like(sphere), box, 0.2) == 1.0  # cannot tell
 
 
 def test_sculptures_redraw_fine_ornaments() -> None:
-    loose = replace(
-        family("sculpture"),
-        sculpture_min_feature=0.0,
-        sculpture_max_stray=1.0,
-        sculpture_min_departure=0.0,
-        sculpture_max_pieces=100000,
-        sculpture_ornament_tries=6,
+    loose = family("sculpture").with_settings(
+        "sculpture",
+        min_feature=0.0,
+        max_stray=1.0,
+        min_departure=0.0,
+        max_pieces=100000,
+        ornament_tries=6,
     )
-    strict = replace(loose, sculpture_min_feature=0.3)  # the feature size alone
+    strict = loose.with_settings("sculpture", min_feature=0.3)  # the feature size alone
     kept = []
     for i in range(12):
         s = draw_equation(7, i, strict).structure["ornament"]
@@ -221,10 +220,10 @@ def test_sculptures_redraw_fine_ornaments() -> None:
 
 
 def test_sculptures_redraw_crumbling_ornaments() -> None:
-    """With sculpture_max_pieces, an ornament that breaks the body into more pieces (on the
+    """With max_pieces ([sampler.sculpture]), an ornament that breaks the body into more pieces (on the
     feature grid, with the strength and d the draw keeps) is redrawn."""
-    loose = replace(family("sculpture"), sculpture_max_pieces=100000)
-    strict = replace(family("sculpture"), sculpture_max_pieces=1)
+    loose = family("sculpture").with_settings("sculpture", max_pieces=100000)
+    strict = family("sculpture").with_settings("sculpture", max_pieces=1)
     crumbly = redrawn = 0
     for i in range(16):
         before = draw_equation(7, i, loose).structure["ornament"]
@@ -252,24 +251,37 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
         ({"mix_weights": (1.0, -1.0, 1.0)}, "mix_weights must be non-negative"),
         ({"mix_weights": (0, 0, 0)}, "mix_weights must be non-negative and not all zero"),
         ({"mix_weights": ("a", 1, 1)}, "mix_weights must be a list of finite numbers"),
-        ({"sculpture_groups": ("none", "tetra")}, "sculpture_groups has unknown 'tetra'"),
-        ({"sculpture_powers": (1, 4)}, "sculpture_powers must be whole numbers 1..3"),
-        ({"sculpture_feature_grid": 4}, "sculpture_feature_grid must be from 8 to 128"),
-        ({"sculpture_feature_grid": 500}, "sculpture_feature_grid must be from 8 to 128"),
-        ({"sculpture_feature_grid": 2.5}, "sculpture_feature_grid must be a whole number"),
-        ({"sculpture_pole_free_prob": 1.5}, "sculpture_pole_free_prob must be a probability"),
-        ({"sculpture_pole_free_prob": "half"}, "sculpture_pole_free_prob must be a finite number"),
+        ({"sculpture_groups": ("none", "tetra")}, "sculpture]: groups has unknown 'tetra'"),
+        ({"sculpture_powers": (1, 4)}, "sculpture]: powers must be whole numbers 1..3"),
+        ({"sculpture_feature_grid": 4}, "sculpture]: feature_grid must be from 8 to 128"),
+        ({"sculpture_feature_grid": 500}, "sculpture]: feature_grid must be from 8 to 128"),
+        ({"sculpture_feature_grid": 2.5}, "sculpture]: feature_grid must be a whole number"),
+        ({"sculpture_pole_free_prob": 1.5}, "sculpture]: pole_free_prob must be a probability"),
+        ({"sculpture_pole_free_prob": "half"}, "pole_free_prob must be a finite number"),
+        ({"sculpture_exponent": (0.5, 2.0)}, "sculpture]: exponent must be >= 1 (convex"),
+        ({"lattice_periods": (0.0, 2.0)}, "config [sampler.lattice]: periods must be > 0"),
+        ({"lattice_patterns": ("gyroid",)}, "lattice]: patterns and pattern_weights must be"),
     ],
 )
-def test_bad_families_and_weights_are_one_line_errors(change: dict, message: str) -> None:
-    data = SamplerConfig().to_dict() | {
-        k: list(v) if isinstance(v, tuple) else v for k, v in change.items()
-    }
+@pytest.mark.parametrize("layout", ["flat", "nested"])
+def test_bad_families_and_weights_are_one_line_errors(
+    change: dict, message: str, layout: str
+) -> None:
+    """The same message for the same mistake, whether the config names the key in its family's
+    table (``[sampler.sculpture] groups``) or as before the tables (``sculpture_groups``)."""
+    change = {k: list(v) if isinstance(v, tuple) else v for k, v in change.items()}
     if "sculpture_groups" in change:
-        data["sculpture_group_weights"] = [1.0, 1.0]
+        change["sculpture_group_weights"] = [1.0, 1.0]
     if "sculpture_powers" in change:
-        data["sculpture_power_weights"] = [1.0, 1.0]
-    with pytest.raises(SpecError, match=message.replace("(", r"\(")) as info:
+        change["sculpture_power_weights"] = [1.0, 1.0]
+    data = SamplerConfig().to_dict() if layout == "nested" else SamplerConfig().canonical_dict()
+    for key, value in change.items():
+        name, _, sub = key.partition("_")
+        if layout == "nested" and name in ("sculpture", "lattice"):
+            data[name] = data[name] | {sub: value}
+        else:
+            data[key] = value
+    with pytest.raises(SpecError, match=message.replace("(", r"\(").replace("[", r"\[")) as info:
         SamplerConfig.from_mapping(data)
     assert "\n" not in str(info.value)
 
@@ -337,8 +349,6 @@ def test_envelope_departure_is_the_whole_grid_numpy_measure_bit_for_bit() -> Non
     """The kernel computes the gradient only at crossing edges: the same bits as numpy's
     whole-grid gradient, on sculptures of seed 7 (level 0 and not), on fields with poles and
     NaN, on odd shapes and on the faces of the grid."""
-    from surfgen.generator.model.families import envelope_departure
-
     cfg = family("sculpture")
     cases = []
     for index in range(6):
@@ -365,7 +375,6 @@ def test_envelope_departure_is_the_whole_grid_numpy_measure_bit_for_bit() -> Non
 def test_pieces_counts_the_components_of_closed_surfaces() -> None:
     """Regions of the solid and of the rest, minus one: a ball 1, two balls 2, a hollow ball
     (a ball with a void) 2, a torus 1, a ball cut by the box 1 — as the capped mesh has."""
-    from surfgen.generator.model.families import pieces
 
     box = Box.cube(1.5)
     x, y, z = np.broadcast_arrays(*Grid(box, (40,) * 3).open_axes())
@@ -388,7 +397,6 @@ def test_pieces_never_exceed_the_capped_meshes_components() -> None:
     shapes): sculptures, lattices and free draws of seed 7 at 24^3."""
     from surfgen.filters.verdict import quick_metrics
     from surfgen.generator.mesh.mesh import EmptySurface, extract_mesh
-    from surfgen.generator.model.families import pieces
 
     equal = total = 0
     for name in ("sculpture", "lattice", "free"):
@@ -413,27 +421,21 @@ def test_unit_samples_are_the_units_formula_on_the_grid() -> None:
     """The checks' unit (one evaluation of the ornament, its copies by transposing the cube's
     axes) is the expanded formula sampled on the grid, up to the order of additions."""
     from surfgen.generator.formula.expr import add_all, mul_all
-    from surfgen.generator.model.families import (
-        GROUP_PERMUTATIONS,
-        _draw_ornament,
-        _eval,
-        _ornament_terms,
-        _unit_samples,
-    )
-    from surfgen.generator.model.sampler import rng_for
+    from surfgen.generator.model.families.symmetry import GROUP_PERMUTATIONS, ornament_terms
 
     cfg = family("sculpture")
+    s = cfg.settings("sculpture")
     box, n = Box.cube(1.7), 12
     shares = []
     for i in range(12):
-        ornament, _ = _draw_ornament(rng_for(7, i), cfg)
+        ornament, _ = sculpture.draw_ornament(rng_for(7, i), cfg, s)
         for group in ("none", "mirror", "cyclic", "full_mirror"):
             perms, mirror = GROUP_PERMUTATIONS[group], group.endswith("mirror")
             k = 2 if len(perms) == 3 else 1
-            terms = _ornament_terms(ornament, perms, mirror, k)
+            terms = ornament_terms(ornament, perms, mirror, k)
             unit = add_all([mul_all([f.to_tree() for f in prod]) * c for c, prod in terms])
-            want = _eval(unit, box, n)
-            got = _unit_samples(ornament, perms, mirror, k, box, n)
+            want = sculpture._eval(unit, box, n)
+            got = carving.unit_samples(ornament, perms, mirror, k, box, n)
             if len(perms) == 1:  # one copy: the same operations, the same bits
                 assert np.array_equal(got, want, equal_nan=True), (i, group)
             with np.errstate(invalid="ignore"):
@@ -444,38 +446,33 @@ def test_unit_samples_are_the_units_formula_on_the_grid() -> None:
 
 
 def test_ornament_checks_use_the_configured_feature_grid(monkeypatch) -> None:
-    import surfgen.generator.model.families as families
-
     sizes = []
-    original = families._unit_samples
+    original = carving.unit_samples
 
     def recording(ornament, perms, mirror, k, box, n, program=None):
         sizes.append(n)
         return original(ornament, perms, mirror, k, box, n, program)
 
-    monkeypatch.setattr(families, "_unit_samples", recording)
-    cfg = replace(family("sculpture"), sculpture_feature_grid=16)
+    monkeypatch.setattr(carving, "unit_samples", recording)
+    cfg = family("sculpture").with_settings("sculpture", feature_grid=16)
     for i in range(3):
-        families.draw_sculpture(7, i, cfg)
+        sculpture.draw_sculpture(7, i, cfg, cfg.settings("sculpture"))
     assert sizes and set(sizes) == {16, cfg.d_grid}
 
 
 def test_pole_free_ornaments_divide_by_nothing() -> None:
-    """With ``sculpture_pole_free_prob`` 1 no ornament has D, E, F, a quotient inside C or F,
+    """With ``pole_free_prob`` 1 ([sampler.sculpture]) no ornament has D, E, F, a quotient inside C or F,
     or an H with poles: the sculptures' formulas divide by nothing and call no tan, cot, sec,
     csc; with 0 most of them divide."""
     import re
 
-    from surfgen.generator.model.families import _draw_ornament
-    from surfgen.generator.model.sampler import rng_for
-
-    free = replace(family("sculpture"), sculpture_pole_free_prob=1.0)
-    never = replace(family("sculpture"), sculpture_pole_free_prob=0.0)
+    free = family("sculpture").with_settings("sculpture", pole_free_prob=1.0)
+    never = family("sculpture").with_settings("sculpture", pole_free_prob=0.0)
     dividing = 0
     for i in range(40):
         formula = str(draw_equation(7, i, free).equation.to_tree())
         assert "/" not in formula and not re.search(r"\b(tan|cot|sec|csc)\(", formula), i
-        ornament, _ = _draw_ornament(rng_for(7, i), free)
+        ornament, _ = sculpture.draw_ornament(rng_for(7, i), free, free.settings("sculpture"))
         assert ornament.lambdas[1] == 0 and ornament.mus[1] == ornament.mus[3] == 0
         assert ornament.mus[0] or ornament.mus[2]  # a trigonometric/constituent part remains
         dividing += "/" in str(draw_equation(7, i, never).equation.to_tree())
@@ -488,7 +485,6 @@ def test_drawn_constituent_parameters_are_always_valid() -> None:
     r and t drawn from overlapping ranges so that t = r is frequent, compiles."""
     from surfgen.generator.eval.compiler import compile_tree
     from surfgen.generator.formula.expr import var
-    from surfgen.generator.model.sampler import draw_transform, rng_for
 
     cfg = replace(SamplerConfig(), constituent_prob=1.0, constituent_r=(0.5, 0.6))
     halves = 0
