@@ -13,6 +13,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, fields
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
 
+import numpy as np
+
 from surfgen.generator.errors import SpecError
 
 T = TypeVar("T")
@@ -159,8 +161,17 @@ def require_weighted_pairs(obj: Any, pairs: Iterable[tuple[str, str]], table: st
             raise SpecError(
                 f"config [{table}]: {a} and {b} must be non-empty lists of the same length"
             )
-        if any(w < 0 for w in getattr(obj, b)) or sum(getattr(obj, b)) <= 0:
+        weights = getattr(obj, b)
+        if any(w < 0 for w in weights) or sum(weights) <= 0:
             raise SpecError(f"config [{table}]: {b} must be non-negative and not all zero")
+        # a draw divides each weight by their sum: check what it uses, not only each number
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = float(np.sum(np.asarray(weights, dtype=np.float64)))
+        if not math.isfinite(total):
+            raise SpecError(
+                f"config [{table}]: {b} add up to {total} (each is divided by their sum, which "
+                f"must be finite): use smaller weights, only their ratios matter"
+            )
 
 
 def require_low_high(obj: Any, names: Iterable[str], table: str) -> None:

@@ -245,6 +245,12 @@ def test_spec_file_encodings(raw: bytes, message: str, tmp_path: Path, capsys) -
         ('[filters]\nrequire_manifold = "yes"\n', "require_manifold must be true or false"),
         ("[sampler]\nd_quantile = [1]\n", "d_quantile must be a list of 2 finite numbers"),
         ("[sampler]\nsum_terms_weights = [inf, 1, 1]\n", "sum_terms_weights must be a list of"),
+        (
+            "[sampler]\nsum_terms_weights = [1e308, 1e308, 1e308]\n",
+            "sum_terms_weights add up to inf (each is divided by their sum, which must be finite)",
+        ),
+        ("[sampler]\nmix_weights = [1e308, 1e308, 1]\n", "mix_weights add up to inf"),
+        ("[sampler.sculpture]\ngroup_weights = [1e308, 1e308, 1, 1, 1, 1]\n", "add up to inf"),
         ("[sampler]\ncoefficient_max = nan\n", "coefficient_max must be a finite number"),
         ("[sampler]\nconstituent_p = [2, 100000000]\n", "constituent_p must be from 1 to 64"),
         ("[sampler]\nsum_terms = [1, 2, 300]\n", "sum_terms must be from 1 to 10"),
