@@ -52,6 +52,16 @@ def _config_keys(obj: Any, path: tuple[str, ...] = ()) -> Iterator[str]:
         if dataclasses.is_dataclass(value):
             yield from _config_keys(value, (*path, field.name))
         elif (
+            isinstance(value, tuple)
+            and value
+            and all(
+                isinstance(v, tuple) and len(v) == 2 and dataclasses.is_dataclass(v[1])
+                for v in value
+            )
+        ):  # ((name, settings), ...): the families' own tables [sampler.NAME]
+            for name, sub in value:
+                yield from _config_keys(sub, (*path, str(name)))
+        elif (
             isinstance(value, Mapping)
             and value
             and all(dataclasses.is_dataclass(v) for v in value.values())

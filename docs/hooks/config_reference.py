@@ -46,6 +46,9 @@ def config_tables(obj: Any = None, path: tuple[str, ...] = ()) -> Iterator[tuple
         value = getattr(obj, f.name)
         if is_dataclass(value):
             yield from config_tables(value, (*path, f.name))
+        elif _named_tables(value):  # ((name, settings), ...): the tables [path.name]
+            for name, sub in value:
+                yield from config_tables(sub, (*path, str(name)))
         elif _is_table(value):
             for name, sub in value.items():
                 yield from config_tables(sub, (*path, f.name, str(name)))
@@ -113,7 +116,25 @@ def _paired_meaning(
     return "—"
 
 
+def _named_tables(value: Any) -> bool:
+    """A tuple of ``(name, settings dataclass)`` pairs (the families' own tables)."""
+    return (
+        isinstance(value, tuple)
+        and bool(value)
+        and all(
+            isinstance(v, tuple)
+            and len(v) == 2
+            and isinstance(v[0], str)
+            and is_dataclass(v[1])
+            and not isinstance(v[1], type)
+            for v in value
+        )
+    )
+
+
 def _is_table(value: Any) -> bool:
+    if _named_tables(value):
+        return True
     if is_dataclass(value) and not isinstance(value, type):
         return True
     return (
