@@ -41,7 +41,8 @@ from surfgen.filters.metrics import Metrics
 from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import quick_metrics, shape_metrics
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh.mesh import Mesh, face_areas, load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
+from surfgen.generator.mesh.mesh import Mesh, face_areas
 from surfgen.pipelines.pictures import raster as pic
 from surfgen.pipelines.pictures.raster import (
     _FILL_STRENGTH,

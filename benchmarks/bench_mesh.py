@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from skimage.measure import marching_cubes
 
+import surfgen.generator.mesh.marching as marching
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.pipelines.run.sampling as sampling
 from surfgen.generator.errors import EmptySurface
@@ -95,10 +96,10 @@ def main() -> None:
         meshed += 1
         identical += same(old, mesh_module.extract_with_edges(field, level, cap))
         values = np.ascontiguousarray(field.values, dtype=np.float64)
-        work = mesh_module._offsets(values, level)[0]
+        work = marching._offsets(values, level)[0]
         if cap:
-            work = mesh_module._pad_outside(work)
-        mask = mesh_module._mixed_cells(work)
+            work = marching._pad_outside(work)
+        mask = marching._mixed_cells(work)
         r = args.repeat
         t_old = best(r, reference_extract_with_edges, field, level, cap)
         t_new = best(r, mesh_module.extract_with_edges, field, level, cap)

@@ -139,7 +139,7 @@ def catalogue_shapes(root, items, *, seed: int = 0, grid: int = 40) -> list[str]
     import json
 
     from surfgen.filters.verdict import shape_metrics
-    from surfgen.generator.mesh.mesh import save_mesh
+    from surfgen.generator.mesh.exchange import save_mesh
     from surfgen.pipelines.catalogue.store import open_catalogue
 
     keys = []

@@ -315,7 +315,8 @@ def check(
 ) -> None:
     """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
     from surfgen.filters.metrics import measure_mesh
-    from surfgen.generator.mesh.mesh import load_mesh, wall_fraction
+    from surfgen.generator.mesh.exchange import load_mesh
+    from surfgen.generator.mesh.mesh import wall_fraction
 
     loaded = load_mesh(mesh)
     m = measure_mesh(loaded).to_dict()

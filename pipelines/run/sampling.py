@@ -61,7 +61,8 @@ from surfgen.generator.formula.limits import (
     check_seed,
     estimate_memory,
 )
-from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas, mesh_bytes
+from surfgen.generator.mesh.exchange import encode_mesh
+from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas
 from surfgen.generator.mesh.walls import label_walls
 from surfgen.generator.model.families import envelope_departure
 from surfgen.generator.model.sampler import SAMPLER_VERSION, Draw, choose_d, draw_equation
@@ -350,7 +351,7 @@ def _with_files(
     the 12-view turntable, which most shapes never get hovered for, is rendered the first
     time it is asked for (:func:`surfgen.pipelines.pictures.gallery.ensure_turntable`)."""
     key = out.row["key"]
-    mesh_file = write_atomic(staging / f"{key}.ply", mesh_bytes(mesh, staging / f"{key}.ply"))
+    mesh_file = write_atomic(staging / f"{key}.ply", encode_mesh(mesh, "ply"))
     watch.lap("io")
     thumb = None
     if pictures:

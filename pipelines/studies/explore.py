@@ -30,7 +30,6 @@ import logging
 import math
 import re
 import shutil
-import struct
 import tempfile
 import threading
 import time
@@ -394,32 +393,26 @@ def explore(
     not an error here: the step gives an empty GLB and says why in ``empty``. Raises
     :class:`ExploreError` for a grid over the limits.
     """
-    from surfgen.generator.errors import EmptySurface
-    from surfgen.generator.eval.evaluate import evaluate
-    from surfgen.generator.mesh.mesh import extract_mesh
+    # The mesh modules (trimesh, scikit-image, numba) load when a mesh is made: the server and
+    # the CLI import this module without making one.
+    from surfgen.generator.mesh.exchange import glb_bytes
+    from surfgen.generator.mesh.realise import realise
 
     check_grid(spec)
     with _LOCK:
         c0 = time.thread_time()  # CPU time of this thread: what the step costs on a quiet machine
-        t0 = time.perf_counter()
-        field_ = evaluate(
-            spec.tree(), spec.to_grid(), spec.params, evaluator="fast", threads=threads
-        )
-        t1 = time.perf_counter()
-        mesh: Mesh | None
-        empty = None
-        try:
-            mesh = extract_mesh(field_, spec.level, cap=cap)
-        except EmptySurface as exc:
-            mesh, empty = None, str(exc)
-        t2 = time.perf_counter()
-    glb = encode_glb(mesh)
+        made = realise(spec, threads=threads, cap=cap, allow_empty=True)
+    mesh = made.mesh
+    t2 = time.perf_counter()
+    glb = glb_bytes(mesh, web=True)
     t3 = time.perf_counter()
     cpu = time.thread_time() - c0
-    stats = (mesh_stats(mesh) if topology else mesh_counts(mesh)) | {"nonfinite": field_.nonfinite}
+    stats = (mesh_stats(mesh) if topology else mesh_counts(mesh)) | {
+        "nonfinite": made.field.nonfinite
+    }
     t4 = time.perf_counter()
-    seconds = {"evaluate": t1 - t0, "mesh": t2 - t1, "glb": t3 - t2, "stats": t4 - t3, "cpu": cpu}
-    return Explored(spec, mesh, glb, stats, seconds, empty)
+    seconds = made.seconds | {"glb": t3 - t2, "stats": t4 - t3, "cpu": cpu}
+    return Explored(spec, mesh, glb, stats, seconds, made.empty)
 
 
 def warm_up() -> None:
@@ -473,58 +466,6 @@ def mesh_stats(mesh: Mesh | None) -> dict[str, Any]:
         "boundary_edges": boundary,
         "genus": (2 * components - euler) // 2 if closed else None,
     }
-
-
-def encode_glb(mesh: Mesh | None) -> bytes:
-    """A binary glTF 2.0 file of ``mesh``: one indexed triangle primitive, float32 positions
-    (with their bounds, which glTF requires) and uint32 indices, no normals (the viewer computes
-    them, flat or smooth). ``None`` gives a valid GLB with an empty scene."""
-    doc: dict[str, Any] = {"asset": {"version": "2.0", "generator": "surfgen"}, "scene": 0}
-    binary = b""
-    if mesh is None or mesh.n_faces == 0:
-        doc["scenes"] = [{"nodes": []}]
-    else:
-        pos = np.ascontiguousarray(mesh.vertices, dtype="<f4")
-        idx = np.ascontiguousarray(mesh.faces, dtype="<u4")
-        pos_bytes, idx_bytes = pos.tobytes(), idx.tobytes()
-        binary = pos_bytes + idx_bytes  # both multiples of 4 bytes
-        doc |= {
-            "scenes": [{"nodes": [0]}],
-            "nodes": [{"mesh": 0}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
-            "buffers": [{"byteLength": len(binary)}],
-            "bufferViews": [
-                {"buffer": 0, "byteOffset": 0, "byteLength": len(pos_bytes), "target": 34962},
-                {
-                    "buffer": 0,
-                    "byteOffset": len(pos_bytes),
-                    "byteLength": len(idx_bytes),
-                    "target": 34963,
-                },
-            ],
-            "accessors": [
-                {
-                    "bufferView": 0,
-                    "componentType": 5126,
-                    "count": int(len(pos)),
-                    "type": "VEC3",
-                    "min": [float(v) for v in pos.min(axis=0)],
-                    "max": [float(v) for v in pos.max(axis=0)],
-                },
-                {
-                    "bufferView": 1,
-                    "componentType": 5125,
-                    "count": int(idx.size),
-                    "type": "SCALAR",
-                },
-            ],
-        }
-    text = json.dumps(doc, separators=(",", ":")).encode()
-    text += b" " * (-len(text) % 4)
-    chunks = struct.pack("<II", len(text), 0x4E4F534A) + text
-    if binary:
-        chunks += struct.pack("<II", len(binary), 0x004E4942) + binary
-    return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks
 
 
 # ----------------------------------------------------------------------------- requests
@@ -623,7 +564,8 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     unknown key, and ``EmptySurface`` when the variant has no surface.
     """
     from surfgen.filters.verdict import shape_metrics
-    from surfgen.generator.mesh.mesh import extract_mesh, save_mesh
+    from surfgen.generator.mesh.exchange import save_mesh
+    from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.catalogue.curation import get_shape
     from surfgen.pipelines.pictures.raster import render_thumbnail, render_turntable
 
@@ -633,13 +575,11 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     new = spec.key
     if cat.conn.execute("SELECT 1 FROM shapes WHERE key=?", (new,)).fetchone():
         return get_shape(cat, new, full=False)
-    from surfgen.generator.eval.evaluate import evaluate
-
     with _LOCK:
-        field_ = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator="fast")
-        mesh = extract_mesh(field_, spec.level, cap=True)
+        made = realise(spec, cap=True)
+    mesh = made.mesh
     metrics = shape_metrics(mesh, spec.box)
-    metrics["nonfinite"] = field_.nonfinite
+    metrics["nonfinite"] = made.field.nonfinite
     cat.make_dirs()
     mesh_rel, thumb_rel, turn_rel = (f"meshes/{new}.ply", f"thumbs/{new}.png",
                                      f"turntables/{new}.png")  # fmt: skip
@@ -738,7 +678,6 @@ __all__ = [
     "Knob",
     "SpecError",
     "apply_changes",
-    "encode_glb",
     "explore",
     "knobs_of",
     "save_variant",

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import numpy as np
 import typer
 
-from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
+from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.model.spec import SurfaceSpec
@@ -247,8 +247,8 @@ def _sweep_into(
 ) -> tuple[list[Step], dict[str, str]]:
     """Evaluate every step and write all the sweep's files into the (new) folder ``out``."""
     from surfgen.filters.compare import inside_samples
-    from surfgen.generator.eval.evaluate import evaluate
-    from surfgen.generator.mesh.mesh import extract_mesh, save_mesh
+    from surfgen.generator.mesh.exchange import save_mesh
+    from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.pictures.raster import render_image, write_png
 
     (out / "meshes").mkdir()
@@ -257,12 +257,8 @@ def _sweep_into(
     first_inside = first_points = prev_inside = prev_points = None
     for i, (value, spec) in enumerate(zip(values, specs, strict=True)):
         t0 = time.perf_counter()
-        field = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator="fast")
-        mesh: Mesh | None
-        try:
-            mesh, empty = extract_mesh(field, spec.level, cap=cap), None
-        except EmptySurface as exc:
-            mesh, empty = None, str(exc)
+        made = realise(spec, cap=cap, allow_empty=True)
+        field, mesh, empty = made.field, made.mesh, made.empty
         inside = inside_samples(field, target, spec.level)
         points = points_on(mesh)
         stem = f"step-{i:03d}"

@@ -16,7 +16,7 @@ import pytest
 
 from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh.mesh import load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
 from surfgen.pipelines.cli.main import main

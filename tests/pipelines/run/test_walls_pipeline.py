@@ -11,7 +11,7 @@ import pytest
 
 from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.robust import merge_problems
-from surfgen.generator.mesh.mesh import load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.config import load_config
 from surfgen.pipelines.run.sampling import make_shape, run_sample
