@@ -44,15 +44,14 @@ from surfgen.generator.errors import MeshError
 from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.generator.mesh.mesh import Mesh, face_areas
 from surfgen.pipelines.pictures import raster as pic
-from surfgen.pipelines.pictures.raster import (
+from surfgen.pipelines.pictures.kernels import (
     _FILL_STRENGTH,
     _GROUND_AMBIENT,
     _KEY_STRENGTH,
     _SKY_AMBIENT,
     _SPECULAR_STRENGTH,
-    png_bytes,
-    render_image,
 )
+from surfgen.pipelines.pictures.raster import png_bytes, render_image
 
 # -- the baseline: the checks as they were before issue 13 -------------------------------------
 
@@ -477,7 +476,7 @@ def new_thumbnail(mesh: Mesh) -> bytes:
 def sample_meshes(n: int, seed: int) -> list[Mesh]:
     """The meshes of the accepted shapes among the first ``n`` draws (as written to disk)."""
     from surfgen.pipelines.run.config import load_config
-    from surfgen.pipelines.run.sampling import make_shape
+    from surfgen.pipelines.run.shapes import make_shape
 
     config = load_config(None)
     out = []

@@ -67,7 +67,8 @@ def driver_commit_rate(catalogue: Path, repeats: int = 200) -> tuple[float, floa
     real files of ``catalogue``; and the mean bytes per accepted shape."""
     from surfgen.filters.verdict import Verdict
     from surfgen.pipelines.catalogue.store import open_catalogue
-    from surfgen.pipelines.run.sampling import ShapeOutcome, _commit, _stage
+    from surfgen.pipelines.run.sampling import _commit, _stage
+    from surfgen.pipelines.run.shapes import ShapeOutcome
 
     with open_catalogue(catalogue, must_exist=True) as cat:
         rows = cat.shapes(verdict="accepted")

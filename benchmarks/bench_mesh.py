@@ -32,7 +32,7 @@ from skimage.measure import marching_cubes
 
 import surfgen.generator.mesh.marching as marching
 import surfgen.generator.mesh.mesh as mesh_module
-import surfgen.pipelines.run.sampling as sampling
+import surfgen.pipelines.run.shapes as shapes
 from surfgen.generator.errors import EmptySurface
 from surfgen.pipelines.run.config import load_config
 
@@ -44,21 +44,21 @@ def sampler_fields(draws: int, seed: int) -> list[tuple]:
     """(field, level, cap) of every mesh the sampler makes in its first ``draws`` draws."""
     config = load_config(None)
     kept = []
-    inner = sampling.extract_with_edges
+    inner = shapes.extract_with_edges
 
     def recording(field, level, cap=False):
         kept.append((field, level, cap))
         return inner(field, level, cap=cap)
 
-    sampling.extract_with_edges = recording
+    shapes.extract_with_edges = recording
     try:
         with tempfile.TemporaryDirectory() as tmp:
             for index in range(draws):
-                sampling.make_shape(
+                shapes.make_shape(
                     index, seed=seed, config=config, staging=Path(tmp), pictures=False
                 )
     finally:
-        sampling.extract_with_edges = inner
+        shapes.extract_with_edges = inner
     return kept
 
 

@@ -722,7 +722,7 @@ def _read_members(root: Path, row: dict[str, Any]) -> dict[str, bytes]:
 
 def _verify_row(root: Path, row: dict[str, Any], runs: dict[int, Any]) -> list[str]:
     from surfgen.pipelines.run.config import config_from_dict
-    from surfgen.pipelines.run.sampling import make_shape
+    from surfgen.pipelines.run.shapes import make_shape
 
     key = row["key"]
     problems: list[str] = []
@@ -816,7 +816,9 @@ def export_cmd(
         int, typer.Option(help="Surface points with normals per shape (0: none).")
     ] = 0,
     sdf: Annotated[int, typer.Option(help="Field samples in the box per shape (0: none).")] = 0,
-    fmt: Annotated[str, typer.Option("--format", help="Mesh format: ply or glb.")] = "ply",
+    fmt: Annotated[
+        str, typer.Option("--format", help=f"Mesh format: {' or '.join(DATASET_FORMATS)}.")
+    ] = "ply",
     license_: Annotated[
         str, typer.Option("--license", help="License identifier for the dataset card.")
     ] = "mit",

@@ -36,7 +36,8 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.run.warmup import compile_first
-from surfgen.pipelines.studies.explore import apply_changes, mesh_stats
+from surfgen.pipelines.studies.explore import mesh_stats
+from surfgen.pipelines.studies.knobs import apply_changes
 
 if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
     from surfgen.generator.mesh.mesh import Mesh

@@ -39,13 +39,12 @@ from surfgen.pipelines.catalogue.curation import get_shape, select_shapes
 from surfgen.pipelines.catalogue.store import Catalogue, CatalogueError
 from surfgen.pipelines.studies.explore import (
     Explored,
-    ExploreError,
     explore,
-    knobs_of,
     mesh_stats,
     save_variant,
     spec_from_request,
 )
+from surfgen.pipelines.studies.knobs import ExploreError, knobs_of
 
 if TYPE_CHECKING:
     from flask import Blueprint

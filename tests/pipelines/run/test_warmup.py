@@ -20,7 +20,7 @@ import json, sys, tempfile
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import make_shape
+from surfgen.pipelines.run.shapes import make_shape
 from surfgen.pipelines.run.warmup import shape_kernels_cached, warm_shape_kernels
 
 def compiled():

@@ -23,15 +23,17 @@ from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.pictures.gallery import create_app
 from surfgen.pipelines.studies.explore import (
+    explore,
+    mesh_stats,
+)
+from surfgen.pipelines.studies.knobs import (
     MAX_POINTS,
     ExploreError,
     apply_changes,
     d_of,
-    explore,
     grid_of,
     knobs_of,
     literals_of,
-    mesh_stats,
     replace_literals,
 )
 from tests.support.browser import build_catalogue
