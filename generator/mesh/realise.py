@@ -61,8 +61,8 @@ def realise(
     """
     if walls is not None:
         check_walls_mode(walls)
-    tree = spec.tree()
     t0 = time.perf_counter()
+    tree = spec.tree()
     if field is None:
         grid = spec.to_grid() if grid is None else grid
         field = evaluate(tree, grid, spec.params, evaluator=evaluator, threads=threads)
