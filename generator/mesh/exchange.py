@@ -1,5 +1,6 @@
 """Mesh files: the one encoder (:func:`encode_mesh`; GLB by :func:`glb_bytes`), and
-:func:`save_mesh` / :func:`load_mesh`, for the formats of :data:`~surfgen.generator.mesh.formats.FORMATS`.
+:func:`save_mesh` / :func:`load_mesh`, for the formats of
+:data:`~surfgen.generator.mesh.formats.FORMATS`.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ class Format:
     ``trimesh_type``/``options``: how trimesh writes (and reads) it; ``binary``: a binary file;
     ``printable``: meant for printing (must hold a closed solid; ``export`` writes it in
     millimetres); ``marks_walls``: carries the face kinds of ``--walls mark`` (and their
-    colours); ``mesh_file``: :func:`save_mesh` writes it and :func:`load_mesh` reads it;
+    colours); ``mesh_file``: ``save_mesh`` writes it and ``load_mesh`` reads it;
     ``export_order``: its place in ``surfgen export --format``'s list (None: not exported);
     ``dataset``: ``surfgen dataset`` can ship it; ``needs``: an optional module it needs.
     """

@@ -1,6 +1,6 @@
 """``surfgen sweep``: a shape along a range of one of its numbers — the paper's sensitivity as a curve.
 
-:func:`run_sweep` evaluates a base spec with one change (:func:`surfgen.pipelines.studies.explore.apply_changes`:
+:func:`run_sweep` evaluates a base spec with one change (:func:`surfgen.pipelines.studies.knobs.apply_changes`:
 a named parameter, ``box`` half-width, ``grid``, ``level``, ``d`` or a literal ``#K``) at each value of
 a range and writes to one folder:
 
