@@ -10,8 +10,8 @@ checks, calls the same steps (:func:`~surfgen.generator.mesh.mesh.extract_with_e
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from dataclasses import dataclass, field
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import evaluate
@@ -21,7 +21,7 @@ from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_l
 from surfgen.generator.model.spec import SurfaceSpec
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class Realised:
     """What :func:`realise` made: the field, the mesh (None when the surface is empty and that
     was allowed: ``empty`` says why), the walls' report (None when the crossings were not
@@ -32,7 +32,7 @@ class Realised:
     mesh: Mesh | None
     walls: WallReport | None = None
     empty: str | None = None
-    seconds: dict[str, float] = field(default_factory=dict)
+    seconds: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 def realise(
