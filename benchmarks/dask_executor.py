@@ -29,7 +29,8 @@ from surfgen.filters.verdict import Verdict
 from surfgen.generator.eval.tape import warm_up
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import ShapeOutcome, _commit, _stage, run_sample
+from surfgen.pipelines.run.sampling import _commit, _stage, run_sample
+from surfgen.pipelines.run.shapes import ShapeOutcome
 
 
 def table(root: Path) -> list[tuple]:

@@ -27,8 +27,9 @@ from pathlib import Path
 import numpy as np
 from skimage.measure import marching_cubes
 
+import surfgen.generator.mesh.marching as marching
 import surfgen.generator.mesh.mesh as mesh_module
-import surfgen.pipelines.run.sampling as sampling
+import surfgen.pipelines.run.shapes as shapes
 from benchmarks import harness
 from surfgen.generator.errors import EmptySurface
 from surfgen.pipelines.run.config import load_config
@@ -39,21 +40,21 @@ def sampler_fields(draws: int, seed: int) -> list[tuple]:
     """(field, level, cap) of every mesh the sampler makes in its first ``draws`` draws."""
     config = load_config(None)
     kept = []
-    inner = sampling.extract_with_edges
+    inner = shapes.extract_with_edges
 
     def recording(field, level, cap=False):
         kept.append((field, level, cap))
         return inner(field, level, cap=cap)
 
-    sampling.extract_with_edges = recording
+    shapes.extract_with_edges = recording
     try:
         with tempfile.TemporaryDirectory() as tmp:
             for index in range(draws):
-                sampling.make_shape(
+                shapes.make_shape(
                     index, seed=seed, config=config, staging=Path(tmp), pictures=False
                 )
     finally:
-        sampling.extract_with_edges = inner
+        shapes.extract_with_edges = inner
     return kept
 
 
@@ -86,10 +87,10 @@ def main(argv: list[str] | None = None) -> None:
         meshed += 1
         identical += same(old, mesh_module.extract_with_edges(field, level, cap))
         values = np.ascontiguousarray(field.values, dtype=np.float64)
-        work = mesh_module._offsets(values, level)[0]
+        work = marching._offsets(values, level)[0]
         if cap:
-            work = mesh_module._pad_outside(work)
-        mask = mesh_module._mixed_cells(work)
+            work = marching._pad_outside(work)
+        mask = marching._mixed_cells(work)
         r = args.repeats
         t_old = best(r, reference_extract_with_edges, field, level, cap)
         t_new = best(r, mesh_module.extract_with_edges, field, level, cap)

@@ -39,19 +39,19 @@ from surfgen.filters.metrics import Metrics
 from surfgen.filters.shape import quality_metrics
 from surfgen.filters.verdict import quick_metrics, shape_metrics
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh.mesh import Mesh, face_areas, load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
+from surfgen.generator.mesh.mesh import Mesh, face_areas
 from surfgen.pipelines.pictures import raster as pic
-from surfgen.pipelines.pictures.raster import (
+from surfgen.pipelines.pictures.kernels import (
     _FILL_STRENGTH,
     _GROUND_AMBIENT,
     _KEY_STRENGTH,
     _SKY_AMBIENT,
     _SPECULAR_STRENGTH,
-    png_bytes,
-    render_image,
 )
+from surfgen.pipelines.pictures.raster import png_bytes, render_image
 from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import make_shape
+from surfgen.pipelines.run.shapes import make_shape
 
 # -- the baseline: the checks as they were before issue 13 -------------------------------------
 

@@ -43,6 +43,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+import surfgen.generator.mesh.marching as marching
 import surfgen.generator.mesh.mesh as mesh_module
 import surfgen.generator.mesh.walls as walls_module
 from benchmarks import harness
@@ -62,12 +63,12 @@ def best(fn: Callable[[], object], repeat: int) -> float:
 
 
 def old_placement(field, level):
-    keep = mesh_module._separate
-    mesh_module._separate = lambda offset, inside: None  # crossings where marching cubes puts them
+    keep = marching._separate
+    marching._separate = lambda offset, inside: None  # crossings where marching cubes puts them
     try:
         return mesh_module.extract_mesh(field, level, cap=True)
     finally:
-        mesh_module._separate = keep
+        marching._separate = keep
 
 
 def previous(field, tree, params, level, edges):

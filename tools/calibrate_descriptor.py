@@ -27,7 +27,8 @@ from surfgen.filters.descriptor import (
     descriptor_distances,
 )
 from surfgen.generator.eval.evaluate import evaluate
-from surfgen.generator.mesh.mesh import extract_mesh, load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
+from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 
 

@@ -296,8 +296,8 @@ def _repair_files(
 def _rebuild_files(cat, row: dict) -> None:
     """Re-make an accepted shape's mesh from its spec (capped as its run was) and its pictures
     from the mesh, then record their paths."""
-    from surfgen.generator.eval.evaluate import evaluate
-    from surfgen.generator.mesh.mesh import extract_mesh, load_mesh, save_mesh
+    from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+    from surfgen.generator.mesh.realise import realise
     from surfgen.generator.model.spec import SurfaceSpec
     from surfgen.pipelines.pictures.raster import TURNTABLE_SIZE, render_thumbnail, render_turntable
 
@@ -312,8 +312,7 @@ def _rebuild_files(cat, row: dict) -> None:
         run = cat.conn.execute("SELECT config FROM runs WHERE id=?", (row["run"],)).fetchone()
         config = json.loads(run["config"]) if run is not None else {}
         cap = bool(config.get("run", {}).get("cap", True))
-        field_ = evaluate(spec.tree(), spec.to_grid(), spec.params)
-        mesh = extract_mesh(field_, spec.level, cap=cap)
+        mesh = realise(spec, cap=cap).mesh
         save_mesh(mesh, mesh_file)
     thumb, turn = cat.thumbs / f"{key}.png", cat.turntables / f"{key}.png"
     if not thumb.is_file():

@@ -283,7 +283,7 @@ def ensure_descriptors(
     missing ones from their meshes. Returns ``({key: descriptor}, computed, keys without mesh)``."""
     from surfgen.filters.descriptor import descriptor, descriptor_from_text, descriptor_to_text
     from surfgen.generator.errors import MeshError
-    from surfgen.generator.mesh.mesh import load_mesh
+    from surfgen.generator.mesh.exchange import load_mesh
 
     rows = cat.conn.execute(
         "SELECT key, mesh_path, descriptor FROM shapes WHERE verdict='accepted' ORDER BY run, idx"

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from surfgen.generator.mesh.formats import EXPORT_FORMATS, MARKABLE, PRINTABLE
 from surfgen.pipelines.catalogue.curation import CatalogueOption
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
 
@@ -37,7 +38,9 @@ def export_command(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
     fmt: Annotated[
         str,
-        typer.Option("--format", help="stl, obj, ply, glb, 3mf; or mathmod, k3dsurf (scripts)."),
+        typer.Option(
+            "--format", help=f"{', '.join(EXPORT_FORMATS)}; or mathmod, k3dsurf (scripts)."
+        ),
     ] = "stl",
     remesh: Annotated[
         bool, typer.Option("--remesh", help="Isotropic remeshing (same face count by default).")
@@ -60,13 +63,17 @@ def export_command(
         int | None, typer.Option(help="Re-evaluate the formula on N^3 points first.")
     ] = None,
     force: Annotated[
-        bool, typer.Option("--force", help="Write STL/3MF even if not watertight and manifold.")
+        bool,
+        typer.Option(
+            "--force",
+            help=f"Write {'/'.join(map(str.upper, PRINTABLE))} even if not watertight and manifold.",
+        ),
     ] = False,
     walls: Annotated[
         str,
         typer.Option(
             help="keep (the solid), remove (only the zero set: open) or mark (label poles and "
-            "jumps; ply/glb)."
+            f"jumps; {'/'.join(MARKABLE)})."
         ),
     ] = "keep",
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,

@@ -19,6 +19,7 @@ import typer
 from typer.exceptions import Abort, TyperException
 
 from surfgen.generator.errors import SpecError, SurfgenError
+from surfgen.generator.mesh.formats import MESH_SUFFIXES
 
 app = typer.Typer(
     add_completion=False,
@@ -182,7 +183,7 @@ def render(
         ),
     ] = None,
     output: Annotated[
-        Path | None, typer.Option("-o", "--output", help="Mesh file .ply/.obj/.stl/.off/.glb.")
+        Path | None, typer.Option("-o", "--output", help=f"Mesh file {'/'.join(MESH_SUFFIXES)}.")
     ] = None,
     save_field: Annotated[
         Path | None, typer.Option(help="Write the float64 field to FIELD.npy.")
@@ -310,12 +311,13 @@ def render(
 
 @app.command()
 def check(
-    mesh: Annotated[Path, typer.Argument(help="A mesh file (.ply/.obj/.stl/.off/.glb).")],
+    mesh: Annotated[Path, typer.Argument(help=f"A mesh file ({'/'.join(MESH_SUFFIXES)}).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
     from surfgen.filters.metrics import measure_mesh
-    from surfgen.generator.mesh.mesh import load_mesh, wall_fraction
+    from surfgen.generator.mesh.exchange import load_mesh
+    from surfgen.generator.mesh.mesh import wall_fraction
 
     loaded = load_mesh(mesh)
     m = measure_mesh(loaded).to_dict()

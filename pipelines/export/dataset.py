@@ -42,6 +42,7 @@ import typer
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.eval.reference import evaluate_points
 from surfgen.generator.files import renaming, write_atomic
+from surfgen.generator.mesh.formats import DATASET_FORMATS
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import CatalogueOption, select_shapes
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
@@ -51,7 +52,7 @@ if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a
 
 log = logging.getLogger(__name__)
 
-MESH_FORMATS = ("ply", "glb")
+MESH_FORMATS = DATASET_FORMATS
 SPLITS = (("train", 0.8), ("val", 0.9), ("test", 1.0))  # cumulative fractions
 POINTS_SALT, SDF_SALT = 1, 2  # one random stream per kind of sample, both derived from the key
 TAR_MTIME = 946684800  # 2000-01-01: a fixed time for every member (0 upsets some tools)
@@ -195,15 +196,14 @@ def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
 
 
 def mesh_bytes(mesh_file: Path, fmt: str) -> bytes:
-    """The mesh in ``fmt``: the catalogue's PLY as it is, or converted to GLB."""
+    """The mesh in ``fmt``: the catalogue's PLY as it is, or converted (without wall labels)."""
     if fmt == "ply":
         return mesh_file.read_bytes()
-    import trimesh
-
-    from surfgen.generator.mesh.mesh import load_mesh
+    from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
+    from surfgen.generator.mesh.mesh import Mesh
 
     mesh = load_mesh(mesh_file)
-    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(file_type="glb")
+    return encode_mesh(Mesh(mesh.vertices, mesh.faces), fmt)
 
 
 def _sha(data: bytes) -> str:
@@ -242,7 +242,7 @@ def _members(
     if rec["thumb"] and (root / rec["thumb"]).is_file():
         out["thumb"] = (f"{key}.png", (root / rec["thumb"]).read_bytes())
     if options.points or options.sdf:
-        from surfgen.generator.mesh.mesh import load_mesh
+        from surfgen.generator.mesh.exchange import load_mesh
 
         mesh = load_mesh(mesh_file)
         if options.points:
@@ -722,7 +722,7 @@ def _read_members(root: Path, row: dict[str, Any]) -> dict[str, bytes]:
 
 def _verify_row(root: Path, row: dict[str, Any], runs: dict[int, Any]) -> list[str]:
     from surfgen.pipelines.run.config import config_from_dict
-    from surfgen.pipelines.run.sampling import make_shape
+    from surfgen.pipelines.run.shapes import make_shape
 
     key = row["key"]
     problems: list[str] = []
@@ -768,7 +768,7 @@ def _verify_row(root: Path, row: dict[str, Any], runs: dict[int, Any]) -> list[s
             regenerated = mesh_bytes(out.mesh_file, fmt)
             if _sha(regenerated) != row["mesh_sha256"]:
                 problems.append(f"{key}: regenerated mesh differs from {row['mesh_file']}")
-            from surfgen.generator.mesh.mesh import load_mesh
+            from surfgen.generator.mesh.exchange import load_mesh
 
             mesh = load_mesh(out.mesh_file)
             if "points" in files:
@@ -816,7 +816,9 @@ def export_cmd(
         int, typer.Option(help="Surface points with normals per shape (0: none).")
     ] = 0,
     sdf: Annotated[int, typer.Option(help="Field samples in the box per shape (0: none).")] = 0,
-    fmt: Annotated[str, typer.Option("--format", help="Mesh format: ply or glb.")] = "ply",
+    fmt: Annotated[
+        str, typer.Option("--format", help=f"Mesh format: {' or '.join(DATASET_FORMATS)}.")
+    ] = "ply",
     license_: Annotated[
         str, typer.Option("--license", help="License identifier for the dataset card.")
     ] = "mit",

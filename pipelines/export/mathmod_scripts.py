@@ -15,7 +15,6 @@ import numpy as np
 import typer
 
 from surfgen.generator.errors import EmptySurface, SpecError
-from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.files import write_all_atomic
 from surfgen.generator.interop.mathmod import Model, load_model, read_script, to_script
 from surfgen.generator.model.spec import SurfaceSpec
@@ -57,7 +56,9 @@ def render_model(
 ) -> dict[str, Any]:
     """Evaluate each component (or the chosen one) in its own box, mesh them into one mesh,
     write what is asked; returns the JSON summary ``render --json`` prints."""
-    from surfgen.generator.mesh.mesh import MESH_SUFFIXES, extract_mesh, mesh_bytes
+    from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
+    from surfgen.generator.mesh.formats import MESH_SUFFIXES
+    from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.export.render import build_spec, check_output_path
 
     if mesh_path is not None:
@@ -71,15 +72,11 @@ def render_model(
     nonfinite = 0
     for comp in chosen:
         spec = build_spec(base=comp.spec, box=box, grid=grid, level=level)
-        field = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator=evaluator)
-        nonfinite += field.nonfinite
-        try:
-            mesh = extract_mesh(field, spec.level, cap=cap)
-        except EmptySurface as exc:
-            if len(chosen) == 1:
-                raise
-            log.warning("component %s: %s", comp.name, exc)
-            mesh = None
+        made = realise(spec, evaluator=evaluator, cap=cap, allow_empty=len(chosen) > 1)
+        nonfinite += made.field.nonfinite
+        mesh = made.mesh
+        if made.empty is not None:
+            log.warning("component %s: %s", comp.name, made.empty)
         if mesh is not None:
             parts.append(mesh)
         summaries.append(
@@ -100,7 +97,7 @@ def render_model(
     # picture cannot be written).
     outputs: dict[str, tuple[Path, bytes]] = {}
     if mesh_path is not None:
-        outputs["mesh"] = (Path(mesh_path), mesh_bytes(mesh, Path(mesh_path)))
+        outputs["mesh"] = (Path(mesh_path), encode_mesh(mesh, mesh_format(mesh_path)))
     if png_path is not None:
         from surfgen.pipelines.pictures.raster import png_bytes, render_image
 

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
 from surfgen.filters.cleanup import (
     MAX_TARGET_FACES,
@@ -37,7 +36,6 @@ from surfgen.filters.cleanup import (
 )
 from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.errors import SurfgenError
-from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import write_all_atomic
 from surfgen.generator.formula.limits import (
@@ -47,25 +45,17 @@ from surfgen.generator.formula.limits import (
     estimate_memory,
     json_depth_ok,
 )
-from surfgen.generator.mesh.mesh import (
-    CAP,
-    WALL_KINDS,
-    Mesh,
-    face_areas,
-    load_mesh,
-    mesh_bytes,
-    wall_fraction,
-)
-from surfgen.generator.mesh.walls import WALL_MODES, extract_labelled
+from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
+from surfgen.generator.mesh.formats import EXPORT_FORMATS, FORMATS, MARKABLE, PRINTABLE
+from surfgen.generator.mesh.mesh import CAP, WALL_KINDS, Mesh, face_areas, wall_fraction
+from surfgen.generator.mesh.realise import realise
+from surfgen.generator.mesh.walls import WALL_MODES
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now, open_catalogue
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("stl", "obj", "ply", "glb", "3mf")
 MAX_INPUTS = 10_000
-PRINTABLE = ("stl", "3mf")  # must be watertight and manifold; coordinates are millimetres
-MARKABLE = ("ply", "glb")  # formats that carry the labels of --walls mark
 GRID_WARNING = (
     "shapes whose look depends on the grid (the paper's Figure 3: one formula and box give "
     "different shapes on 34^3 and 33^3) will change"
@@ -93,8 +83,10 @@ class ExportOptions:
 
     def __post_init__(self) -> None:
         fmt = self.format.lower().lstrip(".")
-        if fmt not in FORMATS:
-            raise ExportError(f"unknown format '{self.format}' (allowed: {', '.join(FORMATS)})")
+        if fmt not in EXPORT_FORMATS:
+            raise ExportError(
+                f"unknown format '{self.format}' (allowed: {', '.join(EXPORT_FORMATS)})"
+            )
         object.__setattr__(self, "format", fmt)
         if self.walls not in WALL_MODES:
             raise ExportError(
@@ -211,8 +203,11 @@ def export_shapes(
     options = options or ExportOptions()
     if not inputs:
         raise ExportError("give at least one key, key prefix, spec file or mesh file")
-    if options.format == "3mf" and importlib.util.find_spec("lxml") is None:
-        raise ExportError("3MF export needs the lxml package (pip install lxml)")
+    needs = FORMATS[options.format].needs
+    if needs is not None and importlib.util.find_spec(needs) is None:
+        raise ExportError(
+            f"{options.format.upper()} export needs the {needs} package (pip install {needs})"
+        )
     if len(inputs) > MAX_INPUTS:
         raise ExportError(f"at most {MAX_INPUTS} inputs per export, got {len(inputs)}")
     sources = resolve_sources(inputs, Path(catalogue))
@@ -367,10 +362,7 @@ def load_source(
         warnings.append(f"{source.name}: mesh file {source.mesh_file} is missing, regenerated")
     for w in warnings:
         log.info("%s", w)  # the CLI prints the warnings it gets back
-    tree = spec.tree()
-    field_ = evaluate(tree, grid, spec.params)
-    mesh, _report = extract_labelled(field_, tree, spec.params, spec.level, cap=True, walls=walls)
-    return mesh, warnings
+    return realise(spec, grid=grid, cap=True, walls=walls).mesh, warnings  # type: ignore[return-value]
 
 
 def _without_walls(mesh: Mesh, name: str) -> Mesh:
@@ -459,12 +451,6 @@ def printability_problems(m: Metrics) -> list[str]:
     return problems
 
 
-def encode_3mf(mesh: Mesh) -> bytes:
-    """A 3MF package (unit: millimetre) holding ``mesh``; needs lxml."""
-    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    return tm.export(file_type="3mf")
-
-
 # --- helpers ------------------------------------------------------------------------------------
 
 
@@ -535,7 +521,7 @@ def _encode(
     path = out_dir / f"{name}.{options.format}"
     sidecar = out_dir / f"{name}.json"
     text = json.dumps(_sidecar(p, path, options, out_dir), indent=2, default=jsonable) + "\n"
-    data = encode_3mf(p.mesh) if options.format == "3mf" else mesh_bytes(p.mesh, path)
+    data = encode_mesh(p.mesh, options.format)
     return [(path, data), (sidecar, text.encode())], ExportResult(p, path, sidecar)
 
 
@@ -568,8 +554,9 @@ def _versions(fmt: str) -> dict[str, str]:
     from surfgen.pipelines.run.sampling import versions
 
     out = versions()
-    if fmt == "3mf":
-        out["lxml"] = metadata.version("lxml")
+    needs = FORMATS[fmt].needs
+    if needs is not None:
+        out[needs] = metadata.version(needs)
     return out
 
 

@@ -24,8 +24,11 @@ from surfgen.generator.formula.limits import (
     estimate_memory,
     read_bounded,
 )
-from surfgen.generator.mesh.mesh import MESH_SUFFIXES, Mesh, mesh_bytes
-from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
+from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
+from surfgen.generator.mesh.formats import FORMATS, MESH_SUFFIXES
+from surfgen.generator.mesh.mesh import Mesh
+from surfgen.generator.mesh.realise import realise
+from surfgen.generator.mesh.walls import WallReport, check_walls_mode
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
 
@@ -33,7 +36,9 @@ log = logging.getLogger(__name__)
 
 DEFAULT_BOX = (-2.0, 2.0)
 DEFAULT_GRID = 64
-PRINTABLE_SUFFIXES = (".stl",)  # formats meant for printing: they must hold a closed solid
+# Mesh files meant for printing (they must hold a closed solid), and the others.
+PRINTABLE_SUFFIXES = tuple(s for s in MESH_SUFFIXES if FORMATS[s[1:]].printable)
+OPEN_SUFFIXES = tuple(s for s in MESH_SUFFIXES if s not in PRINTABLE_SUFFIXES)
 
 
 @dataclass(frozen=True)
@@ -181,7 +186,7 @@ def render_spec(
             raise SpecError(
                 f"mesh file {mesh_path}: --walls remove leaves open sheets, which a printable "
                 f"format ({', '.join(PRINTABLE_SUFFIXES)}) cannot hold as a solid; "
-                "write .ply/.obj/.off/.glb, or --force"
+                f"write {'/'.join(OPEN_SUFFIXES)}, or --force"
             )
     if field_path is not None:
         check_output_path(Path(field_path), (".npy",), "field file")
@@ -195,14 +200,13 @@ def render_spec(
         f"render on a {'x'.join(map(str, grid.shape))} grid",
     )
     start = time.perf_counter()
-    tree = spec.tree()
-    field = evaluate(tree, grid, spec.params, evaluator=evaluator)
     mesh: Mesh | None = None
     crossings: WallReport | None = None
     if want_mesh:
-        mesh, crossings = extract_labelled(
-            field, tree, spec.params, spec.level, cap=cap, walls=walls
-        )
+        made = realise(spec, grid=grid, evaluator=evaluator, cap=cap, walls=walls)
+        field, mesh, crossings = made.field, made.mesh, made.walls
+    else:
+        field = evaluate(spec.tree(), grid, spec.params, evaluator=evaluator)
     seconds = time.perf_counter() - start
     # Every file is made in memory first, then all are written together: a full disk or a
     # bad folder for one of them leaves none of them behind.
@@ -210,7 +214,7 @@ def render_spec(
     if field_path is not None:
         outputs["field"] = (Path(field_path), field_bytes(field))
     if mesh is not None and mesh_path is not None:
-        outputs["mesh"] = (Path(mesh_path), mesh_bytes(mesh, mesh_path))
+        outputs["mesh"] = (Path(mesh_path), encode_mesh(mesh, mesh_format(mesh_path)))
     if mesh is not None and png_path is not None:
         from surfgen.pipelines.pictures.raster import png_bytes, render_image
 

@@ -45,7 +45,7 @@ class Drawn:
 def draw(job: Job) -> Drawn:
     """Read the mesh and draw the job's pictures, in memory. A mesh that cannot be read or
     drawn gives its :class:`SurfgenError` message as ``error``."""
-    from surfgen.generator.mesh.mesh import load_mesh
+    from surfgen.generator.mesh.exchange import load_mesh
     from surfgen.pipelines.pictures.raster import (
         THUMBNAIL_SIZE,
         TURNTABLE_SIZE,

@@ -169,10 +169,10 @@ def _kernels_cached() -> bool:
     """:func:`shape_kernels_cached` but the interpreter."""
     from surfgen.filters import geometry
     from surfgen.generator.eval import grid_driver as kernels
-    from surfgen.generator.mesh import mesh, walls
+    from surfgen.generator.mesh import marching, walls
     from surfgen.pipelines.pictures import raster as pictures
 
-    stages = (kernels.run_grid, walls._bisect_kernel, mesh._offsets_kernel)
+    stages = (kernels.run_grid, walls._bisect_kernel, marching._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
     return all(kernel_cached(d) for d in stages)
 
@@ -265,7 +265,8 @@ def _warm_the_rest(field, box, mesh) -> None:
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.eval.grid import Field
-    from surfgen.generator.mesh.mesh import _merge_same, extract_with_edges
+    from surfgen.generator.mesh.marching import _merge_same
+    from surfgen.generator.mesh.mesh import extract_with_edges
     from surfgen.generator.model.families.carving import envelope_departure, pieces
     from surfgen.pipelines.pictures.raster import render_image
 

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import numpy as np
 import typer
 
-from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.files import staged_into, write_all_atomic
@@ -299,17 +299,15 @@ def _render_panel(folder: Path, name: str, grid_scale: float) -> Shape:
 
 
 def _draw_shape(folder: Path, name: str, spec: SurfaceSpec, field_: Field) -> Shape:
-    from surfgen.generator.mesh.mesh import extract_mesh, save_mesh
+    from surfgen.generator.mesh.exchange import save_mesh
+    from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.pictures.raster import render_image, write_png
 
     folder.mkdir(parents=True, exist_ok=True)
     meshes: dict[str, Mesh | None] = {}
     files: dict[str, str] = {}
     for suffix, cap in (("", False), ("-capped", True)):
-        try:
-            mesh = extract_mesh(field_, spec.level, cap=cap)
-        except EmptySurface:
-            mesh = None
+        mesh = realise(spec, field=field_, cap=cap, allow_empty=True).mesh
         meshes[suffix] = mesh
         if mesh is None or mesh.n_faces == 0:
             continue

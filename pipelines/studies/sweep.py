@@ -1,6 +1,6 @@
 """``surfgen sweep``: a shape along a range of one of its numbers — the paper's sensitivity as a curve.
 
-:func:`run_sweep` evaluates a base spec with one change (:func:`surfgen.pipelines.studies.explore.apply_changes`:
+:func:`run_sweep` evaluates a base spec with one change (:func:`surfgen.pipelines.studies.knobs.apply_changes`:
 a named parameter, ``box`` half-width, ``grid``, ``level``, ``d`` or a literal ``#K``) at each value of
 a range and writes to one folder:
 
@@ -31,12 +31,13 @@ from typing import TYPE_CHECKING, Annotated, Any
 import numpy as np
 import typer
 
-from surfgen.generator.errors import EmptySurface, SpecError, SurfgenError
+from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.run.warmup import compile_first
-from surfgen.pipelines.studies.explore import apply_changes, mesh_stats
+from surfgen.pipelines.studies.explore import mesh_stats
+from surfgen.pipelines.studies.knobs import apply_changes
 
 if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
     from surfgen.generator.mesh.mesh import Mesh
@@ -247,8 +248,8 @@ def _sweep_into(
 ) -> tuple[list[Step], dict[str, str]]:
     """Evaluate every step and write all the sweep's files into the (new) folder ``out``."""
     from surfgen.filters.compare import inside_samples
-    from surfgen.generator.eval.evaluate import evaluate
-    from surfgen.generator.mesh.mesh import extract_mesh, save_mesh
+    from surfgen.generator.mesh.exchange import save_mesh
+    from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.pictures.raster import render_image, write_png
 
     (out / "meshes").mkdir()
@@ -257,12 +258,8 @@ def _sweep_into(
     first_inside = first_points = prev_inside = prev_points = None
     for i, (value, spec) in enumerate(zip(values, specs, strict=True)):
         t0 = time.perf_counter()
-        field = evaluate(spec.tree(), spec.to_grid(), spec.params, evaluator="fast")
-        mesh: Mesh | None
-        try:
-            mesh, empty = extract_mesh(field, spec.level, cap=cap), None
-        except EmptySurface as exc:
-            mesh, empty = None, str(exc)
+        made = realise(spec, cap=cap, allow_empty=True)
+        field, mesh, empty = made.field, made.mesh, made.empty
         inside = inside_samples(field, target, spec.level)
         points = points_on(mesh)
         stem = f"step-{i:03d}"

@@ -39,14 +39,12 @@ from surfgen.pipelines.catalogue.curation import get_shape, select_shapes
 from surfgen.pipelines.catalogue.store import Catalogue, CatalogueError
 from surfgen.pipelines.studies.explore import (
     Explored,
-    ExploreError,
-    encode_glb,
     explore,
-    knobs_of,
     mesh_stats,
     save_variant,
     spec_from_request,
 )
+from surfgen.pipelines.studies.knobs import ExploreError, knobs_of
 
 if TYPE_CHECKING:
     from flask import Blueprint
@@ -198,7 +196,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
 
     @bp.get("/api/shape/<key>/mesh.glb")
     def shape_mesh(key: str) -> Response:
-        from surfgen.generator.mesh.mesh import load_mesh
+        from surfgen.generator.mesh.exchange import glb_bytes, load_mesh
 
         rec = get_shape(cat(), key, full=False)
         if not rec["mesh"]:
@@ -207,7 +205,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
             mesh = load_mesh(root / rec["mesh"])
         except SurfgenError as exc:
             return jsonify(error=str(exc)), 404  # type: ignore[return-value]
-        return glb_response(encode_glb(mesh))
+        return glb_response(glb_bytes(mesh, web=True))
 
     def body_json() -> Any:
         if not request.is_json:
@@ -300,7 +298,7 @@ def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> 
     """Write ``shapes/KEY.html`` and ``shapes/KEY.glb.js`` for every shape of the static gallery
     that has a mesh, and the vendored three.js; returns how many pages. ``shapes`` are the
     gallery's records (their ``mesh`` paths relative to ``root``). Raises ``OSError``."""
-    from surfgen.generator.mesh.mesh import load_mesh
+    from surfgen.generator.mesh.exchange import glb_bytes, load_mesh
     from surfgen.pipelines.pictures.gallery import write_page
 
     with_mesh = [s for s in shapes if s.get("mesh")]
@@ -314,7 +312,7 @@ def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> 
     for i, s in enumerate(with_mesh):
         key = s["key"]
         try:
-            glb = encode_glb(load_mesh(Path(root) / s["mesh"]))
+            glb = glb_bytes(load_mesh(Path(root) / s["mesh"]), web=True)
         except SurfgenError as exc:
             log.warning("shape %s: no 3-D page (%s)", key, exc)
             continue

@@ -7,7 +7,8 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from surfgen.filters.verdict import shape_metrics
-from surfgen.generator.mesh.mesh import Mesh, save_mesh
+from surfgen.generator.mesh.exchange import save_mesh
+from surfgen.generator.mesh.mesh import Mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 

@@ -13,15 +13,8 @@ from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.grid import Field
-from surfgen.generator.mesh.mesh import (
-    _CLIP,
-    _MAX_ROUNDS,
-    _RATIO,
-    _TINY,
-    SEPARATION,
-    Mesh,
-    _empty_message,
-)
+from surfgen.generator.mesh.marching import _CLIP, _MAX_ROUNDS, _RATIO, _TINY, SEPARATION
+from surfgen.generator.mesh.mesh import Mesh, _empty_message
 
 
 def reference_extract_with_edges(

@@ -18,10 +18,8 @@ from surfgen.generator.eval.point_driver import eval_points
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.mesh.mesh import ROOT
-from surfgen.generator.mesh.walls import (  # unchanged since: shared, not copied
-    _crossings,
-    _decide,
-)
+from surfgen.generator.mesh.refine import _decide  # unchanged since: shared, not copied
+from surfgen.generator.mesh.walls import _crossings
 
 ROOT_SHRINK = 0.6
 ROOT_FLOOR = 1e-9

@@ -19,7 +19,7 @@ from surfgen.generator.eval.interpreter import _sign  # np.sign (the samples her
 from surfgen.generator.eval.tape import PointsEvaluator, points_evaluator
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.mesh.mesh import ROOT
-from surfgen.generator.mesh.walls import _decide
+from surfgen.generator.mesh.refine import _decide
 from tests.support.walls_main import (  # the frozen copy of main's classifier before walls2
     SECANT_ROOT,
     SEPARATION_T,

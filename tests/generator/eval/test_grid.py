@@ -9,7 +9,8 @@ from surfgen.generator.errors import GridError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import MAX_COORDINATE, MIN_RELATIVE_SPACING, Box, Grid
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import extract_mesh, load_mesh, save_mesh
+from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+from surfgen.generator.mesh.mesh import extract_mesh
 
 
 def test_axes_include_both_ends() -> None:

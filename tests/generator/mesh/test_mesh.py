@@ -15,7 +15,9 @@ from surfgen.generator.errors import EmptySurface, MeshError
 from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import MESH_SUFFIXES, Mesh, extract_mesh, load_mesh, save_mesh
+from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+from surfgen.generator.mesh.formats import MESH_SUFFIXES
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
 CANONICAL = ["sphere", "torus", "genus2", "two_spheres"]
 
@@ -387,7 +389,7 @@ def test_fast_path_on_random_fields_is_the_numpy_reference():
 
 def test_separation_sweeps_reach_the_numpy_rounds_fixed_point():
     # Chains of raises over many rounds: magnitudes spread over 60 decades along lines.
-    from surfgen.generator.mesh.mesh import _separate
+    from surfgen.generator.mesh.marching import _separate
     from tests.support.mesh_reference import _separate as reference_separate
 
     rng = np.random.default_rng(3)

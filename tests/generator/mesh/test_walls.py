@@ -17,7 +17,8 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_points, evaluate_reference
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import CAP, JUMP, POLE, ROOT, load_mesh, save_mesh, wall_fraction
+from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+from surfgen.generator.mesh.mesh import CAP, JUMP, POLE, ROOT, wall_fraction
 from surfgen.generator.mesh.walls import extract_labelled
 
 
@@ -157,6 +158,7 @@ def test_points_evaluator_is_the_reference():
 
 
 def reference_kinds(field, tree, level, edges):
+    from surfgen.generator.mesh import refine as r
     from surfgen.generator.mesh import walls as w
 
     values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
@@ -188,32 +190,32 @@ def reference_kinds(field, tree, level, edges):
         finite = ~np.isnan(fa) & ~np.isnan(fb) & ~np.isnan(fa / (fa - fb))
         pos = ijk[everyone, axis]
         border = (pos < 1) | (pos + 2 >= np.asarray(field.values.shape)[axis])
-        q = w.SECANT_GRID
+        q = r.SECANT_GRID
         u = np.where(np.isnan(fa / (fa - fb)), 0.5, fa / (fa - fb))
         t1 = np.where(border, np.minimum(np.maximum(np.round(u * q), 1.0), q - 1) / q, 0.5)
         f1 = f_at(t1, everyone)
         in1 = np.isfinite(f1) & (f1 < 0)
         far = np.where(in1 == ina, np.abs(fa), np.abs(fb))
-        root = finite & (np.abs(f1) < w.NEAR_ROOT * far)
+        root = finite & (np.abs(f1) < r.NEAR_ROOT * far)
         upper = in1 == ina  # the side changes between the midpoint and sample b
         now = np.stack(
             [np.where(upper, t1, 0.0), np.where(upper, 1.0, t1), np.where(upper, f1, fa),
              np.where(upper, fb, f1), np.where(upper, in1, ina).astype(float)], axis=1
         )  # fmt: skip
         before = now.copy()
-        room = (now[:, 1] - now[:, 0]) * w.SECANT_GRID >= 2
+        room = (now[:, 1] - now[:, 0]) * r.SECANT_GRID >= 2
         dips = np.flatnonzero(~root & finite & (np.abs(f1) < far) & room)
         if dips.size:
             lo, hi, flo, fhi = now[dips, 0], now[dips, 1], now[dips, 2], now[dips, 3]
             u = flo / (flo - fhi)
             u = np.where(np.isnan(u), 0.5, u)
-            q = w.SECANT_GRID
+            q = r.SECANT_GRID
             s = np.minimum(np.maximum(np.round((lo + u * (hi - lo)) * q), lo * q + 1), hi * q - 1)
             s = s / q
             f2 = f_at(s, dips)
             in2 = np.isfinite(f2) & (f2 < 0)
             end = np.where(in2 == (now[dips, 4] != 0), np.abs(flo), np.abs(fhi))
-            near = np.abs(f2) < w.NEAR_ROOT * end
+            near = np.abs(f2) < r.NEAR_ROOT * end
             root[dips[near]] = True
             split(now, dips[~near], s[~near], f2[~near])
     rest = np.flatnonzero(~root)
@@ -223,15 +225,15 @@ def reference_kinds(field, tree, level, edges):
         with np.errstate(all="ignore"):
             split(now, rows, s, f_at(s, rows))
 
-    for _ in range(w.BISECTIONS):
+    for _ in range(r.BISECTIONS):
         wide = now[rest, 1] - now[rest, 0] > 0.25 * (before[rest, 1] - before[rest, 0])
         bisect(rest[wide])
-    first = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    first = r._decide(before[rest], now[rest], fa[rest], fb[rest])
     held = rest[((now[rest, 0] == 0.0) | (now[rest, 1] == 1.0)) & (first == JUMP)]
     before[held] = now[held]
-    for _ in range(w.BISECTIONS):
+    for _ in range(r.BISECTIONS):
         bisect(held)
-    kinds_rest = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    kinds_rest = r._decide(before[rest], now[rest], fa[rest], fb[rest])
     with np.errstate(all="ignore"):  # M2 / M1 as _decide measures them
         kept_lo, kept_hi = now[rest, 0] == 0.0, now[rest, 1] == 1.0
         m1 = np.where(kept_lo, 0.0, np.abs(before[rest, 2]))
@@ -239,12 +241,12 @@ def reference_kinds(field, tree, level, edges):
         m2 = np.maximum(np.where(kept_lo, 0.0, np.abs(now[rest, 2])),
                         np.where(kept_hi, 0.0, np.abs(now[rest, 3])))  # fmt: skip
         ratio = np.where((m1 > 0) & ~np.isnan(m2), m2 / m1, 1.0)
-    unsure = rest[(kinds_rest == JUMP) & (ratio < w.UNSURE)]
+    unsure = rest[(kinds_rest == JUMP) & (ratio < r.UNSURE)]
     before[unsure] = now[unsure]
-    for _ in range(w.BISECTIONS):
+    for _ in range(r.BISECTIONS):
         bisect(unsure)
     sub = np.full(idx.size, ROOT, dtype=np.uint8)
-    sub[rest] = w._decide(before[rest], now[rest], fa[rest], fb[rest])
+    sub[rest] = r._decide(before[rest], now[rest], fa[rest], fb[rest])
     kinds[idx] = sub
     return kinds, int(idx.size)
 

@@ -15,10 +15,11 @@ from surfgen.filters.cleanup import edge_lengths
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.reference import evaluate_reference
-from surfgen.generator.mesh.mesh import Mesh, extract_mesh, load_mesh, save_mesh
+from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+from surfgen.generator.mesh.formats import EXPORT_FORMATS
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.export.meshes import FORMATS
 from tests.support.catalogues import catalogue_shapes
 
 TORUS = "(sqrt(x^2+y^2)-1)^2+z^2-0.16"
@@ -63,7 +64,7 @@ def read_back(path: Path) -> trimesh.Trimesh:
     return trimesh.load(path, force="mesh")
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("fmt", EXPORT_FORMATS)
 def test_capped_torus_exports_watertight_manifold_genus_1_in_every_format(catalogue, tmp_path, fmt):
     root, keys = catalogue
     prefix = unique_prefix(keys, keys[2])

@@ -14,7 +14,7 @@ from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.interop.builtins import expand_builtins
 from surfgen.generator.interop.mathmod import build_model, load_model, parse_script
-from surfgen.generator.mesh.mesh import load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.export.mathmod_scripts import import_script, render_model

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from surfgen.generator.mesh.mesh import save_mesh
+from surfgen.generator.mesh.exchange import save_mesh
 from surfgen.pipelines.pictures import pool as picture_pool
 from surfgen.pipelines.pictures.pool import Job, draw, draw_all
 

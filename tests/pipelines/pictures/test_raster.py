@@ -171,12 +171,12 @@ def test_pictures_are_the_same_whatever_numpys_maths(
 
 
 def test_highlight_by_squarings_is_pow_to_rounding() -> None:
-    from surfgen.pipelines.pictures import raster as pictures
+    from surfgen.pipelines.pictures import kernels
 
-    assert pictures._SPECULAR_EXPONENT == 24
+    assert kernels._SPECULAR_EXPONENT == 24
     for x in np.random.default_rng(2).uniform(0.0, 1.0, 2000):
-        want = pictures._SPECULAR_STRENGTH * float(x) ** 24.0
-        assert abs(pictures._highlight(float(x)) - want) <= 1e-14 * want
+        want = kernels._SPECULAR_STRENGTH * float(x) ** 24.0
+        assert abs(kernels._highlight(float(x)) - want) <= 1e-14 * want
 
 
 def test_buffers_left_unset_are_never_read(gyroid: Mesh, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -128,18 +128,18 @@ def uninterrupted(tmp_path_factory) -> Path:
 def test_disk_full_during_sample_stops_then_resume_is_identical(
     uninterrupted: Path, tmp_path: Path, monkeypatch, capsys
 ) -> None:
-    import surfgen.pipelines.run.sampling as sampling
+    import surfgen.pipelines.run.shapes as one_shape
 
     accepted = [r for r in table(uninterrupted) if len(r) == 10 and r[6] == "accepted"]
     victim = accepted[2][1]  # the disk fills up when the third accepted shape is written
-    real = sampling.write_atomic
+    real = one_shape.write_atomic
 
     def full_disk(path, data):
         if Path(path).name.startswith(victim):
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
         return real(path, data)
 
-    monkeypatch.setattr(sampling, "write_atomic", full_disk)  # the workers fork with it
+    monkeypatch.setattr(one_shape, "write_atomic", full_disk)  # the workers fork with it
     cat = tmp_path / "cat"
     cfg = tmp_path / "cfg.toml"
     cfg.write_text("[run]\nthumbnails = false\n")
@@ -157,7 +157,7 @@ def test_disk_full_during_sample_stops_then_resume_is_identical(
     assert all("crashed" not in r[7] for r in shapes)
     assert rows[-1][4] == "interrupted"
     # space is freed: --resume ends exactly as the uninterrupted run
-    monkeypatch.setattr(sampling, "write_atomic", real)
+    monkeypatch.setattr(one_shape, "write_atomic", real)
     assert main([*args, "--resume"]) == 0
     capsys.readouterr()
     assert table(cat) == table(uninterrupted)

@@ -16,12 +16,13 @@ import pytest
 
 from surfgen.filters.verdict import FilterConfig, judge, shape_metrics
 from surfgen.generator.errors import SpecError
-from surfgen.generator.mesh.mesh import load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.config import default_config_text, load_config
-from surfgen.pipelines.run.sampling import make_shape, run_sample
+from surfgen.pipelines.run.sampling import run_sample
+from surfgen.pipelines.run.shapes import make_shape
 from tests.support.catalogue_rows import computed_rows, mesh_bytes
 from tests.support.processes import python_env
 
@@ -444,7 +445,7 @@ def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
     (the parent judges duplicates at that point, from that point's row)."""
     import shutil
 
-    from surfgen.pipelines.run.sampling import AcceptedDescriptors, _publish
+    from surfgen.pipelines.run.duplicates import AcceptedDescriptors, publish
 
     cat = tmp_path / "cat"
     shutil.copytree(reference_run, cat)
@@ -466,7 +467,7 @@ def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
     assert len(dups) == N
     seen = AcceptedDescriptors(tmp_path / "accepted.tsv", config.run.dedupe_threshold)
     assert not seen.near(np.zeros(10))  # no file: knows nothing
-    _publish(seen.path, [(r["key"], r["descriptor"]) for r in first])
+    publish(seen.path, [(r["key"], r["descriptor"]) for r in first])
     compared = ("key", "spec", "d", "model", "verdict", "reasons", "metrics", "descriptor")
     for r in dups:
         assert r["duplicate_of"] == keys[r["identity"]]
@@ -487,7 +488,7 @@ def test_a_workers_view_of_accepted_shapes_skips_what_it_cannot_read(tmp_path: P
     from surfgen.generator.eval.grid import Box, Grid
     from surfgen.generator.formula.parser import parse
     from surfgen.generator.mesh.mesh import extract_mesh
-    from surfgen.pipelines.run.sampling import AcceptedDescriptors, _publish
+    from surfgen.pipelines.run.duplicates import AcceptedDescriptors, publish
 
     mesh = extract_mesh(evaluate(parse("x^2+y^2+z^2-1"), Grid(Box.cube(1.5), (20,) * 3)))
     values = descriptor(mesh)
@@ -496,7 +497,7 @@ def test_a_workers_view_of_accepted_shapes_skips_what_it_cannot_read(tmp_path: P
     path.write_bytes(b"\xff\xfegarbage\n" + b"cut\t" + text[:100].encode())  # a cut record
     seen = AcceptedDescriptors(path, 1.0)
     assert not seen.near(values)
-    _publish(path, [("ball", text)])  # lands on the cut record's line: that line is lost
+    publish(path, [("ball", text)])  # lands on the cut record's line: that line is lost
     assert not seen.near(values)
     with open(path, "a") as f:
         f.write(f"ball\t{text[:50]}")  # being written: not read yet

@@ -11,10 +11,11 @@ import pytest
 
 from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.robust import merge_problems
-from surfgen.generator.mesh.mesh import load_mesh
+from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import make_shape, run_sample
+from surfgen.pipelines.run.sampling import run_sample
+from surfgen.pipelines.run.shapes import make_shape
 
 CATALOGUE_N = 60
 CATALOGUE_GRID = 16

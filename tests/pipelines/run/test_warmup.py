@@ -20,7 +20,7 @@ import json, sys, tempfile
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import make_shape
+from surfgen.pipelines.run.shapes import make_shape
 from surfgen.pipelines.run.warmup import shape_kernels_cached, warm_shape_kernels
 
 def compiled():
@@ -238,11 +238,12 @@ CHILD_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import mesh, walls
+from surfgen.generator.mesh import marching, mesh, walls
 from surfgen.pipelines.run.warmup import warm_in_child
 
 warm_in_child()
-ran = {k: len(v.signatures) for k, v in vars(mesh).items() if isinstance(v, CPUDispatcher)}
+ran = {k: len(v.signatures) for m in (mesh, marching) for k, v in vars(m).items()
+       if isinstance(v, CPUDispatcher)}
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
                   "walls": len(walls._bisect_kernel.signatures), "mesh": sum(ran.values())}))

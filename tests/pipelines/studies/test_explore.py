@@ -16,22 +16,24 @@ import trimesh
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import GridError
 from surfgen.generator.formula.expr import to_string
+from surfgen.generator.mesh.exchange import glb_bytes
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.pictures.gallery import create_app
 from surfgen.pipelines.studies.explore import (
+    explore,
+    mesh_stats,
+)
+from surfgen.pipelines.studies.knobs import (
     MAX_POINTS,
     ExploreError,
     apply_changes,
     d_of,
-    encode_glb,
-    explore,
     grid_of,
     knobs_of,
     literals_of,
-    mesh_stats,
     replace_literals,
 )
 from tests.support.browser import build_catalogue
@@ -118,7 +120,7 @@ def test_literals_round_trip() -> None:
 
 def test_glb_and_stats(shape_mesh) -> None:
     torus = shape_mesh("torus")
-    data = encode_glb(torus)
+    data = glb_bytes(torus, web=True)
     magic, version, length = struct.unpack("<III", data[:12])
     assert (magic, version, length) == (0x46546C67, 2, len(data))
     loaded = trimesh.load(
@@ -126,7 +128,7 @@ def test_glb_and_stats(shape_mesh) -> None:
     )
     assert len(loaded.faces) == torus.n_faces and len(loaded.vertices) == torus.n_vertices
     assert np.allclose(loaded.vertices, torus.vertices, atol=1e-6)
-    empty = encode_glb(None)
+    empty = glb_bytes(None, web=True)
     assert json.loads(empty[20:].decode().strip())["scenes"] == [{"nodes": []}]
     st = mesh_stats(torus)
     m = measure_mesh(torus)

@@ -1,0 +1,314 @@
+"""One shape of a sampling run: draw, evaluate, mesh, judge, describe and stage its files.
+
+Shape ``i`` is a pure function of ``(seed, i, config)`` (:func:`make_shape`), computed in a worker
+process; :mod:`surfgen.pipelines.run.sampling` drives the workers and commits the outcomes.
+The cascade (:func:`_judge`) turns every known failure into a rejected verdict with its reason.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from surfgen.filters.descriptor import (
+    descriptor,
+    descriptor_from_text,
+    descriptor_to_text,
+)
+from surfgen.filters.shape import quality_metrics
+from surfgen.filters.verdict import (
+    ACCEPT,
+    Verdict,
+    judge,
+    plain,
+    quick_metrics,
+    screen_field,
+    shape_metrics,
+)
+from surfgen.generator.errors import EmptySurface
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.files import write_atomic
+from surfgen.generator.formula.expr import Expr
+from surfgen.generator.mesh.exchange import encode_mesh
+from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas
+from surfgen.generator.mesh.walls import label_walls
+from surfgen.generator.model.draw import Draw
+from surfgen.generator.model.families.carving import envelope_departure
+from surfgen.generator.model.sampler import SAMPLER_VERSION, choose_d, draw_equation
+from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.run.config import Config
+from surfgen.pipelines.run.duplicates import AcceptedDescriptors
+
+log = logging.getLogger(__name__)
+
+METRIC_DIGITS = 10  # significant digits kept in stored metrics
+
+
+# Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
+FILE_FIELDS = (
+    ("mesh_path", "mesh_file"),
+    ("thumb_path", "thumb_file"),
+    ("turntable_path", "turntable_file"),
+)
+
+
+@dataclass(frozen=True)
+class ShapeOutcome:
+    """What a worker hands back for one index: the row to store and its files, either staged
+    on the driver's disk (``*_file``) or, from a remote worker, as bytes (``data``: pairs of
+    a ``*_file`` field name and the file's bytes)."""
+
+    index: int
+    row: dict[str, Any]
+    verdict: Verdict
+    mesh_file: Path | None = None
+    thumb_file: Path | None = None
+    turntable_file: Path | None = None
+    data: tuple[tuple[str, bytes], ...] = ()
+    write_error: str | None = None  # the shape's files could not be written (disk full...)
+    # The row at the near-duplicate check (the row a duplicate gets), and whether the worker
+    # stopped there because it already knew of an accepted shape near this one.
+    early_row: dict[str, Any] | None = None
+    early_stop: bool = False
+
+
+def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for k, v in sorted(m.items()):
+        if isinstance(v, float):
+            v = float(f"{v:.{METRIC_DIGITS - 1}e}") if np.isfinite(v) else None
+        elif isinstance(v, list | tuple):
+            v = [float(f"{x:.{METRIC_DIGITS - 1}e}") if isinstance(x, float) else x for x in v]
+        out[k] = v
+    return out
+
+
+class Stopwatch:
+    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``filters``, ``describe``,
+    ``io``, ``pictures``)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self._last
+        self._last = now
+
+
+def make_shape(
+    index: int,
+    *,
+    seed: int,
+    config: Config,
+    staging: Path | None = None,
+    pictures: bool = False,
+    duplicates: AcceptedDescriptors | None = None,
+) -> ShapeOutcome:
+    """Draw, evaluate, mesh, measure and judge shape ``index``: a pure function of its inputs
+    (timings aside). Known failures become a rejected verdict with its reason.
+
+    With near-duplicate rejection on, a mesh that passes the cheap checks is described there
+    and the outcome carries that point's row (``early_row``): the parent rejects the shape as a
+    duplicate with that row if an accepted shape is near it (:func:`~surfgen.pipelines.run.sampling._drive`), so that verdict
+    does not depend on the later checks. ``duplicates`` (a worker's view of the shapes already
+    accepted) lets the worker stop there when it already knows; the row is the same."""
+    watch = Stopwatch()
+    draw = draw_equation(seed, index, config.sampler)
+    d = choose_d(draw, config.sampler, threads=1)  # one process per core: numba serial inside
+    equation = draw.equation.with_d(d or 0.0)
+    tree = equation.to_tree()
+    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
+    spec = SurfaceSpec.from_tree(
+        tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
+    )
+    watch.lap("eval")
+    verdict, metrics, mesh, rest = _judge(tree, spec, d, config, watch, draw)
+
+    def row_for(verdict: Verdict) -> dict[str, Any]:
+        return {
+            "key": spec.key,
+            "spec": spec.to_json(),
+            "formula": spec.formula,
+            "identity": spec.identity,
+            "d": d,
+            "model": model_json(draw, equation),
+            **_metric_columns(_round_metrics(metrics)),
+            "verdict": "accepted" if verdict.accepted else "rejected",
+            "reasons": json.dumps(list(verdict.reasons)),
+        }
+
+    early = described = None
+    if verdict.accepted and config.run.dedupe:  # where near duplicates are judged
+        described = descriptor_to_text(descriptor(mesh))
+        watch.lap("describe")
+        early = dict(row_for(DUPLICATE), descriptor=described)
+        # compared as stored (rounded), as the parent compares it
+        if duplicates is not None and duplicates.near(descriptor_from_text(described)):
+            early["timings"] = _timings(watch)
+            return ShapeOutcome(index, dict(early), DUPLICATE, early_row=early, early_stop=True)
+    if verdict.accepted:
+        verdict = rest()
+    row = row_for(verdict)
+    out = ShapeOutcome(index, row, verdict, early_row=early)
+    if verdict.accepted and mesh is not None:
+        row["descriptor"] = described or descriptor_to_text(descriptor(mesh))
+        watch.lap("describe")
+        if staging is not None:
+            try:
+                out = _with_files(out, mesh, staging, pictures, watch)
+            except OSError as exc:  # not a verdict on the shape: the run must stop
+                return ShapeOutcome(index, row, verdict, write_error=write_error(exc, staging))
+    row["timings"] = _timings(watch)
+    if early is not None:
+        early["timings"] = row["timings"]
+    return out
+
+
+DUPLICATE = Verdict.reject("duplicate")
+
+
+def _timings(watch: Stopwatch) -> str:
+    return json.dumps({k: round(v, 4) for k, v in watch.seconds.items()}, sort_keys=True)
+
+
+def model_json(draw: Draw, equation) -> str:
+    return json.dumps(draw.model_dict(equation), sort_keys=True, separators=(",", ":"))
+
+
+def _judge(
+    tree: Expr,
+    spec: SurfaceSpec,
+    d: float | None,
+    config: Config,
+    watch: Stopwatch,
+    draw: Draw | None = None,
+) -> tuple[Verdict, dict[str, Any], Mesh | None, Callable[[], Verdict]]:
+    """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
+    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the full mesh
+    checks and the shape-quality metrics of an accepted mesh. Returns the cheap checks'
+    verdict, the metrics (``rest()`` adds to them), the mesh (if made) and ``rest``."""
+    fcfg, run = config.filters, config.run
+    metrics: dict[str, Any] = {}
+
+    def stop(verdict: Verdict, mesh: Mesh | None = None):
+        return verdict, metrics, mesh, lambda: verdict
+
+    if d is None:
+        return stop(Verdict.reject("no_crossing"))
+    box = Box.from_bounds(spec.box)
+    coarse = evaluate(tree, Grid(box, (fcfg.coarse_grid,) * 3), threads=1)
+    verdict = screen_field(coarse.values, spec.level, fcfg, coarse=True, capped=run.cap)
+    watch.lap("eval")
+    if not verdict.accepted:
+        return stop(verdict)
+    field_ = evaluate(tree, spec.to_grid(), threads=1)
+    metrics["nonfinite"] = field_.nonfinite
+    verdict = screen_field(field_.values, spec.level, fcfg, coarse=False)
+    if verdict.accepted and draw is not None and draw.envelope is not None:
+        envelope = evaluate(draw.envelope, spec.to_grid(), threads=1).values
+        metrics["departure"] = envelope_departure(field_.values, envelope, spec.level)
+        if plain(metrics, fcfg):  # no need to mesh it
+            verdict = Verdict.reject("plain")
+    watch.lap("eval")
+    if not verdict.accepted:
+        return stop(verdict)
+    # Without its walls a capped solid is open on purpose: do not ask it to be watertight.
+    capped = run.cap and run.walls != "remove"
+    try:
+        mesh, edges = extract_with_edges(field_, spec.level, cap=capped)
+        areas = face_areas(mesh)  # the walls' and the filters' (computed once)
+        if run.walls != "keep":  # the mesh itself depends on the classification
+            mesh, crossings = label_walls(
+                mesh, edges, field_, tree, {}, spec.level, run.cap, run.walls, areas
+            )
+            metrics["wall_fraction"] = crossings.wall_fraction
+            if run.walls == "remove":  # fewer faces
+                areas = face_areas(mesh)
+    except EmptySurface:
+        return stop(Verdict.reject("empty"))
+    finally:
+        watch.lap("mesh")
+    # Cheap checks first (most draws fail them)...
+    quick = quick_metrics(mesh, spec.box, areas)
+    metrics.update(quick)
+    verdict = judge(metrics, fcfg, capped=capped)
+    watch.lap("filters")
+
+    def rest() -> Verdict:
+        verdict = ACCEPT
+        if "wall_fraction" not in metrics:
+            # ...then the walls (root, pole or jump for every crossing: refines with the formula)
+            _, crossings = label_walls(
+                mesh, edges, field_, tree, {}, spec.level, run.cap, "keep", areas
+            )
+            metrics["wall_fraction"] = crossings.wall_fraction
+            watch.lap("walls")
+            verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
+            metrics.update(shape_metrics(mesh, spec.box, quick=quick))
+            verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted:
+            metrics.update(quality_metrics(mesh, metrics))
+        watch.lap("filters")
+        return verdict
+
+    return verdict, metrics, mesh, rest
+
+
+def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:
+    cols = {
+        k: m.get(k) for k in ("faces", "vertices", "components", "genus", "euler", "area", "volume")
+    }
+    cols["metrics"] = json.dumps(m, sort_keys=True, separators=(",", ":"))
+    return cols
+
+
+def _with_files(
+    out: ShapeOutcome, mesh: Mesh, staging: Path, pictures: bool, watch: Stopwatch
+) -> ShapeOutcome:
+    """Write the accepted shape's files into the run's staging folder; the parent moves them
+    into the catalogue when it commits the row (so a discarded index leaves nothing behind).
+
+    Only the thumbnail is rendered here (contact sheets and the gallery grid show every one);
+    the 12-view turntable, which most shapes never get hovered for, is rendered the first
+    time it is asked for (:func:`surfgen.pipelines.pictures.gallery.ensure_turntable`)."""
+    key = out.row["key"]
+    mesh_file = write_atomic(staging / f"{key}.ply", encode_mesh(mesh, "ply"))
+    watch.lap("io")
+    thumb = None
+    if pictures:
+        from surfgen.pipelines.pictures.raster import THUMBNAIL_SIZE, render_thumbnail
+
+        thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
+        watch.lap("pictures")
+    return replace(out, mesh_file=mesh_file, thumb_file=thumb)
+
+
+def make_shape_packed(
+    index: int, *, seed: int, config: Config, pictures: bool = False
+) -> ShapeOutcome:
+    """:func:`make_shape` for a worker that shares no disk with the driver: the accepted
+    shape's files are made in a temporary folder and handed back as bytes in ``data``."""
+    with tempfile.TemporaryDirectory(prefix="surfgen-shape-") as tmp:
+        out = make_shape(index, seed=seed, config=config, staging=Path(tmp), pictures=pictures)
+        data = tuple(
+            (name, getattr(out, name).read_bytes())
+            for _, name in FILE_FIELDS
+            if getattr(out, name) is not None
+        )
+    return replace(out, mesh_file=None, thumb_file=None, data=data)
+
+
+def write_error(exc: OSError, staging: Path) -> str:
+    return f"{exc.filename or staging}: {exc.strerror}"

@@ -1,0 +1,100 @@
+"""The table of mesh formats, the one encoder and the one GLB writer (bytes pinned)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+
+from surfgen.generator.errors import MeshError
+from surfgen.generator.mesh.exchange import encode_mesh, glb_bytes, load_mesh, mesh_format
+from surfgen.generator.mesh.formats import (
+    DATASET_FORMATS,
+    EXPORT_FORMATS,
+    FORMATS,
+    MARKABLE,
+    MESH_SUFFIXES,
+    PRINTABLE,
+)
+from surfgen.generator.mesh.mesh import CAP, POLE, ROOT, Mesh
+
+TETRA = Mesh(
+    np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float),
+    np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]),
+)
+# sha256 of what the viewer's GLB writer (explore.encode_glb before the table) gave.
+WEB_TETRA = "06f17c6635eb6ec89f9bb74b3878316dc3c9943ced160450140d4aabd00f0576"
+WEB_EMPTY = "509d76ee41a292c74ec4b062950a91b765166c9de9546c1c7fcd0b7f2dd918ef"
+
+
+def test_the_lists_read_from_the_table_are_the_ones_commands_printed() -> None:
+    assert MESH_SUFFIXES == (".ply", ".obj", ".stl", ".off", ".glb")
+    assert EXPORT_FORMATS == ("stl", "obj", "ply", "glb", "3mf")
+    assert (MARKABLE, PRINTABLE, DATASET_FORMATS) == (
+        ("ply", "glb"),
+        ("stl", "3mf"),
+        ("ply", "glb"),
+    )
+    assert FORMATS["3mf"].needs == "lxml" and not FORMATS["3mf"].mesh_file
+    assert all(FORMATS[name].suffix == f".{name}" for name in FORMATS)
+
+
+def test_mesh_format_by_suffix_any_case() -> None:
+    assert mesh_format("a/b.PLY") is FORMATS["ply"]
+    for name in ("x.3mf", "x.txt", "x"):
+        with pytest.raises(MeshError, match=r"the suffix must be one of \.ply, \.obj"):
+            mesh_format(name)
+
+
+def test_web_glb_bytes_are_pinned() -> None:
+    marked = Mesh(TETRA.vertices, TETRA.faces, np.array([ROOT, POLE, ROOT, CAP]))
+    assert hashlib.sha256(glb_bytes(TETRA, web=True)).hexdigest() == WEB_TETRA
+    assert hashlib.sha256(glb_bytes(marked, web=True)).hexdigest() == WEB_TETRA  # no colours
+    empty = glb_bytes(None, web=True)
+    assert hashlib.sha256(empty).hexdigest() == WEB_EMPTY
+    assert json.loads(empty[20:].decode().strip())["scenes"] == [{"nodes": []}]
+    assert glb_bytes(Mesh(np.zeros((0, 3)), np.zeros((0, 3))), web=True) == empty
+
+
+def test_file_glb_is_trimeshs_and_marks_walls(torus_mesh: Mesh) -> None:
+    plain = trimesh.Trimesh(torus_mesh.vertices, torus_mesh.faces, process=False)
+    assert glb_bytes(torus_mesh) == plain.export(file_type="glb")  # the dataset's GLB
+    assert encode_mesh(torus_mesh, "glb") == glb_bytes(torus_mesh)
+    kinds = np.zeros(torus_mesh.n_faces, dtype=np.uint8)
+    kinds[::7] = POLE
+    marked = Mesh(torus_mesh.vertices, torus_mesh.faces, kinds)
+    data = glb_bytes(marked)
+    assert data != glb_bytes(torus_mesh)
+    magic, version, length = struct.unpack("<III", data[:12])
+    assert (magic, version, length) == (0x46546C67, 2, len(data))
+    with pytest.raises(MeshError):
+        glb_bytes(None)
+
+
+@pytest.mark.parametrize("name", [n for n, f in FORMATS.items() if f.mesh_file])
+def test_every_mesh_file_format_round_trips(name: str, tmp_path, torus_mesh: Mesh) -> None:
+    path = tmp_path / f"t.{name}"
+    path.write_bytes(encode_mesh(torus_mesh, FORMATS[name]))
+    back = load_mesh(path)
+    assert back.n_faces == torus_mesh.n_faces
+    assert np.allclose(
+        np.sort(back.vertices, axis=0), np.sort(torus_mesh.vertices, axis=0), atol=1e-6
+    )
+
+
+def test_only_markable_formats_carry_kinds(tmp_path, torus_mesh: Mesh) -> None:
+    kinds = np.zeros(torus_mesh.n_faces, dtype=np.uint8)
+    kinds[::5] = POLE
+    marked = Mesh(torus_mesh.vertices, torus_mesh.faces, kinds)
+    for name, fmt in FORMATS.items():
+        if not fmt.mesh_file:
+            continue
+        same = encode_mesh(marked, fmt) == encode_mesh(torus_mesh, fmt)
+        assert same != fmt.marks_walls, name
+    path = tmp_path / "m.ply"
+    path.write_bytes(encode_mesh(marked, "ply"))
+    assert np.array_equal(load_mesh(path).face_kinds, kinds)
