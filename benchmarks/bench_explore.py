@@ -64,8 +64,8 @@ def main() -> None:
 
     from surfgen.generator.model.spec import SurfaceSpec
     from surfgen.pipelines.catalogue.store import open_catalogue
-    from surfgen.pipelines.pictures.gallery import make_server, server_url
     from surfgen.pipelines.studies.explore import apply_changes, warm_up
+    from surfgen.pipelines.web.app import make_server, server_url
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-explore-"))
     root = args.catalogue

@@ -15,8 +15,10 @@ from PIL import Image
 
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.pictures import gallery
-from surfgen.pipelines.pictures.gallery import create_app, ensure_turntable, render_pictures
+from surfgen.pipelines.pictures import thumbnails
+from surfgen.pipelines.pictures.thumbnails import ensure_turntable, render_pictures
+from surfgen.pipelines.web import site
+from surfgen.pipelines.web.app import create_app
 from tests.support.browser import (
     ARTEFACTS,
     CHROMIUM,
@@ -201,14 +203,15 @@ def renders(monkeypatch) -> list[str]:
     """The file names of the turntables drawn and recorded in the catalogue, in order: by the
     live gallery or for a batch (drawn on any process, recorded by the parent)."""
     calls: list[str] = []
-    record = gallery._record_picture
+    record = thumbnails.record_picture
 
     def recording(cat, key, kind, data):
         if kind == "turntable":
             calls.append(f"{key}.png")
         return record(cat, key, kind, data)
 
-    monkeypatch.setattr(gallery, "_record_picture", recording)
+    monkeypatch.setattr(thumbnails, "record_picture", recording)
+    monkeypatch.setattr(site, "record_picture", recording)
     return calls
 
 

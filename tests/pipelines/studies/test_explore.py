@@ -20,7 +20,6 @@ from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.pictures.gallery import create_app
 from surfgen.pipelines.studies.explore import (
     MAX_POINTS,
     ExploreError,
@@ -34,6 +33,7 @@ from surfgen.pipelines.studies.explore import (
     mesh_stats,
     replace_literals,
 )
+from surfgen.pipelines.web.app import create_app
 from tests.support.browser import build_catalogue
 
 SPHERE = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (24,) * 3)
