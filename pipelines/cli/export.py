@@ -13,6 +13,7 @@ from typing import Annotated
 
 import typer
 
+from surfgen.generator.formula.limits import parse_size
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
 from surfgen.pipelines.cli.common import CatalogueOption, MaxMemoryOption
 
@@ -73,7 +74,6 @@ def export_command(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from surfgen.filters.cleanup import CleanupOptions
-    from surfgen.generator.formula.limits import parse_size
     from surfgen.pipelines.export.mathmod_scripts import SCRIPT_FORMATS, export_scripts
     from surfgen.pipelines.export.meshes import (
         PRINTABLE,

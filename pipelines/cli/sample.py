@@ -16,6 +16,8 @@ from typing import Annotated, Any
 import typer
 
 from surfgen.generator.errors import SpecError
+from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
+from surfgen.generator.formula.limits import MAX_COUNT, check_count, check_seed, parse_size
 from surfgen.pipelines.cli.common import MaxMemoryOption, echo_err, quiet_after_interrupt
 
 SHOWN_SETUP = 5.0  # seconds: a sampling run's setup is mentioned from this long on
@@ -79,8 +81,6 @@ def sample(
         TimeRemainingColumn,
     )
 
-    from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
-    from surfgen.generator.formula.limits import MAX_COUNT, check_count, check_seed, parse_size
     from surfgen.pipelines.run.config import load_config
     from surfgen.pipelines.run.sampling import run_sample
 
