@@ -29,8 +29,9 @@ from benchmarks import harness
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import select_shapes
 from surfgen.pipelines.catalogue.store import open_catalogue
-from surfgen.pipelines.pictures.gallery import make_server, server_url
-from surfgen.pipelines.studies.explore import apply_changes, warm_up
+from surfgen.pipelines.studies.explore import warm_up
+from surfgen.pipelines.studies.knobs import apply_changes
+from surfgen.pipelines.web.app import make_server, server_url
 
 SURFGEN = str(Path(sys.executable).parent / "surfgen")  # the venv's console script
 

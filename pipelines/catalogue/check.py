@@ -23,14 +23,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated
-
-import typer
 
 from surfgen.generator.errors import SurfgenError
 from surfgen.pipelines.catalogue.store import (
     DB_NAME,
-    DEFAULT_CATALOGUE,
     META,
     SCHEMA,
     CatalogueError,
@@ -324,33 +320,3 @@ def _rebuild_files(cat, row: dict) -> None:
             "UPDATE shapes SET mesh_path=?, thumb_path=?, turntable_path=? WHERE key=?",
             (f"meshes/{key}.ply", f"thumbs/{key}.png", f"turntables/{key}.png", key),
         )
-
-
-def check_cmd(
-    catalogue: Annotated[
-        Path,
-        typer.Option("--catalogue", "-C", envvar="SURFGEN_CATALOGUE", help="Catalogue folder."),
-    ] = DEFAULT_CATALOGUE,
-    repair: Annotated[
-        bool,
-        typer.Option(help="Rebuild what can be rebuilt (database rows, files from specs)."),
-    ] = False,
-) -> None:
-    """Check a catalogue: database integrity, files against rows, orphans; --repair mends."""
-    report = check_catalogue(
-        catalogue, repair=repair, progress=lambda key: typer.echo(f"rebuilding {key}", err=True)
-    )
-    for line in report.lines():
-        typer.echo(line)
-    left = report.problems + len(report.unrepaired)
-    if left and not repair:
-        typer.echo("run `surfgen catalogue check --repair` to mend what can be rebuilt")
-    if left:
-        raise typer.Exit(1)
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen catalogue check`` (to the ``catalogue`` group of curation.py)."""
-    from surfgen.pipelines.catalogue.curation import catalogue_app
-
-    catalogue_app.command("check")(check_cmd)

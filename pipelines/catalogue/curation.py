@@ -16,20 +16,16 @@ import logging
 import re
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import numpy as np
-import typer
 
 from surfgen.generator.formula.limits import MAX_COUNT, MAX_STARS
 from surfgen.pipelines.catalogue.query import WhereError, parse_sort, parse_where
 from surfgen.pipelines.catalogue.store import (
-    DEFAULT_CATALOGUE,
     Catalogue,
     CatalogueError,
     now,
-    open_catalogue,
 )
 
 log = logging.getLogger(__name__)
@@ -254,13 +250,44 @@ def _action_sql(key: str, action: str, value: Any) -> tuple[list[str], list[tupl
         if len(text) > MAX_NOTE:
             raise CurationError(f"the note is {len(text)} characters (at most {MAX_NOTE})")
         return ["UPDATE shapes SET note=? WHERE key=?"], [(text or None, key)], text
-    if (
-        action == "derive"
-    ):  # value: the row of a variant of `key` (surfgen.pipelines.studies.explore)
-        from surfgen.pipelines.studies.explore import derive_sql
-
+    if action == "derive":  # value: the row of a variant of `key` (studies/explore.py)
         return derive_sql(value, now())
     raise CurationError(f"unknown action '{action}' (actions: {', '.join(ACTIONS)})")
+
+
+DERIVED_RUN = "derived"  # config_hash of the catalogue's run that holds saved variants
+_DERIVED_RUN_SQL = (
+    "INSERT OR IGNORE INTO runs (seed, n, grid, config, config_hash, sampler_version, versions,"
+    " started, status) VALUES (0, 0, 0, '{}', ?, 0, '{}', ?, 'derived')"
+)
+_ROW_COLUMNS = (
+    "key", "spec", "formula", "identity", "d", "verdict", "reasons", "metrics", "faces",
+    "vertices", "components", "genus", "euler", "area", "volume", "mesh_path", "thumb_path",
+    "turntable_path",
+)  # fmt: skip
+
+
+def derive_sql(row: Any, at: str) -> tuple[list[str], list[tuple], str]:
+    """SQL for the ``derive`` action (a variant saved by :mod:`surfgen.pipelines.studies.explore`):
+    make sure the catalogue has its run of saved variants (config_hash :data:`DERIVED_RUN`),
+    insert ``row`` as its next shape and count it. Returns statements, their parameters and the
+    value to log (the new key). Raises :class:`CurationError` for an incomplete row."""
+    if not isinstance(row, dict) or set(row) != set(_ROW_COLUMNS):
+        raise CurationError("derive: the new shape's row is incomplete")
+    run = "(SELECT id FROM runs WHERE config_hash=? AND status='derived')"
+    cols = ["run", "idx", *_ROW_COLUMNS]
+    marks = ",".join(["?"] * len(_ROW_COLUMNS))
+    insert = (
+        f"INSERT INTO shapes ({','.join(cols)}) VALUES ({run}, "
+        f"(SELECT next_index FROM runs WHERE id={run}), {marks})"
+    )
+    bump = f"UPDATE runs SET next_index=next_index+1, accepted=accepted+1, n=n+1 WHERE id={run}"
+    values = tuple(row[c] for c in _ROW_COLUMNS)
+    return (
+        [_DERIVED_RUN_SQL, insert, bump],
+        [(DERIVED_RUN, at), (DERIVED_RUN, DERIVED_RUN, *values), (DERIVED_RUN,)],
+        str(row["key"]),
+    )
 
 
 # ----------------------------------------------------------------------------- de-duplication
@@ -361,202 +388,3 @@ def dedupe_catalogue(
         threshold,
     )
     return DedupeResult(len(descriptors), computed, marked, missing)
-
-
-# ----------------------------------------------------------------------------- CLI
-
-CatalogueOption = Annotated[
-    Path,
-    typer.Option("--catalogue", "-C", envvar="SURFGEN_CATALOGUE", help="Catalogue folder."),
-]
-catalogue_app = typer.Typer(no_args_is_help=True, help="Browse and curate the catalogue.")
-
-
-def _emit_json(obj: Any) -> None:
-    typer.echo(json.dumps(obj, indent=2, default=str))
-
-
-def _num(v: Any, fmt: str = "g") -> str:
-    return "-" if v is None else format(v, fmt)
-
-
-def _flags(rec: dict[str, Any]) -> str:
-    out = []
-    if rec["verdict"] != "accepted":
-        out.append("filtered:" + ",".join(rec["reasons"]))
-    if rec["rejected"]:
-        out.append("rejected")
-    if rec["duplicate_of"]:
-        out.append(f"dup:{rec['duplicate_of'][:8]}")
-    return " ".join(out)
-
-
-@catalogue_app.command("list")
-def list_cmd(
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    where: Annotated[
-        str | None, typer.Option(help="Filter, e.g. 'genus >= 2 and tag = nice'.")
-    ] = None,
-    sort: Annotated[
-        str | None, typer.Option(help="FIELD or -FIELD (descending), comma-separated.")
-    ] = None,
-    limit: Annotated[int | None, typer.Option(help="At most this many shapes.")] = None,
-    everything: Annotated[
-        bool, typer.Option("--all", help="Include the draws the filters rejected.")
-    ] = False,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON records.")] = False,
-) -> None:
-    """List shapes, filtered and sorted by their metrics, tags and curation."""
-    with open_catalogue(catalogue, readonly=True) as cat:
-        recs = select_shapes(cat, where=where, sort=sort, limit=limit, everything=everything)
-    if as_json:
-        _emit_json(recs)
-        return
-    typer.echo(
-        f"{'key':<16} {'run':>3} {'index':>5} {'genus':>5} {'comp':>4} {'faces':>7} "
-        f"{'area':>8}  {'stars':<5} tags"
-    )
-    for r in recs:
-        stars = "*" * r["stars"] or "-"
-        extra = " ".join(filter(None, [",".join(r["tags"]), _flags(r)]))
-        typer.echo(
-            f"{r['key']:<16} {r['run']:>3} {r['index']:>5} {_num(r['genus']):>5} "
-            f"{_num(r['components']):>4} {_num(r['faces']):>7} {_num(r['area'], '.4g'):>8}  "
-            f"{stars:<5} {extra}".rstrip()
-        )
-    typer.echo(f"{len(recs)} shape{'s' if len(recs) != 1 else ''}", err=True)
-
-
-@catalogue_app.command("show")
-def show_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-) -> None:
-    """Everything about one shape: formula, spec, metrics, curation, files, provenance."""
-    with open_catalogue(catalogue, readonly=True) as cat:
-        rec = get_shape(cat, key)
-    if as_json:
-        _emit_json(rec)
-        return
-    prov = rec["provenance"]
-    lines = [
-        f"key        {rec['key']}",
-        f"formula    {rec['formula']}",
-        f"box        {rec['spec'].get('box')}   grid {rec['spec'].get('grid')}   level {rec['spec'].get('level')}",
-        f"verdict    {rec['verdict']}"
-        + (f" ({', '.join(rec['reasons'])})" if rec["reasons"] else ""),
-        f"run        {rec['run']}  index {rec['index']}  seed {prov.get('seed')}  "
-        f"sampler {prov.get('sampler')}  config {prov.get('config')}",
-        f"stars      {rec['stars']}",
-        f"tags       {' '.join(rec['tags']) or '-'}",
-        f"rejected   {rec['rejected'] or '-'}",
-        f"note       {rec['note'] or '-'}",
-        f"duplicate  {rec['duplicate_of'] or '-'}",
-        f"files      {', '.join(p for p in (rec['mesh'], rec['thumb'], rec['turntable']) if p) or '-'}",
-        "metrics",
-    ]
-    lines += [f"  {k:<28} {v}" for k, v in sorted(rec["metrics"].items())]
-    typer.echo("\n".join(lines))
-
-
-def _report(rec: dict[str, Any]) -> None:
-    typer.echo(
-        f"{rec['key']}: stars {rec['stars']}, tags {' '.join(rec['tags']) or '-'}"
-        f", rejected {rec['rejected'] or '-'}, note {rec['note'] or '-'}"
-    )
-
-
-@catalogue_app.command("star")
-def star_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    stars: Annotated[int, typer.Argument(help=f"Stars 0-{MAX_STARS} (0 removes them).")] = 1,
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Give a shape stars."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "star", stars))
-
-
-@catalogue_app.command("reject")
-def reject_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    why: Annotated[str, typer.Option("--why", help="Why it is rejected (required).")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Reject a shape by hand (it stays in the catalogue, hidden from the gallery)."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "reject", why))
-
-
-@catalogue_app.command("unreject")
-def unreject_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Undo a curator's rejection."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "unreject"))
-
-
-@catalogue_app.command("tag")
-def tag_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    tags: Annotated[list[str], typer.Argument(help="One or more tags.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Add tags to a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "tag", tags))
-
-
-@catalogue_app.command("untag")
-def untag_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    tags: Annotated[list[str], typer.Argument(help="One or more tags.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Remove tags from a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "untag", tags))
-
-
-@catalogue_app.command("note")
-def note_cmd(
-    key: Annotated[str, typer.Argument(help="Shape key or unique prefix.")],
-    text: Annotated[str, typer.Argument(help="The note ('' removes it).")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-) -> None:
-    """Write a note on a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "note", text))
-
-
-@catalogue_app.command("dedupe")
-def dedupe_cmd(
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    threshold: Annotated[
-        float | None,
-        typer.Option(
-            help="Descriptor distance below which shapes are duplicates (in units of the calibrated scales; default 1)."
-        ),
-    ] = None,
-    dry_run: Annotated[bool, typer.Option(help="Report, change nothing.")] = False,
-) -> None:
-    """Mark near-duplicate shapes (close shape descriptors) with the key they copy."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        res = dedupe_catalogue(cat, threshold, dry_run=dry_run)
-    for key, of, dist in res.marked:
-        typer.echo(f"{key} duplicates {of} (distance {dist:.4f})")
-    typer.echo(
-        f"{len(res.marked)} near duplicate{'s' if len(res.marked) != 1 else ''} among {res.checked} "
-        f"accepted shapes ({res.computed} descriptors computed"
-        + (f", {len(res.missing)} without mesh" if res.missing else "")
-        + ")"
-        + (" — dry run, nothing written" if dry_run else "")
-    )
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen catalogue ...`` to the CLI."""
-    app.add_typer(catalogue_app, name="catalogue")

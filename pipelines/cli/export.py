@@ -7,23 +7,20 @@ the command runs, so that the other commands, ``--help`` included, do not load i
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, MARKABLE, PRINTABLE
-from surfgen.pipelines.catalogue.curation import CatalogueOption
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
+from surfgen.pipelines.cli.common import CatalogueOption, MaxMemoryOption
 
 # ``CleanupOptions.min_component`` (surfgen.filters.cleanup), here without importing pymeshlab;
 # tests/pipelines/test_export.py checks that the two agree.
 MIN_COMPONENT = 1e-3
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen export`` to ``app``."""
-    app.command("export")(export_command)
 
 
 def export_command(
@@ -77,25 +74,15 @@ def export_command(
         ),
     ] = "keep",
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list.")] = False,
-    max_memory: Annotated[
-        str | None,
-        typer.Option(
-            "--max-memory",
-            help="Refuse work estimated to need more memory than this (e.g. 4G; "
-            "default: the machine's available memory).",
-        ),
-    ] = None,
+    max_memory: MaxMemoryOption = None,
 ) -> None:
     """Clean up (and optionally remesh and smooth) shapes and write print- or render-ready files."""
-    import sys
-
+    # Deferred (see the module's docstring); rich only draws the bar.
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from surfgen.filters.cleanup import CleanupOptions
-    from surfgen.generator.formula.limits import parse_size
     from surfgen.pipelines.export.mathmod_scripts import SCRIPT_FORMATS, export_scripts
     from surfgen.pipelines.export.meshes import (
-        PRINTABLE,
         ExportOptions,
         export_shapes,
         jsonable,

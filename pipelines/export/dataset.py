@@ -1,4 +1,5 @@
-"""The catalogue as a machine-learning dataset: ``surfgen dataset export`` and ``verify``.
+"""The catalogue as a machine-learning dataset: ``surfgen dataset export`` (its card:
+:mod:`surfgen.pipelines.export.dataset_card`; ``verify``: :mod:`surfgen.pipelines.export.dataset_verify`).
 
 ``export_dataset`` writes, for the accepted shapes a ``--where`` selects (ordered by key)::
 
@@ -13,42 +14,41 @@ with fixed times, owners and order; zip members of ``.npz`` with a fixed date; P
 by one pyarrow version; no clock anywhere). The output is built in a temporary folder beside
 ``DIR`` and renamed into place, so a failed export leaves nothing behind.
 
-``verify_dataset`` regenerates sampled rows from their provenance (seed, index, the run's
+:func:`~surfgen.pipelines.export.dataset_verify.verify_dataset` regenerates sampled rows from their provenance (seed, index, the run's
 config) and compares the key, spec, metrics and the hashes of mesh, points and SDF samples.
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
+import importlib.util
 import io
 import json
 import logging
 import os
-import shlex
 import shutil
 import tarfile
 import tempfile
 import zipfile
 from collections import Counter
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Any
 
 import numpy as np
-import typer
 
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.eval.reference import evaluate_points
 from surfgen.generator.files import renaming, write_atomic
+from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
 from surfgen.generator.mesh.formats import DATASET_FORMATS
+from surfgen.generator.mesh.mesh import Mesh
 from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.catalogue.curation import CatalogueOption, select_shapes
-from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
-
-if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
-    from surfgen.generator.mesh.mesh import Mesh
+from surfgen.pipelines.catalogue.curation import select_shapes
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.export.dataset_card import dataset_card
+from surfgen.pipelines.studies.report import report_stats
 
 log = logging.getLogger(__name__)
 
@@ -102,9 +102,8 @@ class ExportSummary:
     splits: dict[str, int]
 
 
-def _need_pyarrow() -> None:
-    import importlib.util
-
+def need_pyarrow() -> None:
+    """Raise :class:`DatasetError` unless pyarrow, an optional dependency, is installed."""
     if importlib.util.find_spec("pyarrow") is None:
         raise DatasetError("surfgen dataset needs pyarrow: pip install 'surfgen[dataset]'")
 
@@ -199,14 +198,11 @@ def mesh_bytes(mesh_file: Path, fmt: str) -> bytes:
     """The mesh in ``fmt``: the catalogue's PLY as it is, or converted (without wall labels)."""
     if fmt == "ply":
         return mesh_file.read_bytes()
-    from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
-    from surfgen.generator.mesh.mesh import Mesh
-
     mesh = load_mesh(mesh_file)
     return encode_mesh(Mesh(mesh.vertices, mesh.faces), fmt)
 
 
-def _sha(data: bytes) -> str:
+def sha256_hex(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
@@ -242,8 +238,6 @@ def _members(
     if rec["thumb"] and (root / rec["thumb"]).is_file():
         out["thumb"] = (f"{key}.png", (root / rec["thumb"]).read_bytes())
     if options.points or options.sdf:
-        from surfgen.generator.mesh.exchange import load_mesh
-
         mesh = load_mesh(mesh_file)
         if options.points:
             data = npy_bytes(surface_points(mesh, options.points, key))
@@ -296,7 +290,7 @@ def export_dataset(
     docstring). Raises :class:`DatasetError` for a non-empty ``out_dir``, bad options or no
     matching shape, ``CatalogueError``/``WhereError`` for a missing catalogue or bad ``where``.
     Nothing is written unless the whole export succeeds."""
-    _need_pyarrow()
+    need_pyarrow()
     options = options or DatasetOptions()
     out_dir = Path(out_dir)
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
@@ -321,8 +315,6 @@ def export_dataset(
                 run_ids,
             )
         ]
-        from surfgen.pipelines.studies.report import report_stats
-
         stats = report_stats(cat)
         root = cat.root
     parent = out_dir.absolute().parent
@@ -370,7 +362,7 @@ def _write_export(
                 for kind in MEMBERS:
                     member, data = members.get(kind, (None, None))
                     row[f"{kind}_file"] = member
-                    row[f"{kind}_sha256"] = None if data is None else _sha(data)
+                    row[f"{kind}_sha256"] = None if data is None else sha256_hex(data)
                     if data is not None:
                         _add(tar, member, data)
                         total += len(data)
@@ -419,7 +411,7 @@ def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:
 
 def _metric_column(values: list[Any]):
     """A pyarrow array for one metric, typed from its values (JSON text if they are mixed)."""
-    import pyarrow as pa
+    import pyarrow as pa  # optional: the dataset extra
 
     try:
         return pa.array(values)
@@ -428,7 +420,7 @@ def _metric_column(values: list[Any]):
 
 
 def _write_parquet(path: Path, rows: list[dict[str, Any]]) -> None:
-    import pyarrow as pa
+    import pyarrow as pa  # optional: the dataset extra
     import pyarrow.parquet as pq
 
     metric_names = sorted({k for r in rows for k in r["metrics"]})
@@ -460,396 +452,3 @@ def _write_parquet(path: Path, rows: list[dict[str, Any]]) -> None:
     buf = pa.BufferOutputStream()
     pq.write_table(table, buf, compression="zstd")
     write_atomic(path, buf.getvalue().to_pybytes())
-
-
-def _size_category(n: int) -> str:
-    for limit, name in ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K")):
-        if n < limit:
-            return name
-    return "100K<n<1M" if n < 1_000_000 else "1M<n<10M"
-
-
-def _hf_dtype(arrow_type) -> str:
-    import pyarrow as pa
-
-    if pa.types.is_integer(arrow_type):
-        return "int64"
-    if pa.types.is_floating(arrow_type):
-        return "float64"
-    if pa.types.is_boolean(arrow_type):
-        return "bool"
-    return "string"
-
-
-def dataset_card(
-    summary: ExportSummary,
-    records: list[dict[str, Any]],
-    runs: list[dict[str, Any]],
-    stats: dict[str, Any],
-    options: DatasetOptions,
-    catalogue: Path,
-    out_dir: Path,
-) -> str:
-    """The ``README.md`` of an export: YAML header (license, size, features) and the story."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    schema = pq.read_schema(summary.out / "metadata.parquet")
-    features = []
-    for f in schema:
-        if pa.types.is_list(f.type):
-            features.append(f"  - name: {f.name}\n    sequence: {_hf_dtype(f.type.value_type)}")
-        else:
-            features.append(f"  - name: {f.name}\n    dtype: {_hf_dtype(f.type)}")
-    splits = "\n".join(f"  - name: {s}\n    num_examples: {n}" for s, n in summary.splits.items())
-    genus = [r["genus"] for r in records if r["genus"] is not None]
-    faces = sorted(r["faces"] for r in records if r["faces"] is not None)
-    export_cmd = ["surfgen", "dataset", "export", "-C", str(catalogue), "-o", str(out_dir)]
-    if options.where:
-        export_cmd += ["--where", options.where]
-    export_cmd += ["--shard-size", str(options.shard_size), "--points", str(options.points)]
-    export_cmd += ["--sdf", str(options.sdf), "--format", options.format]
-    if options.license != "mit":
-        export_cmd += ["--license", options.license]
-    sample_cmds = []
-    for r in runs:
-        sample_cmds.append(
-            f"# run {r['id']}: config {r['config_hash']} (in runs.json; save it as run-{r['id']}.toml)\n"
-            + shlex.join(
-                [
-                    "surfgen",
-                    "sample",
-                    "--n",
-                    str(r["n"]),
-                    "--seed",
-                    str(r["seed"]),
-                    "--grid",
-                    str(r["grid"]),
-                    "--config",
-                    f"run-{r['id']}.toml",
-                    "--out",
-                    str(catalogue),
-                ]
-            )  # fmt: skip
-        )
-    versions = sorted({json.loads(r["versions"]).get("surfgen", "?") for r in runs})
-    members = [
-        ("KEY.json", "key, formula, spec, metrics, curation (the Parquet row as JSON)"),
-        (f"KEY.{options.format}", "the closed (capped) triangle mesh, in the box's units"),
-        ("KEY.png", "256 x 256 thumbnail (when the catalogue has one)"),
-    ]
-    if options.points:
-        members.append(
-            (
-                "KEY.points.npy",
-                f"float32 ({options.points}, 6): points uniform by area on the surface and their "
-                "outward unit normals (x, y, z, nx, ny, nz); seeded from the key",
-            )
-        )
-    if options.sdf:
-        members.append(
-            (
-                "KEY.sdf.npz",
-                f"{options.sdf} points uniform in the box: `points` float32 (N, 3); `f` float64 = "
-                "F - level, **the implicit function, not a signed distance**; `sign` int8 "
-                "(-1 inside, F < level; +1 outside, non-finite F included); `f_normalised` = "
-                "f / |grad F| (central differences), a first-order distance estimate that only "
-                "holds near the surface",
-            )
-        )
-    member_rows = "\n".join(f"| `{m}` | {what} |" for m, what in members)
-    near = stats.get("nearest_distance_median")
-    return f"""---
-license: {options.license}
-pretty_name: surfgen implicit surfaces
-size_categories:
-- {_size_category(summary.shapes)}
-task_categories:
-- other
-tags:
-- 3d
-- mesh
-- implicit-surface
-- procedural
-- synthetic
-- webdataset
-configs:
-- config_name: default
-  data_files:
-  - split: all
-    path: shards/*.tar
-dataset_info:
-  features:
-{chr(10).join(features)}
-  splits:
-{splits}
----
-
-# surfgen implicit surfaces
-
-{summary.shapes} closed 3D surfaces F(x, y, z) = 0 drawn at random from equation (13) of
-El Mesbahi et al., *A wide diversity of 3D surfaces Generator using implicit functions*, by
-surfgen {", ".join(versions)}, each one regenerable from its recipe (`spec`: formula, box, grid,
-level, and the seed and index it was drawn with).
-
-## Files
-
-- `shards/shard-NNNNNN.tar`: {summary.shards} WebDataset shard(s) of up to {options.shard_size} samples,
-  ordered by key; the members of one sample share its key:
-
-| member | content |
-| --- | --- |
-{member_rows}
-
-- `metadata.parquet`: one row per shape — key, formula, family (when the sampler records one),
-  split, run, seed, index, grid, box, level, d, config hash, sampler version, the spec as JSON,
-  every metric of the catalogue as a column, curation (state, stars, tags, curator's rejection,
-  note, duplicate), the shard and member names, and the sha256 of every member.
-- `runs.json`: the sampling runs (seed, n, grid, the whole config, versions).
-
-Splits are fixed by a hash of the key: train {summary.splits["train"]}, val {summary.splits["val"]},
-test {summary.splits["test"]} (80/10/10).
-
-## How it was made
-
-Each shape is a pure function of (seed, index, config): surfgen draws the formula, evaluates it
-on the grid, extracts the surface with marching cubes (capped where the box cuts it, so every
-mesh is closed) and keeps it only if it passes the filters (manifold, watertight, not noise,
-not a box with carvings, not a convex blob, ...). The catalogue was made with
-
-```bash
-{chr(10).join(sample_cmds)}
-```
-
-and this folder with
-
-```bash
-{shlex.join(export_cmd)}
-```
-
-(stars, tags and curators' rejections come from people, not from the generator).
-`surfgen dataset verify DIR --sample K` regenerates K rows and checks their keys, metrics and
-file hashes.
-
-## Diversity (the whole catalogue)
-
-| figure | value |
-| --- | --- |
-| accepted shapes / draws | {stats["accepted"]} / {stats["drawn"]} ({100 * stats["acceptance"]:.0f} %) |
-| distinct genera | {stats["distinct_genus"]} (entropy {stats["genus_entropy_bits"]:.2f} bits) |
-| distinct (genus, components) | {stats["distinct_genus_components"]} |
-| median distance to the nearest shape's descriptor | {"–" if near is None else f"{near:.3f}"} |
-| exported: genus | {f"{min(genus)} to {max(genus)}" if genus else "–"} |
-| exported: faces | {f"{faces[0]} to {faces[-1]} (median {faces[len(faces) // 2]})" if faces else "–"} |
-| rejection reasons | {", ".join(f"{k} {v}" for k, v in stats["reasons"].items()) or "–"} |
-"""
-
-
-# ----------------------------------------------------------------------------- verify
-
-
-@dataclass
-class VerifyReport:
-    rows: int
-    checked: list[str]
-    problems: list[str] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return not self.problems
-
-
-def _shard_members(root: Path, shards: list[str]) -> Iterator[tuple[str, str]]:
-    for name in shards:
-        try:
-            with tarfile.open(root / name) as tar:
-                members = tar.getnames()
-        except (OSError, tarfile.TarError) as exc:
-            raise DatasetError(f"cannot read shard {root / name}: {exc}") from None
-        yield from ((name, m) for m in members)
-
-
-def verify_dataset(
-    root: Path, sample: int = 20, seed: int = 0, progress: Callable[[str], None] | None = None
-) -> VerifyReport:
-    """Check an export: every row's members exist with their hashes (for ``sample`` rows drawn
-    with ``seed``), and those rows regenerate to the same key, spec, metrics, mesh, points and
-    SDF samples. Raises :class:`DatasetError` when ``root`` is not an export."""
-    _need_pyarrow()
-    import pyarrow.parquet as pq
-
-    root = Path(root)
-    if sample < 1:
-        raise DatasetError(f"--sample must be at least 1, got {sample}")
-    meta = root / "metadata.parquet"
-    if not meta.is_file():
-        raise DatasetError(f"{root} is not a surfgen dataset export (no metadata.parquet)")
-    rows = pq.read_table(meta).to_pylist()
-    try:
-        runs = {r["id"]: r for r in json.loads((root / "runs.json").read_text())}
-    except (OSError, json.JSONDecodeError) as exc:
-        raise DatasetError(f"cannot read {root / 'runs.json'}: {exc}") from None
-    report = VerifyReport(len(rows), [])
-    names: dict[str, str] = {}
-    for shard, member in _shard_members(root, sorted({r["shard"] for r in rows})):
-        names[member] = shard
-    expected = {r[f"{k}_file"] for r in rows for k in MEMBERS if r[f"{k}_file"]}
-    for missing in sorted(expected - names.keys())[:10]:
-        report.problems.append(f"{missing}: listed in metadata.parquet, not in any shard")
-    for extra in sorted(names.keys() - expected)[:10]:
-        report.problems.append(f"{extra}: in shard {names[extra]}, not in metadata.parquet")
-    rng = np.random.default_rng(seed)
-    picked = sorted(rng.choice(len(rows), size=min(sample, len(rows)), replace=False))
-    for i in picked:
-        row = rows[int(i)]
-        report.checked.append(row["key"])
-        if progress is not None:
-            progress(row["key"])
-        report.problems += _verify_row(root, row, runs)
-    return report
-
-
-def _read_members(root: Path, row: dict[str, Any]) -> dict[str, bytes]:
-    out = {}
-    with tarfile.open(root / row["shard"]) as tar:
-        for kind in MEMBERS:
-            name = row[f"{kind}_file"]
-            if name:
-                with contextlib.suppress(KeyError):  # a missing member is reported by hash
-                    out[kind] = tar.extractfile(name).read()  # type: ignore[union-attr]
-    return out
-
-
-def _verify_row(root: Path, row: dict[str, Any], runs: dict[int, Any]) -> list[str]:
-    from surfgen.pipelines.run.config import config_from_dict
-    from surfgen.pipelines.run.shapes import make_shape
-
-    key = row["key"]
-    problems: list[str] = []
-    files = _read_members(root, row)
-    for kind, data in files.items():
-        if _sha(data) != row[f"{kind}_sha256"]:
-            problems.append(f"{key}: {row[f'{kind}_file']} does not match its sha256")
-    shipped = json.loads(files["json"]) if "json" in files else {}
-    spec = SurfaceSpec.from_json(row["spec"])
-    if spec.key != key:
-        problems.append(f"{key}: its spec hashes to key {spec.key}")
-    run = runs.get(row["run"])
-    if run is None or row["seed"] is None or row["index"] is None:
-        return [*problems, f"{key}: no sampling run in runs.json to regenerate it from"]
-    config = config_from_dict(run["config"])
-    with tempfile.TemporaryDirectory(prefix="surfgen-verify-") as tmp:
-        out = make_shape(row["index"], seed=row["seed"], config=config, staging=Path(tmp))
-        if out.row["key"] != key:
-            return [
-                *problems,
-                f"{key}: seed {row['seed']} index {row['index']} now gives key {out.row['key']}",
-            ]
-        if not out.verdict.accepted:
-            problems.append(
-                f"{key}: regenerated shape is rejected ({', '.join(out.verdict.reasons)})"
-            )
-        metrics = json.loads(out.row["metrics"])
-        for source, values in (
-            ("metadata.parquet", _row_metrics(row, metrics)),
-            ("json", shipped.get("metrics", {})),
-        ):
-            diff = sorted(
-                k for k in metrics.keys() | values.keys() if metrics.get(k) != values.get(k)
-            )
-            if diff:
-                k = diff[0]
-                problems.append(
-                    f"{key}: metric {k} is {values.get(k)!r} in {source}, regenerated {metrics.get(k)!r}"
-                    + (f" ({len(diff) - 1} more)" if len(diff) > 1 else "")
-                )
-        fmt = Path(row["mesh_file"]).suffix[1:]
-        if out.mesh_file is not None:
-            regenerated = mesh_bytes(out.mesh_file, fmt)
-            if _sha(regenerated) != row["mesh_sha256"]:
-                problems.append(f"{key}: regenerated mesh differs from {row['mesh_file']}")
-            from surfgen.generator.mesh.exchange import load_mesh
-
-            mesh = load_mesh(out.mesh_file)
-            if "points" in files:
-                n = np.load(io.BytesIO(files["points"])).shape[0]
-                if _sha(npy_bytes(surface_points(mesh, n, key))) != row["points_sha256"]:
-                    problems.append(f"{key}: regenerated surface points differ")
-            if "sdf" in files:
-                with np.load(io.BytesIO(files["sdf"])) as z:
-                    shipped_f = z["f"]
-                again = field_samples(spec, len(shipped_f), key)["f"]
-                if not np.allclose(again, shipped_f, rtol=1e-9, atol=0, equal_nan=True):
-                    problems.append(f"{key}: regenerated SDF samples differ")
-    return problems
-
-
-def _row_metrics(row: dict[str, Any], like: dict[str, Any]) -> dict[str, Any]:
-    """The metrics of a Parquet row, by the names of ``like`` (the regenerated ones)."""
-    out = {}
-    for k in like:
-        column = f"metric_{k}" if k in FIXED_COLUMNS else k
-        v = row.get(column)
-        if isinstance(v, str) and not isinstance(like[k], str):
-            with contextlib.suppress(json.JSONDecodeError):
-                v = json.loads(v)
-        out[k] = v
-    return out
-
-
-# ----------------------------------------------------------------------------- commands
-
-dataset_app = typer.Typer(
-    no_args_is_help=True, help="The catalogue as a machine-learning dataset (WebDataset, Parquet)."
-)
-
-
-@dataset_app.command("export")
-def export_cmd(
-    output: Annotated[Path, typer.Option("-o", "--output", help="A new or empty folder.")],
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    where: Annotated[
-        str | None, typer.Option(help="Which accepted shapes (as `catalogue list --where`).")
-    ] = None,
-    shard_size: Annotated[int, typer.Option(help="Samples per tar shard.")] = 1000,
-    points: Annotated[
-        int, typer.Option(help="Surface points with normals per shape (0: none).")
-    ] = 0,
-    sdf: Annotated[int, typer.Option(help="Field samples in the box per shape (0: none).")] = 0,
-    fmt: Annotated[
-        str, typer.Option("--format", help=f"Mesh format: {' or '.join(DATASET_FORMATS)}.")
-    ] = "ply",
-    license_: Annotated[
-        str, typer.Option("--license", help="License identifier for the dataset card.")
-    ] = "mit",
-) -> None:
-    """Write WebDataset shards, metadata.parquet and a dataset card for the accepted shapes."""
-    options = DatasetOptions(where, shard_size, points, sdf, fmt.lower(), license_)
-    s = export_dataset(catalogue, output, options)
-    typer.echo(
-        f"{s.shapes} shapes in {s.shards} shard(s), {s.bytes / 1e6:.1f} MB "
-        f"(train {s.splits['train']}, val {s.splits['val']}, test {s.splits['test']}) -> {s.out}"
-    )
-
-
-@dataset_app.command("verify")
-def verify_cmd(
-    folder: Annotated[Path, typer.Argument(help="A folder written by `surfgen dataset export`.")],
-    sample: Annotated[int, typer.Option(help="How many rows to regenerate.")] = 20,
-    seed: Annotated[int, typer.Option(help="Seed of the choice of rows.")] = 0,
-) -> None:
-    """Regenerate rows from their recipes; compare keys, metrics and file hashes."""
-    report = verify_dataset(folder, sample, seed)
-    for p in report.problems:
-        typer.echo(p)
-    typer.echo(
-        f"{len(report.checked)} of {report.rows} rows regenerated: "
-        + ("all agree" if report.ok else f"{len(report.problems)} disagreement(s)")
-    )
-    if not report.ok:
-        raise typer.Exit(1)
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen dataset export|verify``."""
-    app.add_typer(dataset_app, name="dataset")

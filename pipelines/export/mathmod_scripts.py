@@ -9,10 +9,9 @@ import re
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import typer
 
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.files import write_all_atomic
@@ -240,36 +239,6 @@ def export_scripts(inputs: Sequence[str], out_dir: Path, fmt: str, catalogue: Pa
             fmt, source.name, [(source.name, source.spec)]
         )
     return write_all(out_dir, files)
-
-
-# ----------------------------------------------------------------------------- CLI
-
-
-import_app = typer.Typer(help="Bring shapes in from other programs.", no_args_is_help=True)
-
-
-@import_app.command("mathmod")
-def import_mathmod_cmd(
-    script: Annotated[Path, typer.Argument(help="A MathMod script (JSON).")],
-    output: Annotated[
-        Path, typer.Option("-o", "--output", help="Folder for the spec files.")
-    ] = Path("out/mathmod"),
-    name: Annotated[str | None, typer.Option(help="Only the model of this Name.")] = None,
-    slider: Annotated[int | None, typer.Option(help="Slider set K (default 0).")] = None,
-    param: Annotated[
-        list[str] | None, typer.Option(help="NAME=VALUE (t, constants, sliders).")
-    ] = None,
-) -> None:
-    """Write one spec JSON per component of the script's implicit (Iso3D) models."""
-    from surfgen.pipelines.cli.main import parse_params
-
-    for path in import_script(script, output, name=name, slider=slider, params=parse_params(param)):
-        typer.echo(f"wrote {path}")
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen import mathmod`` to the CLI."""
-    app.add_typer(import_app, name="import")
 
 
 __all__ = [

@@ -4,7 +4,7 @@
 job's 1000 shapes that is 1000 turntables of 12 views, about four minutes on one core. Here the
 drawing (read the mesh, render, encode the PNG) runs in a :class:`~surfgen.pipelines.run.executor.
 KillablePool` and the bytes come back to the parent, which alone writes the catalogue (its files
-and rows as one transaction, :mod:`surfgen.pipelines.pictures.gallery`). The pictures are the same bytes
+and rows as one transaction, :mod:`surfgen.pipelines.pictures.thumbnails`). The pictures are the same bytes
 whichever process draws them.
 """
 

@@ -282,7 +282,7 @@ def _with_files(
 
     Only the thumbnail is rendered here (contact sheets and the gallery grid show every one);
     the 12-view turntable, which most shapes never get hovered for, is rendered the first
-    time it is asked for (:func:`surfgen.pipelines.pictures.gallery.ensure_turntable`)."""
+    time it is asked for (:func:`surfgen.pipelines.pictures.thumbnails.ensure_turntable`)."""
     key = out.row["key"]
     mesh_file = write_atomic(staging / f"{key}.ply", encode_mesh(mesh, "ply"))
     watch.lap("io")

@@ -62,7 +62,6 @@ if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a
 log = logging.getLogger(__name__)
 
 MAX_FORMULA = 4000  # characters of a pasted formula
-DERIVED_RUN = "derived"  # config_hash of the catalogue's run that holds saved variants
 
 # One explore evaluation at a time per process: concurrent requests queue instead of each
 # taking its own field's memory and both cores.
@@ -340,39 +339,6 @@ def _record_derived(
         **{k: metrics.get(k) for k in columns},
     }
     apply_action(cat, full, "derive", row)
-
-
-_DERIVED_RUN_SQL = (
-    "INSERT OR IGNORE INTO runs (seed, n, grid, config, config_hash, sampler_version, versions,"
-    " started, status) VALUES (0, 0, 0, '{}', ?, 0, '{}', ?, 'derived')"
-)
-_ROW_COLUMNS = (
-    "key", "spec", "formula", "identity", "d", "verdict", "reasons", "metrics", "faces",
-    "vertices", "components", "genus", "euler", "area", "volume", "mesh_path", "thumb_path",
-    "turntable_path",
-)  # fmt: skip
-
-
-def derive_sql(row: Any, at: str) -> tuple[list[str], list[tuple], str]:
-    """SQL for curation's ``derive`` action: make sure the catalogue has its run of saved
-    variants (config_hash :data:`DERIVED_RUN`), insert ``row`` as its next shape and count it.
-    Returns statements, their parameters and the value to log (the new key)."""
-    if not isinstance(row, dict) or set(row) != set(_ROW_COLUMNS):
-        raise ExploreError("derive: the new shape's row is incomplete")
-    run = "(SELECT id FROM runs WHERE config_hash=? AND status='derived')"
-    cols = ["run", "idx", *_ROW_COLUMNS]
-    marks = ",".join(["?"] * len(_ROW_COLUMNS))
-    insert = (
-        f"INSERT INTO shapes ({','.join(cols)}) VALUES ({run}, "
-        f"(SELECT next_index FROM runs WHERE id={run}), {marks})"
-    )
-    bump = f"UPDATE runs SET next_index=next_index+1, accepted=accepted+1, n=n+1 WHERE id={run}"
-    values = tuple(row[c] for c in _ROW_COLUMNS)
-    return (
-        [_DERIVED_RUN_SQL, insert, bump],
-        [(DERIVED_RUN, at), (DERIVED_RUN, DERIVED_RUN, *values), (DERIVED_RUN,)],
-        str(row["key"]),
-    )
 
 
 def formula_with(spec: SurfaceSpec) -> str:

@@ -16,13 +16,12 @@ import json
 import logging
 from collections import Counter
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
 import numpy as np
-import typer
 
-from surfgen.pipelines.catalogue.curation import CatalogueOption
-from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, Catalogue, now, open_catalogue
+from surfgen.pipelines.catalogue.store import Catalogue, now, open_catalogue
+from surfgen.pipelines.web.pages import write_page
 
 log = logging.getLogger(__name__)
 
@@ -440,8 +439,6 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
 
 def write_report(root: Path, path: Path | None = None, run: int | None = None) -> Path:
     """Write the report of the catalogue at ``root`` (default ``root/report.html``)."""
-    from surfgen.pipelines.pictures.gallery import write_page
-
     with open_catalogue(root, readonly=True) as cat:
         stats = report_stats(cat, run)
     path = Path(path) if path is not None else Path(root) / "report.html"
@@ -449,20 +446,3 @@ def write_report(root: Path, path: Path | None = None, run: int | None = None) -
     write_page(path, render_report(stats, str(root)))
     log.info("report of %d shapes written to %s", stats["accepted"], path)
     return path
-
-
-def report_cmd(
-    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
-    output: Annotated[
-        Path | None,
-        typer.Option("-o", "--output", help="HTML file (default CATALOGUE/report.html)."),
-    ] = None,
-    run: Annotated[int | None, typer.Option(help="Only this run (default: all).")] = None,
-) -> None:
-    """Histograms of genus, components, faces and acceptance, per family with contact sheets."""
-    typer.echo(f"wrote {write_report(catalogue, output, run)}")
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen report`` to the CLI."""
-    app.command("report")(report_cmd)

@@ -41,10 +41,9 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import typer
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
@@ -52,7 +51,6 @@ from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.files import staged_into, write_all_atomic
 from surfgen.generator.model.presets import eq_a_formula, get_preset
 from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.run.warmup import compile_first
 
 if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
     from surfgen.generator.mesh.mesh import Mesh
@@ -540,52 +538,3 @@ def _report_html(out: Path, s: dict[str, Any]) -> str:
         parts.append("</table>")
     parts.append("</body></html>\n")
     return "\n".join(parts)
-
-
-# ----------------------------------------------------------------------------- CLI
-
-
-def reproduce_cmd(
-    output: Annotated[Path, typer.Option("-o", "--output", help="Folder for everything.")] = Path(
-        "out/paper"
-    ),
-    grid_scale: Annotated[
-        float, typer.Option(help="Multiply the paper's grids by this (0 < S <= 4).")
-    ] = 1.0,
-    figure: Annotated[
-        list[int] | None, typer.Option(help="Only this figure (1-4), repeatable.")
-    ] = None,
-) -> None:
-    """Redraw the paper's Figures 1-4 and measure its sensitivity claims (report.html)."""
-    import sys
-
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    from surfgen.pipelines.cli.main import echo_err
-
-    if output.exists() and not output.is_dir():
-        raise SpecError(f"--output {output} exists and is not a folder")
-    if set(figure or FIGURES) - {1}:  # Figures 2-4 evaluate surfaces (Figure 1 plots curves)
-        compile_first(echo_err)
-    columns = (SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn())
-    with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as bar:
-        task = bar.add_task("reproducing", total=None)
-        result = reproduce(
-            output,
-            grid_scale=grid_scale,
-            figures=figure or FIGURES,
-            progress=lambda msg: bar.update(task, description=msg),
-        )
-    for p in result.sensitivity["pairs"]:
-        h = "—" if p["hausdorff_rel"] is None else f"{p['hausdorff_rel']:.3f}"
-        typer.echo(
-            f"figure {p['figure']}  {p['a']:>8} / {p['b']:<8} paper: {p['paper']:<4} "
-            f"IoU {p['iou']:.3f}  sensitivity {p['sensitivity']:.2f}  Hausdorff {h}  "
-            f"-> {p['verdict']}"
-        )
-    typer.echo(f"wrote {result.folder / 'report.html'} ({result.seconds:.0f} s)")
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen reproduce`` to the CLI."""
-    app.command("reproduce")(reproduce_cmd)

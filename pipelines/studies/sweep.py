@@ -26,16 +26,14 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import typer
 
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.run.warmup import compile_first
 from surfgen.pipelines.studies.explore import mesh_stats
 from surfgen.pipelines.studies.knobs import apply_changes
 
@@ -57,7 +55,7 @@ class SweepError(SurfgenError):
     """A sweep that cannot run: bad range, unwritable folder..."""
 
 
-def _uses_param(formula: str | None, name: str) -> bool:
+def uses_param(formula: str | None, name: str) -> bool:
     """Whether a pasted formula uses ``name`` as a parameter (then the sweep binds it)."""
     from surfgen.generator.formula.expr import params_of
     from surfgen.generator.formula.parser import parse
@@ -383,87 +381,6 @@ def _plot(name: str, steps: list[Step], path: Path) -> None:
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     write_atomic(path, buf.getvalue())
-
-
-# ----------------------------------------------------------------------------- CLI
-
-
-def sweep_cmd(
-    param: Annotated[
-        str, typer.Option(help="NAME=START:STOP:STEP (NAME: a parameter, box, grid, level, d, #K).")
-    ],
-    output: Annotated[Path, typer.Option("-o", "--output", help="Folder for the sweep's files.")],
-    preset: Annotated[
-        str | None, typer.Option(help="A preset name (see `surfgen presets`).")
-    ] = None,
-    formula: Annotated[
-        str | None, typer.Option(help="A formula in K3DSurf/MathMod syntax.")
-    ] = None,
-    from_catalogue: Annotated[
-        tuple[Path, str] | None,
-        typer.Option("--from", help="CATALOGUE KEY: sweep a catalogued shape."),
-    ] = None,
-    box: Annotated[str | None, typer.Option(help="LO,HI or XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX.")] = None,
-    grid: Annotated[int | None, typer.Option(help="Points per axis.")] = None,
-    cap: Annotated[
-        bool | None,
-        typer.Option(
-            "--cap/--no-cap",
-            help="Close surfaces cut by the box (default: the preset's; catalogued shapes are capped).",
-        ),
-    ] = None,
-) -> None:
-    """Sweep one number of a shape over a range: meshes, contact sheet, GIF, sweep.json, a plot."""
-    import sys
-
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
-
-    from surfgen.generator.model.presets import get_preset
-    from surfgen.pipelines.cli.main import echo_err, parse_numbers
-    from surfgen.pipelines.export.render import build_spec
-
-    name, values = parse_range(param)
-    catalogued = None
-    if from_catalogue is not None:
-        from surfgen.pipelines.catalogue.store import open_catalogue
-
-        with open_catalogue(from_catalogue[0], must_exist=True) as cat:
-            catalogued = cat.spec(from_catalogue[1])
-    # A pasted formula's swept parameter needs no separate value: the sweep starts it.
-    bound = {name: values[0]} if _uses_param(formula, name) else {}
-    base = build_spec(
-        preset=preset,
-        formula=formula,
-        params=bound,
-        base=catalogued,
-        box=parse_numbers(box, "--box", (2, 6)) if box else None,
-        grid=[grid] if grid is not None else None,
-    )
-    if cap is None:
-        cap = get_preset(preset).cap if preset else catalogued is not None
-    if output.exists() and not output.is_dir():
-        raise SweepError(f"-o {output}: not a folder")
-    compile_first(echo_err)
-    with Progress(BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                  disable=not sys.stderr.isatty()) as bar:  # fmt: skip
-        task = bar.add_task("sweep", total=len(values))
-        res = run_sweep(
-            base, name, values, output, cap=cap,
-            progress=lambda i, n: bar.update(task, completed=i, total=n),
-        )  # fmt: skip
-    for s in res.steps:
-        d = "-" if s.distance_prev is None else f"{s.distance_prev:.4g}"
-        j = "-" if s.iou_prev is None else f"{s.iou_prev:.3f}"
-        typer.echo(
-            f"{name}={s.value:<10g} faces {s.stats['faces']:>7}  components {s.stats['components']:>3}  "
-            f"genus {'-' if s.stats['genus'] is None else s.stats['genus']:>4}  IoU prev {j:>5}  distance prev {d}"
-        )
-    typer.echo(f"wrote {len(res.steps)} steps to {output} ({', '.join(res.files.values())})")
-
-
-def register(app: typer.Typer) -> None:
-    """Add ``surfgen sweep`` to the CLI."""
-    app.command("sweep")(sweep_cmd)
 
 
 __all__ = ["SpecError", "SweepError", "parse_range", "run_sweep", "sweep_specs"]

@@ -22,13 +22,14 @@ import math
 import sqlite3
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+from flask import Flask, jsonify, request
+from werkzeug.exceptions import HTTPException
 
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.formula.limits import MAX_JSON_DEPTH, json_depth_ok
-
-if TYPE_CHECKING:
-    from flask import Flask
+from surfgen.pipelines.catalogue.store import sqlite_error
 
 log = logging.getLogger(__name__)
 
@@ -132,8 +133,6 @@ def json_body(schema: Mapping[str, Param], allow_unknown: bool = False) -> dict[
     :data:`MAX_BODY_BYTES`, 400 for bad JSON, nesting deeper than :data:`MAX_JSON_DEPTH`,
     a body that is not an object, an unknown field (unless ``allow_unknown``) or a bad value.
     """
-    from flask import request
-
     if not request.is_json:
         raise ApiError("send the action as application/json", 415)
     length = request.content_length
@@ -174,8 +173,6 @@ def _no_constant(name: str) -> float:
 
 def query_str(name: str, max_length: int = MAX_QUERY_TEXT) -> str | None:
     """A query-string value (None if absent); :class:`ApiError` when longer than allowed."""
-    from flask import request
-
     value = request.args.get(name)
     if value is not None and len(value) > max_length:
         raise ApiError(f"'{name}' is too long: {len(value)} characters (at most {max_length})")
@@ -227,9 +224,6 @@ def install(app: Flask) -> None:
     """Cap request bodies and reply to every error with ``{"error": ...}`` and a 4xx/503
     status: validation errors are 400 (or the status they carry), a corrupted or busy
     catalogue 503, anything unforeseen is logged with its traceback and answered 500 JSON."""
-    from flask import jsonify
-    from werkzeug.exceptions import HTTPException
-
     app.config["MAX_CONTENT_LENGTH"] = MAX_BODY_BYTES
     app.config["MAX_FORM_MEMORY_SIZE"] = MAX_BODY_BYTES
     app.config["MAX_FORM_PARTS"] = 100
@@ -244,6 +238,4 @@ def install(app: Flask) -> None:
 
     @app.errorhandler(sqlite3.Error)
     def _database_error(exc: sqlite3.Error):
-        from surfgen.pipelines.catalogue.store import sqlite_error
-
         return jsonify(error=str(sqlite_error(exc, "the catalogue database"))), 503

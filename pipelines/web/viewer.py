@@ -29,11 +29,19 @@ import logging
 import shutil
 from collections import OrderedDict
 from collections.abc import Callable
+from importlib import resources
 from pathlib import Path
 from threading import Lock
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+from flask import Blueprint, Response, abort, jsonify, request
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.files import write_atomic
+from surfgen.generator.formula.expr import VARIABLES
+from surfgen.generator.formula.functions import FUNCTIONS, MACROS
+from surfgen.generator.formula.parser import tokenize
+from surfgen.generator.model.presets import PRESETS, get_preset
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import get_shape, select_shapes
 from surfgen.pipelines.catalogue.store import Catalogue, CatalogueError
@@ -45,20 +53,13 @@ from surfgen.pipelines.studies.explore import (
     spec_from_request,
 )
 from surfgen.pipelines.studies.knobs import ExploreError, knobs_of
-
-if TYPE_CHECKING:
-    from flask import Blueprint
+from surfgen.pipelines.web.pages import script_json, templates, write_page
 
 log = logging.getLogger(__name__)
 
 MAX_BODY = 64 * 1024  # bytes of an explore request
 GLB_CACHE = 24  # recent explore meshes kept for their URL
 VENDOR = ("three-viewer.min.js", "LICENSE", "VERSION")
-
-
-def _script_json(data: Any) -> str:
-    text = json.dumps(data, separators=(",", ":"), allow_nan=False, default=str)
-    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def neighbours(cat: Catalogue, key: str) -> tuple[str | None, str | None]:
@@ -85,8 +86,6 @@ def page_data(
 ) -> dict[str, Any]:
     """What the detail page script reads: the shape record (None for a preset or formula), the
     spec, its sliders, neighbours, and ``mode`` (``live`` or ``static``)."""
-    from surfgen.generator.model.presets import PRESETS
-
     return {
         "mode": mode,
         "shape": rec,
@@ -101,24 +100,17 @@ def page_data(
 
 
 def render_shape_page(data: dict[str, Any], title: str) -> str:
-    import jinja2
-
-    env = jinja2.Environment(
-        loader=jinja2.PackageLoader("surfgen.pipelines.web", "templates"),
-        autoescape=jinja2.select_autoescape(["html"]),
-    )
-    return env.get_template("shape.html").render(
-        title=title, live=data["mode"] == "live", data_json=_script_json(data), data=data
+    """The detail page's HTML for ``data`` (from :func:`page_data`)."""
+    return (
+        templates()
+        .get_template("shape.html")
+        .render(title=title, live=data["mode"] == "live", data_json=script_json(data), data=data)
     )
 
 
 def free_names(formula: str) -> list[str]:
     """Names in a pasted formula that are neither x, y, z, pi nor functions: its parameters
     (the explore page binds them to 1 and gives each a slider, as MathMod's ``Sliders``)."""
-    from surfgen.generator.formula.expr import VARIABLES
-    from surfgen.generator.formula.functions import FUNCTIONS, MACROS
-    from surfgen.generator.formula.parser import tokenize
-
     tokens = tokenize(formula)
     out: list[str] = []
     for t, after in zip(tokens, [*tokens[1:], None], strict=True):
@@ -153,8 +145,6 @@ class StepCache:
 def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
     """The viewer's routes over the catalogue at ``root``; ``cat()`` gives the request's
     catalogue connection (the gallery app's)."""
-    from flask import Blueprint, Response, abort, jsonify, request
-
     bp = Blueprint("viewer", __name__)
     cache = StepCache()
 
@@ -172,8 +162,6 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
 
     @bp.get("/explore")
     def explore_page() -> Response:
-        from surfgen.generator.model.presets import get_preset
-
         formula = request.args.get("formula")
         name = request.args.get("preset") or ("eqC" if not formula else None)
         try:
@@ -196,6 +184,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
 
     @bp.get("/api/shape/<key>/mesh.glb")
     def shape_mesh(key: str) -> Response:
+        # deferred: see export_detail_pages
         from surfgen.generator.mesh.exchange import glb_bytes, load_mesh
 
         rec = get_shape(cat(), key, full=False)
@@ -289,8 +278,7 @@ def viewer_blueprint(root: Path, cat: Callable[[], Catalogue]) -> Blueprint:
 
 
 def vendor_dir() -> Path:
-    from importlib import resources
-
+    """The vendored three.js (``static/vendor/three``)."""
     return Path(str(resources.files("surfgen.pipelines.web").joinpath("static", "vendor", "three")))
 
 
@@ -298,8 +286,9 @@ def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> 
     """Write ``shapes/KEY.html`` and ``shapes/KEY.glb.js`` for every shape of the static gallery
     that has a mesh, and the vendored three.js; returns how many pages. ``shapes`` are the
     gallery's records (their ``mesh`` paths relative to ``root``). Raises ``OSError``."""
+    # Deferred on purpose: the mesh modules load trimesh and numba, which the live gallery
+    # does not need to start (its warm-up thread loads them in the background).
     from surfgen.generator.mesh.exchange import glb_bytes, load_mesh
-    from surfgen.pipelines.pictures.gallery import write_page
 
     with_mesh = [s for s in shapes if s.get("mesh")]
     if not with_mesh:
@@ -323,8 +312,6 @@ def export_detail_pages(root: Path, out: Path, shapes: list[dict[str, Any]]) -> 
             + base64.b64encode(glb).decode("ascii")
             + '");\n'
         )
-        from surfgen.generator.files import write_atomic
-
         write_atomic(out / "shapes" / f"{key}.glb.js", script.encode("ascii"))
         spec = SurfaceSpec.from_dict(s["spec"])
         prev, nxt = (keys[i - 1], keys[(i + 1) % len(keys)]) if len(keys) > 1 else (None, None)

@@ -26,7 +26,7 @@ from surfgen.generator.model.families import (
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation, pick_family
 from surfgen.pipelines.catalogue.query import FIELDS
 from surfgen.pipelines.run.config import default_config_text, load_config
-from surfgen.pipelines.run.sampling import make_shape
+from surfgen.pipelines.run.shapes import make_shape
 from tests.generator.model import toy_family
 
 ROOT = Path(__file__).resolve().parents[3]

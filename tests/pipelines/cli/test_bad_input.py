@@ -563,7 +563,7 @@ def curation_rows(root: Path) -> list[tuple]:
     ],
 )  # fmt: skip
 def test_api_validates_bodies(cat_dir, template, action, body, status, message) -> None:
-    from surfgen.pipelines.pictures.gallery import create_app
+    from surfgen.pipelines.web.app import create_app
 
     key = template[1]["torus"]
     before = curation_rows(cat_dir)
@@ -578,7 +578,7 @@ def test_api_query_and_export_limits(cat_dir, template) -> None:
     import io
     import zipfile
 
-    from surfgen.pipelines.pictures.gallery import create_app
+    from surfgen.pipelines.web.app import create_app
 
     keys = template[1]
     client = create_app(cat_dir).test_client()
@@ -609,7 +609,7 @@ def test_api_query_and_export_limits(cat_dir, template) -> None:
 
 def test_api_on_a_corrupted_catalogue_refuses_to_start(cat_dir) -> None:
     from surfgen.pipelines.catalogue.store import CatalogueError
-    from surfgen.pipelines.pictures.gallery import create_app
+    from surfgen.pipelines.web.app import create_app
 
     corrupt(cat_dir)
     with pytest.raises(CatalogueError, match="catalogue check"):

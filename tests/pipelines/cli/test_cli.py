@@ -308,7 +308,7 @@ def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
 ) -> None:
     import logging
 
-    from surfgen.pipelines.cli import main as cli
+    from surfgen.pipelines.cli import common
 
     monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # restored afterwards
 
@@ -316,8 +316,8 @@ def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
         def __del__(self):
             raise AttributeError("half-built")
 
-    cli._quiet_after_interrupt()
-    with caplog.at_level(logging.DEBUG, logger="surfgen.pipelines.cli.main"):
+    common.quiet_after_interrupt()
+    with caplog.at_level(logging.DEBUG, logger="surfgen.pipelines.cli.common"):
         half = HalfBuilt()
         del half
     assert "half-built" not in capsys.readouterr().err

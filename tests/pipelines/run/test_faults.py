@@ -229,7 +229,7 @@ def test_serve_and_sample_share_a_catalogue_under_200_requests(
 ) -> None:
     import shutil
 
-    from surfgen.pipelines.pictures.gallery import create_app
+    from surfgen.pipelines.web.app import create_app
 
     cat = tmp_path / "cat"
     shutil.copytree(uninterrupted, cat)

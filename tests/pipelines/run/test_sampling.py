@@ -107,7 +107,7 @@ def test_same_catalogue_when_numpys_maths_differ(reference_run: Path, tmp_path: 
 def test_the_rate_leaves_the_setup_out(monkeypatch, tmp_path: Path, capsys) -> None:
     """A first run compiles before it samples: the summary says how long that took, and the
     rate counts the sampling only."""
-    from surfgen.pipelines.cli import main as cli
+    from surfgen.pipelines.cli import sample as cli
     from surfgen.pipelines.run import sampling
 
     real = sampling.warm_shape_kernels
@@ -421,7 +421,7 @@ def test_render_from_catalogue_takes_overrides(reference_run: Path, capsys) -> N
 def test_sample_renders_thumbnails_and_leaves_turntables_for_first_view(tmp_path: Path) -> None:
     from PIL import Image
 
-    from surfgen.pipelines.pictures.gallery import create_app
+    from surfgen.pipelines.web.app import create_app
 
     cat = tmp_path / "cat"
     run_sample(n=1, seed=11, config=load_config().with_grid(GRID), catalogue=cat, workers=1)

@@ -215,8 +215,9 @@ def test_reproduce_says_so_for_the_surfaces_only(monkeypatch, tmp_path, capsys) 
 
 
 def test_serve_says_the_explorer_compiles_in_the_background(monkeypatch, tmp_path, capsys) -> None:
-    from surfgen.pipelines.pictures import gallery
+    from surfgen.pipelines.cli import web as cli_web
     from surfgen.pipelines.run import warmup
+    from surfgen.pipelines.web import app as web_app
 
     class Server:
         host, server_port = "127.0.0.1", 8123
@@ -227,9 +228,9 @@ def test_serve_says_the_explorer_compiles_in_the_background(monkeypatch, tmp_pat
         def server_close(self):
             pass
 
-    monkeypatch.setattr(gallery, "make_server", lambda *args: Server())
+    monkeypatch.setattr(web_app, "make_server", lambda *args: Server())
     monkeypatch.setattr(warmup, "grid_kernel_cached", lambda: False)
-    gallery.serve_cmd(tmp_path / "cat", 0, "127.0.0.1")
+    cli_web.serve_cmd(tmp_path / "cat", 0, "127.0.0.1")
     err = capsys.readouterr().err
     assert err.count(NOTICE) == 1 and "in the background" in err
 

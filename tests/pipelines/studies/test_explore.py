@@ -21,7 +21,6 @@ from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.pictures.gallery import create_app
 from surfgen.pipelines.studies.explore import (
     explore,
     mesh_stats,
@@ -36,6 +35,7 @@ from surfgen.pipelines.studies.knobs import (
     literals_of,
     replace_literals,
 )
+from surfgen.pipelines.web.app import create_app
 from tests.support.browser import build_catalogue
 
 SPHERE = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (24,) * 3)

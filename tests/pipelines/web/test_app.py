@@ -1,12 +1,12 @@
-"""Tests for surfgen.pipelines.pictures.gallery: thumbnails, contact sheets, the live gallery's JSON API,
-the static export, and an end-to-end run of `surfgen serve` driven by a real headless Chromium."""
+"""Tests for surfgen.pipelines.web.app: the live gallery's JSON API and page, turntables
+rendered on first request, and an end-to-end run of `surfgen serve` driven by a real headless
+Chromium."""
 
 from __future__ import annotations
 
 import io
 import json
 import re
-import threading
 import zipfile
 from pathlib import Path
 
@@ -15,8 +15,9 @@ from PIL import Image
 
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.pictures import gallery
-from surfgen.pipelines.pictures.gallery import create_app, ensure_turntable, render_pictures
+from surfgen.pipelines.pictures import thumbnails
+from surfgen.pipelines.web import site
+from surfgen.pipelines.web.app import create_app
 from tests.support.browser import (
     ARTEFACTS,
     CHROMIUM,
@@ -49,67 +50,35 @@ def keys(template) -> dict[str, str]:
     return template[1]
 
 
-# ----------------------------------------------------------------------------- pictures
-
-
-def test_thumbnails_rendered_and_recorded(cat_dir, keys, capsys) -> None:
-    with open_catalogue(cat_dir, must_exist=True) as cat:
-        for key in keys.values():
-            row = cat.shape(key)
-            assert row["thumb_path"] == f"thumbs/{key}.png"
-            with Image.open(cat_dir / row["thumb_path"]) as im:
-                assert im.size == (256, 256)
-            with Image.open(cat_dir / row["turntable_path"]) as im:
-                assert im.size == (12 * 256, 256)
-    (cat_dir / "thumbs" / f"{keys['torus']}.png").unlink()
-    rc, out, _ = cli(capsys, "thumbnails", "-C", str(cat_dir))
-    assert rc == 0 and out.startswith("rendered 1, already there 3, failed 0")
-    with open_catalogue(cat_dir, must_exist=True) as cat:
-        res = render_pictures(cat, force=True, where="genus >= 1")
-        assert (res.rendered, res.skipped, res.failed) == (2, 0, [])
-        cat.conn.execute(
-            "UPDATE shapes SET mesh_path=NULL, thumb_path=NULL WHERE key=?", (keys["sphere"],)
-        )
-        cat.conn.commit()
-        assert render_pictures(cat).failed == [(keys["sphere"], "no mesh recorded")]
-
-
-def test_contact_sheet(cat_dir, keys, capsys, tmp_path) -> None:
-    sheet = tmp_path / "sheet.png"
-    rc, out, _ = cli(
-        capsys, "contact-sheet", "-C", str(cat_dir), "-o", str(sheet), "--columns", "2"
-    )
-    assert rc == 0 and "4 shapes" in out
-    with Image.open(sheet) as im:
-        assert im.width == 2 * 256 + 3 * 4 and im.height > 2 * 256
-    rc, out, _ = cli(
-        capsys,
-        "contact-sheet",
-        "-C",
-        str(cat_dir),
-        "-o",
-        str(sheet),
-        "--where",
-        "genus >= 1",
-        "--sort",
-        "-genus",
-    )
-    assert rc == 0 and "2 shapes" in out
-    rc, _, err = cli(
-        capsys, "contact-sheet", "-C", str(cat_dir), "-o", str(sheet), "--where", "genus > 99"
-    )
-    assert rc == 1 and err.startswith("error: none of the 0 selected shapes")
-    rc, _, err = cli(capsys, "contact-sheet", "-C", str(cat_dir), "-o", str(tmp_path / "s.jpg"))
-    assert rc == 1 and "should end in .png" in err
-
-
-# ----------------------------------------------------------------------------- the live app
-
-
 def page_data(html: str) -> dict:
     m = re.search(r'<script id="gallery-data" type="application/json">(.*?)</script>', html, re.S)
     assert m, "no data in the page"
     return json.loads(m.group(1))
+
+
+def without_turntables(root: Path) -> None:
+    """What `surfgen sample` leaves: thumbnails, but no turntable rendered or recorded."""
+    with open_catalogue(root, must_exist=True) as cat, cat.conn:
+        cat.conn.execute("UPDATE shapes SET turntable_path=NULL")
+    for f in (root / "turntables").glob("*.png"):
+        f.unlink()
+
+
+@pytest.fixture
+def renders(monkeypatch) -> list[str]:
+    """The file names of the turntables drawn and recorded in the catalogue, in order: by the
+    live gallery or for a batch (drawn on any process, recorded by the parent)."""
+    calls: list[str] = []
+    record = thumbnails.record_picture
+
+    def recording(cat, key, kind, data):
+        if kind == "turntable":
+            calls.append(f"{key}.png")
+        return record(cat, key, kind, data)
+
+    monkeypatch.setattr(thumbnails, "record_picture", recording)
+    monkeypatch.setattr(site, "record_picture", recording)
+    return calls
 
 
 def test_api_reads_and_pages(cat_dir, keys) -> None:
@@ -185,33 +154,6 @@ def test_api_export_zip(cat_dir, keys) -> None:
     assert client.post("/api/export", data={"keys": ""}).status_code == 400
 
 
-# ----------------------------------------------------------------------------- lazy turntables
-
-
-def without_turntables(root: Path) -> None:
-    """What `surfgen sample` leaves: thumbnails, but no turntable rendered or recorded."""
-    with open_catalogue(root, must_exist=True) as cat, cat.conn:
-        cat.conn.execute("UPDATE shapes SET turntable_path=NULL")
-    for f in (root / "turntables").glob("*.png"):
-        f.unlink()
-
-
-@pytest.fixture
-def renders(monkeypatch) -> list[str]:
-    """The file names of the turntables drawn and recorded in the catalogue, in order: by the
-    live gallery or for a batch (drawn on any process, recorded by the parent)."""
-    calls: list[str] = []
-    record = gallery._record_picture
-
-    def recording(cat, key, kind, data):
-        if kind == "turntable":
-            calls.append(f"{key}.png")
-        return record(cat, key, kind, data)
-
-    monkeypatch.setattr(gallery, "_record_picture", recording)
-    return calls
-
-
 def test_turntable_rendered_on_first_request_cached_and_served_after_restart(
     cat_dir, keys, renders
 ) -> None:
@@ -252,68 +194,6 @@ def test_turntable_rendered_on_first_request_cached_and_served_after_restart(
     assert renders == [f"{torus}.png"]
 
 
-def test_turntable_rendered_once_when_asked_twice_at_once(cat_dir, keys, renders) -> None:
-    without_turntables(cat_dir)
-    paths: list[Path | None] = []
-
-    def ask() -> None:
-        with open_catalogue(cat_dir, must_exist=True) as cat:
-            paths.append(ensure_turntable(cat, keys["genus2"]))
-
-    threads = [threading.Thread(target=ask) for _ in range(3)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    assert renders == [f"{keys['genus2']}.png"]
-    assert paths == [cat_dir / "turntables" / f"{keys['genus2']}.png"] * 3
-
-
-def test_thumbnails_and_static_gallery_render_missing_turntables(
-    cat_dir, keys, renders, capsys, tmp_path
-) -> None:
-    without_turntables(cat_dir)
-    thumb = cat_dir / "thumbs" / f"{keys['torus']}.png"
-    before = thumb.stat().st_mtime_ns
-    out = tmp_path / "site"
-    rc, stdout, _ = cli(
-        capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--where", "genus = 1"
-    )
-    assert rc == 0 and "(1 shapes)" in stdout
-    assert renders == [f"{keys['torus']}.png"]
-    data = page_data((out / "index.html").read_text())
-    assert data["shapes"][0]["turntable"] == f"turntables/{keys['torus']}.png"
-    assert (out / "turntables" / f"{keys['torus']}.png").is_file()
-    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir))
-    assert rc == 0 and stdout.startswith("rendered 3, already there 1, failed 0")
-    assert sorted(renders) == sorted(f"{k}.png" for k in keys.values())
-    assert thumb.stat().st_mtime_ns == before  # only the missing turntables were drawn
-    with open_catalogue(cat_dir, must_exist=True) as cat:
-        for key in keys.values():
-            assert cat.shape(key)["turntable_path"] == f"turntables/{key}.png"
-
-
-def test_static_gallery(cat_dir, keys, capsys, tmp_path) -> None:
-    out = tmp_path / "site"
-    rc, stdout, _ = cli(
-        capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--where", "genus >= 1"
-    )
-    assert rc == 0 and "(2 shapes)" in stdout
-    data = page_data((out / "index.html").read_text())
-    assert data["readonly"] is True and len(data["shapes"]) == 2
-    assert (out / "static" / "gallery.js").is_file() and (out / "static" / "gallery.css").is_file()
-    assert (out / "static" / "common.js").is_file()  # the helpers gallery.js and viewer.js share
-    for s in data["shapes"]:
-        assert (out / s["thumb"]).is_file() and (out / s["turntable"]).is_file()
-        assert s["mesh"] is None
-    assert not (out / "meshes").exists()
-    assert len(list((out / "thumbs").iterdir())) == 2
-    rc, _, _ = cli(capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--meshes")
-    assert rc == 0 and len(list((out / "meshes").iterdir())) == 4
-    rc, _, err = cli(capsys, "gallery", "-o", str(cat_dir), "-C", str(cat_dir))
-    assert rc == 1 and "another folder" in err
-
-
 def test_page_data_cannot_break_out_of_its_script(cat_dir, keys) -> None:
     client = create_app(cat_dir).test_client()
     client.post(
@@ -323,9 +203,6 @@ def test_page_data_cannot_break_out_of_its_script(cat_dir, keys) -> None:
     assert "</script><script>alert(1)" not in html
     notes = [s["note"] for s in page_data(html)["shapes"]]
     assert "</script><script>alert(1)</script>" in notes
-
-
-# ----------------------------------------------------------------------------- end to end
 
 
 @pytest.mark.skipif(
@@ -423,20 +300,3 @@ def test_browser_end_to_end(cat_dir, keys, tmp_path) -> None:
         browser.quit()
         stop_server(proc)
     assert (ARTEFACTS / "gallery.png").stat().st_size > 10_000
-
-
-def test_pictures_on_one_process_or_two_are_the_same_files(cat_dir, keys, capsys) -> None:
-    def pictures() -> dict[str, bytes]:
-        files = [*cat_dir.glob("thumbs/*.png"), *cat_dir.glob("turntables/*.png")]
-        return {f"{f.parent.name}/{f.name}": f.read_bytes() for f in files}
-
-    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir), "--force", "--workers", "1")
-    assert rc == 0 and stdout.startswith("rendered 4,")
-    one = pictures()
-    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir), "--force", "--workers", "2")
-    assert rc == 0 and stdout.startswith("rendered 4,")
-    assert pictures() == one and len(one) == 8
-    rc, _, err = cli(
-        capsys, "gallery", "-o", str(cat_dir.parent / "g"), "-C", str(cat_dir), "--workers", "0"
-    )
-    assert rc == 1 and err.strip() == "error: --workers must be a whole number from 1 to 256, got 0"

@@ -1,0 +1,107 @@
+"""What the commands share: option types, parsing of comma-separated numbers and ``NAME=VALUE``
+pairs, JSON output, notices on stderr and the one-line form of an error."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from surfgen.generator.errors import SpecError
+from surfgen.generator.formula.limits import check_count
+
+CatalogueOption = Annotated[
+    Path,
+    typer.Option("--catalogue", "-C", envvar="SURFGEN_CATALOGUE", help="Catalogue folder."),
+]
+MaxMemoryOption = Annotated[
+    str | None,
+    typer.Option(
+        "--max-memory",
+        help="Refuse work estimated to need more memory than this (e.g. 4G; "
+        "default: the machine's available memory).",
+    ),
+]
+WorkersOption = Annotated[
+    int | None,
+    typer.Option(help="Processes drawing the missing pictures (default: all cores)."),
+]
+
+
+def parse_numbers(text: str, what: str, counts: tuple[int, ...], integer: bool = False) -> list:
+    """``"a,b,c"`` → numbers; ``counts`` are the allowed lengths."""
+    if len(text) > 200:
+        raise SpecError(f"{what} takes at most 6 numbers, got {len(text)} characters")
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [int(p) if integer else float(p) for p in parts]
+    except ValueError:
+        kind = "whole numbers" if integer else "numbers"
+        raise SpecError(f"{what} must be {kind} separated by commas, got '{text}'") from None
+    if len(values) not in counts:
+        allowed = " or ".join(str(c) for c in counts)
+        raise SpecError(f"{what} takes {allowed} values, got {len(values)} ('{text}')")
+    return values
+
+
+def parse_params(items: list[str] | None) -> dict[str, float]:
+    """``--param NAME=VALUE`` pairs → ``{name: value}``. Raises :class:`SpecError`."""
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise SpecError(f"--param takes NAME=VALUE, got '{item}'")
+        try:
+            number = float(value)
+        except ValueError:
+            raise SpecError(f"--param {name.strip()}: '{value}' is not a number") from None
+        if not math.isfinite(number):
+            raise SpecError(f"--param {name.strip()}: must be a finite number, got '{value}'")
+        out[name.strip()] = number
+    return out
+
+
+def check_workers(workers: int | None) -> int | None:
+    """``--workers``: 1 to 256, as for ``sample``. Raises :class:`LimitError`."""
+    return None if workers is None else check_count(workers, "--workers", 1, 256)
+
+
+def echo_err(text: str) -> None:
+    """A line on stderr: notices that are not the command's output."""
+    typer.echo(text, err=True)
+
+
+def emit_json(obj: Any) -> None:
+    """``obj`` as indented JSON on stdout (what JSON cannot hold written with ``str``)."""
+    typer.echo(json.dumps(obj, indent=2, sort_keys=False, default=str))
+
+
+def one_line(text: str, limit: int = 2000) -> str:
+    """An error message as one line of bounded length."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def describe_os_error(exc: OSError) -> str:
+    """``cannot write out/x.png: No space left on device`` from any ``OSError``."""
+    where = exc.filename if exc.filename is not None else "a file"
+    return f"{where}: {exc.strerror or exc}"
+
+
+def quiet_after_interrupt() -> None:
+    """After a Ctrl-C, what is torn down may be half-built: the interrupt can land inside any
+    constructor (one of llvmlite's, say, while numba loads a kernel), and that object's
+    destructor then fails. Its error would print "Exception ignored in ..." lines after the
+    one-line message; they are logged (debug) instead."""
+
+    def hook(unraisable: Any) -> None:
+        logging.getLogger(__name__).debug(
+            "after the interrupt: %r in %r", unraisable.exc_value, unraisable.object
+        )
+
+    sys.unraisablehook = hook

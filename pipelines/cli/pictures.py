@@ -1,0 +1,75 @@
+"""The catalogue's pictures: ``surfgen thumbnails`` and ``surfgen contact-sheet``.
+
+The picture pool and rich's progress bar are imported when a command runs, so that ``--help``
+and the other commands start without them.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
+from surfgen.pipelines.cli.common import CatalogueOption, WorkersOption, check_workers
+
+
+def thumbnails_cmd(
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    force: Annotated[bool, typer.Option(help="Render again even where pictures exist.")] = False,
+    where: Annotated[
+        str | None, typer.Option(help="Only these shapes (see `catalogue list`).")
+    ] = None,
+    workers: WorkersOption = None,
+) -> None:
+    """Render missing thumbnails and turntables of the accepted shapes."""
+    # Deferred (see the module's docstring).
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from surfgen.pipelines.pictures.thumbnails import GalleryError, render_pictures
+
+    with (
+        open_catalogue(catalogue, must_exist=True) as cat,
+        Progress(
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            disable=not sys.stderr.isatty(),
+        ) as bar,
+    ):
+        task = bar.add_task("pictures", total=None)
+        res = render_pictures(
+            cat,
+            force=force,
+            where=where,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            workers=check_workers(workers),
+        )
+    for key, why in res.failed:
+        typer.echo(f"{key}: {why}", err=True)
+    typer.echo(
+        f"rendered {res.rendered}, already there {res.skipped}, failed {len(res.failed)} "
+        f"(thumbnails in {Path(catalogue) / 'thumbs'})"
+    )
+    if res.failed and not res.rendered and not res.skipped:
+        raise GalleryError(f"no pictures could be rendered ({len(res.failed)} failed)")
+
+
+def contact_sheet_cmd(
+    output: Annotated[Path, typer.Option("-o", "--output", help="The sheet (PNG).")] = Path(
+        "out/contact-sheet.png"
+    ),
+    catalogue: CatalogueOption = DEFAULT_CATALOGUE,
+    where: Annotated[str | None, typer.Option(help="Which shapes (see `catalogue list`).")] = None,
+    sort: Annotated[str | None, typer.Option(help="FIELD or -FIELD.")] = None,
+    limit: Annotated[int | None, typer.Option(help="At most this many.")] = 48,
+    columns: Annotated[int, typer.Option(help="Thumbnails per row.")] = 6,
+) -> None:
+    """A grid of thumbnails with short keys, for a quick look or a figure."""
+    from surfgen.pipelines.pictures.thumbnails import write_contact_sheet  # deferred: see above
+
+    with open_catalogue(catalogue, readonly=True) as cat:
+        path, n = write_contact_sheet(cat, output, where, sort, limit, columns)
+    typer.echo(f"wrote {path} ({n} shapes)")

@@ -1,0 +1,114 @@
+"""Tests for surfgen.pipelines.web.site: the static gallery (`surfgen gallery`), drawing the
+turntables it is missing first."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.cli.main import main
+from surfgen.pipelines.pictures import thumbnails
+from surfgen.pipelines.web import site
+from tests.support.browser import (
+    build_catalogue,
+)
+
+
+def cli(capsys, *args: str) -> tuple[int, str, str]:
+    rc = main(list(args))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> tuple[Path, dict[str, str]]:
+    """A catalogue whose pictures were made by `surfgen thumbnails`."""
+    root = tmp_path_factory.mktemp("gallery") / "cat"
+    keys = build_catalogue(root)
+    assert main(["thumbnails", "-C", str(root)]) == 0
+    return root, keys
+
+
+@pytest.fixture
+def keys(template) -> dict[str, str]:
+    return template[1]
+
+
+def page_data(html: str) -> dict:
+    m = re.search(r'<script id="gallery-data" type="application/json">(.*?)</script>', html, re.S)
+    assert m, "no data in the page"
+    return json.loads(m.group(1))
+
+
+def without_turntables(root: Path) -> None:
+    """What `surfgen sample` leaves: thumbnails, but no turntable rendered or recorded."""
+    with open_catalogue(root, must_exist=True) as cat, cat.conn:
+        cat.conn.execute("UPDATE shapes SET turntable_path=NULL")
+    for f in (root / "turntables").glob("*.png"):
+        f.unlink()
+
+
+@pytest.fixture
+def renders(monkeypatch) -> list[str]:
+    """The file names of the turntables drawn and recorded in the catalogue, in order: by the
+    live gallery or for a batch (drawn on any process, recorded by the parent)."""
+    calls: list[str] = []
+    record = thumbnails.record_picture
+
+    def recording(cat, key, kind, data):
+        if kind == "turntable":
+            calls.append(f"{key}.png")
+        return record(cat, key, kind, data)
+
+    monkeypatch.setattr(thumbnails, "record_picture", recording)
+    monkeypatch.setattr(site, "record_picture", recording)
+    return calls
+
+
+def test_thumbnails_and_static_gallery_render_missing_turntables(
+    cat_dir, keys, renders, capsys, tmp_path
+) -> None:
+    without_turntables(cat_dir)
+    thumb = cat_dir / "thumbs" / f"{keys['torus']}.png"
+    before = thumb.stat().st_mtime_ns
+    out = tmp_path / "site"
+    rc, stdout, _ = cli(
+        capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--where", "genus = 1"
+    )
+    assert rc == 0 and "(1 shapes)" in stdout
+    assert renders == [f"{keys['torus']}.png"]
+    data = page_data((out / "index.html").read_text())
+    assert data["shapes"][0]["turntable"] == f"turntables/{keys['torus']}.png"
+    assert (out / "turntables" / f"{keys['torus']}.png").is_file()
+    rc, stdout, _ = cli(capsys, "thumbnails", "-C", str(cat_dir))
+    assert rc == 0 and stdout.startswith("rendered 3, already there 1, failed 0")
+    assert sorted(renders) == sorted(f"{k}.png" for k in keys.values())
+    assert thumb.stat().st_mtime_ns == before  # only the missing turntables were drawn
+    with open_catalogue(cat_dir, must_exist=True) as cat:
+        for key in keys.values():
+            assert cat.shape(key)["turntable_path"] == f"turntables/{key}.png"
+
+
+def test_static_gallery(cat_dir, keys, capsys, tmp_path) -> None:
+    out = tmp_path / "site"
+    rc, stdout, _ = cli(
+        capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--where", "genus >= 1"
+    )
+    assert rc == 0 and "(2 shapes)" in stdout
+    data = page_data((out / "index.html").read_text())
+    assert data["readonly"] is True and len(data["shapes"]) == 2
+    assert (out / "static" / "gallery.js").is_file() and (out / "static" / "gallery.css").is_file()
+    assert (out / "static" / "common.js").is_file()  # the helpers gallery.js and viewer.js share
+    for s in data["shapes"]:
+        assert (out / s["thumb"]).is_file() and (out / s["turntable"]).is_file()
+        assert s["mesh"] is None
+    assert not (out / "meshes").exists()
+    assert len(list((out / "thumbs").iterdir())) == 2
+    rc, _, _ = cli(capsys, "gallery", "-o", str(out), "-C", str(cat_dir), "--meshes")
+    assert rc == 0 and len(list((out / "meshes").iterdir())) == 4
+    rc, _, err = cli(capsys, "gallery", "-o", str(cat_dir), "-C", str(cat_dir))
+    assert rc == 1 and "another folder" in err
