@@ -23,18 +23,19 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.elementary import division as D
+from surfgen.generator.jit.options import KERNEL
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "generator"))
 from test_division import midpoint_row  # noqa: E402
 
 
-@njit(**D.JIT)
+@njit(**KERNEL)
 def _plain(W, d, a, s, n):
     for k in range(n):
         W[d, k] = W[a, k] / s
 
 
-@njit(**D.JIT)
+@njit(**KERNEL)
 def _repeat(fast, W, s, n, reps):
     for _ in range(reps):
         if fast:

@@ -29,6 +29,7 @@ from surfgen.filters.geometry import (
     used_mask,
     weighted_centres,
 )
+from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
@@ -124,7 +125,7 @@ def _cell_index(
     return start, order, lo, cell, dims
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _bucket(
     cloud: np.ndarray, lo: np.ndarray, cell: float, dims: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -148,7 +149,7 @@ def _bucket(
     return start, order
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _near(
     x: float,
     y: float,
@@ -196,7 +197,7 @@ def _near(
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _symmetric(
     pts: np.ndarray,
     cloud: np.ndarray,

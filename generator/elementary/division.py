@@ -46,7 +46,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 S_MIN = 2.0**-100  # |s| bounds of the fast path (a row's divisor)
 S_MAX = 2.0**100
@@ -85,7 +85,7 @@ def _codegen_has_fma() -> bool:
 ROW_DIVISION = _codegen_has_fma()
 
 
-@njit(inline="always", **JIT)
+@njit(**INLINE)
 def div_row_by_scalar(W, d, a, s, n):
     """``W[d, k] = W[a, k] / s`` for ``k < n``, the bits of IEEE division (module docstring);
     returns whether the FMA path gave them (else the row was divided plainly)."""
@@ -111,7 +111,7 @@ def div_row_by_scalar(W, d, a, s, n):
     return False
 
 
-@njit(**JIT)
+@njit(**KERNEL)
 def div_row_by_scalar_call(W, d, a, s, n):
     """:func:`div_row_by_scalar` as a function of its own (for the tests and benchmarks)."""
     return div_row_by_scalar(W, d, a, s, n)

@@ -46,6 +46,8 @@ from numba import njit, types
 from numba.core.dispatcher import Dispatcher
 from numba.extending import intrinsic
 
+from surfgen.generator.jit.options import FORCE_INLINE, INLINE, KERNEL
+
 __all__ = [
     f"{name}_{kind}"
     for name in (
@@ -63,9 +65,7 @@ __all__ = [
     for kind in ("row", "scalar", "array")
 ] + ["pow_row_vv", "pow_row_vs", "pow_row_sv", "pow_scalar", "pow_array"]
 
-_OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
 # Kernels are inlined into the loops at numba IR level: LLVM vectorises only call-free bodies.
-_INL = {**_OPTS, "forceinline": True}
 
 # ----------------------------------------------------------------------------- constants
 
@@ -181,13 +181,13 @@ def _i2f_np(i):
 # Every helper and kernel below is written once; ``_numpy_twin`` re-binds its code to numpy.
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _sel(c, a, b):
     """``a if c else b`` with both operands already computed (an LLVM select)."""
     return a if c else b
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _two_sum(a, b):
     """s + e == a + b exactly (Knuth)."""
     s = a + b
@@ -196,7 +196,7 @@ def _two_sum(a, b):
     return s, e
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _fast_two_sum(a, b):
     """s + e == a + b exactly when |a| >= |b| or a == 0 (Dekker)."""
     s = a + b
@@ -204,7 +204,7 @@ def _fast_two_sum(a, b):
     return s, e
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _split(a):
     """a == hi + lo with 26-bit halves (Veltkamp); |a| < 2^996."""
     c = SPLITTER * a
@@ -212,7 +212,7 @@ def _split(a):
     return hi, a - hi
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _two_prod(a, b):
     """p + e == a * b exactly (Dekker, no FMA)."""
     p = a * b
@@ -222,20 +222,20 @@ def _two_prod(a, b):
     return p, e
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _trunc(v, mask):
     """v with its low mantissa bits cleared (fewer significant bits: exact products)."""
     return _i2f(_f2i(v) & mask)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _rint52(v):
     """Round to the nearest integer, ties to even; exact for |v| < 2^52."""
     s = _sel(v < 0.0, -TWO52, TWO52)
     return (v + s) - s
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _ldexp2(v, k):
     """v * 2^k for |k| <= 2100 as two exact-or-IEEE-rounded multiplications."""
     k1 = k >> 1
@@ -243,7 +243,7 @@ def _ldexp2(v, k):
     return (v * _i2f((k1 + 1023) << 52)) * _i2f((k2 + 1023) << 52)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _scale_dd(ph, pl, k):
     """(ph + pl) * 2^k rounded once, also where the result is subnormal.
 
@@ -256,7 +256,7 @@ def _scale_dd(ph, pl, k):
     return _sel(t < 1.0, (s - 1.0) * TINY_NORMAL, _ldexp2(ph, k))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _sign_of(x, r):
     """r with the sign bit of x (x's sign bit set: -r)."""
     return _sel(_f2i(x) < 0, -r, r)
@@ -265,7 +265,7 @@ def _sign_of(x, r):
 # ----------------------------------------------------------------------------- cores
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log_reduce(xh, xl, tail):
     """x = 2^ef * c * (1 + s)/(1 - s): returns ef, jf = 8c and s = sh + sl (sh: 26 bits).
 
@@ -298,7 +298,7 @@ def _log_reduce(xh, xl, tail):
     return ef, jf, sh, rem * inv
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log_centre(jf):
     """log(jf/8) = ch + cl, ch on the 2^-42 grid of e * LN2_H (their sum is exact)."""
     is6 = jf == 6.0
@@ -315,7 +315,7 @@ def _log_centre(jf):
     return ch, cl
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log_dd(xh, xl, tail):
     """log(xh + xl) as a double-double (hi, lo), relative error about 2^-68 (see
     _log_reduce for the arguments)."""
@@ -342,7 +342,7 @@ def _log_dd(xh, xl, tail):
     return _fast_two_sum(s2, lo)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log1(x):
     """log(x) rounded (about 0.5 ulp) for x > 0 finite: _log_dd's reduction, the series
     beyond 2s in plain double (it is below 2^-10 of the result)."""
@@ -357,7 +357,7 @@ def _log1(x):
     return s2 + (e2 + ((ef * LN2_L + cl) + (2.0 * sl + t)))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _exp_dd(zh, zl):
     """exp(zh + zl) = (ph + pl) * 2^k with ph + pl in [0.7, 1.42] to about 2^-59.
 
@@ -393,13 +393,13 @@ def _exp_dd(zh, zl):
 # ----------------------------------------------------------------------------- functions
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _exp(x):
     ph, pl, k = _exp_dd(x, 0.0)
     return _sel(x != x, NAN, _scale_dd(ph, pl, k))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log(x):
     ok = (x > 0.0) & (x < INF)
     r = _log1(_sel(ok, x, 1.0))
@@ -407,7 +407,7 @@ def _log(x):
     return _sel((x < 0.0) | (x != x), NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _log10(x):
     ok = (x > 0.0) & (x < INF)
     lh, ll = _log_dd(_sel(ok, x, 1.0), 0.0, False)
@@ -417,7 +417,7 @@ def _log10(x):
     return _sel((x < 0.0) | (x != x), NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow_general(x, y):
     """C pow by exp(y log|x|) (every x and y)."""
     ax = abs(x)
@@ -453,7 +453,7 @@ POW_EXACT_LO = 2.0**-300
 POW_EXACT_HI = 2.0**300
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow_exact_lane(x, y):
     """True where pow(x, y) is computed by :func:`_pow_exact` (y is 1.5 or 3)."""
     ax = abs(x)
@@ -461,7 +461,7 @@ def _pow_exact_lane(x, y):
     return ((y == 1.5) | (y == 3.0)) & (odd == False)  # noqa: E712
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow15(x):
     """x^1.5 = x sqrt(x) for x = 0, inf, NaN or |x| in [2^-300, 2^300] (C99 values included).
 
@@ -480,7 +480,7 @@ def _pow15(x):
     return _sel(((x < 0.0) & (x > -INF)) | (x != x), NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow3(x):
     """x^3 for x = ±0, ±inf, NaN or |x| in [2^-300, 2^300]: x*x = q + qe and q*x = p + pe
     exactly (Dekker), x^3 = p + pe + qe*x with one final rounding."""
@@ -493,18 +493,18 @@ def _pow3(x):
     return _sel(ok, r, _sel(x != x, NAN, x))  # ±0, ±inf: themselves (odd power)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow_exact(x, y):
     return _sel(y == 3.0, _pow3(x), _pow15(x))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _pow(x, y):
     """C pow: exact products for y in {1.5, 3} (:func:`_pow_exact_lane`), else exp(y log|x|)."""
     return _sel(_pow_exact_lane(x, y), _pow_exact(x, y), _pow_general(x, y))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _sinh(x):
     ax = abs(x)
     w = ax * ax
@@ -526,7 +526,7 @@ def _sinh(x):
     return _sel(x != x, NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _cosh(x):
     ax = abs(x)
     ph, pl, k = _exp_dd(_sel(ax < 711.0, ax, 711.0), 0.0)
@@ -541,7 +541,7 @@ def _cosh(x):
     return _sel(x != x, NAN, _sel(s < INF, s + ((e + al) + bl), INF))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _tanh(x):
     ax = abs(x)
     w = ax * ax
@@ -563,7 +563,7 @@ def _tanh(x):
     return _sel(x != x, NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _sqrt_dd(uh, ul):
     """sqrt(uh + ul) as a double-double, uh > 0."""
     rh = math.sqrt(uh)
@@ -572,7 +572,7 @@ def _sqrt_dd(uh, ul):
     return rh, rl
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _asinh(x):
     ax = abs(x)
     big = ax > TWO28
@@ -593,7 +593,7 @@ def _asinh(x):
     return _sel(x != x, NAN, _sign_of(x, r))
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _acosh(x):
     big = x > TWO28
     a = _sel((x >= 1.0) & (big == False), x, 1.0)  # noqa: E712
@@ -616,7 +616,7 @@ def _acosh(x):
     return _sel((x < 1.0) | (x != x), NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _atanh(x):
     ax = abs(x)
     a = _sel(ax < 1.0, ax, 0.0)
@@ -634,7 +634,7 @@ def _atanh(x):
     return _sel((ax > 1.0) | (x != x), NAN, r)
 
 
-@njit(**_INL)
+@njit(**FORCE_INLINE)
 def _cbrt(x):
     ax = abs(x)
     ok = (ax > 0.0) & (ax < INF)
@@ -708,7 +708,7 @@ def _apply2(kernel, x, y) -> np.ndarray:
 # in-place form (distance 0) and vectorises without a runtime overlap check.
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def exp_row(W, d, a, n):
     """W[d, :n] = exp(W[a, :n])."""
     if d == a:
@@ -719,7 +719,7 @@ def exp_row(W, d, a, n):
             W[d, k] = _exp(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def exp_scalar(x):
     """exp(x), same bits as exp_row and exp_array."""
     return _exp(x)
@@ -730,7 +730,7 @@ def exp_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_exp"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def log_row(W, d, a, n):
     """W[d, :n] = log(W[a, :n])."""
     if d == a:
@@ -741,7 +741,7 @@ def log_row(W, d, a, n):
             W[d, k] = _log(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def log_scalar(x):
     """log(x), same bits as log_row and log_array."""
     return _log(x)
@@ -752,7 +752,7 @@ def log_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_log"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def pow_row_vv(W, d, a, b, n):
     """W[d, :n] = W[a, :n] ** W[b, :n] (C pow)."""
     if d == a:
@@ -766,7 +766,7 @@ def pow_row_vv(W, d, a, b, n):
             W[d, k] = _pow(W[a, k], W[b, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def pow_row_vs(W, d, a, s, n):
     """W[d, :n] = W[a, :n] ** s (s = 1.5 or 3: the exact-product loop when every lane allows)."""
     if s == 1.5 or s == 3.0:
@@ -795,7 +795,7 @@ def pow_row_vs(W, d, a, s, n):
             W[d, k] = _pow(W[a, k], s)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def pow_row_sv(W, d, s, b, n):
     """W[d, :n] = s ** W[b, :n]."""
     if d == b:
@@ -806,7 +806,7 @@ def pow_row_sv(W, d, s, b, n):
             W[d, k] = _pow(s, W[b, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def pow_scalar(x, y):
     """x ** y (C pow), same bits as the rows and pow_array."""
     return _pow(x, y)
@@ -817,7 +817,7 @@ def pow_array(x, y) -> np.ndarray:
     return _apply2(_NP_GLOBALS["_pow"], x, y)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def log10_row(W, d, a, n):
     """W[d, :n] = log10(W[a, :n])."""
     if d == a:
@@ -828,7 +828,7 @@ def log10_row(W, d, a, n):
             W[d, k] = _log10(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def log10_scalar(x):
     """log10(x), same bits as log10_row and log10_array."""
     return _log10(x)
@@ -839,7 +839,7 @@ def log10_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_log10"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def sinh_row(W, d, a, n):
     """W[d, :n] = sinh(W[a, :n])."""
     if d == a:
@@ -850,7 +850,7 @@ def sinh_row(W, d, a, n):
             W[d, k] = _sinh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def sinh_scalar(x):
     """sinh(x), same bits as sinh_row and sinh_array."""
     return _sinh(x)
@@ -861,7 +861,7 @@ def sinh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_sinh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def cosh_row(W, d, a, n):
     """W[d, :n] = cosh(W[a, :n])."""
     if d == a:
@@ -872,7 +872,7 @@ def cosh_row(W, d, a, n):
             W[d, k] = _cosh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def cosh_scalar(x):
     """cosh(x), same bits as cosh_row and cosh_array."""
     return _cosh(x)
@@ -883,7 +883,7 @@ def cosh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_cosh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def tanh_row(W, d, a, n):
     """W[d, :n] = tanh(W[a, :n])."""
     if d == a:
@@ -894,7 +894,7 @@ def tanh_row(W, d, a, n):
             W[d, k] = _tanh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def tanh_scalar(x):
     """tanh(x), same bits as tanh_row and tanh_array."""
     return _tanh(x)
@@ -905,7 +905,7 @@ def tanh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_tanh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def asinh_row(W, d, a, n):
     """W[d, :n] = asinh(W[a, :n])."""
     if d == a:
@@ -916,7 +916,7 @@ def asinh_row(W, d, a, n):
             W[d, k] = _asinh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def asinh_scalar(x):
     """asinh(x), same bits as asinh_row and asinh_array."""
     return _asinh(x)
@@ -927,7 +927,7 @@ def asinh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_asinh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def acosh_row(W, d, a, n):
     """W[d, :n] = acosh(W[a, :n])."""
     if d == a:
@@ -938,7 +938,7 @@ def acosh_row(W, d, a, n):
             W[d, k] = _acosh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def acosh_scalar(x):
     """acosh(x), same bits as acosh_row and acosh_array."""
     return _acosh(x)
@@ -949,7 +949,7 @@ def acosh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_acosh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atanh_row(W, d, a, n):
     """W[d, :n] = atanh(W[a, :n])."""
     if d == a:
@@ -960,7 +960,7 @@ def atanh_row(W, d, a, n):
             W[d, k] = _atanh(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def atanh_scalar(x):
     """atanh(x), same bits as atanh_row and atanh_array."""
     return _atanh(x)
@@ -971,7 +971,7 @@ def atanh_array(x) -> np.ndarray:
     return _apply1(_NP_GLOBALS["_atanh"], x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def cbrt_row(W, d, a, n):
     """W[d, :n] = cbrt(W[a, :n])."""
     if d == a:
@@ -982,7 +982,7 @@ def cbrt_row(W, d, a, n):
             W[d, k] = _cbrt(W[a, k])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def cbrt_scalar(x):
     """cbrt(x), same bits as cbrt_row and cbrt_array."""
     return _cbrt(x)

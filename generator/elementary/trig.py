@@ -61,8 +61,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
-_OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
-_JIT_INNER = {"error_model": "numpy", "nogil": True}
+from surfgen.generator.jit.options import INLINE, KERNEL, OVERLOAD
 
 # ----------------------------------------------------------------------------- constants
 
@@ -181,7 +180,7 @@ def _where(c, a, b):
     return np.where(c, a, b)
 
 
-@overload(_where, jit_options=_JIT_INNER)
+@overload(_where, jit_options=OVERLOAD)
 def _ov_where(c, a, b):
     def impl(c, a, b):
         return a if c else b
@@ -194,7 +193,7 @@ def _floor(x):
     return np.floor(x)
 
 
-@overload(_floor, jit_options=_JIT_INNER)
+@overload(_floor, jit_options=OVERLOAD)
 def _ov_floor(x):
     def impl(x):
         return np.floor(x)
@@ -207,7 +206,7 @@ def _sqrt(x):
     return np.sqrt(x)
 
 
-@overload(_sqrt, jit_options=_JIT_INNER)
+@overload(_sqrt, jit_options=OVERLOAD)
 def _ov_sqrt(x):
     def impl(x):
         return np.sqrt(x)
@@ -220,7 +219,7 @@ def _copysign(x, s):
     return np.copysign(x, s)
 
 
-@overload(_copysign, jit_options=_JIT_INNER)
+@overload(_copysign, jit_options=OVERLOAD)
 def _ov_copysign(x, s):
     def impl(x, s):
         return math.copysign(x, s)
@@ -233,7 +232,7 @@ def _frexp(x):
     return np.frexp(x)
 
 
-@overload(_frexp, jit_options=_JIT_INNER)
+@overload(_frexp, jit_options=OVERLOAD)
 def _ov_frexp(x):
     def impl(x):
         return math.frexp(x)
@@ -246,7 +245,7 @@ def _ldexp(x, e):
     return np.ldexp(x, e)
 
 
-@overload(_ldexp, jit_options=_JIT_INNER)
+@overload(_ldexp, jit_options=OVERLOAD)
 def _ov_ldexp(x, e):
     def impl(x, e):
         return math.ldexp(x, e)
@@ -259,7 +258,7 @@ def _table(t, i):
     return t[np.clip(i, 0, t.size - 1)]
 
 
-@overload(_table, jit_options=_JIT_INNER)
+@overload(_table, jit_options=OVERLOAD)
 def _ov_table(t, i):
     def impl(t, i):
         return t[min(max(i, 0), t.size - 1)]
@@ -283,7 +282,7 @@ def _dual(func=None, *, inline: bool = False):
 
     # Big helpers are inlined in numba's IR (LLVM's inliner would keep them as calls, and a
     # call in a loop stops vectorisation); small ones are left to LLVM (faster to compile).
-    overload(func, jit_options=_JIT_INNER, inline="always" if inline else "never")(typer)
+    overload(func, jit_options=OVERLOAD, inline="always" if inline else "never")(typer)
     return func
 
 
@@ -779,7 +778,7 @@ def _atan2_slow(y, x):
 # branch-free fast loop over the whole row (vectorised), then patch the saved lanes.
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def _gather1(W, a, n, cnt):
     """Indices and values of the slow lanes of row a (saved before d == a is overwritten)."""
     idx = np.empty(cnt, np.int64)
@@ -793,7 +792,7 @@ def _gather1(W, a, n, cnt):
     return idx, val
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def _gather2(W, a, b, n, cnt, sa, sb):
     """Indices and operands (y, x) of the slow lanes of atan2: row a or scalar sa (a < 0)."""
     idx = np.empty(cnt, np.int64)
@@ -814,7 +813,7 @@ def _gather2(W, a, b, n, cnt, sa, sb):
 SIN, COS, TAN = 0, 1, 2  # trig_row's kinds
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _trig_value(kind, x):
     """sin, cos or tan (``kind``) of x, fast path; ``kind`` is a constant at each call, so
     only its branch is compiled into the row."""
@@ -825,7 +824,7 @@ def _trig_value(kind, x):
     return _tan_fast(x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _trig_slow_value(kind, x):
     """The same, for the arguments beyond the fast range (Payne-Hanek)."""
     if kind == SIN:
@@ -835,7 +834,7 @@ def _trig_slow_value(kind, x):
     return _tan_slow(x)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def trig_row(W, d, a, n, kind, recip):
     """W[d, k] = f(W[a, k]) for k < n, f = sin, cos or tan (``kind``: SIN, COS, TAN), or 1/f
     with ``recip`` (csc, sec, cot: the function, then the division, in one loop, so the divider
@@ -855,46 +854,46 @@ def trig_row(W, d, a, n, kind, recip):
             W[d, idx[j]] = 1.0 / v if recip else v
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def sin_row(W, d, a, n):
     """W[d, k] = sin(W[a, k]) for k < n (W: 2-D C-contiguous float64; d may equal a)."""
     trig_row(W, d, a, n, SIN, False)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def cos_row(W, d, a, n):
     """W[d, k] = cos(W[a, k]) for k < n (d may equal a)."""
     trig_row(W, d, a, n, COS, False)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def tan_row(W, d, a, n):
     """W[d, k] = tan(W[a, k]) for k < n (d may equal a)."""
     trig_row(W, d, a, n, TAN, False)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def asin_row(W, d, a, n):
     """W[d, k] = asin(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _asin_fast(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def acos_row(W, d, a, n):
     """W[d, k] = acos(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _acos_fast(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atan_row(W, d, a, n):
     """W[d, k] = atan(W[a, k]) for k < n (no slow path: one branch-free loop)."""
     for k in range(n):
         W[d, k] = _atan_fast(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atan2_row_vv(W, d, a, b, n):
     """W[d, k] = atan2(W[a, k], W[b, k]) for k < n (d may equal a or b)."""
     cnt = 0
@@ -909,7 +908,7 @@ def atan2_row_vv(W, d, a, b, n):
             W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atan2_row_vs(W, d, a, s, n):
     """W[d, k] = atan2(W[a, k], s) for k < n (d may equal a)."""
     cnt = 0
@@ -924,7 +923,7 @@ def atan2_row_vs(W, d, a, s, n):
             W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atan2_row_sv(W, d, s, b, n):
     """W[d, k] = atan2(s, W[b, k]) for k < n (d may equal b)."""
     cnt = 0
@@ -939,7 +938,7 @@ def atan2_row_sv(W, d, s, b, n):
             W[d, idx[j]] = _atan2_slow(vy[j], vx[j])
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def sin_scalar(x):
     """sin(x), the same bits as sin_row and sin_array."""
     if _trig_slow_lane(x):
@@ -947,7 +946,7 @@ def sin_scalar(x):
     return _sin_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def cos_scalar(x):
     """cos(x), the same bits as cos_row and cos_array."""
     if _trig_slow_lane(x):
@@ -955,7 +954,7 @@ def cos_scalar(x):
     return _cos_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def tan_scalar(x):
     """tan(x), the same bits as tan_row and tan_array."""
     if _trig_slow_lane(x):
@@ -963,25 +962,25 @@ def tan_scalar(x):
     return _tan_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def asin_scalar(x):
     """asin(x), the same bits as asin_row and asin_array."""
     return _asin_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def acos_scalar(x):
     """acos(x), the same bits as acos_row and acos_array."""
     return _acos_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def atan_scalar(x):
     """atan(x), the same bits as atan_row and atan_array."""
     return _atan_fast(x)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def atan2_scalar(p, q):
     """atan2(p, q) (angle of the point (q, p)), the same bits as the rows and atan2_array."""
     if _atan2_slow_lane(p, q):

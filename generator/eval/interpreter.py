@@ -44,11 +44,10 @@ from surfgen.generator.eval.row_calls import (
 )
 from surfgen.generator.jit.cache import c_function_cached
 from surfgen.generator.jit.interleave import evaluator_compile
+from surfgen.generator.jit.options import C_FUNCTION, INLINE, KERNEL
 
 log = logging.getLogger(__name__)
 
-# Every kernel of the evaluator: cached, NaN/inf as values, the GIL released (threads).
-JIT_OPTIONS = {"cache": True, "error_model": "numpy", "nogil": True}
 
 # Opcode numbers as globals (numba freezes them at compile time; the table is append-only).
 OP_COPY = OP["copy"]
@@ -117,14 +116,14 @@ def _cycles(typingctx):
 # ----------------------------------------------------------------------------- scalar helpers
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def unsigned(i):
     """Index ``i`` (never negative) as unsigned: numba checks a signed index for a negative
     value to wrap around, a compare and a select at every load of a gather."""
     return np.uint64(i)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _usign(u):
     """constituents.unit_sign: +1 for u >= 0 (also -0), -1 below, NaN for NaN."""
     if u >= 0.0:
@@ -134,7 +133,7 @@ def _usign(u):
     return u
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _sign(u):
     """np.sign: sign(+-0) = +0, NaN stays NaN."""
     if u > 0.0:
@@ -146,7 +145,7 @@ def _sign(u):
     return u
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _minimum(a, b):
     """np.minimum: NaN propagates; for equal operands (+0, -0) numpy returns the second."""
     if a < b or a != a:
@@ -154,14 +153,14 @@ def _minimum(a, b):
     return b
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _maximum(a, b):
     if a > b or a != a:
         return a
     return b
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _ratio1(a, b):
     q = a / b
     if a == 0.0 and b == 0.0:
@@ -169,18 +168,18 @@ def _ratio1(a, b):
     return q
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _truth(v):
     """logic.truth: |v| >= 0.5, NaN false."""
     return abs(v) >= 0.5
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _is_logic2(op):
     return (OP_LT <= op <= OP_OR) or op == OP_PICK or op == OP_PICKN or op == OP_FMOD  # noqa: SIM109 (numba)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _logic2(op, a, b):
     """The two-operand operations of logic.py, value for value."""
     if op == OP_LT:
@@ -202,12 +201,12 @@ def _logic2(op, a, b):
     return np.fmod(a, b)  # OP_FMOD (C fmod: exact)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _trunc(u):
     return np.floor(u) if u >= 0.0 else np.ceil(u)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _pow_rule(u, e, p):
     """The ``x^c`` convention (elementary.POW_SHORTCUTS) applied to ``p = pow(u, e)``:
     branch-free selects, so the loop that applies it vectorises."""
@@ -219,7 +218,7 @@ def _pow_rule(u, e, p):
     return 1.0 if e == 0.0 else r
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _power_vs(W, d, a, s, n):
     """W[d] = W[a]^s: the shortcut loop for s in POW_SHORTCUTS, else surfgen's pow."""
     if s == 2.0 or s == 0.5 or s == -1.0 or s == 1.0 or s == 0.0:
@@ -230,7 +229,7 @@ def _power_vs(W, d, a, s, n):
         _pow_vs(W, d, a, s, n)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _power_vv(W, d, a, b, n):
     """W[d] = W[a]^W[b] (d differs from a and b: the compiler never writes in place)."""
     _pow_vv(W, d, a, b, n)
@@ -238,14 +237,14 @@ def _power_vv(W, d, a, b, n):
         W[d, k] = _pow_rule(W[a, k], W[b, k], W[d, k])
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _power_sv(W, d, s, b, n):
     _pow_sv(W, d, s, b, n)
     for k in range(n):
         W[d, k] = _pow_rule(s, W[b, k], W[d, k])
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _series_exact(x, r, p):
     """sum_{i=-p}^{p} (1 - us(x-a) us(x-b)) (x - a), a = r(i-1), b = r i: as the reference."""
     total = 0.0
@@ -256,7 +255,7 @@ def _series_exact(x, r, p):
     return total
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _series(x, r, p):
     """The same sum in O(1): the selectors are 2 on [a, b), so one term survives and every
     other term adds a zero, which leaves the sum bit-identical (see constituents.py)."""
@@ -281,7 +280,7 @@ def _series(x, r, p):
 # hundred points, is as expensive as the arithmetic.
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _segsum(W, d, a, n, consts, base):
     """W[d] = 0.5 * sum over segments of selector * line, in the reference's order."""
     kind = consts[base]
@@ -300,13 +299,13 @@ def _segsum(W, d, a, n, consts, base):
         W[d, k] = 0.5 * total
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _series_special(x):
     """The lanes :func:`_series` takes the slow way: NaN, inf and |x| > 1e307."""
     return not (abs(x) <= 1e307)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _series_lanes(x, r, inv_r, fp):
     """:func:`_series` without a branch, for the other lanes (the loop that calls it vectorises):
     three candidate segments around x/r, their index as a float (exact: out of [-p, p] a
@@ -322,7 +321,7 @@ def _series_lanes(x, r, inv_r, fp):
     return _series_candidate(x, r, fp, i + 2.0, out)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _series_candidate(x, r, fp, i, out):
     """``2(x - a) + 0`` when segment i, [a, b) = [r(i-1), r i), holds x and -p <= i <= p (as
     :func:`_series` computes it), else ``out``: a select."""
@@ -331,7 +330,7 @@ def _series_candidate(x, r, fp, i, out):
     return (0.0 + 2.0 * (x - lo)) if hit else out
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _series_row(W, d, a, n, consts, base):
     r = consts[base]
     p = int(consts[base + 1])
@@ -362,7 +361,7 @@ def _series_row(W, d, a, n, consts, base):
             W[d, idx[j]] = _series(val[j], r, p)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _unary(op, W, d, a, n, consts, imm, T):
     """The operations of one vector operand but the cheap ones (:func:`run_code` runs those)."""
     slot = _UNARY_SLOT[op]
@@ -390,7 +389,7 @@ def _unary(op, W, d, a, n, consts, imm, T):
             W[d, k] = _trunc(W[a, k])
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _binary_vv(op, W, d, a, b, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
@@ -411,7 +410,7 @@ def _binary_vv(op, W, d, a, b, n, consts):
             W[d, k] = _logic2(op, W[a, k], W[b, k])
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _binary_vs(op, W, d, a, s, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
@@ -432,7 +431,7 @@ def _binary_vs(op, W, d, a, s, n, consts):
             W[d, k] = _logic2(op, W[a, k], s)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _binary_sv(op, W, d, s, b, n, consts):
     """The operations of two operands but + - * / (:func:`run_code` runs those)."""
     if op == OP_POW:
@@ -453,7 +452,7 @@ def _binary_sv(op, W, d, s, b, n, consts):
             W[d, k] = _logic2(op, s, W[b, k])
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def run_code(code, c0, c1, consts, W, S, T, n, prof):
     """Run code rows [c0, c1) on the first n columns of W; with a non-empty ``prof``,
     add the cycles each row takes to ``prof[row]``.
@@ -609,7 +608,7 @@ def load_interpreter():
         if INTERPRETER is None:
             load_rows()  # first: the interpreter calls them
             with evaluator_compile():  # numba's C functions send no compile event
-                compiled = cfunc(_C_SIGNATURE, cache=True, error_model="numpy")(_run_code_c)
+                compiled = cfunc(_C_SIGNATURE, **C_FUNCTION)(_run_code_c)
             _CELL.value = compiled.address
             INTERPRETER = compiled
     return INTERPRETER

@@ -26,16 +26,15 @@ from surfgen.generator.eval import interpreter as _i
 from surfgen.generator.eval import row_calls as far
 from surfgen.generator.jit import interleave as vector_loops
 from surfgen.generator.jit.cache import c_function_cached
+from surfgen.generator.jit.options import C_FUNCTION, C_HELPER
 
-_OPTIONS = {"cache": True, "error_model": "numpy"}
 
-
-@njit(inline="always", error_model="numpy")
+@njit(**C_HELPER)
 def _w(w_p, rows, cols):
     return carray(w_p, (rows, cols), np.float64)
 
 
-@njit(inline="always", error_model="numpy")
+@njit(**C_HELPER)
 def _k(k_p, n_k):
     return carray(k_p, n_k, np.float64)
 
@@ -89,7 +88,7 @@ def load_rows() -> dict[str, object]:
         if missing:
             with vector_loops.evaluator_compile():  # numba's C functions send no compile event
                 for name in missing:
-                    compiled = cfunc(far.C_SIGNATURE, **_OPTIONS)(FUNCTIONS[name])
+                    compiled = cfunc(far.C_SIGNATURE, **C_FUNCTION)(FUNCTIONS[name])
                     far.fill(far.SLOT[name], compiled.address)
                     COMPILED[name] = compiled
     return COMPILED
