@@ -22,6 +22,7 @@ from typing import Any
 
 import numba
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from surfgen.filters.geometry import (
     column_bounds,
@@ -244,8 +245,6 @@ def symmetry_metrics(mesh: Mesh) -> dict[str, Any]:
 
 def solidity(mesh: Mesh, volume: float | None) -> float | None:
     """Enclosed volume / convex hull volume (None when the mesh encloses no volume)."""
-    from scipy.spatial import ConvexHull, QhullError
-
     if volume is None or mesh.n_faces == 0:
         return None
     used = mesh.vertices[used_vertices(mesh)]

@@ -42,8 +42,9 @@ bounds, against numpy's ``/`` bit for bit); the evaluator's fast == reference te
 
 from __future__ import annotations
 
-from llvmlite import ir
+from llvmlite import binding, ir
 from numba import njit, types
+from numba.core import config
 from numba.extending import intrinsic
 
 from surfgen.generator.jit.options import INLINE, KERNEL
@@ -70,9 +71,6 @@ def fma(typingctx, a, b, c):
 def _codegen_has_fma() -> bool:
     """Whether the CPU numba compiles for has FMA: its configured features, else the host's
     (numba's default target); ``False`` for another named CPU, whose features are unknown here."""
-    from llvmlite import binding
-    from numba.core import config
-
     if config.CPU_FEATURES:
         features = config.CPU_FEATURES
     elif config.CPU_NAME in (None, "", "host"):

@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.compiler import M_S
-from surfgen.generator.eval.interpreter import OP_COPY, run_code_far, unsigned
+from surfgen.generator.eval.interpreter import run_code_far
+from surfgen.generator.eval.opcodes import M_S, OP_COPY
+from surfgen.generator.eval.row_operations import unsigned
 from surfgen.generator.jit.options import INLINE, KERNEL
 
 # ----------------------------------------------------------------------------- blocks and drivers

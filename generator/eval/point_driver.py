@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.interpreter import run_code_far, unsigned
+from surfgen.generator.eval.interpreter import run_code_far
+from surfgen.generator.eval.row_operations import unsigned
 from surfgen.generator.jit.options import INLINE, KERNEL
 
 

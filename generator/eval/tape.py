@@ -25,14 +25,17 @@ from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
 import numpy as np
+from llvmlite import binding
 
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.eval import grid_driver as kernels
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval import point_driver as points
-from surfgen.generator.eval.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
+from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.eval.opcodes import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.parser import parse
 
 log = logging.getLogger(__name__)
 
@@ -49,8 +52,6 @@ def tile_max(cpu_name: str) -> int:
 
 
 def _host_cpu_name() -> str:
-    from llvmlite import binding
-
     return str(binding.get_host_cpu_name())
 
 
@@ -415,10 +416,4 @@ def _points_evaluator(tree: Expr, params: tuple[tuple[str, float], ...]) -> Poin
     return PointsEvaluator(_compiled(tree, params))
 
 
-def _warm_tree() -> Expr:
-    from surfgen.generator.formula.parser import parse
-
-    return parse("x*y+z^2")
-
-
-_WARM_TREE = _warm_tree()
+_WARM_TREE = parse("x*y+z^2")

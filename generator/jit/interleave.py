@@ -66,7 +66,11 @@ def interleave_from(environ) -> int:
 INTERLEAVE = interleave_from(os.environ)
 
 # Functions of these modules hold the evaluator's vector loops.
-MODULES = ("surfgen.generator.eval.interpreter", "surfgen.generator.elementary")
+MODULES = (
+    "surfgen.generator.eval.interpreter",
+    "surfgen.generator.eval.row_operations",
+    "surfgen.generator.elementary",
+)
 
 
 def evaluator_function(module: str | None) -> bool:
@@ -75,7 +79,7 @@ def evaluator_function(module: str | None) -> bool:
 
 
 def _set_interleave(count: int) -> None:
-    from llvmlite import binding
+    from llvmlite import binding  # deferred: this module imports no numba (module docstring)
 
     binding.set_option("surfgen", f"-force-vector-interleave={count}")
 
@@ -134,7 +138,7 @@ def install() -> None:
     global _INSTALLED
     if _INSTALLED is not None or INTERLEAVE == 0:
         return
-    from numba.core import event
+    from numba.core import event  # deferred: runs as numba is imported (setup.py)
 
     _INSTALLED = make_listener()
     event.register("numba:compile", _INSTALLED)
@@ -142,7 +146,7 @@ def install() -> None:
 
 def make_listener(setter: Callable[[int], None] = _set_interleave) -> _Listener:
     """A :class:`_Listener` that numba accepts (a subclass of its ``event.Listener``)."""
-    from numba.core import event
+    from numba.core import event  # deferred: this module imports no numba
 
     class _NumbaListener(_Listener, event.Listener):
         pass
@@ -156,7 +160,7 @@ def evaluator_compile() -> Iterator[None]:
     iteration): for the C functions of :mod:`surfgen.generator.eval.row_functions`, whose compiles send
     no ``numba:compile`` event. Nested compiles of dispatchers keep the option on. Holds numba's
     (re-entrant) compiler lock, under which its events arrive too."""
-    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core.compiler_lock import global_compiler_lock  # deferred: no numba at import
 
     if _INSTALLED is None:
         yield

@@ -12,7 +12,7 @@ from surfgen.generator.elementary import REGISTRY, power, round_trip
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval import row_calls as far
 from surfgen.generator.eval import row_functions as row_table
-from surfgen.generator.eval.compiler import OP
+from surfgen.generator.eval.opcodes import OP
 
 # Hard arguments: zeros, tiny, huge, near the jumps of the round trips, specials.
 _HARD = [0.0, -0.0, 1e-310, -1e-300, 0.5, -0.75, 1.0, -1.0, 1.5707963267948966, 3.141592653589793]
