@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.elementary import REGISTRY
+from surfgen.generator.elementary.registry import registry
 from surfgen.generator.jit.options import INLINE, KERNEL
 
 ROUND_TRIPS = ("atantan", "asinsin", "acoscos", "acotcot")
@@ -193,12 +193,13 @@ _parity = njit(**INLINE)(_parity_py)
 _pi_minus = njit(**INLINE)(_pi_minus_py)
 _pi_plus = njit(**INLINE)(_pi_plus_py)
 
-_sin = REGISTRY["sin"].scalar
-_cos = REGISTRY["cos"].scalar
-_tan = REGISTRY["tan"].scalar
-_asin = REGISTRY["asin"].scalar
-_acos = REGISTRY["acos"].scalar
-_atan = REGISTRY["atan"].scalar
+_FUNCTIONS = registry()
+_sin = _FUNCTIONS["sin"].scalar
+_cos = _FUNCTIONS["cos"].scalar
+_tan = _FUNCTIONS["tan"].scalar
+_asin = _FUNCTIONS["asin"].scalar
+_acos = _FUNCTIONS["acos"].scalar
+_atan = _FUNCTIONS["atan"].scalar
 
 # ----------------------------------------------------------------------------- numba
 # Each round trip has a fast form (|u| <= FAST, vectorised) and a mid form (FAST < |u| <= LIMIT,
@@ -369,7 +370,7 @@ def direct_array(name: str, u: np.ndarray, fns) -> np.ndarray:
     raise KeyError(name)
 
 
-_OWN = {name: REGISTRY[name].array for name in ("sin", "cos", "tan", "asin", "acos", "atan")}
+_OWN = {name: _FUNCTIONS[name].array for name in ("sin", "cos", "tan", "asin", "acos", "atan")}
 
 
 def _twin(name: str, finish, reduce_fast):
