@@ -14,13 +14,14 @@ for the call (they release the GIL); ``threads=None`` uses numba's default count
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import math
 import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
@@ -179,6 +180,36 @@ def warm_up(parallel: bool = True) -> float:
     seconds = time.perf_counter() - t0
     log.debug("fast evaluator ready in %.2f s (threads too: %s)", seconds, parallel)
     return seconds
+
+
+@contextlib.contextmanager
+def compiled_not_run(*others: tuple[object, str]) -> Iterator[None]:
+    """Within the block the interpreter is not loaded, and the grid kernel and each
+    ``(module, name)`` numba dispatcher of ``others`` (kernels of other layers that call the
+    interpreter: the walls') is compiled (or loaded from numba's cache) for the types of the
+    arguments it is called with, not run: the call returns 0 and writes nothing. A kernel's
+    compile needs only the interpreter's calling convention
+    (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
+
+    def compiling(dispatcher):
+        def compile_for(*args):
+            dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            return 0
+
+        return compile_for
+
+    sites = ((kernels, "run_grid"), *others)
+    originals = {(module, name): getattr(module, name) for module, name in sites}
+    load = interpreter.load_interpreter
+    try:
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, compiling(dispatcher))
+        interpreter.load_interpreter = lambda: None
+        yield
+    finally:
+        interpreter.load_interpreter = load
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, dispatcher)
 
 
 def warm_interpreter() -> float:
@@ -409,6 +440,21 @@ def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> P
     :func:`evaluate_fast`; evaluators of recent trees are kept, as the walls' classification
     asks for one per mesh). Raises :class:`FormulaError` as :func:`compile_tree` does."""
     return _points_evaluator(tree, tuple(sorted((params or {}).items())))
+
+
+def evaluate_points(
+    tree: Expr,
+    x: np.ndarray | float,
+    y: np.ndarray | float,
+    z: np.ndarray | float,
+    params: Mapping[str, float] | None = None,
+) -> np.ndarray:
+    """``tree`` at the points ``(x, y, z)`` (broadcast together), float64: the values of
+    :func:`surfgen.generator.eval.reference.evaluate_points`, bit for bit (a
+    :class:`PointsEvaluator`)."""
+    bx, by, bz = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (x, y, z)))
+    out = points_evaluator(tree, params)(bx.reshape(-1), by.reshape(-1), bz.reshape(-1))
+    return out.reshape(bx.shape)
 
 
 @functools.lru_cache(maxsize=COMPILED_CACHE)
