@@ -437,8 +437,8 @@ def test_cody_waite_parts() -> None:
 def test_polynomial_fit_errors(coeffs: str, g, zmax) -> None:
     """Each kernel polynomial is within 2**-52 (relative) of its function on its range."""
     c = []
-    while hasattr(T, f"{coeffs}{len(c)}"):
-        c.append(mp.mpf(getattr(T, f"{coeffs}{len(c)}")))
+    while hasattr(TT, f"{coeffs}{len(c)}"):
+        c.append(mp.mpf(getattr(TT, f"{coeffs}{len(c)}")))
     with mp.workdps(80):
         for i in range(1, 201):
             y = zmax * i / 200
