@@ -1,5 +1,5 @@
 """The tape interpreter: one block of code rows over the W rows of a tile (tape format:
-compiler.py). :mod:`surfgen.generator.eval.grid_driver` drives it over a grid, :mod:`surfgen.generator.eval.point_driver`
+opcodes.py, compiler.py). :mod:`surfgen.generator.eval.grid_driver` drives it over a grid, :mod:`surfgen.generator.eval.point_driver`
 over lists of points, lattices and grid edges.
 
 Kernels are dumb: arrays and scalars in, arrays out; :mod:`surfgen.generator.eval.tape` validates
@@ -90,7 +90,7 @@ from surfgen.generator.jit.options import C_FUNCTION, INLINE, KERNEL
 log = logging.getLogger(__name__)
 
 
-# The unary operations that run behind the row table (far.py): the slots named after an opcode
+# The unary operations that run behind the row table (row_calls.py): the slots named after an opcode
 # (the binary ones are named by operand mode), by opcode; -1 for the others.
 _UNARY_SLOT = np.full(max(OP.values()) + 1, -1, dtype=np.int64)
 for _name, _slot in SLOT.items():

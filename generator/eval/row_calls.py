@@ -4,7 +4,7 @@ numba compiles the code of every jitted function a function calls into that func
 optimises and emits it again there. Each elementary function's vector loop (sin, cos, tan,
 atan, pow, ...) was thus optimised and emitted four times on a fresh machine: alone, inside the
 interpreter's unary dispatcher, inside ``run_code`` and inside the interpreter's C function. Now
-each heavy row operation is compiled once, as a C function of its own (:mod:`row_table`), and
+each heavy row operation is compiled once, as a C function of its own (:mod:`.row_functions`), and
 the interpreter calls it through one slot of this table (:func:`far_row`): its own compile is
 its dispatch and its cheap loops only, and the rows can compile in another process meanwhile.
 

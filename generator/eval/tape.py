@@ -1,5 +1,5 @@
 """The fast evaluator: compile a tree once (:mod:`.compiler`), run it with the numba interpreter
-(:mod:`.kernels`) on any number of grids.
+(:mod:`.grid_driver`) on any number of grids.
 
     program = compile_program(tree, params)                  # once per formula
     coarse = evaluate_program(program, coarse_grid)          # then any grid,
@@ -94,7 +94,7 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
 
 
 def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.ndarray:
-    """The values of ``program`` on ``grid`` (``prof``: see :func:`kernels.run_grid`)."""
+    """The values of ``program`` on ``grid`` (``prof``: see :func:`.grid_driver.run_grid`)."""
     interpreter.load_interpreter()  # here, where an error can be raised (the kernels call it)
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
@@ -109,7 +109,7 @@ def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.n
 
 
 def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threads: int) -> None:
-    """:func:`kernels.run_grid` on ``n_threads`` threads: the x, y, z blocks, then the yz
+    """:func:`.grid_driver.run_grid` on ``n_threads`` threads: the x, y, z blocks, then the yz
     plane's rows and the slabs of x indices in ``CHUNKS_PER_THREAD`` chunks per thread, on a
     pool of Python threads (the kernels release the GIL: ``nogil``)."""
     run = functools.partial(kernels.run_grid, prog, tile, *stores, out, _NO_PROFILE)
@@ -334,7 +334,7 @@ POINTS_TILE = 256  # points per W row of the points kernel
 
 
 def points_program(program: Program) -> tuple:
-    """``program`` rewritten for :func:`points.run_points`: every block runs along a list of
+    """``program`` rewritten for :func:`.point_driver.run_points`: every block runs along a list of
     points instead of a grid axis.
 
     On a grid, a value that does not vary along a block's run axis is a row scalar (an S slot,
@@ -407,7 +407,7 @@ class PointsEvaluator:
         return out
 
     def plain(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """The same values, every level computed at every point (:func:`points.run_points`,
+        """The same values, every level computed at every point (:func:`.point_driver.run_points`,
         no sharing): the check of :meth:`__call__`'s sharing."""
         px, py, pz = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, z))
         out = np.empty(px.size, dtype=np.float64)
@@ -417,15 +417,15 @@ class PointsEvaluator:
         return out
 
     def kernel_args(self) -> tuple:
-        """``(prog, tile, active, rows)``: what :func:`points.eval_points` takes before the
+        """``(prog, tile, active, rows)``: what :func:`.point_driver.eval_points` takes before the
         points, for numba code that evaluates the formula itself (the walls' classification).
         Loads the interpreter that code calls."""
         interpreter.load_interpreter()
         return self._prog, POINTS_TILE, self._active, self._rows
 
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
-        """Evaluate each level once per distinct value it needs (:func:`points.eval_points`
-        plans the lattice and runs :func:`points.run_lattice`).
+        """Evaluate each level once per distinct value it needs (:func:`.point_driver.eval_points`
+        plans the lattice and runs :func:`.point_driver.run_lattice`).
 
         Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
         alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are

@@ -2,17 +2,17 @@
 
 numba's cache checks only the source file of the cached function itself, but a cached function
 carries the machine code of every jitted function it calls from other files: the row table's C
-functions (``row_table.py``) compile the elementary functions *into* their own code, the walls'
-classification (``walls.py``) the points kernels (``points.py``), and so on; the kernels call the
+functions (``eval/row_functions.py``) compile the elementary functions *into* their own code, the walls'
+classification (``mesh/walls.py``) the points kernels (``eval/point_driver.py``), and so on; the kernels call the
 interpreter through a pointer whose calling convention (its arguments) they compile in, and the
-interpreter its rows through the row table's (``far.py``). A change of ``trig.py`` or
+interpreter its rows through the row table's (``eval/row_calls.py``). A change of ``trig.py`` or
 ``interpreter.py`` would leave those callers stale, with the old bits or the old convention.
 The locator installed here adds a digest of every
 surfgen source that holds numba code to the freshness stamp of every cached function of surfgen
 (and, in a source checkout, of its tests and benchmarks).
 
 numba picks a function's locator when the function is decorated, so this must run before any of
-surfgen's jitted functions is defined: it runs when numba is first imported (``numba_setup.py``,
+surfgen's jitted functions is defined: it runs when numba is first imported (``jit/setup.py``,
 put in place by ``surfgen.generator``'s ``__init__``, which ``surfgen.filters`` and
 ``surfgen.pipelines`` import first). (It was once installed by the
 elementary functions' package: a process that imported the mesh or the filters before them gave

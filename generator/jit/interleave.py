@@ -62,7 +62,7 @@ def interleave_from(environ) -> int:
     return DEFAULT_INTERLEAVE
 
 
-# Vectors per iteration of the evaluator's loops; part of numba's cache stamp (numba_cache.py).
+# Vectors per iteration of the evaluator's loops; part of numba's cache stamp (jit/cache.py).
 INTERLEAVE = interleave_from(os.environ)
 
 # Functions of these modules hold the evaluator's vector loops.
@@ -89,7 +89,7 @@ class _Listener:
     compile of an evaluator function to its end (an error included). numba delivers them under
     its global compiler lock, one compile at a time. (Registered as a subclass of numba's
     ``event.Listener`` made in :func:`install`: this module imports no numba, since it is part
-    of what runs when numba is imported, see numba_setup.py.)"""
+    of what runs when numba is imported, see jit/setup.py.)"""
 
     def __init__(self, setter=_set_interleave) -> None:
         self._set = setter
@@ -133,7 +133,7 @@ _INSTALLED: _Listener | None = None
 
 
 def install() -> None:
-    """Register the listener with numba (once per process; numba_setup.py does it when numba is
+    """Register the listener with numba (once per process; jit/setup.py does it when numba is
     imported, before any of surfgen's functions can be defined)."""
     global _INSTALLED
     if _INSTALLED is not None or INTERLEAVE == 0:
