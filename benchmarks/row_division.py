@@ -22,16 +22,17 @@ from numba import njit
 
 from benchmarks import harness
 from surfgen.generator.elementary import division as D
+from surfgen.generator.jit.options import KERNEL
 from tests.support.division_cases import midpoint_row
 
 
-@njit(**D.JIT)
+@njit(**KERNEL)
 def _plain(W, d, a, s, n):
     for k in range(n):
         W[d, k] = W[a, k] / s
 
 
-@njit(**D.JIT)
+@njit(**KERNEL)
 def _repeat(fast, W, s, n, reps):
     for _ in range(reps):
         if fast:

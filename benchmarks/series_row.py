@@ -1,4 +1,4 @@
-"""The series row (``interpreter._series_row``: the sum of eqs. (2)-(4) in saw1, tri1, stair1)
+"""The series row (``row_operations.series_row``: the sum of eqs. (2)-(4) in saw1, tri1, stair1)
 against the scalar loop it replaced, measured in one run.
 
     python -m benchmarks.series_row [--repeats 20] [--json PATH]
@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from benchmarks import harness
-from surfgen.generator.eval import interpreter
+from surfgen.generator.eval import row_operations
 
 N = 1024
 CASES = [(0.5, 6, 4.0), (0.37, 12, 6.0), (1.0, 1, 3.0), (2.5, 40, 120.0)]  # r, p, |x| range
@@ -31,7 +31,7 @@ def _scalar_row(W, d, a, n, consts, base):
     r = consts[base]
     p = int(consts[base + 1])
     for k in range(n):
-        W[d, k] = interpreter._series(W[a, k], r, p)
+        W[d, k] = row_operations.series(W[a, k], r, p)
 
 
 def _calls(row, W, d: int, consts: np.ndarray, calls: int = 500):
@@ -55,12 +55,12 @@ def main(argv: list[str] | None = None) -> int:
         W[0] = rng.uniform(-span, span, N)
         consts = np.array([r, float(p), 0.0])
         _scalar_row(W, 1, 0, N, consts, 0)
-        interpreter._series_row(W, 2, 0, N, consts, 0)
+        row_operations.series_row(W, 2, 0, N, consts, 0)
         same = np.array_equal(W[1].view(np.int64), W[2].view(np.int64))
         timings = harness.take_turns(
             {
                 "before": _calls(_scalar_row, W, 1, consts),
-                "now": _calls(interpreter._series_row, W, 2, consts),
+                "now": _calls(row_operations.series_row, W, 2, consts),
             },
             args.repeats,
         )

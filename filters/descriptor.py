@@ -49,6 +49,7 @@ from scipy.spatial import cKDTree
 
 from surfgen.filters.geometry import weighted_centres
 from surfgen.generator.errors import MeshError
+from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_cross
 
 log = logging.getLogger(__name__)
@@ -119,7 +120,7 @@ def descriptor(mesh: Mesh) -> np.ndarray:
     return np.concatenate(parts)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _cross_products(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``np.cross(v1 - v0, v2 - v0)`` per face ``(F, 3)`` and its norm ``(F,)``."""
     cross = np.empty((f.shape[0], 3))
@@ -133,7 +134,7 @@ def _cross_products(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return cross, norm
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _centres(v: np.ndarray, f: np.ndarray, centroid: np.ndarray, radius: float) -> np.ndarray:
     """``(v[f].mean(axis=1) - centroid) / radius``: face centres in RMS radii."""
     out = np.empty((f.shape[0], 3))
@@ -144,7 +145,7 @@ def _centres(v: np.ndarray, f: np.ndarray, centroid: np.ndarray, radius: float) 
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _pair_distances(points: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(points[i] - points[j], axis=1)`` without the two gathered copies."""
     out = np.empty(i.shape[0])
@@ -190,7 +191,7 @@ def _relief(centres: np.ndarray, area_normals: np.ndarray, areas: np.ndarray) ->
     return counts / counts.sum()
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _lattice_cells(centres: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
     """``floor(centres / width)`` as int64 ``(F, 3)``, shifted so the lowest cell is 0 on each
     axis, and the lattice's dimensions ``(3,)``."""
@@ -209,7 +210,7 @@ def _lattice_cells(centres: np.ndarray, width: float) -> tuple[np.ndarray, np.nd
     return cells, hi - lo + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _cell_sums(
     cells: np.ndarray, dims: np.ndarray, area_normals: np.ndarray, areas: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -22,15 +22,16 @@ import numba
 import numpy as np
 
 from surfgen.generator.elementary.trig import acos_scalar
+from surfgen.generator.jit.options import CHECKED
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _dot(ax: float, ay: float, az: float, bx: float, by: float, bz: float) -> float:
     """``np.einsum("ij,ij->i")`` on one row of three: its pairing, not left to right."""
     return (ax * bx + az * bz) + ay * by
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def used_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """``(V,)`` bool: the vertices some face uses (``np.unique(faces)`` as a mask, same order)."""
     out = np.zeros(n_vertices, dtype=np.bool_)
@@ -40,7 +41,7 @@ def used_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def weighted_centres(v: np.ndarray, f: np.ndarray, areas: np.ndarray) -> np.ndarray:
     """``areas[:, None] * v[f].mean(axis=1)`` ``(F, 3)``: summed over faces (by numpy) and
     divided by the total area it is the area centroid."""
@@ -52,7 +53,7 @@ def weighted_centres(v: np.ndarray, f: np.ndarray, areas: np.ndarray) -> np.ndar
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def first_edge_lengths(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)``."""
     out = np.empty(f.shape[0])
@@ -64,7 +65,7 @@ def first_edge_lengths(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def volume_terms(v: np.ndarray, f: np.ndarray, o: np.ndarray) -> np.ndarray:
     """``einsum("ij,ij->i", a - o, cross(b - o, c - o))`` per face (six times its signed cone
     volume from ``o``)."""
@@ -81,7 +82,7 @@ def volume_terms(v: np.ndarray, f: np.ndarray, o: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def corner_cosines(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Cosine of the angle at each face corner ``(F, 3)``, unclipped: corner k sees edge
     ``k -> k+1`` and the reversed edge ``k+2 -> k``, ``-(e_k . e_j) / (|e_k| |e_j| + 1e-300)``."""
@@ -106,7 +107,7 @@ def corner_cosines(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def corner_angle_sums(v: np.ndarray, f: np.ndarray, n_vertices: int) -> np.ndarray:
     """Per vertex, the sum of the angles at its face corners, added in face order (like
     ``np.bincount(f.ravel(), weights=angles.ravel())``): the ``acos`` of
@@ -126,7 +127,7 @@ def corner_angle_sums(v: np.ndarray, f: np.ndarray, n_vertices: int) -> np.ndarr
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool]:
     """Distinct undirected edges, edges with one face, edges with more than two, and whether
     every two-face edge is walked once in each direction — by half-edges bucketed on their lower
@@ -187,7 +188,7 @@ def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool
     return count, boundary, nonmanifold, oriented
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def column_bounds(a: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``a[mask].min(axis=0)`` and ``.max(axis=0)`` of an ``(N, 3)`` array in one pass (numpy's
     column reductions of a row-major array walk it three values at a time: 10x slower). NaN

@@ -20,6 +20,7 @@ import numpy as np
 import pymeshlab
 
 from surfgen.generator.errors import MeshError
+from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
 
 logger = logging.getLogger(__name__)
@@ -238,7 +239,7 @@ def face_components(mesh: Mesh) -> np.ndarray:
     return labels.reshape(-1)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _vertex_roots(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """Union-find over the faces' edges: each vertex's component as its lowest vertex index.
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numba
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from surfgen.filters.geometry import (
     column_bounds,
@@ -29,6 +30,7 @@ from surfgen.filters.geometry import (
     used_mask,
     weighted_centres,
 )
+from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
@@ -124,7 +126,7 @@ def _cell_index(
     return start, order, lo, cell, dims
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _bucket(
     cloud: np.ndarray, lo: np.ndarray, cell: float, dims: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -148,7 +150,7 @@ def _bucket(
     return start, order
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _near(
     x: float,
     y: float,
@@ -196,7 +198,7 @@ def _near(
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _symmetric(
     pts: np.ndarray,
     cloud: np.ndarray,
@@ -243,8 +245,6 @@ def symmetry_metrics(mesh: Mesh) -> dict[str, Any]:
 
 def solidity(mesh: Mesh, volume: float | None) -> float | None:
     """Enclosed volume / convex hull volume (None when the mesh encloses no volume)."""
-    from scipy.spatial import ConvexHull, QhullError
-
     if volume is None or mesh.n_faces == 0:
         return None
     used = mesh.vertices[used_vertices(mesh)]

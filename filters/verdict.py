@@ -22,6 +22,7 @@ from surfgen.filters.geometry import corner_angle_sums, used_mask
 from surfgen.filters.meshlab import face_components
 from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
+from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_areas
 from surfgen.generator.model.settings import (
     require_fractions,
@@ -180,7 +181,7 @@ def quick_metrics(
     }
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**CHECKED)
 def _on_box_faces(
     v: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: float
 ) -> np.ndarray:

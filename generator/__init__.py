@@ -12,7 +12,7 @@ On a CPU with AVX-512, numba compiles with 512-bit vectors (:func:`wide_vector_f
 LLVM's tuning for Intel's AVX-512 Xeons prefers 256-bit ones, which would halve the width of
 every loop of the evaluator there while numpy's own SIMD maths runs on 512 bits. Set
 ``NUMBA_CPU_FEATURES`` (or ``NUMBA_ENABLE_AVX=0``) to keep numba's own choice. That and
-surfgen's other numba settings apply when numba is first imported (:mod:`.numba_setup`):
+surfgen's other numba settings apply when numba is first imported (:mod:`.jit.setup`):
 importing surfgen does not import numba.
 """
 
@@ -44,7 +44,7 @@ if "NUMBA_CACHE_DIR" not in _os.environ and not _os.access(
 
 # numba's settings (512-bit vectors on AVX-512 CPUs, the cache stamp, four vectors per
 # iteration in the evaluator's loops) are applied when numba is first imported, before any of
-# surfgen's jitted functions is defined: importing surfgen imports no numba (numba_setup.py).
+# surfgen's jitted functions is defined: importing surfgen imports no numba (jit/setup.py).
 from surfgen.generator.jit.setup import install as _install_numba_setup  # noqa: E402
 from surfgen.generator.jit.setup import wide_vector_features  # noqa: E402, F401
 

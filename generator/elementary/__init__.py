@@ -23,104 +23,29 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import importlib
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator
 
 import numpy as np
 
+from surfgen.generator.elementary.registry import BINARY, UFUNCS, UNARY, Elementary, registry
+
 # ----------------------------------------------------------------------------- the registry
-
-UNARY = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh")
-UNARY += ("acosh", "atanh", "exp", "log", "log10", "cbrt")
-BINARY = ("atan2", "pow")
-
-# Which module implements which function (API of LIBM.md). They are numba modules: imported
-# when a function is first needed (REGISTRY, call, power, round_trip), so that importing the
-# formula language (parser, spec, catalogue) costs no numba.
-_PROVIDER: dict[str, str] = {
-    **{name: "trig" for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2")},
-    **{name: "explog" for name in ("exp", "log", "log10", "pow", "sinh", "cosh", "tanh")},
-    **{name: "explog" for name in ("asinh", "acosh", "atanh", "cbrt")},
-}
-
-UFUNCS: dict[str, Callable[..., np.ndarray]] = {
-    "sin": np.sin,
-    "cos": np.cos,
-    "tan": np.tan,
-    "asin": np.arcsin,
-    "acos": np.arccos,
-    "atan": np.arctan,
-    "sinh": np.sinh,
-    "cosh": np.cosh,
-    "tanh": np.tanh,
-    "asinh": np.arcsinh,
-    "acosh": np.arccosh,
-    "atanh": np.arctanh,
-    "exp": np.exp,
-    "log": np.log,
-    "log10": np.log10,
-    "cbrt": np.cbrt,
-    "atan2": np.arctan2,
-    "pow": np.power,
-}
-
-
-@dataclass(frozen=True)
-class Elementary:
-    """One function: its numba rows and scalar, its numpy twin, numpy's own ufunc."""
-
-    name: str
-    arity: int
-    scalar: Callable
-    array: Callable[..., np.ndarray]
-    ufunc: Callable[..., np.ndarray]
-    source: str  # the implementing module
-    row: Callable | None = None  # unary
-    row_vv: Callable | None = None  # binary
-    row_vs: Callable | None = None
-    row_sv: Callable | None = None
-
-
-def _entry(name: str) -> Elementary:
-    m = importlib.import_module(f"{__name__}.{_PROVIDER[name]}")
-    common = {
-        "name": name,
-        "scalar": getattr(m, f"{name}_scalar"),
-        "array": getattr(m, f"{name}_array"),
-        "ufunc": UFUNCS[name],
-        "source": m.__name__,
-    }
-    if name in BINARY:
-        return Elementary(
-            arity=2,
-            row_vv=getattr(m, f"{name}_row_vv"),
-            row_vs=getattr(m, f"{name}_row_vs"),
-            row_sv=getattr(m, f"{name}_row_sv"),
-            **common,
-        )
-    return Elementary(arity=1, row=getattr(m, f"{name}_row"), **common)
-
-
-_REGISTRY: dict[str, Elementary] = {}
-
-
-def _registry() -> dict[str, Elementary]:
-    """:data:`REGISTRY`, built (and the numba modules imported) on first use."""
-    if not _REGISTRY:
-        _REGISTRY.update({name: _entry(name) for name in UNARY + BINARY})
-    return _REGISTRY
 
 
 def __getattr__(name: str):
     # REGISTRY (every function's entry) and ROUND_TRIPS (the names of the closed-form round
     # trips) live in the numba modules: they are loaded on first use (PEP 562).
     if name == "REGISTRY":
-        return _registry()
+        return registry()
     if name == "ROUND_TRIPS":
-        from surfgen.generator.elementary import roundtrip
-
-        return roundtrip.ROUND_TRIPS
+        return _roundtrip().ROUND_TRIPS
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _roundtrip():
+    """The round trips' module, imported on first use: a numba module (importing the formula
+    language imports no numba). It imports the registry, not this package's ``__init__``."""
+    return importlib.import_module("surfgen.generator.elementary.roundtrip")
 
 
 # ----------------------------------------------------------------------------- numpy-level API
@@ -149,7 +74,7 @@ def call(name: str, *args) -> np.ndarray:
     """``name(*args)`` on arrays (float64, broadcasting) with surfgen's function."""
     if _BACKEND.get() == "numpy":
         return UFUNCS[name](*args)
-    return _registry()[name].array(*(np.asarray(a, np.float64) for a in args))
+    return registry()[name].array(*(np.asarray(a, np.float64) for a in args))
 
 
 # ``x^c`` convention (numpy's fast path of np.power, kept as a rule applied per element by both
@@ -181,8 +106,8 @@ def power(u, e) -> np.ndarray:
     with np.errstate(all="ignore"):
         if e.ndim == 0:
             short = _pow_shortcut(u, float(e))
-            return short if short is not None else _registry()["pow"].array(u, e)
-        out = _registry()["pow"].array(u, e)
+            return short if short is not None else registry()["pow"].array(u, e)
+        out = registry()["pow"].array(u, e)
         out = np.where(e == 2.0, u * u, out)
         out = np.where(e == 0.5, np.sqrt(u), out)
         out = np.where(e == -1.0, 1.0 / u, out)
@@ -192,8 +117,7 @@ def power(u, e) -> np.ndarray:
 
 def round_trip(name: str, u) -> np.ndarray:
     """A closed-form round trip (``"atantan"`` = ``atan(tan(u))``, ...; see :mod:`.roundtrip`)."""
-    from surfgen.generator.elementary import roundtrip
-
+    roundtrip = _roundtrip()
     if _BACKEND.get() == "numpy":
         return roundtrip.direct_array(name, np.asarray(u, np.float64), UFUNCS)
     return roundtrip.ARRAYS[name](np.asarray(u, np.float64))

@@ -42,11 +42,12 @@ bounds, against numpy's ``/`` bit for bit); the evaluator's fast == reference te
 
 from __future__ import annotations
 
-from llvmlite import ir
+from llvmlite import binding, ir
 from numba import njit, types
+from numba.core import config
 from numba.extending import intrinsic
 
-JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 S_MIN = 2.0**-100  # |s| bounds of the fast path (a row's divisor)
 S_MAX = 2.0**100
@@ -70,9 +71,6 @@ def fma(typingctx, a, b, c):
 def _codegen_has_fma() -> bool:
     """Whether the CPU numba compiles for has FMA: its configured features, else the host's
     (numba's default target); ``False`` for another named CPU, whose features are unknown here."""
-    from llvmlite import binding
-    from numba.core import config
-
     if config.CPU_FEATURES:
         features = config.CPU_FEATURES
     elif config.CPU_NAME in (None, "", "host"):
@@ -85,7 +83,7 @@ def _codegen_has_fma() -> bool:
 ROW_DIVISION = _codegen_has_fma()
 
 
-@njit(inline="always", **JIT)
+@njit(**INLINE)
 def div_row_by_scalar(W, d, a, s, n):
     """``W[d, k] = W[a, k] / s`` for ``k < n``, the bits of IEEE division (module docstring);
     returns whether the FMA path gave them (else the row was divided plainly)."""
@@ -111,7 +109,7 @@ def div_row_by_scalar(W, d, a, s, n):
     return False
 
 
-@njit(**JIT)
+@njit(**KERNEL)
 def div_row_by_scalar_call(W, d, a, s, n):
     """:func:`div_row_by_scalar` as a function of its own (for the tests and benchmarks)."""
     return div_row_by_scalar(W, d, a, s, n)

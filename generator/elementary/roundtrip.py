@@ -44,9 +44,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.elementary import REGISTRY
-
-_OPTS = {"cache": True, "error_model": "numpy", "nogil": True}
+from surfgen.generator.elementary.registry import registry
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 ROUND_TRIPS = ("atantan", "asinsin", "acoscos", "acotcot")
 
@@ -179,45 +178,46 @@ def _pi_plus_py(hi, lo):
     return s + (e + (_C2 + lo))
 
 
-_reduce_cw = njit(inline="always", **_OPTS)(_reduce_cw_py)
-_adjust = njit(inline="always", **_OPTS)(_adjust_py)
+_reduce_cw = njit(**INLINE)(_reduce_cw_py)
+_adjust = njit(**INLINE)(_adjust_py)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _reduce(u):
     k, hi, lo = _reduce_cw(u)
     return _adjust(k, hi, lo)
 
 
-_reduce_dekker = njit(inline="always", **_OPTS)(_reduce_dekker_py)
-_parity = njit(inline="always", **_OPTS)(_parity_py)
-_pi_minus = njit(inline="always", **_OPTS)(_pi_minus_py)
-_pi_plus = njit(inline="always", **_OPTS)(_pi_plus_py)
+_reduce_dekker = njit(**INLINE)(_reduce_dekker_py)
+_parity = njit(**INLINE)(_parity_py)
+_pi_minus = njit(**INLINE)(_pi_minus_py)
+_pi_plus = njit(**INLINE)(_pi_plus_py)
 
-_sin = REGISTRY["sin"].scalar
-_cos = REGISTRY["cos"].scalar
-_tan = REGISTRY["tan"].scalar
-_asin = REGISTRY["asin"].scalar
-_acos = REGISTRY["acos"].scalar
-_atan = REGISTRY["atan"].scalar
+_FUNCTIONS = registry()
+_sin = _FUNCTIONS["sin"].scalar
+_cos = _FUNCTIONS["cos"].scalar
+_tan = _FUNCTIONS["tan"].scalar
+_asin = _FUNCTIONS["asin"].scalar
+_acos = _FUNCTIONS["acos"].scalar
+_atan = _FUNCTIONS["atan"].scalar
 
 # ----------------------------------------------------------------------------- numba
 # Each round trip has a fast form (|u| <= FAST, vectorised) and a mid form (FAST < |u| <= LIMIT,
 # the Dekker reduction, per lane); beyond LIMIT the direct form.
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _atantan_of(u, k, hi, lo):
     return u if k == 0.0 else hi
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _asinsin_of(u, k, hi, lo):
     r = -hi if _parity(k) != 0.0 else hi
     return u if k == 0.0 else r
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _acoscos_of(u, k, hi, lo):
     ahi = abs(hi)
     alo = lo if hi >= 0.0 else -lo
@@ -225,7 +225,7 @@ def _acoscos_of(u, k, hi, lo):
     return far if _parity(k) != 0.0 else ahi
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _acotcot_of(u, k, hi, lo):
     # r mod pi in [0, pi): hi + lo is within an ulp or so of [-pi/2, pi/2], so adding pi to
     # the negative ones is enough (no end adjustment needed).
@@ -233,31 +233,31 @@ def _acotcot_of(u, k, hi, lo):
     return neg if hi < 0.0 else hi + 0.0
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _atantan_fast(u):
     k, hi, lo = _reduce(u)
     return _atantan_of(u, k, hi, lo)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _asinsin_fast(u):
     k, hi, lo = _reduce(u)
     return _asinsin_of(u, k, hi, lo)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _acoscos_fast(u):
     k, hi, lo = _reduce(u)
     return _acoscos_of(u, k, hi, lo)
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def _acotcot_fast(u):
     k, hi, lo = _reduce_cw(u)
     return _acotcot_of(u, k, hi, lo)
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def atantan_scalar(u):
     if abs(u) <= FAST:
         return _atantan_fast(u)
@@ -267,7 +267,7 @@ def atantan_scalar(u):
     return _atan(_tan(u))
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def asinsin_scalar(u):
     if abs(u) <= FAST:
         return _asinsin_fast(u)
@@ -277,7 +277,7 @@ def asinsin_scalar(u):
     return _asin(_sin(u))
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def acoscos_scalar(u):
     if abs(u) <= FAST:
         return _acoscos_fast(u)
@@ -287,7 +287,7 @@ def acoscos_scalar(u):
     return _acos(_cos(u))
 
 
-@njit(**_OPTS)
+@njit(**KERNEL)
 def acotcot_scalar(u):
     if abs(u) <= FAST:
         return _acotcot_fast(u)
@@ -301,7 +301,7 @@ def acotcot_scalar(u):
 # loop 2 recomputes those, only when there are any. d != a (loop 2 reads the argument again).
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def atantan_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -314,7 +314,7 @@ def atantan_row(W, d, a, n):
                 W[d, k] = atantan_scalar(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def asinsin_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -327,7 +327,7 @@ def asinsin_row(W, d, a, n):
                 W[d, k] = asinsin_scalar(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def acoscos_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -340,7 +340,7 @@ def acoscos_row(W, d, a, n):
                 W[d, k] = acoscos_scalar(W[a, k])
 
 
-@njit(inline="always", **_OPTS)
+@njit(**INLINE)
 def acotcot_row(W, d, a, n):
     bad = 0
     for k in range(n):
@@ -370,7 +370,7 @@ def direct_array(name: str, u: np.ndarray, fns) -> np.ndarray:
     raise KeyError(name)
 
 
-_OWN = {name: REGISTRY[name].array for name in ("sin", "cos", "tan", "asin", "acos", "atan")}
+_OWN = {name: _FUNCTIONS[name].array for name in ("sin", "cos", "tan", "asin", "acos", "atan")}
 
 
 def _twin(name: str, finish, reduce_fast):

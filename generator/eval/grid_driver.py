@@ -13,13 +13,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.compiler import M_S
-from surfgen.generator.eval.interpreter import JIT_OPTIONS, OP_COPY, run_code_far, unsigned
+from surfgen.generator.eval.interpreter import run_code_far
+from surfgen.generator.eval.opcodes import M_S, OP_COPY
+from surfgen.generator.eval.row_operations import unsigned
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 # ----------------------------------------------------------------------------- blocks and drivers
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _block(
     lv,
     i,
@@ -181,7 +183,7 @@ def _block(
             r0 += n
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _block_rows(
     m,
     i,
@@ -273,7 +275,7 @@ def _block_rows(
         j += rows
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _broadcast(mode, a, loads, l0, l1, consts, sx, sy, sxy, sz, sxz, syz, out, i, j0, j1):
     """out[i, j, :] for j0 <= j < j1 = the root of a formula of one or two variables: a scalar
     per row (mode S: a constant, x, y or xy value) or a z, xz or yz row (mode V), copied
@@ -312,13 +314,13 @@ def _broadcast(mode, a, loads, l0, l1, consts, sx, sy, sxy, sz, sxz, syz, out, i
                     out_flat[base + unsigned(k)] = syz[row, j, k]
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _scratch(prog, tile):
     nv, ns = prog[6], prog[7]
     return np.empty((nv, tile)), np.empty(ns), np.empty((2, tile))
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def grid_stores(rows, ax, ay, az):
     """The x, y, z and yz stores of a grid run (``rows``: the program's), the axes in row 0."""
     sx = np.empty((rows[1], ax.size))
@@ -331,7 +333,7 @@ def grid_stores(rows, ax, ay, az):
     return sx, sy, sz, syz
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _prologue(prog, tile, sx, sy, sz, syz, out, prof):
     """The x, y and z blocks (1-D, once per grid)."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
@@ -343,7 +345,7 @@ def _prologue(prog, tile, sx, sy, sz, syz, out, prof):
     _block(4, 0, 0, 1, sz.shape[1], *args)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof):
     """The yz block for rows j0 <= j < j1 (once per grid)."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
@@ -353,7 +355,7 @@ def _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof):
     _block(6, 0, j0, j1, sz.shape[1], *args)
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof):
     """x indices i0 <= i < i1: per i the xy and xz rows, then the xyz block row by row."""
     code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]
@@ -373,7 +375,7 @@ def _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof):
 GRID_ALL, GRID_XYZ_AXES, GRID_YZ_ROWS, GRID_SLAB = 0, 1, 2, 3
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def run_grid(prog, tile, sx, sy, sz, syz, out, prof, part, lo, hi):
     """Evaluate a program into ``out`` (Nx, Ny, Nz), with the stores of :func:`grid_stores`.
 

@@ -10,10 +10,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.interpreter import JIT_OPTIONS, run_code_far, unsigned
+from surfgen.generator.eval.interpreter import run_code_far
+from surfgen.generator.eval.row_operations import unsigned
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def run_points(prog, tile, px, py, pz, out):
     """Evaluate a program at the points ``(px[p], py[p], pz[p])`` into ``out[p]``.
 
@@ -70,7 +72,7 @@ def run_points(prog, tile, px, py, pz, out):
                         st[kind, row, k] = W[slot, k]
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def dedupe(keys):
     """Distinct int64 keys in order of first appearance (open addressing, O(n)).
 
@@ -80,7 +82,7 @@ def dedupe(keys):
     return ids, _dedupe_into(keys, ids)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _dedupe_into(keys, ids):
     """:func:`dedupe` writing ``ids`` into the given array (a row of the maps, no copy);
     returns ``first``."""
@@ -114,7 +116,7 @@ def _dedupe_into(keys, ids):
     return first[:m]
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def dedupe_in(keys, size):
     """:func:`dedupe` of keys known to lie in ``[0, size)`` (pairs of dense ids): the same
     ``ids`` and ``first``, through a table indexed by the key where it is small enough (no
@@ -123,7 +125,7 @@ def dedupe_in(keys, size):
     return ids, _dedupe_in_into(keys, size, ids)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _dedupe_in_into(keys, size, ids):
     """:func:`dedupe_in` writing ``ids`` into the given array; returns ``first``."""
     n = keys.size
@@ -145,7 +147,7 @@ def _dedupe_in_into(keys, size, ids):
     return first[:m]
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None):
     """Evaluate a points program (see :func:`run_points`) level by level over the distinct
     values each level needs: level ``lv`` runs over ``sizes[lv]`` entries (distinct x values,
@@ -201,7 +203,7 @@ def run_lattice(prog, tile, sizes, offsets, maps, map_at, store, out, skip=None)
                         store[unsigned(base + k)] = W[slot, k]
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _gather(values, at):
     out = np.empty(at.size, dtype=values.dtype)
     for i in range(at.size):
@@ -209,7 +211,7 @@ def _gather(values, at):
     return out
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _pair_level(ids, sizes, has, lv, a, b):
     """Pair level ``lv`` of variables' levels ``a`` and ``b`` (dense ids ``ids[a]``,
     ``ids[b]`` of the points): its entries are their distinct pairs (sets ``ids[lv]``,
@@ -221,7 +223,7 @@ def _pair_level(ids, sizes, has, lv, a, b):
     return _gather(ids[a], first), _gather(ids[b], first)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _maps_with_ids(n, pair_levels):
     """The ``maps`` of :func:`run_lattice`, laid out so that the points' entries need no copy:
     first the xyz level's section, whose row ``k`` (``ids[k]``, a view, filled by the caller)
@@ -231,7 +233,7 @@ def _maps_with_ids(n, pair_levels):
     return maps, maps[: 8 * n].reshape((8, n))
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def _place_parts(maps, n, pair_parts, pair_keys, has, map_at):
     """Copy each pair level's two parts (the entries of its variables' stores, ``pair_keys[q]``
     = (pair level, variable level)) behind the xyz section of ``maps``
@@ -248,7 +250,7 @@ def _place_parts(maps, n, pair_parts, pair_keys, has, map_at):
         at += part.size
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def eval_points(prog, tile, active, rows, px, py, pz, out):
     """Evaluate a points program at ``(px[p], py[p], pz[p])`` into ``out[p]``, each level once
     per distinct value it needs (:func:`run_lattice`): its plan made here, in one call.
@@ -297,7 +299,7 @@ def eval_points(prog, tile, active, rows, px, py, pz, out):
 # ----------------------------------------------------------------------------- points on grid edges
 
 
-@njit(inline="always", **JIT_OPTIONS)
+@njit(**INLINE)
 def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
     """The part of a points program that does not vary along grid edges parallel to ``axis``
     (0, 1, 2): for edges starting at grid indices ``ijk`` (n, 3), the two single-variable
@@ -352,7 +354,7 @@ def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
     return axis, ijk, sizes, offsets, pair_ids, store, fixed_end, pair_first
 
 
-@njit(**JIT_OPTIONS)
+@njit(**KERNEL)
 def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
     """Evaluate a points program at points on the edges of ``ctx`` (:func:`edge_lattice`):
     point ``p`` on edge ``sel[p]`` with coordinate ``u[p]`` along the edges' axis, the others the

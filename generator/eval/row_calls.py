@@ -4,14 +4,14 @@ numba compiles the code of every jitted function a function calls into that func
 optimises and emits it again there. Each elementary function's vector loop (sin, cos, tan,
 atan, pow, ...) was thus optimised and emitted four times on a fresh machine: alone, inside the
 interpreter's unary dispatcher, inside ``run_code`` and inside the interpreter's C function. Now
-each heavy row operation is compiled once, as a C function of its own (:mod:`row_table`), and
+each heavy row operation is compiled once, as a C function of its own (:mod:`.row_functions`), and
 the interpreter calls it through one slot of this table (:func:`far_row`): its own compile is
 its dispatch and its cheap loops only, and the rows can compile in another process meanwhile.
 
 The table lives in this process, an external symbol of the interpreter's machine code, so the
 code numba caches holds no address. Until the rows are loaded, each slot points to a small
-Python function that loads them all (:func:`surfgen.generator.eval.row_functions.load_rows`), then
-forwards the call: the interpreter can never call an empty slot.
+Python function that loads them all (:func:`surfgen.generator.eval.row_functions.load_rows`, set
+by :func:`set_loader`), then forwards the call: the interpreter can never call an empty slot.
 
 Every slot has one C signature: the register file (data, rows, columns), the destination row
 ``d``, the operand rows ``a`` and ``b``, the scalar operand ``s``, the length ``n``, the
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import ctypes
 import logging
+from collections.abc import Callable
 
 import numpy as np
 from llvmlite import binding as llvm
@@ -55,10 +56,20 @@ C_PROTOTYPE = ctypes.CFUNCTYPE(None, *_C_TYPES)
 _TABLE = (ctypes.c_void_p * len(ROWS))()
 
 
-def _load_rows():
-    from surfgen.generator.eval.row_functions import load_rows
+_LOADER: list[Callable[[], object]] = []  # load_rows of row_functions.py, once it is imported
 
-    return load_rows()
+
+def set_loader(load: Callable[[], object]) -> None:
+    """What a slot's first call runs to load every row:
+    :func:`surfgen.generator.eval.row_functions.load_rows`, which registers itself when its
+    module is imported (the rows import this table; the table imports no row)."""
+    _LOADER[:] = [load]
+
+
+def _load_rows():
+    if not _LOADER:
+        raise RuntimeError("no rows to load: surfgen.generator.eval.row_functions is not imported")
+    return _LOADER[0]()
 
 
 def _first_call(slot: int):

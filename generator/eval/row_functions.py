@@ -22,20 +22,19 @@ from numba import carray, cfunc, njit
 from surfgen.generator.elementary import explog as _el
 from surfgen.generator.elementary import roundtrip as _rt
 from surfgen.generator.elementary import trig as _tr
-from surfgen.generator.eval import interpreter as _i
 from surfgen.generator.eval import row_calls as far
+from surfgen.generator.eval import row_operations as ops
 from surfgen.generator.jit import interleave as vector_loops
 from surfgen.generator.jit.cache import c_function_cached
+from surfgen.generator.jit.options import C_FUNCTION, C_HELPER
 
-_OPTIONS = {"cache": True, "error_model": "numpy"}
 
-
-@njit(inline="always", error_model="numpy")
+@njit(**C_HELPER)
 def _w(w_p, rows, cols):
     return carray(w_p, (rows, cols), np.float64)
 
 
-@njit(inline="always", error_model="numpy")
+@njit(**C_HELPER)
 def _k(k_p, n_k):
     return carray(k_p, n_k, np.float64)
 
@@ -68,11 +67,11 @@ def _acotcot(w, r, c, d, a, b, s, n, k, nk, base): _rt.acotcot_row(_w(w, r, c), 
 def _atan2_vv(w, r, c, d, a, b, s, n, k, nk, base): _tr.atan2_row_vv(_w(w, r, c), d, a, b, n)
 def _atan2_vs(w, r, c, d, a, b, s, n, k, nk, base): _tr.atan2_row_vs(_w(w, r, c), d, a, s, n)
 def _atan2_sv(w, r, c, d, a, b, s, n, k, nk, base): _tr.atan2_row_sv(_w(w, r, c), d, s, b, n)
-def _pow_vv(w, r, c, d, a, b, s, n, k, nk, base): _i._power_vv(_w(w, r, c), d, a, b, n)
-def _pow_vs(w, r, c, d, a, b, s, n, k, nk, base): _i._power_vs(_w(w, r, c), d, a, s, n)
-def _pow_sv(w, r, c, d, a, b, s, n, k, nk, base): _i._power_sv(_w(w, r, c), d, s, b, n)
-def _series(w, r, c, d, a, b, s, n, k, nk, base): _i._series_row(_w(w, r, c), d, a, n, _k(k, nk), base)  # noqa: E501
-def _segsum(w, r, c, d, a, b, s, n, k, nk, base): _i._segsum(_w(w, r, c), d, a, n, _k(k, nk), base)  # noqa: E501
+def _pow_vv(w, r, c, d, a, b, s, n, k, nk, base): ops.power_vv(_w(w, r, c), d, a, b, n)
+def _pow_vs(w, r, c, d, a, b, s, n, k, nk, base): ops.power_vs(_w(w, r, c), d, a, s, n)
+def _pow_sv(w, r, c, d, a, b, s, n, k, nk, base): ops.power_sv(_w(w, r, c), d, s, b, n)
+def _series(w, r, c, d, a, b, s, n, k, nk, base): ops.series_row(_w(w, r, c), d, a, n, _k(k, nk), base)  # noqa: E501
+def _segsum(w, r, c, d, a, b, s, n, k, nk, base): ops.segsum_row(_w(w, r, c), d, a, n, _k(k, nk), base)  # noqa: E501
 # fmt: on
 
 FUNCTIONS = {name: globals()[f"_{name}"] for name in far.ROWS}
@@ -89,10 +88,13 @@ def load_rows() -> dict[str, object]:
         if missing:
             with vector_loops.evaluator_compile():  # numba's C functions send no compile event
                 for name in missing:
-                    compiled = cfunc(far.C_SIGNATURE, **_OPTIONS)(FUNCTIONS[name])
+                    compiled = cfunc(far.C_SIGNATURE, **C_FUNCTION)(FUNCTIONS[name])
                     far.fill(far.SLOT[name], compiled.address)
                     COMPILED[name] = compiled
     return COMPILED
+
+
+far.set_loader(load_rows)  # a slot called before the rows are loaded loads them
 
 
 def run(name: str, W: np.ndarray, d: int, a: int, n: int, b: int = 0, s: float = 0.0) -> None:

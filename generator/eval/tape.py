@@ -1,5 +1,5 @@
 """The fast evaluator: compile a tree once (:mod:`.compiler`), run it with the numba interpreter
-(:mod:`.kernels`) on any number of grids.
+(:mod:`.grid_driver`) on any number of grids.
 
     program = compile_program(tree, params)                  # once per formula
     coarse = evaluate_program(program, coarse_grid)          # then any grid,
@@ -14,25 +14,29 @@ for the call (they release the GIL); ``threads=None`` uses numba's default count
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import math
 import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
 import numpy as np
+from llvmlite import binding
 
 from surfgen.generator.errors import FormulaError
 from surfgen.generator.eval import grid_driver as kernels
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval import point_driver as points
-from surfgen.generator.eval.compiler import M_S, M_SV, M_V, M_VS, M_VV, OP, Program, compile_tree
+from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.eval.opcodes import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.parser import parse
 
 log = logging.getLogger(__name__)
 
@@ -49,8 +53,6 @@ def tile_max(cpu_name: str) -> int:
 
 
 def _host_cpu_name() -> str:
-    from llvmlite import binding
-
     return str(binding.get_host_cpu_name())
 
 
@@ -92,7 +94,7 @@ def evaluate_program(program: Program, grid: Grid, threads: int | None = None) -
 
 
 def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.ndarray:
-    """The values of ``program`` on ``grid`` (``prof``: see :func:`kernels.run_grid`)."""
+    """The values of ``program`` on ``grid`` (``prof``: see :func:`.grid_driver.run_grid`)."""
     interpreter.load_interpreter()  # here, where an error can be raised (the kernels call it)
     ax, ay, az = grid.axes()
     out = np.empty(grid.shape, np.float64)
@@ -107,7 +109,7 @@ def _run(program: Program, grid: Grid, n_threads: int, prof: np.ndarray) -> np.n
 
 
 def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threads: int) -> None:
-    """:func:`kernels.run_grid` on ``n_threads`` threads: the x, y, z blocks, then the yz
+    """:func:`.grid_driver.run_grid` on ``n_threads`` threads: the x, y, z blocks, then the yz
     plane's rows and the slabs of x indices in ``CHUNKS_PER_THREAD`` chunks per thread, on a
     pool of Python threads (the kernels release the GIL: ``nogil``)."""
     run = functools.partial(kernels.run_grid, prog, tile, *stores, out, _NO_PROFILE)
@@ -178,6 +180,36 @@ def warm_up(parallel: bool = True) -> float:
     seconds = time.perf_counter() - t0
     log.debug("fast evaluator ready in %.2f s (threads too: %s)", seconds, parallel)
     return seconds
+
+
+@contextlib.contextmanager
+def compiled_not_run(*others: tuple[object, str]) -> Iterator[None]:
+    """Within the block the interpreter is not loaded, and the grid kernel and each
+    ``(module, name)`` numba dispatcher of ``others`` (kernels of other layers that call the
+    interpreter: the walls') is compiled (or loaded from numba's cache) for the types of the
+    arguments it is called with, not run: the call returns 0 and writes nothing. A kernel's
+    compile needs only the interpreter's calling convention
+    (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
+
+    def compiling(dispatcher):
+        def compile_for(*args):
+            dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            return 0
+
+        return compile_for
+
+    sites = ((kernels, "run_grid"), *others)
+    originals = {(module, name): getattr(module, name) for module, name in sites}
+    load = interpreter.load_interpreter
+    try:
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, compiling(dispatcher))
+        interpreter.load_interpreter = lambda: None
+        yield
+    finally:
+        interpreter.load_interpreter = load
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, dispatcher)
 
 
 def warm_interpreter() -> float:
@@ -302,7 +334,7 @@ POINTS_TILE = 256  # points per W row of the points kernel
 
 
 def points_program(program: Program) -> tuple:
-    """``program`` rewritten for :func:`points.run_points`: every block runs along a list of
+    """``program`` rewritten for :func:`.point_driver.run_points`: every block runs along a list of
     points instead of a grid axis.
 
     On a grid, a value that does not vary along a block's run axis is a row scalar (an S slot,
@@ -375,7 +407,7 @@ class PointsEvaluator:
         return out
 
     def plain(self, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """The same values, every level computed at every point (:func:`points.run_points`,
+        """The same values, every level computed at every point (:func:`.point_driver.run_points`,
         no sharing): the check of :meth:`__call__`'s sharing."""
         px, py, pz = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, z))
         out = np.empty(px.size, dtype=np.float64)
@@ -385,15 +417,15 @@ class PointsEvaluator:
         return out
 
     def kernel_args(self) -> tuple:
-        """``(prog, tile, active, rows)``: what :func:`points.eval_points` takes before the
+        """``(prog, tile, active, rows)``: what :func:`.point_driver.eval_points` takes before the
         points, for numba code that evaluates the formula itself (the walls' classification).
         Loads the interpreter that code calls."""
         interpreter.load_interpreter()
         return self._prog, POINTS_TILE, self._active, self._rows
 
     def _lattice(self, px: np.ndarray, py: np.ndarray, pz: np.ndarray, out: np.ndarray) -> None:
-        """Evaluate each level once per distinct value it needs (:func:`points.eval_points`
-        plans the lattice and runs :func:`points.run_lattice`).
+        """Evaluate each level once per distinct value it needs (:func:`.point_driver.eval_points`
+        plans the lattice and runs :func:`.point_driver.run_lattice`).
 
         Points on grid lines (the walls' refinement) share most coordinates: a level of x and y
         alone is computed once per distinct (x, y) pair, not once per point.  Coordinates are
@@ -410,15 +442,24 @@ def points_evaluator(tree: Expr, params: Mapping[str, float] | None = None) -> P
     return _points_evaluator(tree, tuple(sorted((params or {}).items())))
 
 
+def evaluate_points(
+    tree: Expr,
+    x: np.ndarray | float,
+    y: np.ndarray | float,
+    z: np.ndarray | float,
+    params: Mapping[str, float] | None = None,
+) -> np.ndarray:
+    """``tree`` at the points ``(x, y, z)`` (broadcast together), float64: the values of
+    :func:`surfgen.generator.eval.reference.evaluate_points`, bit for bit (a
+    :class:`PointsEvaluator`)."""
+    bx, by, bz = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (x, y, z)))
+    out = points_evaluator(tree, params)(bx.reshape(-1), by.reshape(-1), bz.reshape(-1))
+    return out.reshape(bx.shape)
+
+
 @functools.lru_cache(maxsize=COMPILED_CACHE)
 def _points_evaluator(tree: Expr, params: tuple[tuple[str, float], ...]) -> PointsEvaluator:
     return PointsEvaluator(_compiled(tree, params))
 
 
-def _warm_tree() -> Expr:
-    from surfgen.generator.formula.parser import parse
-
-    return parse("x*y+z^2")
-
-
-_WARM_TREE = _warm_tree()
+_WARM_TREE = parse("x*y+z^2")

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfgen.generator import elementary as E
+from surfgen.generator.errors import FormulaError
 from surfgen.generator.formula import constituents as cf
 from surfgen.generator.formula import logic
 from surfgen.generator.formula.expr import Expr
@@ -70,8 +71,6 @@ def _own(name: str, n: int = 1) -> FunctionDef:
 
 def _fcc_reference(x: np.ndarray, *coords: float) -> np.ndarray:
     if len(coords) % 2:
-        from surfgen.generator.errors import FormulaError
-
         raise FormulaError(
             "fcc takes x then pairs x1,y1,x2,y2,...: got an odd number of coordinates"
         )

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from surfgen.generator.eval.reference import evaluate_points
 from surfgen.generator.formula import constituents as cf
 from surfgen.generator.formula.expr import Expr
 
@@ -184,6 +185,4 @@ def expand_builtins(tree: Expr, params: Mapping[str, float] | None = None) -> Ex
 
 def _number(node: Expr, params: Mapping[str, float]) -> float:
     """The value of a constituent's constant parameter (raises FormulaError if unbound)."""
-    from surfgen.generator.eval.reference import evaluate_points
-
     return float(evaluate_points(node, 0.0, 0.0, 0.0, params))

@@ -2,17 +2,17 @@
 
 numba's cache checks only the source file of the cached function itself, but a cached function
 carries the machine code of every jitted function it calls from other files: the row table's C
-functions (``row_table.py``) compile the elementary functions *into* their own code, the walls'
-classification (``walls.py``) the points kernels (``points.py``), and so on; the kernels call the
+functions (``eval/row_functions.py``) compile the elementary functions *into* their own code, the walls'
+classification (``mesh/walls.py``) the points kernels (``eval/point_driver.py``), and so on; the kernels call the
 interpreter through a pointer whose calling convention (its arguments) they compile in, and the
-interpreter its rows through the row table's (``far.py``). A change of ``trig.py`` or
+interpreter its rows through the row table's (``eval/row_calls.py``). A change of ``trig.py`` or
 ``interpreter.py`` would leave those callers stale, with the old bits or the old convention.
 The locator installed here adds a digest of every
 surfgen source that holds numba code to the freshness stamp of every cached function of surfgen
 (and, in a source checkout, of its tests and benchmarks).
 
 numba picks a function's locator when the function is decorated, so this must run before any of
-surfgen's jitted functions is defined: it runs when numba is first imported (``numba_setup.py``,
+surfgen's jitted functions is defined: it runs when numba is first imported (``jit/setup.py``,
 put in place by ``surfgen.generator``'s ``__init__``, which ``surfgen.filters`` and
 ``surfgen.pipelines`` import first). (It was once installed by the
 elementary functions' package: a process that imported the mesh or the filters before them gave
@@ -29,18 +29,25 @@ import os
 from collections.abc import Callable
 from typing import Any
 
+from surfgen.generator.jit import interleave as vector_loops
+
 log = logging.getLogger(__name__)
 
 _GENERATOR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _ROOT = os.path.dirname(_GENERATOR)  # surfgen's package (installed) or the checkout (editable)
 _NUMBA_MARKS = (b"njit", b"overload", b"_dual", b"intrinsic", b"cfunc")
+# Sources without numba code whose constants numba freezes into surfgen's kernels (opcode
+# numbers, coefficient tables): a change there must make the cached kernels stale too.
+FROZEN_SOURCES = (
+    "generator/eval/opcodes.py",
+    "generator/elementary/explog_tables.py",
+    "generator/elementary/trig_tables.py",
+)
 
 
 def package_digest() -> str:
     """sha256 of every surfgen source file (generator, its elementary functions, filters,
     pipelines) that holds numba code, and the interleave count the evaluator is compiled with."""
-    from surfgen.generator.jit import interleave as vector_loops
-
     h = hashlib.sha256()
     # how the evaluator is compiled: LLVM's interleave count, and which functions get it
     h.update(b"interleave %d\0" % vector_loops.INTERLEAVE)
@@ -51,8 +58,10 @@ def package_digest() -> str:
             for name in sorted(n for n in names if n.endswith(".py")):
                 with open(os.path.join(folder, name), "rb") as f:
                     source = f.read()
-                if any(mark in source for mark in _NUMBA_MARKS):
-                    rel = os.path.relpath(os.path.join(folder, name), _ROOT)
+                rel = os.path.relpath(os.path.join(folder, name), _ROOT)
+                if rel.replace(os.sep, "/") in FROZEN_SOURCES or any(
+                    mark in source for mark in _NUMBA_MARKS
+                ):
                     h.update(rel.replace(os.sep, "/").encode() + b"\0")
                     h.update(source)
     return h.hexdigest()
@@ -60,7 +69,7 @@ def package_digest() -> str:
 
 def install_cache_stamp() -> None:
     """Put the stamped locator first in numba's list (once per process)."""
-    try:
+    try:  # deferred: this runs as numba is imported, and importing surfgen imports no numba
         from numba.core import caching
     except ImportError:  # pragma: no cover
         return
@@ -121,7 +130,7 @@ def cached_on_disk(locate: Callable[[], tuple[Any, Any]], name: str) -> bool:
 def c_function_cached(py_func: Callable, name: str) -> bool:
     """:func:`cached_on_disk` for the C function numba's ``cfunc`` makes of ``py_func``."""
 
-    def locate():
+    def locate():  # numba deferred: importing surfgen imports no numba
         from numba.core.caching import FunctionCache
         from numba.core.registry import cpu_target
 

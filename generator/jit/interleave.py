@@ -62,11 +62,15 @@ def interleave_from(environ) -> int:
     return DEFAULT_INTERLEAVE
 
 
-# Vectors per iteration of the evaluator's loops; part of numba's cache stamp (numba_cache.py).
+# Vectors per iteration of the evaluator's loops; part of numba's cache stamp (jit/cache.py).
 INTERLEAVE = interleave_from(os.environ)
 
 # Functions of these modules hold the evaluator's vector loops.
-MODULES = ("surfgen.generator.eval.interpreter", "surfgen.generator.elementary")
+MODULES = (
+    "surfgen.generator.eval.interpreter",
+    "surfgen.generator.eval.row_operations",
+    "surfgen.generator.elementary",
+)
 
 
 def evaluator_function(module: str | None) -> bool:
@@ -75,7 +79,7 @@ def evaluator_function(module: str | None) -> bool:
 
 
 def _set_interleave(count: int) -> None:
-    from llvmlite import binding
+    from llvmlite import binding  # deferred: this module imports no numba (module docstring)
 
     binding.set_option("surfgen", f"-force-vector-interleave={count}")
 
@@ -85,7 +89,7 @@ class _Listener:
     compile of an evaluator function to its end (an error included). numba delivers them under
     its global compiler lock, one compile at a time. (Registered as a subclass of numba's
     ``event.Listener`` made in :func:`install`: this module imports no numba, since it is part
-    of what runs when numba is imported, see numba_setup.py.)"""
+    of what runs when numba is imported, see jit/setup.py.)"""
 
     def __init__(self, setter=_set_interleave) -> None:
         self._set = setter
@@ -129,12 +133,12 @@ _INSTALLED: _Listener | None = None
 
 
 def install() -> None:
-    """Register the listener with numba (once per process; numba_setup.py does it when numba is
+    """Register the listener with numba (once per process; jit/setup.py does it when numba is
     imported, before any of surfgen's functions can be defined)."""
     global _INSTALLED
     if _INSTALLED is not None or INTERLEAVE == 0:
         return
-    from numba.core import event
+    from numba.core import event  # deferred: runs as numba is imported (setup.py)
 
     _INSTALLED = make_listener()
     event.register("numba:compile", _INSTALLED)
@@ -142,7 +146,7 @@ def install() -> None:
 
 def make_listener(setter: Callable[[int], None] = _set_interleave) -> _Listener:
     """A :class:`_Listener` that numba accepts (a subclass of its ``event.Listener``)."""
-    from numba.core import event
+    from numba.core import event  # deferred: this module imports no numba
 
     class _NumbaListener(_Listener, event.Listener):
         pass
@@ -156,7 +160,7 @@ def evaluator_compile() -> Iterator[None]:
     iteration): for the C functions of :mod:`surfgen.generator.eval.row_functions`, whose compiles send
     no ``numba:compile`` event. Nested compiles of dispatchers keep the option on. Holds numba's
     (re-entrant) compiler lock, under which its events arrive too."""
-    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core.compiler_lock import global_compiler_lock  # deferred: no numba at import
 
     if _INSTALLED is None:
         yield

@@ -29,6 +29,9 @@ from collections.abc import Mapping
 from types import ModuleType
 from typing import Any
 
+from surfgen.generator.jit.cache import install_cache_stamp
+from surfgen.generator.jit.interleave import install as install_interleave
+
 _LOCK = threading.Lock()
 _DONE = False
 
@@ -53,7 +56,7 @@ def wide_vector_features(environ: Mapping[str, str], host_features: str) -> str 
 
 
 def _use_wide_vectors() -> None:
-    try:
+    try:  # deferred: llvmlite is loaded with numba, never by importing surfgen
         from llvmlite import binding
     except ImportError:  # pragma: no cover (numba requires llvmlite)
         return
@@ -72,9 +75,6 @@ def _after_numba() -> None:
     with _LOCK:
         if _DONE:
             return
-        from surfgen.generator.jit.cache import install_cache_stamp
-        from surfgen.generator.jit.interleave import install as install_interleave
-
         install_cache_stamp()
         install_interleave()
         _DONE = True

@@ -11,15 +11,29 @@ processes before they evaluate.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import numpy as np
+
+from surfgen.generator.eval.evaluate import (
+    compiled_not_run,
+    evaluate,
+    grid_kernel,
+    interpreter_cached,
+    warm_interpreter,
+)
+from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.jit.cache import cached_on_disk
+
+# The kernels of the mesh, the walls, the filters and the pictures are imported where they are
+# warmed, on purpose: their modules import numba, which a command that computes nothing (and
+# imports this module) must not load.
 
 log = logging.getLogger(__name__)
 
@@ -36,10 +50,6 @@ _CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child(
 def _tiny_shape(evaluator: str = "fast"):
     """The warm-up's formula, its box and its field (``evaluator``: fast or reference, the same
     values)."""
-    from surfgen.generator.eval.evaluate import evaluate
-    from surfgen.generator.eval.grid import Box, Grid
-    from surfgen.generator.formula.parser import parse
-
     tree = parse(WARM_FORMULA)
     box = Box.cube(WARM_HALF)
     return tree, box, evaluate(tree, Grid(box, (WARM_POINTS,) * 3), evaluator=evaluator, threads=1)
@@ -53,64 +63,27 @@ def warm_grid_kernel() -> None:
 def warm_in_child() -> None:
     """The child's part of a parallel warm-up: every kernel of a shape but the interpreter, which
     the parent compiles meanwhile. The kernels that call the interpreter (the grid's, the walls')
-    are compiled for the tiny shape's argument types, not run (:func:`without_interpreter`);
-    the mesh, filter and picture kernels run on the field the reference evaluator samples (the
-    same values)."""
-    from surfgen.generator.eval import grid_driver as kernels
+    are compiled for the tiny shape's argument types, not run
+    (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
+    kernels run on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
 
-    with without_interpreter((kernels, "run_grid"), (walls, "_bisect_kernel")):
+    with compiled_not_run((walls, "_bisect_kernel")):
         _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
         _warm_the_rest(field, box, _warm_mesh(field, tree))
-
-
-@contextlib.contextmanager
-def without_interpreter(*kernels: tuple[object, str]) -> Iterator[None]:
-    """Within the block the interpreter is not loaded, and each ``(module, name)`` numba
-    dispatcher, a kernel that calls it, is compiled (or loaded from numba's cache) for the types
-    of the arguments it is called with, not run: the call returns 0 and writes nothing. A
-    kernel's compile needs only the interpreter's calling convention
-    (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
-    import numba
-
-    from surfgen.generator.eval import interpreter
-
-    def compiling(dispatcher):
-        def compile_for(*args):
-            dispatcher.compile(tuple(numba.typeof(a) for a in args))
-            return 0
-
-        return compile_for
-
-    originals = {(module, name): getattr(module, name) for module, name in kernels}
-    load = interpreter.load_interpreter
-    try:
-        for (module, name), dispatcher in originals.items():
-            setattr(module, name, compiling(dispatcher))
-        interpreter.load_interpreter = lambda: None
-        yield
-    finally:
-        interpreter.load_interpreter = load
-        for (module, name), dispatcher in originals.items():
-            setattr(module, name, dispatcher)
 
 
 def grid_kernel_cached() -> bool:
     """Whether numba's on-disk cache holds the grid kernel and the interpreter it calls for this
     machine and this code (then loading them takes a fraction of a second). True when that
     cannot be told: the caller then does what it always did."""
-    from surfgen.generator.eval import grid_driver as kernels
-    from surfgen.generator.eval.interpreter import interpreter_cached
-
-    return interpreter_cached() and kernel_cached(kernels.run_grid)
+    return interpreter_cached() and kernel_cached(grid_kernel())
 
 
 def kernel_cached(dispatcher) -> bool:
     """Whether numba's on-disk cache holds a compiled ``dispatcher`` (any signature) for this
     machine and this code. True when that cannot be told (numba's internals moved)."""
-    from surfgen.generator.jit.cache import cached_on_disk
-
     # dispatcher._cache: numba's own cache (a NullCache where caching is off)
     return cached_on_disk(lambda: (dispatcher._cache, dispatcher.targetctx.codegen()), dispatcher)
 
@@ -160,19 +133,16 @@ def shape_kernels_cached() -> bool:
     """Whether numba's on-disk cache holds the interpreter and the kernels a shape goes through
     (one of each stage: the grid, the walls, the mesh, the metrics, the pictures) for this
     machine and this code, so that :func:`warm_shape_kernels` only loads them."""
-    from surfgen.generator.eval.interpreter import interpreter_cached
-
     return interpreter_cached() and _kernels_cached()
 
 
 def _kernels_cached() -> bool:
     """:func:`shape_kernels_cached` but the interpreter."""
     from surfgen.filters import geometry
-    from surfgen.generator.eval import grid_driver as kernels
     from surfgen.generator.mesh import marching, walls
     from surfgen.pipelines.pictures import raster as pictures
 
-    stages = (kernels.run_grid, walls._bisect_kernel, marching._offsets_kernel)
+    stages = (grid_kernel(), walls._bisect_kernel, marching._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
     return all(kernel_cached(d) for d in stages)
 
@@ -223,8 +193,6 @@ def warm_shape_kernels(
     numba's on-disk cache; then this process loads the child's kernels from the cache.
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
     process waits for the child: only the interpreter need be loaded for it."""
-    from surfgen.generator.eval.tape import warm_interpreter
-
     t0 = time.perf_counter()
     if not shape_kernels_cached():
         _announce(COMPILE_NOTICE, notice)
@@ -264,7 +232,6 @@ def _warm_the_rest(field, box, mesh) -> None:
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
-    from surfgen.generator.eval.grid import Field
     from surfgen.generator.mesh.marching import _merge_same
     from surfgen.generator.mesh.mesh import extract_with_edges
     from surfgen.generator.model.families.carving import envelope_departure, pieces

@@ -15,7 +15,9 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.eval.grid import Field
-from surfgen.generator.eval.interpreter import _sign  # np.sign (the samples here are finite)
+from surfgen.generator.eval.row_operations import (
+    sign as _sign,  # np.sign (the samples here are finite)
+)
 from surfgen.generator.eval.tape import PointsEvaluator, points_evaluator
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.mesh.mesh import ROOT

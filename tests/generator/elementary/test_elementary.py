@@ -13,7 +13,7 @@ import pytest
 from surfgen.generator import elementary as E
 from surfgen.generator.elementary import roundtrip as R
 from surfgen.generator.eval import row_functions as row_table
-from surfgen.generator.eval.compiler import OPCODES
+from surfgen.generator.eval.opcodes import OPCODES
 from surfgen.generator.formula.functions import FUNCTIONS
 
 TRANSCENDENTAL = "sin cos tan asin acos atan atan2 sinh cosh tanh asinh acosh atanh exp log log10"

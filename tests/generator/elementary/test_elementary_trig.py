@@ -23,6 +23,7 @@ import pytest
 from numba import njit
 
 from surfgen.generator.elementary import trig as T
+from surfgen.generator.elementary import trig_tables as TT
 from surfgen.generator.eval import row_functions as row_table
 
 UNARY = ["sin", "cos", "tan", "asin", "acos", "atan"]
@@ -407,7 +408,7 @@ def test_results_do_not_depend_on_vectorisation(tmp_path) -> None:
 def test_two_over_pi_digits() -> None:
     with mp.workdps(500):
         v = 2 / mp.pi
-        for i, d in enumerate(T._F):
+        for i, d in enumerate(TT._F):
             v *= 2**24
             assert int(mp.floor(v)) == int(d), f"digit {i}"
             v -= mp.floor(v)
@@ -415,12 +416,12 @@ def test_two_over_pi_digits() -> None:
 
 def test_cody_waite_parts() -> None:
     with mp.workdps(100):
-        total = sum(mp.mpf(c) for c in (T._C1, T._C2, T._C3, T._C4))
+        total = sum(mp.mpf(c) for c in (TT._C1, TT._C2, TT._C3, TT._C4))
         assert abs(total - mp.pi / 2) < mp.mpf(2) ** -140
-    for c in (T._C1, T._C2, T._C3):
+    for c in (TT._C1, TT._C2, TT._C3):
         m, _ = math.frexp(c)
         assert (m * 2**29) == int(m * 2**29)  # 29 bits: n * c exact for |n| < 2**24
-    assert T.TRIG_FAST_LIMIT * T._FOUR_OVER_PI < 2**24
+    assert TT.TRIG_FAST_LIMIT * TT._FOUR_OVER_PI < 2**24
 
 
 @pytest.mark.parametrize(
@@ -436,8 +437,8 @@ def test_cody_waite_parts() -> None:
 def test_polynomial_fit_errors(coeffs: str, g, zmax) -> None:
     """Each kernel polynomial is within 2**-52 (relative) of its function on its range."""
     c = []
-    while hasattr(T, f"{coeffs}{len(c)}"):
-        c.append(mp.mpf(getattr(T, f"{coeffs}{len(c)}")))
+    while hasattr(TT, f"{coeffs}{len(c)}"):
+        c.append(mp.mpf(getattr(TT, f"{coeffs}{len(c)}")))
     with mp.workdps(80):
         for i in range(1, 201):
             y = zmax * i / 200

@@ -14,7 +14,7 @@ from numba import njit
 from numba.core.errors import TypingError
 
 from surfgen.generator.eval import grid_driver as kernels
-from surfgen.generator.eval import interpreter
+from surfgen.generator.eval import interpreter, row_operations
 from surfgen.generator.eval import point_driver as points
 from surfgen.generator.eval import row_calls as far
 from surfgen.generator.eval import row_functions as row_table
@@ -150,12 +150,12 @@ def test_the_series_row_gives_the_series_bits(r: float, p: int) -> None:
     )
     n = xs.size
     consts = np.array([r, float(p), 0.0])
-    want = np.array([interpreter._series(x, r, p) for x in xs])
+    want = np.array([row_operations.series(x, r, p) for x in xs])
     W = np.zeros((2, n))
     W[0] = xs
-    interpreter._series_row(W, 1, 0, n, consts, 0)
+    row_operations.series_row(W, 1, 0, n, consts, 0)
     in_place = W[:1].copy()
-    interpreter._series_row(in_place, 0, 0, n, consts, 0)
+    row_operations.series_row(in_place, 0, 0, n, consts, 0)
     for got in (W[1], in_place[0]):
         same = (got.view(np.int64) == want.view(np.int64)) | (np.isnan(got) & np.isnan(want))
         assert same.all(), xs[~same][:5]

@@ -12,7 +12,7 @@ from surfgen.generator.elementary import REGISTRY, power, round_trip
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval import row_calls as far
 from surfgen.generator.eval import row_functions as row_table
-from surfgen.generator.eval.compiler import OP
+from surfgen.generator.eval.opcodes import OP
 
 # Hard arguments: zeros, tiny, huge, near the jumps of the round trips, specials.
 _HARD = [0.0, -0.0, 1e-310, -1e-300, 0.5, -0.75, 1.0, -1.0, 1.5707963267948966, 3.141592653589793]
@@ -119,7 +119,7 @@ def test_the_binary_slots_give_the_numpy_twins_bits_in_every_operand_mode():
 def test_the_interpreter_is_ready_only_with_its_rows(monkeypatch):
     interpreter.load_interpreter()  # compiled and cached, if it was not yet
     assert interpreter.interpreter_cached()
-    monkeypatch.setattr(row_table, "rows_cached", lambda: False)
+    monkeypatch.setattr(interpreter, "rows_cached", lambda: False)
     assert not interpreter.interpreter_cached()
 
 

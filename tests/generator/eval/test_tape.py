@@ -212,7 +212,7 @@ def test_broadcast_roots_of_every_source(shape):
     # A formula of one or two variables is a copy of a lower level's store or a row scalar
     # (kernels._broadcast, one call per x index): every kind of source, on a long z axis
     # (runs longer than half a tile), short ones and the smallest grid, 1 and 2 threads.
-    from surfgen.generator.eval.compiler import M_S, OP
+    from surfgen.generator.eval.opcodes import M_S, OP
 
     grid = Grid(Box((-1.5, -2.0, -0.5), (2.0, 1.5, 3.0)), shape)
     for text in ("0.25-pi", "x^2-y", "atan(y)", "x*y-1", "z/3", "cos(x*z)", "y*z^2"):
@@ -601,7 +601,7 @@ def test_tiles_of_several_rows_give_the_same_bits(monkeypatch, tile_max, formula
     # scalars turned into rows by fast.rows_program); runs longer than the tile are cut into
     # chunks; every way must give the reference's values bit for bit, on 1 and 2 threads.
     from surfgen.generator.eval import tape as fast
-    from surfgen.generator.eval.compiler import M_S, M_SV, M_VS
+    from surfgen.generator.eval.opcodes import M_S, M_SV, M_VS
 
     monkeypatch.setattr(fast, "TILE_MAX", tile_max)
     tree = parse(formula)

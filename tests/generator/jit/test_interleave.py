@@ -30,6 +30,7 @@ def _event(module: str | None):
 def test_which_functions_are_the_evaluators():
     for module in (
         "surfgen.generator.eval.interpreter",
+        "surfgen.generator.eval.row_operations",
         "surfgen.generator.elementary",
         "surfgen.generator.elementary.trig",
         "surfgen.generator.elementary.roundtrip",

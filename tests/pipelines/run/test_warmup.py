@@ -262,11 +262,11 @@ def test_the_child_warms_every_kernel_but_the_interpreter() -> None:
     assert result["interpreter"] is False
 
 
-def test_without_interpreter_compiles_for_the_arguments_and_runs_nothing() -> None:
+def test_compiled_not_run_compiles_for_the_arguments_and_runs_nothing() -> None:
     from numba import njit
 
     from surfgen.generator.eval import interpreter
-    from surfgen.pipelines.run.warmup import without_interpreter
+    from surfgen.generator.eval.evaluate import compiled_not_run, grid_kernel
 
     @njit
     def fill(out, value):
@@ -275,11 +275,13 @@ def test_without_interpreter_compiles_for_the_arguments_and_runs_nothing() -> No
     class Module:
         kernel = fill
 
-    out, load = np.zeros(3), interpreter.load_interpreter
-    with without_interpreter((Module, "kernel")):
+    out, load, grid = np.zeros(3), interpreter.load_interpreter, grid_kernel()
+    with compiled_not_run((Module, "kernel")):
         assert Module.kernel(out, 2.0) == 0
+        assert grid_kernel() is not grid  # the grid kernel too: compiled, not run
         assert interpreter.load_interpreter() is None
     assert Module.kernel is fill and interpreter.load_interpreter is load
+    assert grid_kernel() is grid
     assert len(fill.signatures) == 1 and not out.any()  # compiled, not run
     Module.kernel(out, 2.0)
     assert (out == 2.0).all() and len(fill.signatures) == 1
