@@ -80,7 +80,6 @@ from surfgen.generator.eval.row_operations import (
     sign,
     trunc,
     truth,
-    unsigned,  # noqa: F401 (walls.py imports it from here until it follows: then remove)
     usign,
 )
 from surfgen.generator.jit.cache import c_function_cached

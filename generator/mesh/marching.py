@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from surfgen.generator.jit.options import KERNEL
+
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
 # we have fixed ourselves; magnitudes are clipped to stay finite there.
 _CLIP = np.float32(1e30)
@@ -25,7 +27,6 @@ _RATIO = SEPARATION / (1.0 - SEPARATION) * 1.001  # |a| >= _RATIO |b| gives t >=
 _MAX_ROUNDS = 200
 
 
-_NB = {"cache": True, "nogil": True, "error_model": "numpy"}
 _CLIP64 = float(_CLIP)  # np.clip of float64 values against the float32 bound compares in float64
 _TINY32 = np.float32(_TINY)
 _EDGE_LO = 0.25 * SEPARATION  # a vertex coordinate this far from a whole number is fractional
@@ -57,7 +58,7 @@ def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, 
     return offset, inside, int(n_inside)
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _offsets_kernel(values, level, offset, inside):
     """Fill ``offset`` and ``inside`` (see :func:`_offsets`; non-finite samples are left NaN or
     clipped for :func:`_mirror_nonfinite`); returns the inside and non-finite counts."""
@@ -86,7 +87,7 @@ def _offsets_kernel(values, level, offset, inside):
     return n_inside, n_bad
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _mirror_nonfinite(values, offset, inside):
     """Each non-finite sample: the largest ``-offset`` of the inside samples in its 3x3x3
     neighbourhood (inside the grid), at least the smallest normal float32."""
@@ -132,7 +133,7 @@ def _separate(offset: np.ndarray, inside: np.ndarray) -> None:
         _raise_magnitudes(offset.reshape(-1), inside.reshape(-1), ia, ib)
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _raise_magnitudes(flat, ins, ia, ib):
     """Raise ``|offset|`` (``flat``) in place until ``|a| >= _RATIO |b|`` for both samples of
     every crossing edge ``(ia, ib)`` (``ins``: the samples whose offset is negative).
@@ -193,7 +194,7 @@ def _pad_outside(work: np.ndarray) -> np.ndarray:
     return padded
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _pad_kernel(work, padded):
     nx, ny, nz = work.shape
     for i in range(nx + 2):
@@ -209,7 +210,7 @@ def _pad_kernel(work, padded):
                 padded[i, j, k] = w
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _mixed_cells(work):
     """Marching cubes' mask: True at the far corner ``(i+1, j+1, k+1)`` of every cell ``(i, j,
     k)`` whose corners are not all on one side (skimage reads a cell's mask there)."""
@@ -232,7 +233,7 @@ def _mixed_cells(work):
     return mask
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _place(verts, shift, shape, lo, hi, spacing):
     """Marching cubes' float32 vertices -> grid indices, box coordinates and edges.
 
@@ -298,7 +299,7 @@ def _same_targets(
     return target
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _targets_kernel(index, edges, moved, shape, target):
     """The vertices of one grid edge form a group, and moved vertices clamped onto one box
     sample; others are alone.  ``target[v]``: the first vertex of ``v``'s group (an open
@@ -352,7 +353,7 @@ def _merge_same(
     return vertices[used], renumber[faces], used
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _merge_kernel(faces, target):
     """Faces on the targets without the collapsed ones, the used vertices and their new
     numbers."""

@@ -17,6 +17,7 @@ from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface, MeshError
 from surfgen.generator.eval.grid import Field
+from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import (
     _keep_off_cell_faces,
     _merge_same,
@@ -90,7 +91,7 @@ def wall_share(vertices: np.ndarray, faces: np.ndarray, kinds: np.ndarray) -> fl
     return float(wall / total) if wall > 0.0 and total > 0.0 else 0.0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**KERNEL)
 def _wall_areas(v, f, kinds):
     """Area on wall faces and in all (:func:`_face_areas`' areas, summed in face order); the
     areas are only computed when a face is a wall."""
@@ -119,7 +120,7 @@ def face_areas(mesh: Mesh) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(**INLINE)
 def face_cross(v, i0, i1, i2):
     """``(v[i1] - v[i0]) x (v[i2] - v[i0])`` by components: the same operations in the same
     order as numpy's ``np.cross`` on whole columns (for numba kernels, one face at a time)."""
@@ -132,7 +133,7 @@ def face_cross(v, i0, i1, i2):
     return b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**KERNEL)
 def _face_areas(v, f, out):
     """``0.5 |(v1 - v0) x (v2 - v0)|`` per face (:func:`face_cross`; one pass without
     temporaries)."""

@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.interpreter import unsigned
 from surfgen.generator.eval.point_driver import edge_lattice, eval_edges
+from surfgen.generator.eval.row_operations import unsigned
+from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.mesh import JUMP, POLE, ROOT
 
 ROOT_SHRINK = 0.6
@@ -26,17 +27,14 @@ BISECTIONS = 2  # at most, after the midpoint; as many again where the bracket e
 SECANT_GRID = 16.0  # the secant step's point: a multiple of 1/16 of the edge
 
 
-_NB = {"cache": True, "error_model": "numpy", "nogil": True}
-
-
-@njit(inline="always", **_NB)
+@njit(**INLINE)
 def _nanmax(a, b):
     """np.maximum: NaN propagates (a select, not a branch)."""
     bigger = a if a > b else b
     return np.nan if (a != a) | (b != b) else bigger
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _decide(mid, end, fa, fb):
     """The kind of each refined edge from its brackets ``(n, 5)`` after the first and the last
     round (:func:`_decide_all` for brackets in rows, the layout of the references in tests)."""
@@ -45,7 +43,7 @@ def _decide(mid, end, fa, fb):
     return out
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _decide_all(mid, end, fa, fb, out):
     """Into ``out[e]``: the kind of edge ``e`` from its brackets ``mid[:, e]`` after the first
     and ``end[:, e]`` after the last round (columns: lo, hi, f_lo, f_hi, lo_inside), every
@@ -77,7 +75,7 @@ def _decide_all(mid, end, fa, fb, out):
         out[e] = np.uint8(ROOT) if is_root else (np.uint8(POLE) if is_pole else np.uint8(JUMP))
 
 
-@njit(inline="always", **_NB)
+@njit(**INLINE)
 def _split(now, e, s, f):
     """Keep the part of bracket ``now[:, e]`` (lo, hi, f_lo, f_hi, lo_inside) where the side
     changes, given ``f = F(s) - level`` at a point ``s`` inside it."""
@@ -91,7 +89,7 @@ def _split(now, e, s, f):
     now[4, e] = now[4, e] if lower else (1.0 if inside else 0.0)
 
 
-@njit(inline="always", **_NB)
+@njit(**INLINE)
 def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
     """One bisection of the brackets ``now[:, sel]`` in place (one batch of points)."""
     m = sel.size
@@ -107,7 +105,7 @@ def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
     return m
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _wider(now, first, sel):
     """The rows of ``sel`` whose bracket is wider than a quarter of the ``first`` one."""
     out = np.empty(sel.size, dtype=np.int64)
@@ -120,7 +118,7 @@ def _wider(now, first, sel):
     return out[:m]
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _first_point(fa, fb):
     """The first point on an edge at the grid's border (no neighbours tell its profile): the
     secant estimate ``fa / (fa - fb)`` rounded to a multiple of ``1 / SECANT_GRID`` strictly
@@ -131,7 +129,7 @@ def _first_point(fa, fb):
     return min(max(np.round(u * SECANT_GRID), 1.0), SECANT_GRID - 1.0) / SECANT_GRID
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _secant_in(now, e):
     """The secant estimate of the crossing in bracket ``now[:, e]``, rounded to a multiple of
     ``1 / SECANT_GRID`` strictly inside it (its middle where the estimate is NaN)."""
@@ -144,7 +142,7 @@ def _secant_in(now, e):
     return k / SECANT_GRID
 
 
-@njit(inline="always", **_NB)
+@njit(**INLINE)
 def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb, t):
     """Kinds of the suspect edges along one axis (steps 2 to 4 of the module's docstring),
     ``u0``: their first samples' coordinate along it, ``h`` the spacing, ``t`` where the first
@@ -247,7 +245,7 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     return out, points
 
 
-@njit(inline="always", **_NB)
+@njit(**INLINE)
 def _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, fb, rest, kinds,
                   pick):  # fmt: skip
     """Bisect the brackets of the edges ``rest[r]`` with ``pick[r]`` ``BISECTIONS`` more times
@@ -271,7 +269,7 @@ def _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, 
     return points
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _shrink(mid, end, e):
     """``M2 / M1`` of edge ``e`` as :func:`_decide_all` measures them (1 where M1 is 0 or
     NaN)."""
@@ -284,7 +282,7 @@ def _shrink(mid, end, e):
     return m4 / m2
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _bisect_kernel(
     prog,
     tile,

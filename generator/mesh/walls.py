@@ -71,10 +71,11 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.eval.evaluate import points_evaluator
 from surfgen.generator.eval.grid import Field
-from surfgen.generator.eval.interpreter import unsigned
-from surfgen.generator.eval.tape import points_evaluator
+from surfgen.generator.eval.row_operations import unsigned
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.mesh.mesh import (
     CAP,
     JUMP,
@@ -274,10 +275,7 @@ def _classify(
     return kinds, int(idx.size), int(points)
 
 
-_NB = {"cache": True, "error_model": "numpy", "nogil": True}
-
-
-@njit(**_NB)
+@njit(**KERNEL)
 def _crossings(values, shape, edges, level, ratio):
     """Kinds of the vertices' edges from the samples alone, and the suspects.
 
@@ -292,13 +290,13 @@ def _crossings(values, shape, edges, level, ratio):
     return kinds, rows, fa, fb, ina
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _crossings_core(values, shape, edges, level, ratio):
     """:func:`_crossings`, and the suspects' grid indices ``(i, j, k)`` and axes.
 
     Three passes, so that the test runs on arrays: the samples of every row's grid line
     (scalar loads), the test itself (no loads, no branches: it vectorises), then the suspects
-    gathered.  Indices are unsigned (:func:`interpreter.unsigned`)."""
+    gathered.  Indices are unsigned (:func:`row_operations.unsigned`)."""
     n = edges.shape[0]
     kinds = np.empty(n, dtype=np.uint8)
     # F at the edge's samples a, b and at its neighbours before a and after b along the grid
@@ -378,7 +376,7 @@ def _crossings_core(values, shape, edges, level, ratio):
     return kinds, rows, out_a, out_b, out_in, out_ijk, out_axis
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _count_kinds(kinds):
     """How many ROOT, POLE and JUMP kinds: three compares a kind, which vectorise (a histogram's
     increments of one counter after another wait on each other, as runs of one kind are the
@@ -391,7 +389,7 @@ def _count_kinds(kinds):
     return roots, poles, jumps
 
 
-@njit(**_NB)
+@njit(**KERNEL)
 def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
     """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``sums``, also
     the area on wall faces and in all from the faces' ``areas``

@@ -13,6 +13,8 @@ import math
 import numba
 import numpy as np
 
+from surfgen.generator.jit.options import KERNEL
+
 # Light strengths (the directions are in raster.py, normalised there and passed in).
 _KEY_STRENGTH = 0.78
 _FILL_STRENGTH = 0.30
@@ -22,7 +24,7 @@ _SPECULAR_STRENGTH = 0.16
 _SPECULAR_EXPONENT = 24  # applied by squarings in _shade
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _rasterise(
     sx: np.ndarray,
     sy: np.ndarray,
@@ -85,7 +87,7 @@ def _rasterise(
                     bary_buffer[r, c, 1] = q2 / z
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _project(
     vertices: np.ndarray,
     rotation: np.ndarray,
@@ -114,7 +116,7 @@ def _project(
         sy[i] = centre - focal * cy * w
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _highlight(ndh: float) -> float:
     """Blinn-Phong term ``_SPECULAR_STRENGTH * ndh**24`` by squarings (x^8 x^8 x^8): a fifth
     of the cost of ``pow`` per pixel, within 1e-14 of it relatively, far below the 1/4095
@@ -125,7 +127,7 @@ def _highlight(ndh: float) -> float:
     return _SPECULAR_STRENGTH * (p8 * p8 * p8)
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _shade(
     face_buffer: np.ndarray,
     bary_buffer: np.ndarray,
@@ -218,7 +220,7 @@ def _shade(
                 out[r, c, ch] = base * diffuse + spec
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _bounds(vertices: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
     """Bounding box ``lo``, ``hi`` (3,) of the vertices that faces use (unused ones may be junk).
 
@@ -239,7 +241,7 @@ def _bounds(vertices: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.ndar
     return True
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _face_normals(
     vertices: np.ndarray, faces: np.ndarray, weighted: np.ndarray, unit: np.ndarray
 ) -> np.ndarray:
@@ -273,7 +275,7 @@ def _face_normals(
     return keep
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _corner_normals(
     faces: np.ndarray,
     weighted: np.ndarray,
@@ -364,7 +366,7 @@ def _corner_normals(
                 out[t, k, 2] = sz / length
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _downsample(
     colour: np.ndarray,
     covered: np.ndarray,

@@ -40,6 +40,7 @@ import numpy as np
 from surfgen.generator.elementary import power
 from surfgen.generator.errors import MeshError, SurfgenError
 from surfgen.generator.files import write_atomic
+from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.mesh.mesh import Mesh
 from surfgen.pipelines.pictures.kernels import (
     _bounds,
@@ -313,7 +314,7 @@ def _darken_edges(colour: np.ndarray, inv_depth: np.ndarray, covered: np.ndarray
     )
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True)
+@numba.njit(**KERNEL)
 def _darken_edges_kernel(
     colour: np.ndarray,
     inv_depth: np.ndarray,

@@ -14,8 +14,9 @@ import numpy as np
 from scipy import ndimage
 
 from surfgen.generator.eval.compiler import Program, compile_tree
+from surfgen.generator.eval.evaluate import evaluate_compiled
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.eval.tape import evaluate_program
+from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor
 from surfgen.generator.model.families.symmetry import ornament_combos, permute_factor
@@ -53,7 +54,7 @@ def unit_samples(
         raise ValueError(f"the ornament's copies are transposed samples: {box} must be a cube")
     if program is None:
         program = ornament_program(ornament, mirror)
-    base = evaluate_program(program, Grid(box, (n,) * 3), threads=1).values
+    base = evaluate_compiled(program, Grid(box, (n,) * 3), threads=1).values
     # O∘perm(x) = O(x[perm[0]], x[perm[1]], x[perm[2]]): sample i of the copy is sample
     # (i[perm[0]], ...) of O, which is O's array with its axes put in the inverse order.
     copies = [np.transpose(base, _inverse(p)) for p in perms]
@@ -168,7 +169,7 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     return float((hi - lo) / radius)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(**KERNEL)
 def _gradient_norm(e: np.ndarray, i: int, j: int, k: int) -> float:
     """``sqrt(gx² + gy² + gz²)`` of ``numpy.gradient(e)`` (unit spacing, edge order 1) at one
     point, with numpy's operations: ``(e[i+1] - e[i-1]) / 2`` inside, a one-sided difference on
@@ -195,7 +196,7 @@ def _gradient_norm(e: np.ndarray, i: int, j: int, k: int) -> float:
     return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(**KERNEL)
 def _crossing_offsets(v: np.ndarray, level: float, e: np.ndarray) -> tuple[int, np.ndarray]:
     """The envelope's cell count (finite and < 0) and, for every grid edge whose ends are
     finite and on either side of ``level``, ``E / |grad E|`` interpolated linearly to the
