@@ -25,6 +25,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import (
     DB_NAME,
     META,
@@ -294,7 +295,6 @@ def _rebuild_files(cat, row: dict) -> None:
     from the mesh, then record their paths."""
     from surfgen.generator.mesh.exchange import load_mesh, save_mesh
     from surfgen.generator.mesh.realise import realise
-    from surfgen.generator.model.spec import SurfaceSpec
     from surfgen.pipelines.pictures.raster import TURNTABLE_SIZE, render_thumbnail, render_turntable
 
     key = row["key"]

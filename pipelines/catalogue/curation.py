@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from surfgen.generator.errors import MeshError
 from surfgen.generator.formula.limits import MAX_COUNT, MAX_STARS
 from surfgen.pipelines.catalogue.query import WhereError, parse_sort, parse_where
 from surfgen.pipelines.catalogue.store import (
@@ -309,7 +310,6 @@ def ensure_descriptors(
     """Descriptors of every accepted shape in (run, index) order, computing and storing the
     missing ones from their meshes. Returns ``({key: descriptor}, computed, keys without mesh)``."""
     from surfgen.filters.descriptor import descriptor, descriptor_from_text, descriptor_to_text
-    from surfgen.generator.errors import MeshError
     from surfgen.generator.mesh.exchange import load_mesh
 
     rows = cat.conn.execute(

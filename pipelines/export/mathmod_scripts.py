@@ -15,7 +15,17 @@ import numpy as np
 
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.files import write_all_atomic
-from surfgen.generator.interop.mathmod import Model, load_model, read_script, to_script
+from surfgen.generator.formula.expr import substitute_params, to_string
+from surfgen.generator.interop.builtins import expand_builtins
+from surfgen.generator.interop.mathmod import (
+    Model,
+    build_model,
+    load_model,
+    model_names,
+    read_script,
+    to_script,
+)
+from surfgen.generator.mesh.formats import MESH_SUFFIXES
 from surfgen.generator.model.spec import SurfaceSpec
 
 if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
@@ -56,7 +66,6 @@ def render_model(
     """Evaluate each component (or the chosen one) in its own box, mesh them into one mesh,
     write what is asked; returns the JSON summary ``render --json`` prints."""
     from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
-    from surfgen.generator.mesh.formats import MESH_SUFFIXES
     from surfgen.generator.mesh.realise import realise
     from surfgen.pipelines.export.render import build_spec, check_output_path
 
@@ -143,7 +152,6 @@ def import_script(
 ) -> list[Path]:
     """Write one spec JSON per component of every Iso3D model (or of model ``name``) of the
     script into ``out_dir``; all files or none. Returns the paths."""
-    from surfgen.generator.interop.mathmod import build_model, model_names
 
     models = read_script(path)
     names = model_names(models)
@@ -195,8 +203,6 @@ def script_bytes(
 def k3dsurf_text(name: str, specs: Sequence[tuple[str, SurfaceSpec]]) -> str:
     """K3DSurf's implicit-surface fields, one block per component, constants substituted
     (K3DSurf has no named constants)."""
-    from surfgen.generator.formula.expr import substitute_params, to_string
-    from surfgen.generator.interop.builtins import expand_builtins
 
     lines = [f"# K3DSurf implicit surface: {name}", "# written by surfgen"]
     for comp, spec in specs:

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.pipelines.run.executor import KillablePool
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +84,6 @@ def draw_all(
     machine, compiles) the renderer's kernels, which the workers then inherit. With one worker,
     or one job, nothing is forked. A worker that dies or overruns :data:`TIMEOUT` costs only
     its job, reported as an ``error``. ``progress(done, total)`` after each job."""
-    from surfgen.pipelines.run.executor import KillablePool
 
     workers = default_workers() if workers is None else workers
     total = len(jobs)

@@ -54,6 +54,7 @@ from surfgen.generator.model.sampler import SAMPLER_VERSION, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import ensure_descriptors
 from surfgen.pipelines.catalogue.store import DB_NAME, Catalogue, CatalogueError, open_catalogue
+from surfgen.pipelines.run.cluster import DaskPool
 from surfgen.pipelines.run.config import Config
 from surfgen.pipelines.run.duplicates import (
     ACCEPTED_FILE,
@@ -170,8 +171,6 @@ def open_executor(
         warm_shape_kernels(notice=notice)
         return KillablePool(fn, workers or os.cpu_count() or 1, config.run.timeout)
     if executor == "dask":
-        from surfgen.pipelines.run.cluster import DaskPool
-
         fn = partial(make_shape_packed, seed=seed, config=config, pictures=pictures)
         return DaskPool(
             fn, config.run.timeout, scheduler=scheduler, workers=workers, environment=versions

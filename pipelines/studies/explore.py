@@ -42,7 +42,10 @@ import numpy as np
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.files import renaming
 from surfgen.generator.formula.expr import format_number
+from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.catalogue import curation
+from surfgen.pipelines.catalogue.curation import get_shape
 from surfgen.pipelines.studies.knobs import (
     MAX_CHANGES,
     NAME_RE,
@@ -192,7 +195,6 @@ def spec_from_request(
     {...}}``). ``catalogue_spec(key)`` returns ``(full key, spec)`` of a catalogued shape.
     Raises :class:`ExploreError`, :class:`SpecError` or a formula error with the CLI's message.
     """
-    from surfgen.generator.model.presets import get_preset
 
     if not isinstance(body, dict):
         raise ExploreError("the body must be a JSON object")
@@ -277,7 +279,6 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     from surfgen.filters.verdict import shape_metrics
     from surfgen.generator.mesh.exchange import save_mesh
     from surfgen.generator.mesh.realise import realise
-    from surfgen.pipelines.catalogue.curation import get_shape
     from surfgen.pipelines.pictures.raster import render_thumbnail, render_turntable
 
     full = cat.resolve(key)
@@ -321,7 +322,6 @@ def _record_derived(
     thumb_rel: str,
     turn_rel: str,
 ) -> None:
-    from surfgen.pipelines.catalogue.curation import apply_action
 
     columns = ("faces", "vertices", "components", "genus", "euler", "area", "volume")
     row = {
@@ -338,7 +338,7 @@ def _record_derived(
         "turntable_path": turn_rel,
         **{k: metrics.get(k) for k in columns},
     }
-    apply_action(cat, full, "derive", row)
+    curation.apply_action(cat, full, "derive", row)
 
 
 def formula_with(spec: SurfaceSpec) -> str:

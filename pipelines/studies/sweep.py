@@ -33,6 +33,8 @@ import numpy as np
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
+from surfgen.generator.formula.expr import params_of
+from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.studies.explore import mesh_stats
 from surfgen.pipelines.studies.knobs import apply_changes
@@ -57,8 +59,6 @@ class SweepError(SurfgenError):
 
 def uses_param(formula: str | None, name: str) -> bool:
     """Whether a pasted formula uses ``name`` as a parameter (then the sweep binds it)."""
-    from surfgen.generator.formula.expr import params_of
-    from surfgen.generator.formula.parser import parse
 
     if formula is None or name in _SPEC_CHANGES or not name.isidentifier():
         return False
