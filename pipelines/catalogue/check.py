@@ -25,6 +25,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.mesh.exchange import load_mesh, save_mesh
+from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import (
     DB_NAME,
@@ -37,6 +39,7 @@ from surfgen.pipelines.catalogue.store import (
     in_use,
     open_catalogue,
 )
+from surfgen.pipelines.pictures.raster import TURNTABLE_SIZE, render_thumbnail, render_turntable
 
 log = logging.getLogger(__name__)
 
@@ -293,9 +296,6 @@ def _repair_files(
 def _rebuild_files(cat, row: dict) -> None:
     """Re-make an accepted shape's mesh from its spec (capped as its run was) and its pictures
     from the mesh, then record their paths."""
-    from surfgen.generator.mesh.exchange import load_mesh, save_mesh
-    from surfgen.generator.mesh.realise import realise
-    from surfgen.pipelines.pictures.raster import TURNTABLE_SIZE, render_thumbnail, render_turntable
 
     key = row["key"]
     if row.get("verdict") != "accepted":

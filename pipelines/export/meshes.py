@@ -52,6 +52,8 @@ from surfgen.generator.mesh.realise import realise
 from surfgen.generator.mesh.walls import WALL_MODES
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now, open_catalogue
+from surfgen.pipelines.export.render import read_text_file
+from surfgen.pipelines.run.sampling import versions
 
 log = logging.getLogger(__name__)
 
@@ -301,7 +303,6 @@ def resolve_sources(inputs: Sequence[str], catalogue: Path) -> list[Source]:
 
 def read_spec_or_sidecar(path: Path) -> SurfaceSpec:
     """A spec from a spec file (``SurfaceSpec.to_json``) or from an export sidecar's ``spec``."""
-    from surfgen.pipelines.export.render import read_text_file
 
     text = read_text_file(Path(path), MAX_SPEC_FILE_BYTES, "spec file")
     if not json_depth_ok(text):
@@ -550,8 +551,6 @@ def _sidecar(p: Prepared, path: Path, options: ExportOptions, out_dir: Path) -> 
 
 def _versions(fmt: str) -> dict[str, str]:
     from importlib import metadata
-
-    from surfgen.pipelines.run.sampling import versions
 
     out = versions()
     needs = FORMATS[fmt].needs

@@ -31,6 +31,7 @@ from surfgen.generator.mesh.realise import realise
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.pictures.raster import png_bytes, render_image
 
 log = logging.getLogger(__name__)
 
@@ -216,8 +217,6 @@ def render_spec(
     if mesh is not None and mesh_path is not None:
         outputs["mesh"] = (Path(mesh_path), encode_mesh(mesh, mesh_format(mesh_path)))
     if mesh is not None and png_path is not None:
-        from surfgen.pipelines.pictures.raster import png_bytes, render_image
-
         outputs["png"] = (Path(png_path), png_bytes(render_image(mesh, size=512)))
     write_all_atomic(list(outputs.values()))
     files = {kind: str(path) for kind, (path, _) in outputs.items()}

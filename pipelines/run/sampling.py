@@ -36,6 +36,7 @@ from surfgen.filters.descriptor import (
     DescriptorSet,
     descriptor_from_text,
 )
+from surfgen.filters.meshlab import installed_version
 from surfgen.filters.verdict import (
     REASONS,
     Verdict,
@@ -108,8 +109,6 @@ def versions() -> dict[str, str]:
     import numba
     import skimage
     import trimesh
-
-    from surfgen.filters.meshlab import installed_version
 
     return {
         "surfgen": __version__,

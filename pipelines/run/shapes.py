@@ -45,6 +45,7 @@ from surfgen.generator.model.draw import Draw
 from surfgen.generator.model.families.carving import envelope_departure
 from surfgen.generator.model.sampler import SAMPLER_VERSION, choose_d, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.pictures.raster import THUMBNAIL_SIZE, render_thumbnail
 from surfgen.pipelines.run.config import Config
 from surfgen.pipelines.run.duplicates import AcceptedDescriptors
 
@@ -288,8 +289,6 @@ def _with_files(
     watch.lap("io")
     thumb = None
     if pictures:
-        from surfgen.pipelines.pictures.raster import THUMBNAIL_SIZE, render_thumbnail
-
         thumb = render_thumbnail(mesh, staging / f"{key}.thumb.png", size=THUMBNAIL_SIZE)
         watch.lap("pictures")
     return replace(out, mesh_file=mesh_file, thumb_file=thumb)

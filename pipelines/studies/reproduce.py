@@ -41,19 +41,23 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from surfgen.filters.compare import hausdorff, inside_iou
+from surfgen.filters.metrics import measure_mesh
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.files import staged_into, write_all_atomic
+from surfgen.generator.mesh.exchange import save_mesh
+from surfgen.generator.mesh.mesh import Mesh
+from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.presets import eq_a_formula, get_preset
 from surfgen.generator.model.spec import SurfaceSpec
-
-if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
-    from surfgen.generator.mesh.mesh import Mesh
+from surfgen.pipelines.pictures.plots import plot_constituents
+from surfgen.pipelines.pictures.raster import render_image, write_png
 
 log = logging.getLogger(__name__)
 
@@ -235,7 +239,6 @@ def _reproduce_into(
     """Draw ``figures`` and write every file of :func:`reproduce` into the folder ``out``."""
     say = progress or (lambda _msg: None)
     start = time.perf_counter()
-    from surfgen.pipelines.pictures.plots import plot_constituents
 
     if 1 in figures:
         say("figure 1: constituent functions")
@@ -297,9 +300,6 @@ def _render_panel(folder: Path, name: str, grid_scale: float) -> Shape:
 
 
 def _draw_shape(folder: Path, name: str, spec: SurfaceSpec, field_: Field) -> Shape:
-    from surfgen.generator.mesh.exchange import save_mesh
-    from surfgen.generator.mesh.realise import realise
-    from surfgen.pipelines.pictures.raster import render_image, write_png
 
     folder.mkdir(parents=True, exist_ok=True)
     meshes: dict[str, Mesh | None] = {}
@@ -317,7 +317,6 @@ def _draw_shape(folder: Path, name: str, spec: SurfaceSpec, field_: Field) -> Sh
 
 
 def _compare(claim: Claim, a: Shape, b: Shape, grid_scale: float) -> dict[str, Any]:
-    from surfgen.filters.compare import hausdorff, inside_iou
 
     fine = min(FINE_GRID_MAX, scaled_grid(2 * max(*a.spec.grid, *b.spec.grid), grid_scale))
     iou = inside_iou(a.field, b.field, fine, a.spec.level)
@@ -365,7 +364,6 @@ def relative_change(a: SurfaceSpec, b: SurfaceSpec) -> float:
 def _floor_iou(shape: Shape, fine: int) -> float:
     """IoU of ``shape`` with itself sampled on its grid shifted by half a cell: what sampling
     alone changes (near 1 for a smooth shape; low where the paper's poles and jumps rule)."""
-    from surfgen.filters.compare import inside_iou
 
     grid = shape.field.grid
     half = [0.5 * s for s in grid.spacing]
@@ -446,7 +444,6 @@ def _faces(mesh: Mesh | None) -> int:
 
 
 def _mesh_summary(mesh: Mesh | None) -> dict[str, Any]:
-    from surfgen.filters.metrics import measure_mesh
 
     if mesh is None or mesh.n_faces == 0:
         return {"faces": 0, "components": 0, "genus": None}

@@ -26,21 +26,23 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from surfgen.filters.compare import inside_samples, surface_samples
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.formula.expr import params_of
 from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.exchange import save_mesh
+from surfgen.generator.mesh.mesh import Mesh
+from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.pictures.raster import _BACKGROUND, contact_sheet, render_image, write_png
 from surfgen.pipelines.studies.explore import mesh_stats
 from surfgen.pipelines.studies.knobs import apply_changes
-
-if TYPE_CHECKING:  # the mesh module (trimesh, scikit-image, numba) loads when a mesh does
-    from surfgen.generator.mesh.mesh import Mesh
 
 log = logging.getLogger(__name__)
 
@@ -177,7 +179,6 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
 
 def points_on(mesh: Mesh | None, n: int = SURFACE_SAMPLES) -> np.ndarray:
     """``n`` area-uniform points on ``mesh`` (seeded), ``(0, 3)`` for no mesh."""
-    from surfgen.filters.compare import surface_samples
 
     if mesh is None or mesh.n_faces == 0:
         return np.empty((0, 3))
@@ -198,7 +199,6 @@ def mesh_distances(a: np.ndarray, b: np.ndarray) -> tuple[float | None, float | 
 
 
 def _blank_frame(size: int) -> np.ndarray:
-    from surfgen.pipelines.pictures.raster import _BACKGROUND
 
     return np.full((size, size, 3), _BACKGROUND, dtype=np.uint8)
 
@@ -245,10 +245,6 @@ def _sweep_into(
     progress: Callable[[int, int], None] | None,
 ) -> tuple[list[Step], dict[str, str]]:
     """Evaluate every step and write all the sweep's files into the (new) folder ``out``."""
-    from surfgen.filters.compare import inside_samples
-    from surfgen.generator.mesh.exchange import save_mesh
-    from surfgen.generator.mesh.realise import realise
-    from surfgen.pipelines.pictures.raster import render_image, write_png
 
     (out / "meshes").mkdir()
     (out / "frames").mkdir()
@@ -309,8 +305,6 @@ def _write_summary(
     base: SurfaceSpec, name: str, steps: list[Step], out: Path, cap: bool, target: Grid
 ) -> dict[str, str]:
     from PIL import Image, ImageDraw, ImageFont
-
-    from surfgen.pipelines.pictures.raster import contact_sheet
 
     files = {}
     sheet = contact_sheet(
