@@ -70,7 +70,7 @@ PLACE_SIZE = PLACE_GRID**3
 RELIEF_CELL = 0.2  # RMS radii
 RELIEF_BINS = 16
 SIZE = FORM_SIZE + PLACE_SIZE + RELIEF_BINS
-# Each channel's distance is divided by its scale (README: calibration), then the largest counts.
+# Each channel's distance is divided by its scale (docs/guide/curation.md, Near duplicates: calibration), then the largest counts.
 CHANNEL_SCALES = {"form": 0.0151, "placement": 0.0240, "relief": 0.1162}
 DEFAULT_THRESHOLD = 1.0
 # (start, stop, weight) of each histogram in the vector; the weights sum to 1.

@@ -1,6 +1,6 @@
 """Filters: is a sampled shape worth keeping? Each rejection names its reason.
 
-Two stages (see README, "Filters"):
+Two stages (see docs/guide/sampling.md):
 
 - :func:`screen_field` looks at a sampled field (cheap): too many non-finite samples, no inside
   or no outside, or signs that flip between most neighbours (noise);

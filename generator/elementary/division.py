@@ -7,7 +7,7 @@ value on the Intel Xeon, six times a product in the same loop, and there the div
 median formula. Here the row pays one division, for ``y = 1/s``, and each value a product and
 four fused multiply-adds, with **the bits of** ``x / s`` (IEEE division, round to nearest),
 which is what the numpy reference computes: nothing changes but the time (2.4-2.7x faster on
-the Xeon: ``benchmarks/bench_division.py``).
+the Xeon: ``benchmarks/row_division.py``).
 
 For each ``x`` (``u = 2**-53``; the FMA rounds once):
 

@@ -15,7 +15,7 @@ Every special value is handled by selects inside the kernel (there is no slow pa
 Every NaN result is the canonical quiet NaN ``0x7ff8000000000000`` (NaN payloads would
 otherwise depend on how the compiler orders commutative operands).
 
-Algorithms (derived from the literature; coefficients from ``benchmarks/explog_coefficients.py``):
+Algorithms (derived from the literature; coefficients from ``tools/explog_coefficients.py``):
 
 - ``log`` (double-double, relative error about 2^-68): x = 2^e m with m in [sqrt(1/2), sqrt 2),
   centre c = rint(8m)/8 (six values, log c from a select chain as double-double),

@@ -1,6 +1,6 @@
 """The constants and polynomial coefficients of surfgen's exp, log, pow and the functions built
 from them (:mod:`surfgen.generator.elementary.explog`; coefficients from
-``benchmarks/explog_coefficients.py``). numba freezes them into the kernels that read them.
+``tools/explog_coefficients.py``). numba freezes them into the kernels that read them.
 """
 
 from __future__ import annotations

@@ -45,8 +45,8 @@ published kernel structure, Muller's "Elementary Functions"; the code is our own
   quotient is at most a quarter of an ulp of the result) takes the rounded quotient and
   Estrin's scheme, 25 % fewer cycles.
 
-Coefficients: ``benchmarks/fit_trig.py`` (mpmath Remez, relative error; degrees and fit
-errors in the comments of the tables below). Accuracy (``benchmarks/accuracy_trig.py``,
+Coefficients: ``tools/trig_coefficients.py`` (mpmath Remez, relative error; degrees and fit
+errors in the comments of the tables below). Accuracy (``tools/accuracy_trig.py``,
 10**6 arguments each against mpmath, hard ranges included): max 0.77 ulp (sin, cos),
 <= 0.71 ulp for the others; NaN results are the canonical
 quiet NaN ``0x7ff8000000000000`` (so NaN bits agree too).

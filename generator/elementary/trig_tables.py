@@ -1,6 +1,6 @@
 """The constants and coefficient tables of surfgen's sin, cos, tan, asin, acos, atan and
 atan2 (:mod:`surfgen.generator.elementary.trig`): pi/2 in parts, 2/pi's digits, the minimax
-polynomials (``benchmarks/fit_trig.py``). numba freezes them into the kernels that read them.
+polynomials (``tools/trig_coefficients.py``). numba freezes them into the kernels that read them.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ _F = np.array(
 )
 _NF = 56
 
-# Minimax coefficients (benchmarks/fit_trig.py; relative error of the double coefficients).
+# Minimax coefficients (tools/trig_coefficients.py; relative error of the double coefficients).
 # SIN: (sin y - y)/y^3 ~ P(z), degree 6 in z on [0, (pi/4)^2], max relative error 2^-53.96
 _S0 = -0.16666666666666666
 _S1 = 0.008333333333333331

@@ -44,7 +44,7 @@ log = logging.getLogger(__name__)
 def tile_max(cpu_name: str) -> int:
     """Points per W row (several z rows when nz <= half of it) on the CPU LLVM calls
     ``cpu_name``. Any length gives the same bits (every operation is elementwise); the best
-    one is the CPU's: ``benchmarks/bench_tiles.py`` (the 50 stored formulas at 128^3, one
+    one is the CPU's: ``benchmarks/tile_length.py`` (the 50 stored formulas at 128^3, one
     thread) put 512 at 1.017x the time of 1024 on an AMD Zen 5 (the n_vector rows stay in its
     L2 and a dispatch costs less per point), and 1024 at 1.07x the time of 512 on an Intel Xeon
     (Sapphire Rapids), where 384 and 512 were the fastest. AMD's Zen cores get 1024 (also the

@@ -1,6 +1,6 @@
 """The functions a formula may call: names, arities, and their reference (numpy) meaning.
 
-Numeric semantics, decided once (see README, "Numeric semantics"):
+Numeric semantics, decided once (see docs/reference/numerics.md):
 
 - float64 everywhere, IEEE rules: ``1/0 = inf``, ``0/0 = NaN``; no error is raised for them.
 - every transcendental function is surfgen's own (:mod:`surfgen.generator.elementary`), the same

@@ -1,4 +1,4 @@
-"""The documented limits of surfgen's inputs, in one place (README, "Errors").
+"""The documented limits of surfgen's inputs, in one place (docs/reference/errors.md).
 
 Every boundary checks its limit *before* the work that the limit protects (recursion, allocation,
 reading), so a hostile or careless input ends in one :class:`~surfgen.generator.errors.SurfgenError`

@@ -8,7 +8,7 @@ holds about two iterations in flight and waits on latency. With ``-force-vector-
 each iteration runs four independent vectors: on the project's Zen 3 the elementary rows ran
 1.18-1.26x as fast (median of 12; tan, exp, log, pow, atan2 about 1.3x) and the 50 stored
 eq. (13) formulas at 128^3 1.17x (median; 1.21x in total time), the same fields bit for bit
-(``benchmarks/bench_interleave.py``; docs/performance.md).
+(``benchmarks/interleave.py``; docs/performance/log.md).
 
 It changes no bit: interleaving runs the same operations on more elements at once, and every
 operation of the evaluator is elementwise (no reduction, no FMA, no reassociation).

@@ -44,7 +44,7 @@ def wide_vector_features(environ: Mapping[str, str], host_features: str) -> str 
     LLVM tunes ``skylake-avx512``, ``icelake-server``, ``sapphirerapids`` ... to prefer 256-bit
     vectors (512-bit instructions once lowered those Xeons' clocks), AMD's Zen 4 and 5 not. On
     the Zen 5, with Intel's code generation (``NUMBA_CPU_NAME=skylake-avx512``) and numpy's
-    dispatch cut to that Xeon's, the median fast / numpy ratio of ``benchmarks/bench_eval.py``
+    dispatch cut to that Xeon's, the median fast / numpy ratio of ``benchmarks/eval_speed.py``
     was 2.3-2.4x with 256-bit vectors and 3.0-3.6x with 512-bit ones. Vector width changes no
     bit: every operation is elementwise, without FMA.
     """

@@ -136,7 +136,7 @@ _PRESETS: list[Preset] = [
     Preset("I1", _EQ_A, _A_BOX, _cube(82), {"m": 0.851}, "paper, Figure 2, I1: eq. A, m=0.851"),
     Preset("I2", _EQ_A, _A_BOX, _cube(82), {"m": 0.861}, "paper, Figure 2, I2: eq. A, m=0.861"),
     # Figure 2 read with B = |x|^0.3/|cot(m x)| (the outer ^0.3 dropped): the one reading that
-    # `surfgen reproduce` found to make I1 and I2 differ as the paper says (README, Figure 2).
+    # `surfgen reproduce` found to make I1 and I2 differ as the paper says (docs/guide/paper.md).
     Preset(
         "I1-b1",
         _EQ_A_B1,

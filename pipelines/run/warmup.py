@@ -188,7 +188,7 @@ def warm_shape_kernels(
 
     The first time on a machine this compiles every kernel, about two minutes on one CPU, most
     of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
-    interpreter alone (``benchmarks/bench_cold_start.py``): this process compiles the
+    interpreter alone (``benchmarks/cold_start.py``): this process compiles the
     interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
     numba's on-disk cache; then this process loads the child's kernels from the cache.
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this

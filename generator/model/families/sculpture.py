@@ -278,7 +278,7 @@ def _coarse_ornament(
     Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
     throw debris, and ornaments that break the body into crumbs make speckle: the filters
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
-    balls (README, Families). Returns the ornament, its frequency, the expanded products, its
+    balls (docs/guide/sampling.md, Families). Returns the ornament, its frequency, the expanded products, its
     checks ``(feature, stray, departure, pieces)`` (None without an envelope), its strength
     and d (:func:`~.carving.strength_on` the ``d_grid``: the checks judge the surface the draw
     will be) and the number of ornaments drawn. The unit is sampled by
@@ -378,7 +378,7 @@ def _pole_free(
     the arguments of C's and F's H) the constant 1, and an H with poles (tan, cot, sec, csc)
     made sin or cos. Where a divisor vanishes, F passes through infinity or its argument
     oscillates without bound: dust, voids and walls finer than any check grid, most of the
-    speckle rejections (README, Families). ``lambdas`` and ``mus`` are changed in place; B or C
+    speckle rejections (docs/guide/sampling.md, Families). ``lambdas`` and ``mus`` are changed in place; B or C
     is kept (an ornament always has a trigonometric or constituent part)."""
     lambdas[1] = 0.0  # D = P2^l2
     mus[1] = mus[3] = 0.0  # E = H(P4)^mu2, F = G(H(P7/P8))^mu4

@@ -630,7 +630,7 @@ def test_tiles_of_several_rows_give_the_same_bits(monkeypatch, tile_max, formula
 
 def test_the_tile_length_follows_the_cpu():
     # measured: AMD's Zen cores run the 50 stored formulas fastest with 1024-point tiles, an
-    # Intel Xeon with 512 (bench_tiles.py); any length gives the same bits (the test above)
+    # Intel Xeon with 512 (tile_length.py); any length gives the same bits (the test above)
     from surfgen.generator.eval import tape as fast
 
     assert fast.tile_max("znver3") == 1024
