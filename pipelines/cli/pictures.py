@@ -13,7 +13,12 @@ from typing import Annotated
 import typer
 
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
-from surfgen.pipelines.cli.common import CatalogueOption, WorkersOption, check_workers
+from surfgen.pipelines.cli.common import (
+    CatalogueOption,
+    WorkersOption,
+    check_workers,
+    echo_err,
+)
 
 
 def thumbnails_cmd(
@@ -47,14 +52,22 @@ def thumbnails_cmd(
             progress=lambda i, n: bar.update(task, completed=i, total=n),
             workers=check_workers(workers),
         )
-    for key, why in res.failed:
-        typer.echo(f"{key}: {why}", err=True)
+    failed = ""
+    if res.failed:  # one line for all of them: the count, the first, and where to look
+        key, why = res.failed[0]
+        failed = (
+            f"{len(res.failed)} shape(s) got no pictures (the first, {key}: {why}); "
+            f"`surfgen catalogue check -C {catalogue}` lists what is missing and --repair "
+            "re-makes it"
+        )
+    if res.failed and not res.rendered and not res.skipped:
+        raise GalleryError(f"no pictures could be rendered: {failed}")
+    if failed:
+        echo_err(f"warning: {failed}")
     typer.echo(
         f"rendered {res.rendered}, already there {res.skipped}, failed {len(res.failed)} "
         f"(thumbnails in {Path(catalogue) / 'thumbs'})"
     )
-    if res.failed and not res.rendered and not res.skipped:
-        raise GalleryError(f"no pictures could be rendered ({len(res.failed)} failed)")
 
 
 def contact_sheet_cmd(

@@ -99,7 +99,8 @@ def draw_all(
             if result.status == "ok":
                 yield result.value
             else:
-                log.warning("shape %s: no pictures (%s)", result.task.key, result.message)
+                # the caller reports the failures as a whole (render_pictures: a count)
+                log.info("shape %s: no pictures (%s)", result.task.key, result.message)
                 yield Drawn(result.task, {}, result.message)
             done += 1
             if progress is not None:

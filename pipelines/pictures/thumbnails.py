@@ -145,7 +145,7 @@ def render_pictures(
     rendered = 0
     for drawn in draw_all(jobs, workers, advance):
         if drawn.error is not None:
-            log.warning("shape %s: no pictures (%s)", drawn.job.key, drawn.error)
+            log.info("shape %s: no pictures (%s)", drawn.job.key, drawn.error)  # counted below
             failed.append((drawn.job.key, drawn.error))
             continue
         for kind, data in drawn.pictures.items():

@@ -3,6 +3,7 @@ recorded (on one process or two), a turntable on demand, contact sheets."""
 
 from __future__ import annotations
 
+import shutil
 import threading
 from pathlib import Path
 
@@ -145,3 +146,23 @@ def test_pictures_on_one_process_or_two_are_the_same_files(cat_dir, keys, capsys
         capsys, "gallery", "-o", str(cat_dir.parent / "g"), "-C", str(cat_dir), "--workers", "0"
     )
     assert rc == 1 and err.strip() == "error: --workers must be a whole number from 1 to 256, got 0"
+
+
+@pytest.mark.parametrize("lost", [1, 4], ids=["some", "all"])
+def test_missing_meshes_are_one_line_with_the_count(template, tmp_path, capsys, lost) -> None:
+
+    root = tmp_path / "cat"
+    shutil.copytree(template[0], root)
+    meshes = sorted((root / "meshes").glob("*.ply"))
+    for f in meshes[:lost]:
+        f.unlink()
+    rc, out, err = cli(capsys, "thumbnails", "-C", str(root), "--force", "--workers", "1")
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, lines  # not one line per shape
+    assert f"{lost} shape(s) got no pictures" in lines[0]
+    assert f"surfgen catalogue check -C {root}" in lines[0]
+    if lost == len(meshes):
+        assert rc == 1 and lines[0].startswith("error: no pictures could be rendered")
+    else:
+        assert rc == 0 and lines[0].startswith("warning: ")
+        assert f"rendered {len(meshes) - lost}, already there 0, failed {lost}" in out
