@@ -13,14 +13,19 @@ import logging
 import os
 import shutil
 from collections.abc import Callable, Mapping
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 from surfgen.generator.files import staged_folder
 from surfgen.pipelines.catalogue.curation import select_shapes
 from surfgen.pipelines.catalogue.query import FIELDS
-from surfgen.pipelines.catalogue.store import DB_NAME, Catalogue, now, open_catalogue
+from surfgen.pipelines.catalogue.store import (
+    DB_NAME,
+    Catalogue,
+    CatalogueError,
+    now,
+    open_catalogue,
+)
 from surfgen.pipelines.pictures.pool import Job, draw_all
 from surfgen.pipelines.pictures.thumbnails import GalleryError, record_picture
 from surfgen.pipelines.web.pages import script_json, static_dir, templates, write_page
@@ -79,8 +84,9 @@ def export_gallery(
     """Write the read-only gallery of the catalogue at ``root`` into folder ``out``:
     ``index.html``, ``static/``, ``thumbs/``, ``turntables/`` (and ``meshes/`` with ``meshes``).
     Turntables not rendered yet are rendered first, on ``workers`` processes (default: one per
-    core; ``progress(done, total)`` after each), and cached in the catalogue if this user may
-    write it. The catalogue is read through a read-only connection. Everything is written
+    core; ``progress(done, total)`` after each), into the gallery, and cached in the catalogue
+    once the gallery is written, if this user may write it: a failed export leaves the catalogue
+    as it was. The catalogue is read through a read-only connection. Everything is written
     into a temporary folder beside ``out`` that replaces ``out`` at the end: an earlier gallery
     there is kept if anything fails; a folder with other files in it is refused.
 
@@ -100,35 +106,22 @@ def export_gallery(
             for s in data["shapes"]
             if s["mesh"] and not (s["turntable"] and (cat.root / s["turntable"]).is_file())
         ]
-    # A static page cannot render on demand: make the turntables nobody asked for yet, cached
-    # in the catalogue (so the next export copies them) — or, for a catalogue this user cannot
-    # write, in the gallery only (``fresh``: their PNG bytes by key).
+    # A static page cannot render on demand: make the turntables nobody asked for yet, into the
+    # gallery (``fresh``: their PNG bytes by key); once the gallery is written, they are cached in
+    # the catalogue too when this user may write it (so the next export copies them). A failed
+    # export changes nothing in the catalogue.
     fresh: dict[str, bytes] = {}
     if missing:
-        writable = _writable_catalogue(Path(root))
-        if not writable:
-            log.warning(
-                "catalogue %s is read-only: %d turntables are rendered for the gallery only",
-                root,
-                len(missing),
-            )
         by_key = {s["key"]: s for s in missing}
         jobs = [Job(s["key"], str(Path(root) / s["mesh"]), ("turntable",)) for s in missing]
-        with ExitStack() as stack:
-            cat = stack.enter_context(open_catalogue(root, must_exist=True)) if writable else None
-            if cat is not None:
-                cat.make_dirs()
-            for drawn in draw_all(jobs, workers, progress):
-                shape, png = by_key[drawn.job.key], drawn.pictures.get("turntable")
-                if png is None:
-                    log.warning("shape %s: no turntable (%s)", shape["key"], drawn.error)
-                    shape["turntable"] = None
-                elif cat is None:
-                    fresh[shape["key"]] = png
-                    shape["turntable"] = f"turntables/{shape['key']}.png"
-                else:
-                    made = record_picture(cat, shape["key"], "turntable", png)
-                    shape["turntable"] = str(made.relative_to(cat.root))
+        for drawn in draw_all(jobs, workers, progress):
+            shape, png = by_key[drawn.job.key], drawn.pictures.get("turntable")
+            if png is None:
+                log.warning("shape %s: no turntable (%s)", shape["key"], drawn.error)
+                shape["turntable"] = None
+            else:
+                fresh[shape["key"]] = png
+                shape["turntable"] = f"turntables/{shape['key']}.png"
     existed = out.exists()
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -140,7 +133,28 @@ def export_gallery(
         raise GalleryError(
             f"cannot write the gallery to {out}: {exc.strerror or exc}{where}; {kept}"
         ) from None
+    if fresh:
+        _cache_turntables(Path(root), fresh)
     return out / "index.html", len(data["shapes"])
+
+
+def _cache_turntables(root: Path, fresh: Mapping[str, bytes]) -> None:
+    """Record the turntables drawn for a gallery in the catalogue, when this user may write it:
+    the gallery is complete either way, so a catalogue that cannot take them is only logged."""
+    if not _writable_catalogue(root):
+        log.warning(
+            "catalogue %s is read-only: %d turntables were rendered for the gallery only",
+            root,
+            len(fresh),
+        )
+        return
+    try:
+        with open_catalogue(root, must_exist=True) as cat:
+            cat.make_dirs()
+            for key, png in fresh.items():
+                record_picture(cat, key, "turntable", png)
+    except (CatalogueError, OSError) as exc:
+        log.warning("the gallery is written; its turntables were not cached in %s: %s", root, exc)
 
 
 GALLERY_MARK = ".surfgen-gallery"  # a folder holding it is a gallery that may be replaced

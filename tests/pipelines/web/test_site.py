@@ -112,3 +112,25 @@ def test_static_gallery(cat_dir, keys, capsys, tmp_path) -> None:
     assert rc == 0 and len(list((out / "meshes").iterdir())) == 4
     rc, _, err = cli(capsys, "gallery", "-o", str(cat_dir), "-C", str(cat_dir))
     assert rc == 1 and "another folder" in err
+
+
+def test_a_failed_gallery_changes_nothing_in_the_catalogue(
+    cat_dir, keys, renders, capsys, tmp_path
+):
+    # the turntables the gallery must draw are drawn into it, and cached in the catalogue only
+    # once it is written: a gallery that cannot be written leaves the catalogue as it was
+    without_turntables(cat_dir)
+    db = cat_dir / "catalogue.sqlite"
+    before = (db.read_bytes(), sorted(p.name for p in (cat_dir / "turntables").iterdir()))
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    rc, _, err = cli(capsys, "gallery", "-o", str(blocker / "site"), "-C", str(cat_dir))
+    assert rc == 1 and err.startswith("error: cannot write the gallery to"), err
+    assert len(err.strip().splitlines()) == 1
+    assert renders == []  # nothing recorded
+    assert (db.read_bytes(), sorted(p.name for p in (cat_dir / "turntables").iterdir())) == before
+    with open_catalogue(cat_dir, readonly=True) as cat:
+        assert all(cat.shape(k)["turntable_path"] is None for k in keys.values())
+    # the same gallery written where it can be: then the turntables are cached
+    rc, _, _ = cli(capsys, "gallery", "-o", str(tmp_path / "site"), "-C", str(cat_dir))
+    assert rc == 0 and sorted(renders) == sorted(f"{k}.png" for k in keys.values())
