@@ -24,6 +24,9 @@ from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 
+# fixtures shared by the picture and gallery tests (template, keys, renders)
+pytest_plugins = ["tests.support.gallery"]
+
 
 @dataclass(frozen=True)
 class Shape:
