@@ -13,8 +13,6 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, fields
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
 
-import numpy as np
-
 from surfgen.generator.errors import SpecError
 
 T = TypeVar("T")
@@ -162,11 +160,10 @@ def require_weighted_pairs(obj: Any, pairs: Iterable[tuple[str, str]], table: st
                 f"config [{table}]: {a} and {b} must be non-empty lists of the same length"
             )
         weights = getattr(obj, b)
-        if any(w < 0 for w in weights) or sum(weights) <= 0:
+        total = float(sum(weights))  # a float sum overflows to inf, silently
+        if any(w < 0 for w in weights) or total <= 0:
             raise SpecError(f"config [{table}]: {b} must be non-negative and not all zero")
         # a draw divides each weight by their sum: check what it uses, not only each number
-        with np.errstate(over="ignore", invalid="ignore"):
-            total = float(np.sum(np.asarray(weights, dtype=np.float64)))
         if not math.isfinite(total):
             raise SpecError(
                 f"config [{table}]: {b} add up to {total} (each is divided by their sum, which "
