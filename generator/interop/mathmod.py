@@ -162,7 +162,7 @@ def parse_script(raw: bytes | str, where: str = "script") -> list[dict[str, Any]
         models = [data]
     if not models:
         raise SpecError(f"{where}: the script has no model")
-    return models
+    return [_normalised(m, MODEL_KEYS) for m in models]
 
 
 def _loads(text: str) -> Any:
@@ -179,19 +179,26 @@ def _loads(text: str) -> Any:
         raise first from None
 
 
+def _normalised(raw: Mapping[str, Any], allowed: Sequence[str]) -> dict[str, Any]:
+    """``raw`` with a key that differs from a known one only by blanks around it
+    (``"Description "``, as some of MathMod's own files have) renamed to that key, unless the
+    exact key is there too. Other keys stay as they are."""
+    out: dict[str, Any] = {}
+    for key, value in raw.items():
+        name = key.strip()
+        out[name if name in allowed and name not in raw else key] = value
+    return out
+
+
 def _known_keys(
     raw: Mapping[str, Any], allowed: Sequence[str], where: str, notices: list[str]
 ) -> dict[str, Any]:
-    """The keys MathMod uses, as MathMod reads them: other keys are ignored (with a notice), and a
-    key that differs from a known one only by blanks around it (``"Description "``, as some of
-    MathMod's own files have) counts as that key unless the exact key is there too."""
-    out = {k: v for k, v in raw.items() if k in allowed}
-    for key, value in raw.items():
+    """The keys MathMod uses (after :func:`_normalised`); the others are ignored, as MathMod
+    ignores them, each with a notice."""
+    out = {}
+    for key, value in _normalised(raw, allowed).items():
         if key in allowed:
-            continue
-        name = key.strip()
-        if name in allowed and name not in raw:
-            out[name] = value
+            out[key] = value
         else:
             notices.append(f"ignored: unknown key '{key}' in {where}")
     return out
@@ -201,7 +208,7 @@ def model_names(models: Sequence[Mapping[str, Any]]) -> list[str]:
     names = []
     for m in models:
         body = m.get("Iso3D") or m.get("Param3D") or m.get("Param4D") or {}
-        name = body.get("Name") if isinstance(body, dict) else None
+        name = _normalised(body, ("Name",)).get("Name") if isinstance(body, dict) else None
         names.append(_first(name) if name else "?")
     return names
 

@@ -10,7 +10,7 @@ from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.formula import limits
 from surfgen.generator.formula.parser import tokenize
-from surfgen.generator.interop.mathmod import build_model, load_model, parse_script
+from surfgen.generator.interop.mathmod import build_model, load_model, model_names, parse_script
 
 # Written the way MathMod's own collection files are: tabs, DOTSYMBOL in every decimal number
 # (formulas, bounds, constants, Funct bodies, slider positions), a key with a trailing blank.
@@ -136,3 +136,15 @@ def test_a_model_too_large_once_inlined_is_one_line_naming_the_funct(monkeypatch
     message = str(err.value)
     assert message.startswith("model Chain, Funct f") and "formula too large" in message
     assert "\n" not in message
+
+
+def test_model_level_keys_with_blanks_are_found_by_name() -> None:
+    # "Iso3D " and "Name " as a hand-edited file may have them: the model is found and named
+    text = (
+        '{"MathModels": [{"Iso3D ": {"Name ": ["Ball"], "Fxyz": ["x^2+y^2+z^2-1"],'
+        ' "Xmin": ["-2"], "Xmax": ["2"], "Ymin": ["-2"], "Ymax": ["2"], "Zmin": ["-2"],'
+        ' "Zmax": ["2"]}}]}'
+    )
+    models = parse_script(text)
+    assert model_names(models) == ["Ball"]
+    assert load_model(models, "Ball").name == "Ball"
