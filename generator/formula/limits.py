@@ -26,6 +26,7 @@ from surfgen.generator.errors import FormulaSyntaxError, SurfgenError
 # tokens and 24 characters (the longest number) per node.
 MAX_FORMULA_NODES = 500_000
 FORMULA_BYTES_PER_NODE = 1024  # the 0.5 KB measured, doubled for the compiler's tables
+FORMULA_MEMORY_CHECK_FROM = 64 << 20  # formulas needing less are not checked against memory
 MAX_FORMULA_NESTING = 64
 MAX_FORMULA_TOKENS = 4 * MAX_FORMULA_NODES
 MAX_FORMULA_LENGTH = 24 * MAX_FORMULA_NODES
@@ -208,7 +209,10 @@ def check_formula_size(nodes: int) -> None:
         raise FormulaSizeError(
             f"formula too large: {nodes} nodes once written out (at most {MAX_FORMULA_NODES})"
         )
-    need, have = nodes * FORMULA_BYTES_PER_NODE, available_memory()
+    need = nodes * FORMULA_BYTES_PER_NODE
+    if need < FORMULA_MEMORY_CHECK_FROM:  # every parse passes here: no /proc read for small ones
+        return
+    have = available_memory()
     if need > have:
         raise FormulaSizeError(
             f"formula too large: {nodes} nodes need about {format_bytes(need)} of memory, more "

@@ -45,6 +45,7 @@ def test_a_chain_of_functions_is_refused_before_it_is_built(monkeypatch) -> None
 
 def test_memory_is_part_of_the_limit(monkeypatch) -> None:
     monkeypatch.setattr(limits, "available_memory", lambda: 1000 * limits.FORMULA_BYTES_PER_NODE)
+    monkeypatch.setattr(limits, "FORMULA_MEMORY_CHECK_FROM", 0)
     limits.check_formula_size(1000)
     with pytest.raises(limits.LimitError, match="1001 nodes need about .* more than the"):
         limits.check_formula_size(1001)
@@ -56,6 +57,15 @@ def test_a_formula_beyond_the_old_limits_reads_and_round_trips() -> None:
     tree = parse(text)
     assert tree_size(tree) == 47_999
     assert parse(to_string(tree)) == tree
+
+
+def test_small_formulas_do_not_read_the_memory(monkeypatch) -> None:
+    def never() -> int:
+        raise AssertionError("available_memory read for a small formula")
+
+    monkeypatch.setattr(limits, "available_memory", never)
+    parse("x^2+y^2+z^2-1")
+    limits.check_formula_size(limits.FORMULA_MEMORY_CHECK_FROM // limits.FORMULA_BYTES_PER_NODE - 1)
 
 
 def test_the_text_limits_follow_the_node_limit() -> None:
