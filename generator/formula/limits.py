@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from surfgen.generator.errors import FormulaSyntaxError, SurfgenError
+from surfgen.generator.errors import FormulaSyntaxError, SpecError, SurfgenError
 
 # Formulas: the tree, written out, has at most MAX_FORMULA_NODES nodes, and neither the text nor
 # its canonical form nests parentheses (grouping and function calls) deeper than
@@ -85,6 +85,16 @@ def decode_text(data: bytes, path: str | os.PathLike, what: str) -> str:
     if "\x00" in text:
         raise LimitError(f"{what} {path} is not text (it holds NUL bytes)")
     return text
+
+
+def read_text_file(path: str | os.PathLike, limit: int, what: str) -> str:
+    """UTF-8 text of a small input file, read without trusting its size (``/dev/zero``).
+    Raises :class:`SpecError` (or :class:`LimitError`) naming the file and the problem."""
+    try:
+        data = read_bounded(path, limit, what)
+    except OSError as exc:
+        raise SpecError(f"cannot read {what} {path}: {exc.strerror}") from None
+    return decode_text(data, path, what)
 
 
 def json_depth_ok(text: str, limit: int = MAX_JSON_DEPTH) -> bool:

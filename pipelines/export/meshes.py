@@ -44,6 +44,7 @@ from surfgen.generator.formula.limits import (
     check_memory,
     estimate_memory,
     json_depth_ok,
+    read_text_file,
 )
 from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, FORMATS, MARKABLE, PRINTABLE
@@ -52,7 +53,6 @@ from surfgen.generator.mesh.realise import realise
 from surfgen.generator.mesh.walls import WALL_MODES
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now, open_catalogue
-from surfgen.pipelines.export.render import read_text_file
 from surfgen.pipelines.run.sampling import versions
 
 log = logging.getLogger(__name__)

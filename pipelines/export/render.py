@@ -20,9 +20,8 @@ from surfgen.generator.files import write_all_atomic, write_atomic
 from surfgen.generator.formula.limits import (
     MAX_SPEC_FILE_BYTES,
     check_memory,
-    decode_text,
     estimate_memory,
-    read_bounded,
+    read_text_file,
 )
 from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
 from surfgen.generator.mesh.formats import FORMATS, MESH_SUFFIXES
@@ -118,16 +117,6 @@ def build_spec(
 def read_spec(path: Path) -> SurfaceSpec:
     """The spec in a JSON file (at most :data:`MAX_SPEC_FILE_BYTES`). Raises :class:`SpecError`."""
     return SurfaceSpec.from_json(read_text_file(path, MAX_SPEC_FILE_BYTES, "spec file"))
-
-
-def read_text_file(path: Path, limit: int, what: str) -> str:
-    """UTF-8 text of a small input file, read without trusting its size (``/dev/zero``).
-    Raises :class:`SpecError` (or :class:`LimitError`) naming the file and the problem."""
-    try:
-        data = read_bounded(path, limit, what)
-    except OSError as exc:
-        raise SpecError(f"cannot read {what} {path}: {exc.strerror}") from None
-    return decode_text(data, path, what)
 
 
 def check_output_path(path: Path, suffixes: Sequence[str], what: str) -> None:

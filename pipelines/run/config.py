@@ -22,7 +22,12 @@ from typing import TYPE_CHECKING, Any
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
-from surfgen.generator.formula.limits import MAX_CONFIG_FILE_BYTES, MAX_JSON_DEPTH, json_depth_ok
+from surfgen.generator.formula.limits import (
+    MAX_CONFIG_FILE_BYTES,
+    MAX_JSON_DEPTH,
+    json_depth_ok,
+    read_text_file,
+)
 from surfgen.generator.model.families import families
 from surfgen.generator.model.sampler import SAMPLER_VERSION, SamplerConfig, nest_legacy_keys
 from surfgen.generator.model.settings import settings_from_mapping, settings_to_dict
@@ -158,9 +163,6 @@ def load_config(path: Path | None = None) -> Config:
         if family.settings is not None:
             data["sampler"].setdefault(family.name, settings_to_dict(family.settings()))
     if path is not None:
-        # deferred on purpose: the export modules load numba and trimesh
-        from surfgen.pipelines.export.render import read_text_file
-
         text = read_text_file(Path(path), MAX_CONFIG_FILE_BYTES, "config")
         if not json_depth_ok(text):  # tomllib recurses into nested arrays and tables
             raise SpecError(f"config {path}: nested more than {MAX_JSON_DEPTH} levels deep")
