@@ -11,6 +11,7 @@ from typing import Annotated
 
 import typer
 
+from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import DATASET_FORMATS
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
 from surfgen.pipelines.cli.common import CatalogueOption
@@ -27,7 +28,17 @@ def export_cmd(
     where: Annotated[
         str | None, typer.Option(help="Which accepted shapes (as `catalogue list --where`).")
     ] = None,
-    shard_size: Annotated[int, typer.Option(help="Samples per tar shard.")] = 1000,
+    shard_size: Annotated[
+        int | None, typer.Option(help="Samples per tar shard (default 1000).", show_default=False)
+    ] = None,
+    max_shard_bytes: Annotated[
+        str | None,
+        typer.Option(
+            help="Bytes per tar shard instead, e.g. 500M or 1G (a few hundred MB to 1 GB suits "
+            "the Hugging Face Hub); a shard is larger only if one sample alone is.",
+            show_default=False,
+        ),
+    ] = None,
     points: Annotated[
         int, typer.Option(help="Surface points with normals per shape (0: none).")
     ] = 0,
@@ -39,10 +50,12 @@ def export_cmd(
         str, typer.Option("--license", help="License identifier for the dataset card.")
     ] = "mit",
 ) -> None:
-    """Write WebDataset shards, metadata.parquet and a dataset card for the accepted shapes."""
+    """Write WebDataset shards, metadata.parquet, a dataset card and croissant.json for the
+    accepted shapes."""
     from surfgen.pipelines.export.dataset import DatasetOptions, export_dataset  # deferred
 
-    options = DatasetOptions(where, shard_size, points, sdf, fmt.lower(), license_)
+    limit = parse_size(max_shard_bytes, "--max-shard-bytes") if max_shard_bytes is not None else None
+    options = DatasetOptions(where, shard_size, points, sdf, fmt.lower(), license_, limit)
     s = export_dataset(catalogue, output, options)
     typer.echo(
         f"{s.shapes} shapes in {s.shards} shard(s), {s.bytes / 1e6:.1f} MB "

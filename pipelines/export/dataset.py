@@ -8,6 +8,12 @@
     DIR/metadata.parquet          one row per shape: recipe, every metric, curation, files, sha256
     DIR/runs.json                 the sampling runs the shapes come from (seed, grid, config)
     DIR/README.md                 a dataset card (YAML header) saying how to make it again
+    DIR/croissant.json            MLCommons Croissant 1.1 metadata of all the above
+                                  (:mod:`surfgen.pipelines.export.croissant`)
+
+A shard closes at ``shard_size`` samples or, with ``max_shard_bytes``, before the sample that
+would make its tar file larger than that (a sample larger than the limit alone gets a shard of
+its own, the only case where a shard exceeds it).
 
 Everything is deterministic: the same catalogue and options give the same bytes (tar members
 with fixed times, owners and order; zip members of ``.npz`` with a fixed date; Parquet written
@@ -46,7 +52,8 @@ from surfgen.generator.mesh.formats import DATASET_FORMATS
 from surfgen.generator.mesh.mesh import Mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import select_shapes
-from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.catalogue.store import Catalogue, open_catalogue
+from surfgen.pipelines.export.croissant import RunRecord, write_croissant
 from surfgen.pipelines.export.dataset_card import dataset_card
 from surfgen.pipelines.studies.report import report_stats
 
@@ -63,6 +70,13 @@ FIXED_COLUMNS = (
     "duplicate_of", "shard",
 )  # fmt: skip
 MEMBERS = ("json", "mesh", "thumb", "points", "sdf")
+DEFAULT_SHARD_SIZE = 1000  # samples per shard when neither limit is given
+TAR_BLOCK, TAR_RECORD = 512, 10240  # tarfile's block, and the record its files are padded to
+# Zero records after the end of every shard. zipfile.is_zipfile looks for a zip's end record
+# in a file's last 65,557 bytes, so a tar ending with a stored zip (an .npz member) passes for
+# a zip, and tools that try zip before tar (mlcroissant's extraction) read only that .npz.
+# Zero blocks after a tar's end are ignored by tar readers.
+ZIP_GUARD = 7 * TAR_RECORD  # 71,680 bytes: with tarfile's own end, more than 65,557 zeros
 
 
 class DatasetError(SurfgenError):
@@ -71,19 +85,32 @@ class DatasetError(SurfgenError):
 
 @dataclass(frozen=True)
 class DatasetOptions:
-    """What to export: shapes matching ``where``, ``shard_size`` per tar, ``points`` surface
-    points and ``sdf`` field samples per shape (0: none), meshes as ``format``."""
+    """What to export: shapes matching ``where``; at most ``shard_size`` samples or
+    ``max_shard_bytes`` bytes per tar (one or the other; neither: :data:`DEFAULT_SHARD_SIZE`
+    samples); ``points`` surface points and ``sdf`` field samples per shape (0: none); meshes
+    as ``format``; ``license`` an identifier as the Hugging Face Hub spells it (``mit``,
+    ``cc-by-4.0``, ...)."""
 
     where: str | None = None
-    shard_size: int = 1000
+    shard_size: int | None = None
     points: int = 0
     sdf: int = 0
     format: str = "ply"
     license: str = "mit"
+    max_shard_bytes: int | None = None
 
     def __post_init__(self) -> None:
-        if self.shard_size < 1:
+        if self.shard_size is not None and self.max_shard_bytes is not None:
+            raise DatasetError(
+                "--shard-size (samples) and --max-shard-bytes (bytes) exclude each other: give one"
+            )
+        if self.shard_size is not None and self.shard_size < 1:
             raise DatasetError(f"--shard-size must be at least 1, got {self.shard_size}")
+        if self.max_shard_bytes is not None and self.max_shard_bytes < TAR_RECORD:
+            raise DatasetError(
+                f"--max-shard-bytes must be at least {TAR_RECORD} (one tar record), "
+                f"got {self.max_shard_bytes}"
+            )
         for name in ("points", "sdf"):
             if getattr(self, name) < 0:
                 raise DatasetError(f"--{name} must be 0 or more, got {getattr(self, name)}")
@@ -92,14 +119,26 @@ class DatasetOptions:
                 f"unknown mesh format '{self.format}' (allowed: {', '.join(MESH_FORMATS)})"
             )
 
+    @property
+    def samples_per_shard(self) -> int | None:
+        """The sample limit of a shard (None when shards are limited by bytes)."""
+        if self.max_shard_bytes is not None:
+            return None
+        return DEFAULT_SHARD_SIZE if self.shard_size is None else self.shard_size
+
 
 @dataclass
 class ExportSummary:
+    """What an export wrote: ``shapes`` samples in ``shards`` tars, ``bytes`` of members,
+    the size of each shard file (``shard_bytes``) and the samples per split."""
+
     out: Path
     shapes: int
     shards: int
     bytes: int
     splits: dict[str, int]
+    shard_bytes: list[int]
+    member_kinds: tuple[str, ...] = ()
 
 
 def need_pyarrow() -> None:
@@ -214,10 +253,20 @@ def _curation(rec: dict[str, Any]) -> str:
     return "starred" if rec["stars"] else "unreviewed"
 
 
+def _sidecar(rec: dict[str, Any], row: dict[str, Any]) -> tuple[str, bytes]:
+    """The ``KEY.json`` member: the sample's row (with its shard) plus its spec and metrics."""
+    sidecar = {k: v for k, v in row.items() if k != "spec"} | {
+        "spec": rec["spec"],
+        "metrics": rec["metrics"],
+    }
+    return f"{rec['key']}.json", json.dumps(sidecar, sort_keys=True, separators=(",", ":")).encode()
+
+
 def _members(
-    rec: dict[str, Any], root: Path, options: DatasetOptions, row: dict[str, Any]
+    rec: dict[str, Any], root: Path, options: DatasetOptions
 ) -> dict[str, tuple[str, bytes]]:
-    """The files of one sample: ``{kind: (member name, bytes)}``, in member order."""
+    """The files of one sample but its ``KEY.json`` (which names the shard, see
+    :func:`_sidecar`): ``{kind: (member name, bytes)}``, in member order."""
     key = rec["key"]
     if not rec["mesh"] or not (root / rec["mesh"]).is_file():
         raise DatasetError(
@@ -226,14 +275,6 @@ def _members(
         )
     mesh_file = root / rec["mesh"]
     out: dict[str, tuple[str, bytes]] = {}
-    sidecar = {k: v for k, v in row.items() if k != "spec"} | {
-        "spec": rec["spec"],
-        "metrics": rec["metrics"],
-    }
-    out["json"] = (
-        f"{key}.json",
-        json.dumps(sidecar, sort_keys=True, separators=(",", ":")).encode(),
-    )
     out["mesh"] = (f"{key}.{options.format}", mesh_bytes(mesh_file, options.format))
     if rec["thumb"] and (root / rec["thumb"]).is_file():
         out["thumb"] = (f"{key}.png", (root / rec["thumb"]).read_bytes())
@@ -246,6 +287,18 @@ def _members(
             spec = SurfaceSpec.from_dict(rec["spec"])
             out["sdf"] = (f"{key}.sdf.npz", npz_bytes(field_samples(spec, options.sdf, key)))
     return out
+
+
+def tar_bytes(sizes: list[int]) -> int:
+    """The bytes that members of ``sizes`` take in a USTAR tar: a header block each, the data
+    padded to whole blocks (names under 100 characters need no extra header)."""
+    return sum(TAR_BLOCK + -(-n // TAR_BLOCK) * TAR_BLOCK for n in sizes)
+
+
+def tar_file_bytes(members: int) -> int:
+    """The size of a shard whose members take ``members`` bytes: two zero blocks end the
+    archive, Python's tarfile pads the file to whole records, then :data:`ZIP_GUARD`."""
+    return -(-(members + 2 * TAR_BLOCK) // TAR_RECORD) * TAR_RECORD + ZIP_GUARD
 
 
 def _base_row(rec: dict[str, Any], raw: dict[str, Any]) -> dict[str, Any]:
@@ -316,6 +369,9 @@ def export_dataset(
             )
         ]
         stats = report_stats(cat)
+        run_records = _run_records(cat, runs)
+        keys = [r["key"] for r in records]
+        curated = _latest_curation(cat, keys)
         root = cat.root
     parent = out_dir.absolute().parent
     try:
@@ -327,6 +383,18 @@ def export_dataset(
         summary = _write_export(work, records, raw, runs, stats, root, options, progress)
         (work / "README.md").write_text(
             dataset_card(summary, records, runs, stats, options, catalogue, out_dir)
+        )
+        write_croissant(
+            work,
+            schema=_parquet_schema(work / "metadata.parquet"),
+            member_kinds=summary.member_kinds,
+            mesh_format=options.format,
+            shards=[_shard_name(i) for i in range(summary.shards)],
+            runs=run_records,
+            shapes=summary.shapes,
+            license_id=options.license,
+            where=options.where,
+            curated=curated,
         )
         os.chmod(work, 0o755)  # mkdtemp makes it 0700; a dataset is for handing on
         with renaming() as tx:  # an empty folder already there is put back if this fails
@@ -350,27 +418,53 @@ def _write_export(
 ) -> ExportSummary:
     (work / "shards").mkdir()
     rows: list[dict[str, Any]] = []
+    shard_bytes: list[int] = []  # the size of each closed shard
     total = 0
-    starts = range(0, len(records), options.shard_size)
-    for shard_no, start in enumerate(starts):
-        name = f"shards/shard-{shard_no:06d}.tar"
-        with tarfile.open(work / name, "x", format=tarfile.USTAR_FORMAT) as tar:
-            for rec in records[start : start + options.shard_size]:
-                row = _base_row(rec, raw.get(rec["key"], {}))
-                row["shard"] = name
-                members = _members(rec, root, options, row)
-                for kind in MEMBERS:
-                    member, data = members.get(kind, (None, None))
-                    row[f"{kind}_file"] = member
-                    row[f"{kind}_sha256"] = None if data is None else sha256_hex(data)
-                    if data is not None:
-                        _add(tar, member, data)
-                        total += len(data)
-                row["metrics"] = rec["metrics"]
-                rows.append(row)
-                if progress is not None:
-                    progress(len(rows), len(records))
-    shards = len(starts)
+    tar: tarfile.TarFile | None = None
+    in_shard = payload = 0  # samples and member bytes in the open shard
+
+    def close_shard() -> None:
+        if tar is not None:
+            tar.close()
+            path = work / _shard_name(len(shard_bytes))
+            with path.open("ab") as f:
+                f.write(bytes(ZIP_GUARD))
+            shard_bytes.append(path.stat().st_size)
+
+    try:
+        for rec in records:
+            row = _base_row(rec, raw.get(rec["key"], {}))
+            row["shard"] = _shard_name(len(shard_bytes))
+            members = _members(rec, root, options)
+            # shard names have a fixed width: the sidecar's size does not depend on which one
+            need = tar_bytes([len(_sidecar(rec, row)[1])] + [len(d) for _, d in members.values()])
+            if tar is None or _full(options, in_shard, payload + need):
+                close_shard()
+                tar = tarfile.open(  # noqa: SIM115 (open across samples, closed below)
+                    work / _shard_name(len(shard_bytes)), "x", format=tarfile.USTAR_FORMAT
+                )
+                in_shard = payload = 0
+            row["shard"] = _shard_name(len(shard_bytes))
+            members = {"json": _sidecar(rec, row)} | members
+            for kind in MEMBERS:
+                member, data = members.get(kind, (None, None))
+                row[f"{kind}_file"] = member
+                row[f"{kind}_sha256"] = None if data is None else sha256_hex(data)
+                if data is not None:
+                    _add(tar, member, data)
+                    total += len(data)
+            in_shard += 1
+            payload += need
+            row["metrics"] = rec["metrics"]
+            rows.append(row)
+            if progress is not None:
+                progress(len(rows), len(records))
+        close_shard()
+        tar = None
+    finally:
+        if tar is not None:
+            tar.close()
+    shards = len(shard_bytes)
     _write_parquet(work / "metadata.parquet", rows)
     runs_json = [
         {
@@ -396,7 +490,53 @@ def _write_export(
         work / "runs.json", (json.dumps(runs_json, indent=1, sort_keys=True) + "\n").encode()
     )
     splits = Counter(r["split"] for r in rows)
-    return ExportSummary(work, len(rows), shards, total, {s: splits.get(s, 0) for s, _ in SPLITS})
+    kinds = tuple(k for k in MEMBERS if any(r[f"{k}_file"] for r in rows))
+    return ExportSummary(
+        work, len(rows), shards, total, {s: splits.get(s, 0) for s, _ in SPLITS}, shard_bytes, kinds
+    )
+
+
+def _run_records(cat: Catalogue, runs: list[dict[str, Any]]) -> list[RunRecord]:
+    """The runs with their draws and rejection counts, counted over the catalogue's shapes
+    as ``surfgen report`` counts them."""
+    out = []
+    for run in runs:
+        drawn = 0
+        reasons: Counter[str] = Counter()
+        for r in cat.conn.execute("SELECT verdict, reasons FROM shapes WHERE run=?", (run["id"],)):
+            drawn += 1
+            if r["verdict"] != "accepted":
+                reasons.update(json.loads(r["reasons"] or "[]"))
+        decoded = dict(run) | {k: json.loads(run[k]) for k in ("config", "versions", "counts")}
+        out.append(RunRecord(decoded, drawn, dict(sorted(reasons.items()))))
+    return out
+
+
+def _latest_curation(cat: Catalogue, keys: list[str]) -> str | None:
+    """The time of the latest curation action on one of ``keys`` (None: there is none)."""
+    wanted = set(keys)
+    times = [
+        r["at"] for r in cat.conn.execute("SELECT key, at FROM curation") if r["key"] in wanted
+    ]
+    return max(times, default=None)
+
+
+def _parquet_schema(path: Path):
+    import pyarrow.parquet as pq  # optional: the dataset extra
+
+    return pq.read_schema(path)
+
+
+def _shard_name(number: int) -> str:
+    return f"shards/shard-{number:06d}.tar"
+
+
+def _full(options: DatasetOptions, samples: int, payload: int) -> bool:
+    """Whether a shard holding ``samples`` samples must close rather than grow to
+    ``payload`` member bytes (a first sample always goes in, however large)."""
+    if options.max_shard_bytes is not None:
+        return samples > 0 and tar_file_bytes(payload) > options.max_shard_bytes
+    return samples >= (options.samples_per_shard or DEFAULT_SHARD_SIZE)
 
 
 def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:

@@ -31,6 +31,12 @@ def _hf_dtype(arrow_type) -> str:
     return "string"
 
 
+def _shard_limit(options: DatasetOptions) -> str:
+    if options.max_shard_bytes is not None:
+        return f"at most {options.max_shard_bytes} bytes each (unless one sample alone is larger)"
+    return f"up to {options.samples_per_shard} samples"
+
+
 def dataset_card(
     summary: ExportSummary,
     records: list[dict[str, Any]],
@@ -48,16 +54,19 @@ def dataset_card(
     features = []
     for f in schema:
         if pa.types.is_list(f.type):
-            features.append(f"  - name: {f.name}\n    sequence: {_hf_dtype(f.type.value_type)}")
+            features.append(f"  - name: {f.name}\n    list: {_hf_dtype(f.type.value_type)}")
         else:
             features.append(f"  - name: {f.name}\n    dtype: {_hf_dtype(f.type)}")
-    splits = "\n".join(f"  - name: {s}\n    num_examples: {n}" for s, n in summary.splits.items())
     genus = [r["genus"] for r in records if r["genus"] is not None]
     faces = sorted(r["faces"] for r in records if r["faces"] is not None)
     export_cmd = ["surfgen", "dataset", "export", "-C", str(catalogue), "-o", str(out_dir)]
     if options.where:
         export_cmd += ["--where", options.where]
-    export_cmd += ["--shard-size", str(options.shard_size), "--points", str(options.points)]
+    if options.max_shard_bytes is not None:
+        export_cmd += ["--max-shard-bytes", str(options.max_shard_bytes)]
+    else:
+        export_cmd += ["--shard-size", str(options.samples_per_shard)]
+    export_cmd += ["--points", str(options.points)]
     export_cmd += ["--sdf", str(options.sdf), "--format", options.format]
     if options.license != "mit":
         export_cmd += ["--license", options.license]
@@ -127,12 +136,18 @@ configs:
 - config_name: default
   data_files:
   - split: all
+    path: metadata.parquet
+- config_name: shards
+  data_files:
+  - split: all
     path: shards/*.tar
 dataset_info:
+- config_name: default
   features:
 {chr(10).join(features)}
   splits:
-{splits}
+  - name: all
+    num_examples: {summary.shapes}
 ---
 
 # surfgen implicit surfaces
@@ -144,7 +159,7 @@ level, and the seed and index it was drawn with).
 
 ## Files
 
-- `shards/shard-NNNNNN.tar`: {summary.shards} WebDataset shard(s) of up to {options.shard_size} samples,
+- `shards/shard-NNNNNN.tar`: {summary.shards} WebDataset shard(s) of {_shard_limit(options)},
   ordered by key; the members of one sample share its key:
 
 | member | content |
@@ -156,6 +171,8 @@ level, and the seed and index it was drawn with).
   every metric of the catalogue as a column, curation (state, stars, tags, curator's rejection,
   note, duplicate), the shard and member names, and the sha256 of every member.
 - `runs.json`: the sampling runs (seed, n, grid, the whole config, versions).
+- `croissant.json`: MLCommons Croissant 1.1 metadata (files with their sha256, record sets,
+  provenance and responsible-AI fields).
 
 Splits are fixed by a hash of the key: train {summary.splits["train"]}, val {summary.splits["val"]},
 test {summary.splits["test"]} (80/10/10).
