@@ -5,7 +5,7 @@ What it holds:
 
 - **distribution**: a ``cr:FileObject`` with ``sha256`` and ``contentSize`` for every file of
   the export but ``croissant.json`` itself (``README.md``, ``metadata.parquet``,
-  ``runs.json``, each shard), and one ``cr:FileSet`` per kind of shard member (``*.json``,
+  ``runs.json``, ``features.json``, each shard), and one ``cr:FileSet`` per kind of shard member (``*.json``,
   ``*.ply``/``*.glb``, ``*.png``, ``*.points.npy``, ``*.sdf.npz``) contained in all the shards.
 - **recordSet** ``metadata``: one field per Parquet column, with its data type (lists are
   ``isArray``), keyed by ``key``; and one record set per kind of shard member (``sidecars``,
@@ -28,12 +28,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from surfgen.generator.files import write_atomic
+from surfgen.pipelines.catalogue.store import Catalogue
 
 CROISSANT_FILE = "croissant.json"
 CONFORMS_TO = "http://mlcommons.org/croissant/1.1"
@@ -147,6 +149,31 @@ class RunRecord:
     run: dict[str, Any]
     drawn: int
     reasons: dict[str, int]
+
+
+def collect_runs(cat: Catalogue, runs: list[dict[str, Any]]) -> list[RunRecord]:
+    """The runs with their draws and rejection counts, counted over the catalogue's shapes
+    as ``surfgen report`` counts them."""
+    out = []
+    for run in runs:
+        drawn = 0
+        reasons: Counter[str] = Counter()
+        for r in cat.conn.execute("SELECT verdict, reasons FROM shapes WHERE run=?", (run["id"],)):
+            drawn += 1
+            if r["verdict"] != "accepted":
+                reasons.update(json.loads(r["reasons"] or "[]"))
+        decoded = dict(run) | {k: json.loads(run[k]) for k in ("config", "versions", "counts")}
+        out.append(RunRecord(decoded, drawn, dict(sorted(reasons.items()))))
+    return out
+
+
+def latest_curation(cat: Catalogue, keys: list[str]) -> str | None:
+    """The time of the latest curation action on one of ``keys`` (None: there is none)."""
+    wanted = set(keys)
+    times = [
+        r["at"] for r in cat.conn.execute("SELECT key, at FROM curation") if r["key"] in wanted
+    ]
+    return max(times, default=None)
 
 
 def sha256_file(path: Path) -> str:
@@ -472,6 +499,7 @@ def croissant_metadata(
         _file_object(folder, "README.md", "The dataset card (Hugging Face YAML header)."),
         _file_object(folder, "metadata.parquet", "One row per shape (zstd Parquet)."),
         _file_object(folder, "runs.json", "The sampling runs: seed, n, grid, config, versions."),
+        _file_object(folder, "features.json", "The Hugging Face datasets features of the samples."),
     ] + [_file_object(folder, s, "A WebDataset shard (USTAR tar).") for s in shards]
     file_sets, member_records = _member_sets(set(member_kinds), f".{mesh_format}", shards)
     return {

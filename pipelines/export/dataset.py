@@ -8,6 +8,8 @@
     DIR/metadata.parquet          one row per shape: recipe, every metric, curation, files, sha256
     DIR/runs.json                 the sampling runs the shapes come from (seed, grid, config)
     DIR/README.md                 a dataset card (YAML header) saying how to make it again
+    DIR/features.json             the samples' Hugging Face ``datasets`` features
+                                  (:mod:`surfgen.pipelines.export.dataset_features`)
     DIR/croissant.json            MLCommons Croissant 1.1 metadata of all the above
                                   (:mod:`surfgen.pipelines.export.croissant`)
 
@@ -52,9 +54,10 @@ from surfgen.generator.mesh.formats import DATASET_FORMATS
 from surfgen.generator.mesh.mesh import Mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import select_shapes
-from surfgen.pipelines.catalogue.store import Catalogue, open_catalogue
-from surfgen.pipelines.export.croissant import RunRecord, write_croissant
+from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.export.croissant import collect_runs, latest_curation, write_croissant
 from surfgen.pipelines.export.dataset_card import dataset_card
+from surfgen.pipelines.export.dataset_features import sample_features, write_features
 from surfgen.pipelines.studies.report import report_stats
 
 log = logging.getLogger(__name__)
@@ -369,9 +372,9 @@ def export_dataset(
             )
         ]
         stats = report_stats(cat)
-        run_records = _run_records(cat, runs)
+        run_records = collect_runs(cat, runs)
         keys = [r["key"] for r in records]
-        curated = _latest_curation(cat, keys)
+        curated = latest_curation(cat, keys)
         root = cat.root
     parent = out_dir.absolute().parent
     try:
@@ -419,6 +422,7 @@ def _write_export(
     (work / "shards").mkdir()
     rows: list[dict[str, Any]] = []
     shard_bytes: list[int] = []  # the size of each closed shard
+    sidecars: list[dict[str, Any]] = []  # the KEY.json members, for their features
     total = 0
     tar: tarfile.TarFile | None = None
     in_shard = payload = 0  # samples and member bytes in the open shard
@@ -446,6 +450,7 @@ def _write_export(
                 in_shard = payload = 0
             row["shard"] = _shard_name(len(shard_bytes))
             members = {"json": _sidecar(rec, row)} | members
+            sidecars.append(json.loads(members["json"][1]))
             for kind in MEMBERS:
                 member, data = members.get(kind, (None, None))
                 row[f"{kind}_file"] = member
@@ -491,34 +496,10 @@ def _write_export(
     )
     splits = Counter(r["split"] for r in rows)
     kinds = tuple(k for k in MEMBERS if any(r[f"{k}_file"] for r in rows))
+    write_features(work, sample_features(sidecars, kinds, options.format))
     return ExportSummary(
         work, len(rows), shards, total, {s: splits.get(s, 0) for s, _ in SPLITS}, shard_bytes, kinds
     )
-
-
-def _run_records(cat: Catalogue, runs: list[dict[str, Any]]) -> list[RunRecord]:
-    """The runs with their draws and rejection counts, counted over the catalogue's shapes
-    as ``surfgen report`` counts them."""
-    out = []
-    for run in runs:
-        drawn = 0
-        reasons: Counter[str] = Counter()
-        for r in cat.conn.execute("SELECT verdict, reasons FROM shapes WHERE run=?", (run["id"],)):
-            drawn += 1
-            if r["verdict"] != "accepted":
-                reasons.update(json.loads(r["reasons"] or "[]"))
-        decoded = dict(run) | {k: json.loads(run[k]) for k in ("config", "versions", "counts")}
-        out.append(RunRecord(decoded, drawn, dict(sorted(reasons.items()))))
-    return out
-
-
-def _latest_curation(cat: Catalogue, keys: list[str]) -> str | None:
-    """The time of the latest curation action on one of ``keys`` (None: there is none)."""
-    wanted = set(keys)
-    times = [
-        r["at"] for r in cat.conn.execute("SELECT key, at FROM curation") if r["key"] in wanted
-    ]
-    return max(times, default=None)
 
 
 def _parquet_schema(path: Path):

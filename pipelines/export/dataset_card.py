@@ -135,19 +135,12 @@ tags:
 configs:
 - config_name: default
   data_files:
-  - split: all
+  - split: full
     path: metadata.parquet
-- config_name: shards
-  data_files:
-  - split: all
-    path: shards/*.tar
 dataset_info:
 - config_name: default
   features:
 {chr(10).join(features)}
-  splits:
-  - name: all
-    num_examples: {summary.shapes}
 ---
 
 # surfgen implicit surfaces

@@ -1,6 +1,7 @@
 """``surfgen dataset verify``: regenerate sampled rows of an export of
 :mod:`surfgen.pipelines.export.dataset` from their provenance (seed, index, the run's config) and
-compare the key, spec, metrics and the hashes of mesh, points and SDF samples."""
+compare the key, spec, metrics and the hashes of mesh, points and SDF samples; check that every
+file ``croissant.json`` lists has its size and sha256."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.pipelines.export.croissant import check_croissant
 from surfgen.pipelines.export.dataset import (
     FIXED_COLUMNS,
     MEMBERS,
@@ -57,9 +59,10 @@ def _shard_members(root: Path, shards: list[str]) -> Iterator[tuple[str, str]]:
 def verify_dataset(
     root: Path, sample: int = 20, seed: int = 0, progress: Callable[[str], None] | None = None
 ) -> VerifyReport:
-    """Check an export: every row's members exist with their hashes (for ``sample`` rows drawn
-    with ``seed``), and those rows regenerate to the same key, spec, metrics, mesh, points and
-    SDF samples. Raises :class:`DatasetError` when ``root`` is not an export."""
+    """Check an export: every file ``croissant.json`` lists has its size and sha256, every
+    row's members exist with their hashes (for ``sample`` rows drawn with ``seed``), and those
+    rows regenerate to the same key, spec, metrics, mesh, points and SDF samples. Raises
+    :class:`DatasetError` when ``root`` is not an export."""
     need_pyarrow()
     import pyarrow.parquet as pq  # optional: the dataset extra
 
@@ -75,6 +78,7 @@ def verify_dataset(
     except (OSError, json.JSONDecodeError) as exc:
         raise DatasetError(f"cannot read {root / 'runs.json'}: {exc}") from None
     report = VerifyReport(len(rows), [])
+    report.problems += check_croissant(root)
     names: dict[str, str] = {}
     for shard, member in _shard_members(root, sorted({r["shard"] for r in rows})):
         names[member] = shard
