@@ -7,6 +7,7 @@ import io
 import json
 import shutil
 import tarfile
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -14,40 +15,33 @@ import pytest
 
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from surfgen.pipelines.export.dataset import split_of, surface_points
-from surfgen.pipelines.run.config import load_config
-from surfgen.pipelines.run.sampling import run_sample
+from surfgen.pipelines.export.dataset import (
+    ZIP_GUARD,
+    split_of,
+    surface_points,
+    tar_bytes,
+    tar_file_bytes,
+)
+from surfgen.pipelines.studies.report import report_stats
+from tests.pipelines.export.conftest import DATASET_SHAPES, export_args
 
 pa = pytest.importorskip("pyarrow")  # the `dataset` extra, part of `test`
 pq = pytest.importorskip("pyarrow.parquet")
-N = 3
+N = DATASET_SHAPES
 
 
-@pytest.fixture(scope="module")
-def catalogue(tmp_path_factory) -> Path:
-    """A small sampled catalogue with thumbnails, one shape starred and tagged."""
-    root = tmp_path_factory.mktemp("ds")
-    cfg = load_config().with_grid(20)
-    run_sample(n=N, seed=5, config=cfg, catalogue=root / "cat", workers=2)
-    with open_catalogue(root / "cat", must_exist=True) as cat:
-        key = cat.shapes(verdict="accepted")[0]["key"]
-    assert main(["catalogue", "star", key, "4", "-C", str(root / "cat")]) == 0
-    assert main(["catalogue", "tag", key, "lattice", "-C", str(root / "cat")]) == 0
-    return root / "cat"
+@pytest.fixture
+def catalogue(dataset_catalogue: Path) -> Path:
+    return dataset_catalogue
+
+
+@pytest.fixture
+def exported(dataset_export: Path) -> Path:
+    return dataset_export
 
 
 def export(catalogue: Path, out: Path, *extra: str) -> int:
-    return main(
-        ["dataset", "export", "-C", str(catalogue), "-o", str(out), "--shard-size", "2",
-         "--points", "64", "--sdf", "50", *extra]
-    )  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def exported(catalogue: Path, tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("export") / "ds"
-    assert export(catalogue, out) == 0
-    return out
+    return main(export_args(catalogue, out, *extra))
 
 
 def sha(data: bytes) -> str:
@@ -103,16 +97,6 @@ def test_shards_and_parquet_agree_with_the_catalogue(catalogue: Path, exported: 
     assert f"surfgen sample --n {N} --seed 5 --grid 20" in card
 
 
-def test_webdataset_reads_the_shards(exported: Path) -> None:
-    wds = pytest.importorskip("webdataset")
-    urls = [str(p) for p in sorted((exported / "shards").glob("*.tar"))]
-    samples = list(wds.WebDataset(urls, shardshuffle=False, empty_check=False))
-    assert len(samples) == N
-    for s in samples:
-        assert {"json", "ply", "png", "points.npy", "sdf.npz"} <= set(s)
-        assert json.loads(s["json"])["key"] == s["__key__"]
-
-
 def test_surface_points_face_outwards(sphere_mesh) -> None:
     p = surface_points(sphere_mesh, 500, "0123456789abcdef")
     assert ((p[:, :3] * p[:, 3:]).sum(axis=1) > 0.9).all()
@@ -131,7 +115,9 @@ def test_export_twice_gives_the_same_bytes(catalogue: Path, tmp_path: Path) -> N
     shutil.rmtree(out)
     assert export(catalogue, out) == 0  # the same command again
     assert files(out) == first
-    assert {p.name for p in first} >= {"README.md", "metadata.parquet", "runs.json"}
+    assert {p.name for p in first} >= {
+        "README.md", "metadata.parquet", "runs.json", "croissant.json", "features.json"
+    }  # fmt: skip
 
 
 def test_verify_passes_then_catches_tampering(exported: Path, tmp_path: Path, capsys) -> None:
@@ -146,7 +132,8 @@ def test_verify_passes_then_catches_tampering(exported: Path, tmp_path: Path, ca
     pq.write_table(table, bad / "metadata.parquet")
     assert main(["dataset", "verify", str(bad), "--sample", "10"]) == 1
     out = capsys.readouterr().out
-    assert "metric genus is" in out and "in metadata.parquet" in out and "1 disagreement" in out
+    assert "metric genus is" in out and "in metadata.parquet" in out and "2 disagreement" in out
+    assert "metadata.parquet: its size differs from croissant.json's" in out  # the file changed
     # A mesh whose bytes changed in its shard.
     bad = shutil.copytree(exported, tmp_path / "bad-mesh")
     shard = bad / "shards" / "shard-000000.tar"
@@ -158,7 +145,9 @@ def test_verify_passes_then_catches_tampering(exported: Path, tmp_path: Path, ca
                 data = data[:-1] + bytes([data[-1] ^ 1])
             tar.addfile(m, io.BytesIO(data))
     assert main(["dataset", "verify", str(bad), "--sample", "10"]) == 1
-    assert ".ply does not match its sha256" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert ".ply does not match its sha256" in out
+    assert "shards/shard-000000.tar: its size differs from croissant.json" in out  # no guard now
 
 
 @pytest.mark.parametrize(
@@ -169,6 +158,9 @@ def test_verify_passes_then_catches_tampering(exported: Path, tmp_path: Path, ca
         (["--where", "genus > 100000"], "matches --where 'genus > 100000': nothing written"),
         (["--shard-size", "0"], "--shard-size must be at least 1"),
         (["--format", "stl"], "unknown mesh format 'stl' (allowed: ply, glb)"),
+        (["--shard-size", "5", "--max-shard-bytes", "1G"], "exclude each other: give one"),
+        (["--max-shard-bytes", "lots"], "--max-shard-bytes must be a positive size such as"),
+        (["--max-shard-bytes", "1K"], "--max-shard-bytes must be at least 10240"),
     ],
 )
 def test_bad_exports_write_nothing(
@@ -205,3 +197,102 @@ def test_glb_export(catalogue: Path, tmp_path: Path) -> None:
     mesh = trimesh.load(io.BytesIO(data), file_type="glb", force="mesh", process=False)
     assert len(mesh.faces) == rows[0]["faces"]
     assert main(["dataset", "verify", str(out), "--sample", "1"]) == 0
+
+
+def test_croissant_describes_the_export(catalogue: Path, exported: Path) -> None:
+    doc = json.loads((exported / "croissant.json").read_text())
+    assert doc["conformsTo"] == "http://mlcommons.org/croissant/1.1"
+    assert doc["isLiveDataset"] is False and doc["license"] == "https://spdx.org/licenses/MIT.html"
+    assert "A wide diversity of {3D} surfaces Generator" in doc["citeAs"]
+    files = {d["contentUrl"]: d for d in doc["distribution"] if d["@type"] == "cr:FileObject"}
+    on_disk = {
+        p.relative_to(exported).as_posix()
+        for p in exported.rglob("*")
+        if p.is_file() and p.name != "croissant.json"
+    }
+    assert set(files) == on_disk  # every file but itself, the shards included
+    for name, node in files.items():
+        data = (exported / name).read_bytes()
+        assert node["sha256"] == sha(data) and node["contentSize"] == f"{len(data)} B"
+    sets = {d["includes"] for d in doc["distribution"] if d["@type"] == "cr:FileSet"}
+    assert sets == {"*.json", "*.ply", "*.png", "*.points.npy", "*.sdf.npz"}
+    columns = pq.read_schema(exported / "metadata.parquet")
+    fields = {f["name"]: f for f in doc["recordSet"][0]["field"]}
+    assert list(fields) == columns.names
+    assert fields["genus"]["dataType"] == "sc:Integer" and fields["d"]["dataType"] == "sc:Float"
+    assert fields["tags"]["isArray"] is True and fields["watertight"]["dataType"] == "sc:Boolean"
+    # provenance: the run's recipe and its rejection rates, as `surfgen report` counts them
+    with open_catalogue(catalogue, must_exist=True) as cat:
+        stats = report_stats(cat)
+        run = dict(cat.conn.execute("SELECT * FROM runs").fetchone())
+    (activity,) = doc["prov:wasGeneratedBy"]
+    props = {p["name"]: p["value"] for p in activity["additionalProperty"]}
+    assert props["seed"] == 5 and props["config_hash"] == run["config_hash"]
+    assert props["drawn"] == stats["drawn"] and props["accepted"] == stats["accepted"]
+    assert props["sampler_version"] == run["sampler_version"]
+    assert json.loads(props["filters"]) == json.loads(run["config"])["filters"]
+    rates = {k.split("/", 1)[1]: v for k, v in props.items() if k.startswith("rejection_rate/")}
+    assert rates == {r: round(c / stats["drawn"], 6) for r, c in stats["reasons"].items()}
+    for reason, count in stats["reasons"].items():
+        assert (
+            f"{reason}: {count} of {stats['drawn']} draws" in doc["rai:dataPreprocessingProtocol"]
+        )
+    # dates come from the catalogue, not the clock
+    assert doc["dateCreated"] == run["started"] and doc["datePublished"] >= run["ended"]
+
+
+def test_max_shard_bytes(catalogue: Path, tmp_path: Path) -> None:
+    big = tmp_path / "one"
+    assert export(catalogue, big, "--max-shard-bytes", "1G") == 0
+    (shard,) = sorted((big / "shards").glob("*.tar"))
+    with tarfile.open(shard) as tar:
+        sizes = {m.name: m.size for m in tar.getmembers()}
+    assert shard.stat().st_size == tar_file_bytes(tar_bytes(list(sizes.values())))
+    assert shard.read_bytes()[-ZIP_GUARD:] == bytes(ZIP_GUARD)  # not a zip to zipfile
+    assert not zipfile.is_zipfile(shard)
+    per_key: dict[str, int] = {}
+    for name, size in sizes.items():
+        per_key[name.split(".")[0]] = per_key.get(name.split(".")[0], 0) + tar_bytes([size])
+    # a limit that holds the two smallest samples but not all three
+    two = sorted(per_key.values())
+    limit = tar_file_bytes(two[0] + two[1])
+    assert tar_file_bytes(sum(two)) > limit
+    out = tmp_path / "limited"
+    assert export(catalogue, out, "--max-shard-bytes", str(limit)) == 0
+    shards = sorted((out / "shards").glob("*.tar"))
+    assert len(shards) >= 2
+    keys = []
+    for path in shards:
+        with tarfile.open(path) as tar:
+            names = tar.getnames()
+        keys += sorted({n.split(".")[0] for n in names})
+        alone = len({n.split(".")[0] for n in names}) == 1
+        assert path.stat().st_size <= limit or alone, (path.name, path.stat().st_size)
+    assert keys == sorted(per_key)  # every sample once, in key order
+    card = (out / "README.md").read_text()
+    assert f"--max-shard-bytes {limit}" in card and f"at most {limit} bytes each" in card
+    assert main(["dataset", "verify", str(out), "--sample", "1"]) == 0
+
+
+def test_a_sample_larger_than_the_limit_gets_a_shard_alone(catalogue: Path, tmp_path: Path) -> None:
+    out = tmp_path / "tiny"
+    assert export(catalogue, out, "--max-shard-bytes", "10K") == 0
+    shards = sorted((out / "shards").glob("*.tar"))
+    assert len(shards) == N
+    for path in shards:
+        with tarfile.open(path) as tar:
+            assert len({n.split(".")[0] for n in tar.getnames()}) == 1
+        assert path.stat().st_size > 10240
+
+
+def test_verify_checks_croissant(exported: Path, tmp_path: Path, capsys) -> None:
+    bad = shutil.copytree(exported, tmp_path / "bad-runs")
+    runs = bad / "runs.json"
+    runs.write_text(runs.read_text().replace('"seed": 5', '"seed": 6'))
+    assert main(["dataset", "verify", str(bad), "--sample", "1"]) == 1
+    out = capsys.readouterr().out
+    assert "runs.json: does not match its sha256 in croissant.json" in out
+    gone = shutil.copytree(exported, tmp_path / "no-shard")
+    (gone / "croissant.json").unlink()
+    assert main(["dataset", "verify", str(gone), "--sample", "1"]) == 1
+    assert "croissant.json: cannot read it" in capsys.readouterr().out
