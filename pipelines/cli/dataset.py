@@ -54,11 +54,14 @@ def export_cmd(
     accepted shapes."""
     from surfgen.pipelines.export.dataset import DatasetOptions, export_dataset  # deferred
 
-    limit = parse_size(max_shard_bytes, "--max-shard-bytes") if max_shard_bytes is not None else None
+    limit = (
+        parse_size(max_shard_bytes, "--max-shard-bytes") if max_shard_bytes is not None else None
+    )
     options = DatasetOptions(where, shard_size, points, sdf, fmt.lower(), license_, limit)
     s = export_dataset(catalogue, output, options)
     typer.echo(
-        f"{s.shapes} shapes in {s.shards} shard(s), {s.bytes / 1e6:.1f} MB "
+        f"{s.shapes} shapes in {s.shards} shard(s) (largest {max(s.shard_bytes) / 1e6:.1f} MB), "
+        f"{s.bytes / 1e6:.1f} MB of members "
         f"(train {s.splits['train']}, val {s.splits['val']}, test {s.splits['test']}) -> {s.out}"
     )
 

@@ -164,8 +164,27 @@ level, and the seed and index it was drawn with).
   every metric of the catalogue as a column, curation (state, stars, tags, curator's rejection,
   note, duplicate), the shard and member names, and the sha256 of every member.
 - `runs.json`: the sampling runs (seed, n, grid, the whole config, versions).
+- `features.json`: the samples' Hugging Face `datasets` features, typed over every sample.
 - `croissant.json`: MLCommons Croissant 1.1 metadata (files with their sha256, record sets,
   provenance and responsible-AI fields).
+
+## Loading
+
+```python
+import json
+from pathlib import Path
+
+from datasets import Features, load_dataset
+
+metadata = load_dataset("parquet", data_files="metadata.parquet", split="train")
+features = Features.from_dict(json.loads(Path("features.json").read_text()))
+shards = [str(p) for p in sorted(Path("shards").glob("*.tar"))]
+samples = load_dataset("webdataset", data_files={{"train": shards}}, split="train", features=features)
+```
+
+`samples[i]["{options.format}"]` is a `trimesh.Trimesh`. With `webdataset`:
+`wds.WebDataset(shards, shardshuffle=False).decode()`; with mlcroissant:
+`mlcroissant.Dataset(jsonld="croissant.json").records("metadata")` (or `"meshes"`, ...).
 
 Splits are fixed by a hash of the key: train {summary.splits["train"]}, val {summary.splits["val"]},
 test {summary.splits["test"]} (80/10/10).
