@@ -364,7 +364,7 @@ def _activity(rec: RunRecord) -> dict[str, Any]:
         for reason, count in sorted(rec.reasons.items())
     ]
     versions = run["versions"]
-    return {
+    activity = {
         "@type": "prov:Activity",
         "@id": f"run-{run['id']}",
         "name": f"surfgen sampling run {run['id']}",
@@ -387,6 +387,7 @@ def _activity(rec: RunRecord) -> dict[str, Any]:
             if value is not None
         ],
     }
+    return {k: v for k, v in activity.items() if v is not None}  # a run cut short has no end
 
 
 def _dates(runs: list[RunRecord], curated: str | None) -> tuple[str, str]:
@@ -499,8 +500,11 @@ def croissant_metadata(
         _file_object(folder, "README.md", "The dataset card (Hugging Face YAML header)."),
         _file_object(folder, "metadata.parquet", "One row per shape (zstd Parquet)."),
         _file_object(folder, "runs.json", "The sampling runs: seed, n, grid, config, versions."),
-        _file_object(folder, "features.json", "The Hugging Face datasets features of the samples."),
-    ] + [_file_object(folder, s, "A WebDataset shard (USTAR tar).") for s in shards]
+    ]
+    if (folder / "features.json").is_file():
+        what = "The Hugging Face datasets features of the samples."
+        distribution.append(_file_object(folder, "features.json", what))
+    distribution += [_file_object(folder, s, "A WebDataset shard (USTAR tar).") for s in shards]
     file_sets, member_records = _member_sets(set(member_kinds), f".{mesh_format}", shards)
     return {
         "@context": CONTEXT,

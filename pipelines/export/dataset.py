@@ -496,7 +496,9 @@ def _write_export(
     )
     splits = Counter(r["split"] for r in rows)
     kinds = tuple(k for k in MEMBERS if any(r[f"{k}_file"] for r in rows))
-    write_features(work, sample_features(sidecars, kinds, options.format))
+    features = sample_features(sidecars, kinds, options.format)
+    if features is not None:
+        write_features(work, features)
     return ExportSummary(
         work, len(rows), shards, total, {s: splits.get(s, 0) for s, _ in SPLITS}, shard_bytes, kinds
     )

@@ -15,12 +15,14 @@ reads any export. It is written without importing ``datasets``.
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
 from surfgen.generator.files import write_atomic
 
 FEATURES_FILE = "features.json"
+log = logging.getLogger(__name__)
 
 
 def _value(dtype: str) -> dict[str, Any]:
@@ -50,15 +52,24 @@ def arrow_feature(arrow_type: Any) -> dict[str, Any]:
     return _value("string")
 
 
-def sample_features(sidecars: list[dict[str, Any]], kinds: tuple[str, ...], fmt: str) -> dict:
+def sample_features(
+    sidecars: list[dict[str, Any]], kinds: tuple[str, ...], fmt: str
+) -> dict[str, Any] | None:
     """The features of the samples whose ``KEY.json`` members are ``sidecars`` (typed over all
     of them), with members of ``kinds`` (``json``, ``mesh``, ``thumb``, ``points``, ``sdf``)
-    and meshes in ``fmt``: the dict ``datasets.Features.from_dict`` takes."""
+    and meshes in ``fmt``: the dict ``datasets.Features.from_dict`` takes. None when one
+    field of the sidecars holds values of two types (a string here, a number there): no
+    features can type it, and ``datasets`` cannot load such shards."""
     import pyarrow as pa  # optional: the dataset extra
 
     features: dict[str, Any] = {}
     if "json" in kinds:
-        features["json"] = arrow_feature(pa.struct(list(pa.Table.from_pylist(sidecars).schema)))
+        try:
+            json_type = pa.array(sidecars).type  # a struct of every key of every sidecar
+        except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+            log.warning("no features.json: the samples' KEY.json fields mix types (%s)", exc)
+            return None
+        features["json"] = arrow_feature(json_type)
     if "mesh" in kinds:
         features[fmt] = {"_type": "Mesh"}  # decoded to trimesh by datasets
     if "thumb" in kinds:

@@ -22,6 +22,7 @@ from surfgen.pipelines.export.dataset import (
     tar_bytes,
     tar_file_bytes,
 )
+from surfgen.pipelines.export.dataset_features import sample_features
 from surfgen.pipelines.studies.report import report_stats
 from tests.pipelines.export.conftest import DATASET_SHAPES, export_args
 
@@ -296,3 +297,17 @@ def test_verify_checks_croissant(exported: Path, tmp_path: Path, capsys) -> None
     (gone / "croissant.json").unlink()
     assert main(["dataset", "verify", str(gone), "--sample", "1"]) == 1
     assert "croissant.json: cannot read it" in capsys.readouterr().out
+
+
+def test_features_type_every_sidecar(caplog) -> None:
+    first = {"key": "a", "note": None, "tags": [], "metrics": {"genus": 1}}
+    later = {"key": "b", "note": "n", "tags": ["t"], "metrics": {"genus": 2, "departure": 0.5}}
+    features = sample_features([first, later], ("json", "mesh", "thumb"), "glb")
+    assert features["json"]["note"] == {"dtype": "string", "_type": "Value"}
+    assert features["json"]["tags"]["feature"] == {"dtype": "string", "_type": "Value"}
+    assert features["json"]["metrics"]["departure"] == {"dtype": "float64", "_type": "Value"}
+    assert features["glb"] == {"_type": "Mesh"} and features["png"] == {"_type": "Image"}
+    assert "points.npy" not in features and list(features)[-2:] == ["__key__", "__url__"]
+    mixed = [first, {**later, "metrics": {"genus": "two"}}]
+    assert sample_features(mixed, ("json",), "ply") is None
+    assert "fields mix types" in caplog.text
