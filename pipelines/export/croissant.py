@@ -10,7 +10,8 @@ What it holds:
 - **recordSet** ``metadata``: one field per Parquet column, with its data type (lists are
   ``isArray``), keyed by ``key``; and one record set per kind of shard member (``sidecars``,
   ``meshes``, ``thumbnails``, ``surface_points``, ``field_samples``): the sample's key, taken
-  from the member's file name and referencing ``metadata/key``, and the member's bytes.
+  from the member's file name and referencing ``metadata/key``, and the member's bytes; the
+  meshes' record set also joins the sample's labels (split, formula, genus, ...) by key.
 - **provenance and RAI**: ``isLiveDataset`` false; the runs as PROV activities (seed, draws,
   acceptance, config hash, sampler version, the filters' thresholds, every rejection reason
   with its rate, the library versions); ``rai:dataCollection``, ``dataCollectionType``,
@@ -28,14 +29,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from surfgen.generator.files import write_atomic
-from surfgen.pipelines.catalogue.store import Catalogue
+from surfgen.pipelines.export.croissant_provenance import (
+    RunRecord,
+    export_dates,
+    rai_fields,
+    run_activity,
+)
 
 CROISSANT_FILE = "croissant.json"
 CONFORMS_TO = "http://mlcommons.org/croissant/1.1"
@@ -140,40 +144,8 @@ MEMBER_SETS = (
 )  # fmt: skip
 
 
-@dataclass(frozen=True)
-class RunRecord:
-    """One sampling run as the Croissant file describes it: its row in the catalogue's
-    ``runs`` table (``config`` and ``versions`` decoded), how many shapes it drew and the
-    count of each rejection reason over them (a rejected shape may have several)."""
-
-    run: dict[str, Any]
-    drawn: int
-    reasons: dict[str, int]
-
-
-def collect_runs(cat: Catalogue, runs: list[dict[str, Any]]) -> list[RunRecord]:
-    """The runs with their draws and rejection counts, counted over the catalogue's shapes
-    as ``surfgen report`` counts them."""
-    out = []
-    for run in runs:
-        drawn = 0
-        reasons: Counter[str] = Counter()
-        for r in cat.conn.execute("SELECT verdict, reasons FROM shapes WHERE run=?", (run["id"],)):
-            drawn += 1
-            if r["verdict"] != "accepted":
-                reasons.update(json.loads(r["reasons"] or "[]"))
-        decoded = dict(run) | {k: json.loads(run[k]) for k in ("config", "versions", "counts")}
-        out.append(RunRecord(decoded, drawn, dict(sorted(reasons.items()))))
-    return out
-
-
-def latest_curation(cat: Catalogue, keys: list[str]) -> str | None:
-    """The time of the latest curation action on one of ``keys`` (None: there is none)."""
-    wanted = set(keys)
-    times = [
-        r["at"] for r in cat.conn.execute("SELECT key, at FROM curation") if r["key"] in wanted
-    ]
-    return max(times, default=None)
+# The labels the meshes' record set joins from the metadata (those the export has).
+MESH_LABELS = ("split", "formula", "family", "genus", "components", "faces", "curation", "tags")
 
 
 def sha256_file(path: Path) -> str:
@@ -283,10 +255,29 @@ def _metadata_record_set(schema: Any) -> dict[str, Any]:
     }
 
 
+def _joined(record_set: str, schema: Any) -> list[dict[str, Any]]:
+    """Fields of ``record_set`` joined from ``metadata`` by key: the sample's labels."""
+    fields = []
+    for column in schema:
+        if column.name in MESH_LABELS:
+            data_type, is_list = _data_type(column.type)
+            field: dict[str, Any] = {
+                "@type": "cr:Field",
+                "@id": f"{record_set}/{column.name}",
+                "name": column.name,
+                "description": f"The sample's {column.name} (metadata/{column.name}, by key).",
+                "dataType": data_type,
+                "source": {"field": {"@id": f"metadata/{column.name}"}},
+            }
+            fields.append(field | ({"isArray": True, "arrayShape": "-1"} if is_list else {}))
+    return fields
+
+
 def _member_sets(
-    kinds: set[str], mesh_suffix: str, shards: list[str]
+    kinds: set[str], mesh_suffix: str, shards: list[str], schema: Any
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """The file sets and record sets of the shard members present (``kinds``)."""
+    """The file sets and record sets of the shard members present (``kinds``); the meshes'
+    record set joins the sample's labels from ``metadata``."""
     file_sets, record_sets = [], []
     for kind, record_set, file_set, suffix, data_type, what in MEMBER_SETS:
         if kind not in kinds:
@@ -333,147 +324,11 @@ def _member_sets(
                         "dataType": data_type,
                         "source": source | {"extract": {"fileProperty": "content"}},
                     },
+                    *(_joined(record_set, schema) if kind == "mesh" else []),
                 ],
             }
         )
     return file_sets, record_sets
-
-
-def _rate(count: int, drawn: int) -> str:
-    return f"{count} of {drawn} draws ({100 * count / drawn:.1f} %)" if drawn else f"{count}"
-
-
-def _activity(rec: RunRecord) -> dict[str, Any]:
-    """A run as a PROV activity, its recipe and outcome as schema.org PropertyValues."""
-    run = rec.run
-    config = run["config"]
-    props: list[tuple[str, Any]] = [
-        ("seed", run["seed"]),
-        ("n", run["n"]),
-        ("grid", run["grid"]),
-        ("config_hash", run["config_hash"]),
-        ("sampler_version", run["sampler_version"]),
-        ("status", run["status"]),
-        ("drawn", rec.drawn),
-        ("accepted", run["accepted"]),
-        ("acceptance_rate", round(run["accepted"] / rec.drawn, 6) if rec.drawn else None),
-        ("filters", json.dumps(config.get("filters", {}), sort_keys=True)),
-    ]
-    props += [
-        (f"rejection_rate/{reason}", round(count / rec.drawn, 6) if rec.drawn else None)
-        for reason, count in sorted(rec.reasons.items())
-    ]
-    versions = run["versions"]
-    activity = {
-        "@type": "prov:Activity",
-        "@id": f"run-{run['id']}",
-        "name": f"surfgen sampling run {run['id']}",
-        "description": (
-            f"surfgen {versions.get('surfgen', '?')} (sampler version {run['sampler_version']}) "
-            f"drew {rec.drawn} shapes with seed {run['seed']} on a {run['grid']}^3 grid, "
-            f"config {run['config_hash']} (its whole config is in runs.json), and kept "
-            f"{run['accepted']}."
-        ),
-        "prov:startedAtTime": run["started"],
-        "prov:endedAtTime": run["ended"],
-        "prov:wasAssociatedWith": {
-            "@type": "prov:SoftwareAgent",
-            "name": f"surfgen {versions.get('surfgen', '?')}",
-            "softwareVersion": ", ".join(f"{k} {v}" for k, v in sorted(versions.items())),
-        },
-        "additionalProperty": [
-            {"@type": "sc:PropertyValue", "name": name, "value": value}
-            for name, value in props
-            if value is not None
-        ],
-    }
-    return {k: v for k, v in activity.items() if v is not None}  # a run cut short has no end
-
-
-def _dates(runs: list[RunRecord], curated: str | None) -> tuple[str, str]:
-    started = min(r.run["started"] for r in runs)
-    ends = [r.run["ended"] or r.run["started"] for r in runs]
-    return started, max([*ends, *([curated] if curated else [])])
-
-
-def _rai(
-    runs: list[RunRecord], shapes: int, where: str | None, started: str, ended: str
-) -> dict[str, Any]:
-    drawn = sum(r.drawn for r in runs)
-    accepted = sum(r.run["accepted"] for r in runs)
-    reasons: dict[str, int] = {}
-    for r in runs:
-        for reason, count in r.reasons.items():
-            reasons[reason] = reasons.get(reason, 0) + count
-    rates = "; ".join(
-        f"{reason}: {_rate(count, drawn)}"
-        for reason, count in sorted(reasons.items(), key=lambda kv: (-kv[1], kv[0]))
-    )
-    tools = sorted({f"{k} {v}" for r in runs for k, v in r.run["versions"].items()})
-    seeds = ", ".join(str(r.run["seed"]) for r in runs)
-    selection = (
-        f"the accepted shapes matching --where {where!r}" if where else "every accepted shape"
-    )
-    return {
-        "rai:dataCollection": (
-            "Synthetic data: no data was collected from people or from the world. surfgen "
-            "drew random implicit functions from equation (13) of the paper (sums of products "
-            "of power, trigonometric and constituent functions), each a pure function of "
-            f"(seed, index, config), in {len(runs)} run(s) with seed(s) {seeds}; evaluated "
-            "each on its grid, extracted the surface by marching cubes (capped where the box "
-            "cuts it, so every mesh is closed) and measured it."
-        ),
-        "rai:dataCollectionType": ["Software Collection", "Others: synthetic data"],
-        "rai:dataCollectionRawData": (
-            "None: every shape is regenerated from its spec (formula, box, grid, level, "
-            "seed, index) by `surfgen dataset verify`."
-        ),
-        "rai:dataCollectionMissingData": (
-            "Curation columns (rejected, note, duplicate_of) are null where no curator acted; "
-            "the *_file and *_sha256 columns are null for members an export does not have; a "
-            "metric is null where it does not apply to the shape."
-        ),
-        "rai:dataCollectionTimeframe": f"{started}/{ended}",
-        "rai:dataPreprocessingProtocol": (
-            f"Of {drawn} draws, the filters kept {accepted}; the others were rejected by the "
-            f"filters (a draw may fail several; rates over all draws): {rates or 'none'}. The "
-            "filters' thresholds are in each run's config (runs.json, and the runs' "
-            "`filters` property here). Rejected shapes are not exported."
-        ),
-        "rai:dataManipulationProtocol": (
-            f"This export holds {shapes} shape(s): {selection}, ordered by key. Curators' "
-            "stars, tags, rejections, notes and near-duplicate marks are kept as columns, "
-            "not applied as filters."
-        ),
-        "rai:dataImputationProtocol": "None: no value is imputed.",
-        "rai:dataAnnotationProtocol": (
-            "The metrics (genus, components, faces, area, volume, curvature, symmetry, ...) "
-            "are computed by the program from the mesh; stars, tags and curation notes, when "
-            "present, come from people reviewing the shapes in surfgen's gallery."
-        ),
-        "rai:machineAnnotationTools": tools,
-        "rai:personalSensitiveInformation": "None: the data are mathematical surfaces.",
-        "rai:dataBiases": (
-            "The shapes follow surfgen's sampler distribution and its filters: closed, "
-            "manifold, watertight surfaces that are neither noise, nor box-dominated, nor "
-            "convex blobs, at the grid resolution of each run; they do not represent "
-            "real-world objects."
-        ),
-        "rai:dataLimitations": (
-            "Meshes resolve details only down to the grid spacing. The field samples hold the "
-            "implicit function F - level, not a signed distance; its magnitude is not "
-            "comparable across shapes and it is non-finite at poles."
-        ),
-        "rai:dataUseCases": (
-            "Training and evaluating 3D generative models, shape descriptors and mesh or "
-            "implicit-surface methods; benchmarks of topology (genus) estimation."
-        ),
-        "rai:dataSocialImpact": "None known: synthetic geometry with no personal content.",
-        "rai:dataReleaseMaintenancePlan": (
-            "A static export: it is never updated in place. A new export of a grown or "
-            "re-curated catalogue is a new dataset; `surfgen dataset verify` checks one."
-        ),
-    }
 
 
 def croissant_metadata(
@@ -494,7 +349,7 @@ def croissant_metadata(
     ``member_kinds`` the kinds of shard members present (``json``, ``mesh``, ``thumb``,
     ``points``, ``sdf``), ``curated`` the time of the latest curation action on an exported
     shape (or None)."""
-    started, ended = _dates(runs, curated)
+    started, ended = export_dates(runs, curated)
     surfgen = sorted({r.run["versions"].get("surfgen", "?") for r in runs})
     distribution = [
         _file_object(folder, "README.md", "The dataset card (Hugging Face YAML header)."),
@@ -505,7 +360,7 @@ def croissant_metadata(
         what = "The Hugging Face datasets features of the samples."
         distribution.append(_file_object(folder, "features.json", what))
     distribution += [_file_object(folder, s, "A WebDataset shard (USTAR tar).") for s in shards]
-    file_sets, member_records = _member_sets(set(member_kinds), f".{mesh_format}", shards)
+    file_sets, member_records = _member_sets(set(member_kinds), f".{mesh_format}", shards, schema)
     return {
         "@context": CONTEXT,
         "@type": "sc:Dataset",
@@ -526,8 +381,8 @@ def croissant_metadata(
         "dateCreated": started,
         "dateModified": ended,
         "datePublished": ended,
-        "prov:wasGeneratedBy": [_activity(r) for r in runs],
-        **_rai(runs, shapes, where, started, ended),
+        "prov:wasGeneratedBy": [run_activity(r) for r in runs],
+        **rai_fields(runs, shapes, where, started, ended),
         "distribution": distribution + file_sets,
         "recordSet": [_metadata_record_set(schema), *member_records],
     }

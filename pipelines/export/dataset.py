@@ -55,7 +55,8 @@ from surfgen.generator.mesh.mesh import Mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import select_shapes
 from surfgen.pipelines.catalogue.store import open_catalogue
-from surfgen.pipelines.export.croissant import collect_runs, latest_curation, write_croissant
+from surfgen.pipelines.export.croissant import write_croissant
+from surfgen.pipelines.export.croissant_provenance import collect_runs, latest_curation
 from surfgen.pipelines.export.dataset_card import dataset_card
 from surfgen.pipelines.export.dataset_features import sample_features, write_features
 from surfgen.pipelines.studies.report import report_stats

@@ -69,8 +69,14 @@ def test_mlcroissant_validates_and_reads_every_record_set(
         assert record["metadata/watertight"] is True
     # the WebDataset samples: one record per member, keyed like the metadata
     meshes = catalogue_meshes(dataset_catalogue)
-    got = {r["meshes/key"].decode(): r["meshes/content"] for r in ds.records("meshes")}
+    records = list(ds.records("meshes"))
+    got = {r["meshes/key"].decode(): r["meshes/content"] for r in records}
     assert got == meshes  # the catalogue's PLY files, byte for byte
+    by_key = {r["key"]: r for r in rows}
+    for r in records:  # the labels joined from metadata.parquet by key
+        row = by_key[r["meshes/key"].decode()]
+        assert r["meshes/genus"] == row["genus"] and r["meshes/faces"] == row["faces"]
+        assert r["meshes/split"].decode() == row["split"]
     for key, data in got.items():
         mesh = trimesh.load(io.BytesIO(data), file_type="ply", process=False)
         assert len(mesh.faces) == next(r["faces"] for r in rows if r["key"] == key)
