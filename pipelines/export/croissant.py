@@ -157,7 +157,10 @@ def sha256_file(path: Path) -> str:
 
 
 def media_type(name: str) -> str:
-    return MEDIA_TYPES.get(Path(name).suffix, "application/octet-stream")
+    """The media type of a file name or a suffix (``.png``, ``.points.npy``)."""
+    return MEDIA_TYPES.get(
+        Path(f"file{name}" if name.startswith(".") else name).suffix, "application/octet-stream"
+    )
 
 
 def license_url(license_id: str) -> str | dict[str, str]:

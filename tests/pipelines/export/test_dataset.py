@@ -215,8 +215,16 @@ def test_croissant_describes_the_export(catalogue: Path, exported: Path) -> None
     for name, node in files.items():
         data = (exported / name).read_bytes()
         assert node["sha256"] == sha(data) and node["contentSize"] == f"{len(data)} B"
-    sets = {d["includes"] for d in doc["distribution"] if d["@type"] == "cr:FileSet"}
-    assert sets == {"*.json", "*.ply", "*.png", "*.points.npy", "*.sdf.npz"}
+    sets = {
+        d["includes"]: d["encodingFormat"]
+        for d in doc["distribution"]
+        if d["@type"] == "cr:FileSet"
+    }
+    assert set(sets) == {"*.json", "*.ply", "*.png", "*.points.npy", "*.sdf.npz"}
+    assert sets["*.json"] == "application/json" and sets["*.png"] == "image/png"
+    assert sets["*.points.npy"].startswith("https://numpy.org/")
+    assert files["metadata.parquet"]["encodingFormat"] == "application/x-parquet"
+    assert files["shards/shard-000000.tar"]["encodingFormat"] == "application/x-tar"
     columns = pq.read_schema(exported / "metadata.parquet")
     fields = {f["name"]: f for f in doc["recordSet"][0]["field"]}
     assert list(fields) == columns.names
