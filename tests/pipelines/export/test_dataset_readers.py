@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -192,3 +193,23 @@ def test_webdataset_reads_and_decodes_the_shards(
         assert sample["points.npy"].shape == (64, 6) and sample["points.npy"].dtype == np.float32
         assert sample["sdf.npz"]["f"].shape == (50,)
     assert seen == sorted(meshes)  # shards in order, samples by key
+
+
+def guide_snippets() -> list[str]:
+    """The Python blocks of the datasets guide's "Loading" section."""
+    guide = Path(__file__).parents[3] / "docs" / "guide" / "datasets.md"
+    loading = guide.read_text().split("\n## Loading\n", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```python\n(.*?)```", loading, flags=re.S)
+
+
+def test_the_guide_code_runs(
+    dataset_export: Path, tmp_path: Path, monkeypatch, croissant_cache: Path
+) -> None:
+    snippets = guide_snippets()
+    assert len(snippets) == 3  # mlcroissant, datasets, webdataset
+    monkeypatch.setattr(datasets.config, "HF_DATASETS_CACHE", str(tmp_path / "hf"))
+    for code in snippets:
+        assert "out/dataset" in code
+        namespace: dict = {}
+        exec(code.replace("out/dataset", str(dataset_export)), namespace)
+    assert isinstance(namespace["mesh"], trimesh.Trimesh)  # the last block's last mesh
