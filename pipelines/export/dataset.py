@@ -110,10 +110,10 @@ class DatasetOptions:
             )
         if self.shard_size is not None and self.shard_size < 1:
             raise DatasetError(f"--shard-size must be at least 1, got {self.shard_size}")
-        if self.max_shard_bytes is not None and self.max_shard_bytes < TAR_RECORD:
+        if self.max_shard_bytes is not None and self.max_shard_bytes < tar_file_bytes(0):
             raise DatasetError(
-                f"--max-shard-bytes must be at least {TAR_RECORD} (one tar record), "
-                f"got {self.max_shard_bytes}"
+                f"--max-shard-bytes must be at least {tar_file_bytes(0)} (80K: an empty "
+                f"shard's end blocks and zero guard), got {self.max_shard_bytes}"
             )
         for name in ("points", "sdf"):
             if getattr(self, name) < 0:

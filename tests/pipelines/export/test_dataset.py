@@ -161,7 +161,7 @@ def test_verify_passes_then_catches_tampering(exported: Path, tmp_path: Path, ca
         (["--format", "stl"], "unknown mesh format 'stl' (allowed: ply, glb)"),
         (["--shard-size", "5", "--max-shard-bytes", "1G"], "exclude each other: give one"),
         (["--max-shard-bytes", "lots"], "--max-shard-bytes must be a positive size such as"),
-        (["--max-shard-bytes", "1K"], "--max-shard-bytes must be at least 10240"),
+        (["--max-shard-bytes", "79K"], "--max-shard-bytes must be at least 81920"),
     ],
 )
 def test_bad_exports_write_nothing(
@@ -285,13 +285,13 @@ def test_max_shard_bytes(catalogue: Path, tmp_path: Path) -> None:
 
 def test_a_sample_larger_than_the_limit_gets_a_shard_alone(catalogue: Path, tmp_path: Path) -> None:
     out = tmp_path / "tiny"
-    assert export(catalogue, out, "--max-shard-bytes", "10K") == 0
+    assert export(catalogue, out, "--max-shard-bytes", "80K") == 0  # the least allowed
     shards = sorted((out / "shards").glob("*.tar"))
     assert len(shards) == N
     for path in shards:
         with tarfile.open(path) as tar:
             assert len({n.split(".")[0] for n in tar.getnames()}) == 1
-        assert path.stat().st_size > 10240
+        assert path.stat().st_size > 81920
 
 
 def test_verify_checks_croissant(exported: Path, tmp_path: Path, capsys) -> None:
