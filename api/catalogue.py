@@ -296,12 +296,14 @@ class Record:
     @property
     def note(self) -> str | None:
         """A curator's note."""
-        return self._data["note"]
+        note = self._data["note"]
+        return None if note is None else str(note)
 
     @property
     def rejected(self) -> str | None:
         """Why a curator rejected it (None when not)."""
-        return self._data["rejected"]
+        why = self._data["rejected"]
+        return None if why is None else str(why)
 
     @property
     def family(self) -> str:

@@ -274,7 +274,9 @@ def _stream(seed: int, cfg: Config, max_draws: int) -> Iterator[Shape]:
         if outcome.early_row is not None:  # dedupe on: judged at the early row, as the run does
             if near_duplicate(outcome.early_row, known, cfg.run.dedupe_threshold) is not None:
                 continue
-            known.add(row["key"], descriptor_from_text(row["descriptor"]))
+            values = descriptor_from_text(row["descriptor"])
+            assert values is not None  # the worker wrote it from a descriptor
+            known.add(row["key"], values)
         identities.add(row["identity"])
         yield _shape(seed, outcome, cfg)
 
