@@ -26,6 +26,7 @@ from surfgen.display import (
     to_trimesh,
 )
 from surfgen.generator.errors import SurfgenError
+from surfgen.generator.model.sampler import SAMPLER_VERSION, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import apply_action, get_shape, select_shapes
 from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
@@ -327,7 +328,14 @@ class Record:
         if run is None:  # a shape without its run row: the defaults of a run
             return Surface(spec, cap=True)
         config = config_from_dict(json.loads(run["config"]))
-        return Surface(spec, cap=config.run.cap, walls=mesh_walls(config), config=config)
+        prov = spec.provenance
+        made = None
+        if prov.get("sampler") == SAMPLER_VERSION and prov.get("config") == config.hash:
+            # this sampler draws it again: a sculpture's envelope, for Surface.check
+            made = draw_equation(int(prov["seed"]), int(prov["index"]), config.sampler)
+        walls = mesh_walls(config)
+        d = self._data["d"]
+        return Surface(spec, cap=config.run.cap, walls=walls, config=config, _draw=made, _d=d)
 
     def mesh(self) -> trimesh.Trimesh:
         """The catalogued mesh (its PLY file), with ``key`` and ``formula`` in its metadata.
