@@ -24,7 +24,7 @@ from surfgen.generator.errors import (
     SurfgenError,
 )
 from surfgen.generator.formula.limits import LimitError
-from surfgen.generator.model.presets import PRESETS
+from surfgen.generator.model.presets import PRESETS as _PRESETS
 from surfgen.pipelines.catalogue.store import CatalogueError
 from surfgen.sampling import Shape, draw, sample, shapes
 from surfgen.surface import Check, Surface
@@ -54,4 +54,4 @@ __all__ = [
 
 def presets() -> list[str]:
     """The names of the presets :meth:`Surface.from_preset` takes (``surfgen presets``)."""
-    return list(PRESETS)
+    return list(_PRESETS)
