@@ -461,6 +461,12 @@ class Surface:
     def __hash__(self) -> int:
         return hash((self.key, self.cap, self.walls))
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickled through the spec's JSON (a data loader's workers send shapes back so), the
+        field and mesh held left out."""
+        state = (self.spec.to_json(), self.cap, self.walls, self.config, self._draw, self._d)
+        return (_restore, state)
+
     def _repr_png_(self) -> bytes | None:
         """The thumbnail, for notebooks (None when there is no surface to show)."""
         try:
@@ -505,6 +511,18 @@ class Surface:
             self._made.clear()  # one field and mesh held at a time
             self._made[key] = made
         return self._made[key]
+
+
+def _restore(
+    spec: str,
+    cap: bool,
+    walls: Walls | None,
+    config: Config | None,
+    made: Draw | None,
+    d: float | None,
+) -> Surface:
+    """A pickled :class:`Surface` (:meth:`Surface.__reduce__`)."""
+    return Surface(SurfaceSpec.from_json(spec), cap, walls, config, made, d)
 
 
 def _grid_shape(grid: GridLike) -> tuple[int, int, int]:

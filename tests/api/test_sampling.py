@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import pickle
 import sqlite3
 from pathlib import Path
 
@@ -86,6 +87,9 @@ def test_a_streamed_shape_is_the_catalogued_one(
     np.testing.assert_array_equal(mesh.faces, stored.faces)
     assert shape.surface.check().metrics == shape.metrics  # the run's cascade, the run's config
     assert repr(shape).startswith(f"Shape(index={shape.index}, key='{shape.key}'")
+    copy = pickle.loads(pickle.dumps(shape))  # a data loader's workers send shapes so
+    assert copy.key == shape.key and copy.surface == shape.surface and copy.metrics == shape.metrics
+    assert copy.surface.config == shape.surface.config and copy.family == shape.family
     assert shape.key in shape._repr_html_() and shape._repr_png_() is not None
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -108,6 +109,14 @@ def test_from_spec_takes_specs_dicts_json_and_files(sphere: Surface, tmp_path: P
         assert Surface.from_spec(source) == sphere
     with pytest.raises(surfgen.SpecError, match="spec: missing key 'box'"):
         Surface.from_spec({"formula": "x", "grid": 8})
+
+
+def test_surfaces_pickle(sphere: Surface) -> None:
+    copy = pickle.loads(pickle.dumps(sphere))
+    assert copy == sphere and copy.key == sphere.key and copy.cap == sphere.cap
+    drawn = surfgen.draw(7, 3, grid=16)
+    again = pickle.loads(pickle.dumps(drawn))
+    assert again == drawn and again.family == drawn.family and again.config == drawn.config
 
 
 def test_with_grid_changes_the_key_and_keeps_the_rest(sphere: Surface) -> None:
