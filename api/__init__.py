@@ -7,27 +7,32 @@ fills a :class:`Catalogue` as ``surfgen sample`` does; :func:`shapes` streams th
 shapes without files. Errors are :class:`SurfgenError` subclasses, with the messages the
 command line prints.
 
-Importing surfgen loads no numba, trimesh or pymeshlab: the functions that compute import them.
 The layers beneath (``surfgen.generator``, ``surfgen.filters``, ``surfgen.pipelines``) are the
-implementation; this package is the public surface.
+implementation; this package is the public surface. Its names load on first use (PEP 562, as
+scikit-image's do): ``import surfgen``, which every ``import surfgen.generator...`` runs first,
+costs nothing, and no name loads numba, trimesh or pymeshlab until a function computes.
 """
 
-from surfgen.catalogue import Catalogue, Record
+import importlib as _importlib
+import typing as _typing
+
 from surfgen.generator import __version__
-from surfgen.generator.errors import (
-    EmptySurface,
-    FormulaError,
-    FormulaSyntaxError,
-    GridError,
-    MeshError,
-    SpecError,
-    SurfgenError,
-)
-from surfgen.generator.formula.limits import LimitError
-from surfgen.generator.model.presets import PRESETS as _PRESETS
-from surfgen.pipelines.catalogue.store import CatalogueError
-from surfgen.sampling import Shape, draw, sample, shapes
-from surfgen.surface import Check, Surface
+
+if _typing.TYPE_CHECKING:  # what type checkers and the API reference read; loaded by __getattr__
+    from surfgen.catalogue import Catalogue, Record
+    from surfgen.generator.errors import (
+        EmptySurface,
+        FormulaError,
+        FormulaSyntaxError,
+        GridError,
+        MeshError,
+        SpecError,
+        SurfgenError,
+    )
+    from surfgen.generator.formula.limits import LimitError
+    from surfgen.pipelines.catalogue.store import CatalogueError
+    from surfgen.sampling import Shape, draw, sample, shapes
+    from surfgen.surface import Check, Surface
 
 __all__ = [
     "Catalogue",
@@ -51,7 +56,50 @@ __all__ = [
     "shapes",
 ]
 
+# Where each public name lives.
+_ERRORS = "surfgen.generator.errors"
+_HOMES = {
+    "Catalogue": "surfgen.catalogue",
+    "Record": "surfgen.catalogue",
+    "CatalogueError": "surfgen.pipelines.catalogue.store",
+    "LimitError": "surfgen.generator.formula.limits",
+    "Shape": "surfgen.sampling",
+    "draw": "surfgen.sampling",
+    "sample": "surfgen.sampling",
+    "shapes": "surfgen.sampling",
+    "Check": "surfgen.surface",
+    "Surface": "surfgen.surface",
+} | {
+    name: _ERRORS
+    for name in (
+        "EmptySurface",
+        "FormulaError",
+        "FormulaSyntaxError",
+        "GridError",
+        "MeshError",
+        "SpecError",
+        "SurfgenError",
+    )
+}
+
+
+def __getattr__(name: str) -> _typing.Any:
+    """A public name, imported from its module the first time it is asked for."""
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'surfgen' has no attribute {name!r}")
+    value = getattr(_importlib.import_module(home), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 def presets() -> list[str]:
     """The names of the presets :meth:`Surface.from_preset` takes (``surfgen presets``)."""
-    return list(_PRESETS)
+    # here, not at the top: `import surfgen` runs first in every import of its layers
+    from surfgen.generator.model.presets import PRESETS
+
+    return list(PRESETS)

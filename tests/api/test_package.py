@@ -32,10 +32,28 @@ ignore_missing_imports = True
 
 
 def test_import_surfgen_loads_no_kernel_library() -> None:
-    code = f"import json, sys, surfgen; print(json.dumps([m for m in {HEAVY_MODULES!r} if m in sys.modules]))"
+    # every public name loaded (they load on first use), and still none of them
+    code = (
+        "import json, sys, surfgen; [getattr(surfgen, n) for n in surfgen.__all__]; "
+        f"print(json.dumps([m for m in {HEAVY_MODULES!r} if m in sys.modules]))"
+    )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) == []
+
+
+def test_import_surfgen_loads_only_itself() -> None:
+    """``import surfgen`` runs first in every import of its layers: it loads none of its own
+    modules until a name is asked for (then only that name's)."""
+    code = (
+        "import json, sys, surfgen; before = sorted(m for m in sys.modules if m.startswith('surfgen.') and m.count('.') == 1); "
+        "surfgen.Surface; after = sorted(m for m in sys.modules if m.startswith('surfgen.') and m.count('.') == 1); "
+        "print(json.dumps([before, after]))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    before, after = json.loads(done.stdout)
+    assert before == ["surfgen.generator"]
+    assert "surfgen.surface" in after and "surfgen.sampling" not in after
 
 
 def test_all_is_the_public_surface() -> None:
