@@ -25,7 +25,7 @@ from surfgen.display import (
     shorten,
     to_trimesh,
 )
-from surfgen.generator.errors import SurfgenError
+from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.model.sampler import SAMPLER_VERSION, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import apply_action, get_shape, select_shapes
@@ -192,8 +192,8 @@ class Catalogue:
 
         Each shape gives ``<key>.<format>`` and a sidecar ``<key>.json`` in ``out``; nothing
         is written unless every one succeeds. ``size`` scales the longest bbox side to that
-        many millimetres; ``regrid`` re-evaluates on ``regrid``\\ :sup:`3` points; the other
-        options are ``surfgen export``'s.
+        many millimetres; ``regrid`` re-evaluates on ``regrid``³ points; the other options are
+        ``surfgen export``'s.
 
         Returns
         -------
@@ -325,9 +325,15 @@ class Record:
                 "SELECT config FROM runs WHERE id = ?", (self._data["run"],)
             ).fetchone()
         spec = self.spec
-        if run is None:  # a shape without its run row: the defaults of a run
-            return Surface(spec, cap=True)
-        config = config_from_dict(json.loads(run["config"]))
+        stored = json.loads(run["config"]) if run is not None else {}
+        try:
+            config = config_from_dict(stored)
+        except (SpecError, KeyError, TypeError, AttributeError):
+            # a config this surfgen cannot read (another version's) or none: meshed as
+            # `catalogue check --repair` re-makes meshes, capped as the run was
+            run_table = stored.get("run") if isinstance(stored, dict) else None
+            cap = run_table.get("cap", True) if isinstance(run_table, dict) else True
+            return Surface(spec, cap=bool(cap))
         prov = spec.provenance
         made = None
         if prov.get("sampler") == SAMPLER_VERSION and prov.get("config") == config.hash:

@@ -125,14 +125,16 @@ def sample(
     Returns
     -------
     Catalogue
-        The catalogue, with the run's :attr:`Catalogue.summary`.
+        The catalogue, with the run's :attr:`Catalogue.summary`: its ``status`` is
+        ``complete``, or ``exhausted`` when fewer than ``n`` shapes were accepted within
+        ``max_draws`` (the catalogue keeps them; the CLI then exits with an error).
 
     Raises
     ------
     CatalogueError
         ``out`` already has this run and ``resume`` is false.
-    SpecError
-        Only fewer than ``n`` shapes accepted within ``max_draws`` (the catalogue keeps them).
+    SpecError, LimitError
+        A bad option (the CLI's messages).
     """
     # deferred: the run loads the sampler, its filters and the executors
     from surfgen.pipelines.run.sampling import run_sample

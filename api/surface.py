@@ -93,9 +93,10 @@ class Surface:
     walls: Walls | None = None
     config: Config | None = None
     # The sampler's draw and its d (drawn shapes): a sculpture's envelope for the checks.
-    _draw: Draw | None = field(default=None, repr=False)
-    _d: float | None = field(default=0.0, repr=False)
-    _made: dict[tuple[Any, ...], Realised] = field(default_factory=dict, repr=False)
+    _draw: Draw | None = field(default=None, repr=False, kw_only=True)
+    _d: float | None = field(default=0.0, repr=False, kw_only=True)
+    # The last field and mesh made (pictures and metrics reuse them).
+    _made: dict[tuple[Any, ...], Realised] = field(default_factory=dict, repr=False, init=False)
 
     # -- making one --------------------------------------------------------------------------
 
@@ -233,7 +234,7 @@ class Surface:
 
     def with_grid(self, grid: GridLike) -> Surface:
         """The same surface on another grid (a new spec, so a new key; provenance kept)."""
-        return replace(self, spec=self.spec.replace(grid=_grid_shape(grid)), _made={})
+        return replace(self, spec=self.spec.replace(grid=_grid_shape(grid)))
 
     # -- what it is ----------------------------------------------------------------------------
 
@@ -522,7 +523,7 @@ def _restore(
     d: float | None,
 ) -> Surface:
     """A pickled :class:`Surface` (:meth:`Surface.__reduce__`)."""
-    return Surface(SurfaceSpec.from_json(spec), cap, walls, config, made, d)
+    return Surface(SurfaceSpec.from_json(spec), cap, walls, config, _draw=made, _d=d)
 
 
 def _grid_shape(grid: GridLike) -> tuple[int, int, int]:

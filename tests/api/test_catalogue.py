@@ -16,6 +16,7 @@ from surfgen.generator.mesh.exchange import load_mesh
 from surfgen.pipelines.catalogue.curation import get_shape, select_shapes
 from surfgen.pipelines.catalogue.store import open_catalogue
 from tests.api.conftest import N
+from tests.support.catalogues import catalogue_shapes
 
 
 @pytest.fixture()
@@ -102,6 +103,14 @@ def test_a_record_s_surface_mesh_and_thumbnail(api_catalogue: surfgen.Catalogue)
     thumb = record.thumbnail()
     assert isinstance(thumb, Image.Image) and thumb.size == (256, 256)
     assert np.array_equal(np.asarray(thumb), np.asarray(surface.thumbnail()))
+
+
+def test_a_record_of_a_run_without_a_readable_config(tmp_path: Path, sphere_mesh) -> None:
+    spec = surfgen.Surface.from_formula("x^2+y^2+z^2-1", box=(-1.5, 1.5), grid=40).spec
+    (key,) = catalogue_shapes(tmp_path / "cat", [(spec, sphere_mesh)])  # its run's config: {}
+    surface = surfgen.Catalogue(tmp_path / "cat")[key].surface
+    assert surface.spec == spec and surface.cap and surface.config is None
+    assert surface.mesh().is_watertight
 
 
 def test_a_rejected_draw_has_no_mesh(api_catalogue: surfgen.Catalogue) -> None:

@@ -58,6 +58,13 @@ def test_sample_refuses_to_redo_a_run(api_catalogue: surfgen.Catalogue, run_conf
         surfgen.sample(0, SEED, out=api_catalogue.path)
 
 
+def test_an_exhausted_run_returns_its_catalogue(tmp_path: Path) -> None:
+    catalogue = surfgen.sample(3, SEED, grid=GRID, max_draws=2, out=tmp_path / "c", workers=1)
+    summary = catalogue.summary
+    assert summary is not None and summary.status == "exhausted" and summary.drawn == 2
+    assert len(catalogue) == summary.accepted < 3
+
+
 def test_shapes_yields_what_sample_accepts_in_its_order(
     api_catalogue: surfgen.Catalogue, run_config_file: Path
 ) -> None:
