@@ -17,7 +17,7 @@ import numpy as np
 
 if TYPE_CHECKING:  # the mesh and picture modules load numba, trimesh and PIL: when used
     import trimesh
-    from PIL import Image
+    from PIL import Image  # deferred with the rasteriser: only pictures need PIL
 
     from surfgen.generator.mesh.mesh import Mesh
 
@@ -52,7 +52,7 @@ def from_trimesh(tm: trimesh.Trimesh) -> Mesh:
 
 def picture(mesh: Mesh, size: int = THUMBNAIL_SIZE) -> Image.Image:
     """The catalogue's shaded view of ``mesh`` as a PIL image (RGB, ``size`` × ``size``)."""
-    from PIL import Image
+    from PIL import Image  # deferred with the rasteriser: only pictures need PIL
 
     # deferred: the rasteriser's kernels are numba's
     from surfgen.pipelines.pictures.raster import render_image

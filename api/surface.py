@@ -19,6 +19,8 @@ import numpy as np
 
 from surfgen.display import facts_html, picture, png_of, shorten, to_trimesh
 from surfgen.generator.errors import SpecError, SurfgenError
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.limits import MAX_SPEC_FILE_BYTES, read_text_file
 from surfgen.generator.interop.mathmod import load_model, parse_script, read_script
 from surfgen.generator.model.presets import get_preset
@@ -314,8 +316,6 @@ class Surface:
         FormulaError, LimitError
             What evaluation raises.
         """
-        from surfgen.generator.eval.evaluate import evaluate  # deferred: the kernels (numba)
-
         spec = self._on(grid).spec
         return evaluate(
             spec.tree(), spec.to_grid(), spec.params, evaluator=evaluator, threads=threads
@@ -390,7 +390,6 @@ class Surface:
         # deferred: the filters load numba and pymeshlab
         from surfgen.filters.shape import quality_metrics
         from surfgen.filters.verdict import shape_metrics
-        from surfgen.generator.eval.evaluate import evaluate
         from surfgen.generator.model.families.carving import envelope_departure
 
         surface = self._on(grid)
@@ -528,8 +527,6 @@ def _restore(
 
 def _grid_shape(grid: GridLike) -> tuple[int, int, int]:
     """``(Nx, Ny, Nz)`` of ``N`` or a sequence of 1 or 3 whole numbers (GridError otherwise)."""
-    from surfgen.generator.eval.grid import Box, Grid
-
     sizes = [grid] if isinstance(grid, int) else list(grid)
     return Grid.from_sizes(Box.cube(1), sizes).shape
 
