@@ -97,7 +97,7 @@ class Surface:
     # The sampler's draw and its d (drawn shapes): a sculpture's envelope for the checks.
     _draw: Draw | None = field(default=None, repr=False, kw_only=True)
     _d: float | None = field(default=0.0, repr=False, kw_only=True)
-    # The last field and mesh made (pictures and metrics reuse them).
+    # The field and mesh of the pictures (a notebook draws them twice: PNG and HTML).
     _made: dict[tuple[Any, ...], Realised] = field(default_factory=dict, repr=False, init=False)
 
     # -- making one --------------------------------------------------------------------------
@@ -440,7 +440,7 @@ class Surface:
         EmptySurface
             Nothing crosses the level in the box.
         """
-        made = self._realised(self.cap, self.walls, "fast")
+        made = self._realised(self.cap, self.walls, "fast", keep=True)
         assert made.mesh is not None
         return picture(made.mesh, size)
 
@@ -500,17 +500,22 @@ class Surface:
     def _on(self, grid: GridLike | None) -> Surface:
         return self if grid is None else self.with_grid(grid)
 
-    def _realised(self, cap: bool, walls: Walls | None, evaluator: str) -> Realised:
-        """The field and mesh, kept for the last options asked (pictures and metrics reuse
-        them)."""
+    def _realised(
+        self, cap: bool, walls: Walls | None, evaluator: str, keep: bool = False
+    ) -> Realised:
+        """The field and mesh for these options: the one kept for the pictures if it is
+        theirs, else made (and kept when ``keep``: a notebook shows the same mesh twice, as
+        PNG and HTML, and a data loader holding many shapes must not hold their fields)."""
         from surfgen.generator.mesh.realise import realise  # deferred: the mesher (numba)
 
         key = (cap, walls, evaluator)
-        if key not in self._made:
-            made = realise(self.spec, evaluator=evaluator, cap=cap, walls=walls)
-            self._made.clear()  # one field and mesh held at a time
+        if key in self._made:
+            return self._made[key]
+        made = realise(self.spec, evaluator=evaluator, cap=cap, walls=walls)
+        if keep:
+            self._made.clear()
             self._made[key] = made
-        return self._made[key]
+        return made
 
 
 def _restore(

@@ -218,3 +218,13 @@ def test_thumbnail_and_reprs(sphere: Surface) -> None:
     assert text.startswith("Surface(key='") and sphere.key in text and SPHERE in text
     long = Surface.from_formula("+".join(f"sin({k}*x)" for k in range(1, 30)) + "+y+z")
     assert "..." in repr(long) and len(repr(long)) < 200
+
+
+def test_only_the_pictures_keep_a_mesh() -> None:
+    surface = Surface.from_formula(SPHERE, box=(-1.5, 1.5), grid=16)
+    first = surface.mesh()
+    assert surface._made == {}  # a data loader holding many surfaces holds no fields
+    surface.thumbnail(32)
+    assert len(surface._made) == 1  # shown twice in a notebook (PNG, HTML), made once
+    np.testing.assert_array_equal(surface.mesh().vertices, first.vertices)
+    assert pickle.loads(pickle.dumps(surface))._made == {}
