@@ -130,3 +130,14 @@ def test_draw_errors() -> None:
         surfgen.draw(7, 3, grid=1)
     with pytest.raises(surfgen.SpecError, match="cannot read config /nonexistent/c.toml"):
         surfgen.draw(7, 3, config="/nonexistent/c.toml")
+
+
+def test_resume_returns_a_finished_run_as_it_is(
+    api_catalogue: surfgen.Catalogue, run_config_file
+) -> None:
+    before = rows(api_catalogue.path)
+    again = surfgen.sample(
+        N, SEED, grid=GRID, config=run_config_file, out=api_catalogue.path, resume=True
+    )
+    assert again.summary is not None and again.summary.status == "complete"
+    assert rows(api_catalogue.path) == before
