@@ -319,7 +319,8 @@ class Record:
     @property
     def surface(self) -> Surface:
         """Its surface, meshed as its run meshed it (cap, walls) and judged with its run's
-        config."""
+        config (:meth:`Surface.check` then gives the run's verdict and metrics; a sculpture is
+        measured against its envelope when this surfgen's sampler drew it)."""
         with open_catalogue(self.path, readonly=True) as cat:
             run = cat.conn.execute(
                 "SELECT config FROM runs WHERE id = ?", (self._data["run"],)
