@@ -1,5 +1,6 @@
-"""The data flows one way: generator ← filters ← pipelines, the CLI is the only package that
-speaks typer, and no module imports itself back through others (see the README's
+"""The data flows one way: generator ← filters ← pipelines ← the API (``api/``, installed as
+``surfgen``), the CLI is the only package that speaks typer and the only one beneath the API
+that calls it, and no module imports itself back through others (see the README's
 "Architecture" section)."""
 
 from __future__ import annotations
@@ -10,7 +11,10 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("generator", "filters", "pipelines")
+PACKAGES = ("generator", "filters", "pipelines", "api")
+# The folder of each package and its dotted name (pyproject.toml's package-dir).
+DOTTED = {"generator": "surfgen.generator", "filters": "surfgen.filters"}
+DOTTED |= {"pipelines": "surfgen.pipelines", "api": "surfgen"}
 FORBIDDEN = {
     "generator": ("surfgen.filters", "surfgen.pipelines"),
     "filters": ("surfgen.pipelines",),
@@ -30,10 +34,10 @@ def imported_modules(path: Path) -> set[str]:
 
 def module_name(path: Path) -> str:
     """``surfgen.pipelines.cli.main`` for ``pipelines/cli/main.py`` (a package: its folder)."""
-    parts = path.relative_to(ROOT).with_suffix("").parts
-    if parts[-1] == "__init__":
+    folder, *parts = path.relative_to(ROOT).with_suffix("").parts
+    if parts and parts[-1] == "__init__":
         parts = parts[:-1]
-    return ".".join(("surfgen", *parts))
+    return ".".join((DOTTED[folder], *parts))
 
 
 def source_files() -> dict[str, Path]:
@@ -144,6 +148,42 @@ def _cycle_in(graph: dict[str, set[str]], group: set[str]) -> list[str]:
                     following.append(w)
         frontier = following
     raise AssertionError(f"no cycle in {sorted(group)}")
+
+
+def api_modules() -> set[str]:
+    """The dotted names of the API's modules (``surfgen`` and ``surfgen.<module>``)."""
+    return {module_name(p) for p in (ROOT / "api").rglob("*.py")}
+
+
+def test_module_names_follow_the_package_dirs() -> None:
+    assert module_name(ROOT / "api" / "__init__.py") == "surfgen"
+    assert module_name(ROOT / "api" / "surface.py") == "surfgen.surface"
+    assert module_name(ROOT / "pipelines" / "cli" / "main.py") == "surfgen.pipelines.cli.main"
+    assert {"surfgen", "surfgen.surface", "surfgen.catalogue"} <= api_modules()
+
+
+def test_only_the_cli_imports_the_api() -> None:
+    """The API sits on top: it may use every layer; beneath it only the CLI calls it."""
+    api = api_modules()
+    offenders = [
+        f"{path.relative_to(ROOT)} imports {m}"
+        for name, path in source_files().items()
+        if name not in api and not (name == CLI or name.startswith(CLI + "."))
+        for m in imported_modules(path)
+        if m in api
+    ]
+    assert offenders == []
+
+
+def test_the_api_does_not_import_the_cli() -> None:
+    offenders = [
+        f"{path.relative_to(ROOT)} imports {m}"
+        for name, path in source_files().items()
+        if name in api_modules()
+        for m in imported_modules(path)
+        if m == CLI or m.startswith(CLI + ".")
+    ]
+    assert offenders == []
 
 
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))

@@ -44,6 +44,7 @@ from surfgen.generator.model.settings import (
     settings_from_mapping,
     settings_to_dict,
 )
+from surfgen.generator.model.spec import SurfaceSpec
 
 SAMPLER_VERSION = 5  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror
 
@@ -202,6 +203,33 @@ def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     """
     name = pick_family(seed, index, cfg)
     return get_family(name).draw(seed, index, cfg, cfg.settings(name))
+
+
+def draw_spec(
+    seed: int,
+    index: int,
+    cfg: SamplerConfig,
+    grid: int,
+    config_hash: str,
+    threads: int | None = None,
+) -> tuple[Draw, float | None, SurfaceSpec]:
+    """Shape ``index`` of the run ``seed`` as a spec with ``grid`` points per axis: the draw, its d
+    (None: no d makes a surface; the spec then has d = 0) and the spec, whose provenance is
+    ``seed``, ``index``, :data:`SAMPLER_VERSION` and the run's ``config_hash``.
+
+    The one place a sampling run's shapes become specs (the sampler's workers and
+    ``surfgen.draw``); ``threads`` as :func:`choose_d`.
+    """
+    draw = draw_equation(seed, index, cfg)
+    d = choose_d(draw, cfg, threads=threads)
+    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config_hash}
+    spec = SurfaceSpec.from_tree(
+        draw.equation.with_d(d or 0.0).to_tree(),
+        draw.box.bounds(),
+        (grid,) * 3,
+        provenance=provenance,
+    )
+    return draw, d, spec
 
 
 def choose_d(

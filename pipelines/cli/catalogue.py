@@ -1,5 +1,6 @@
 """``surfgen catalogue ...``: list, show and curate the catalogue's shapes, mark near
-duplicates, check and repair the catalogue. Every change goes through
+duplicates, check and repair the catalogue. Listing, showing and curating are
+:class:`surfgen.Catalogue`'s; every change goes through
 :func:`surfgen.pipelines.catalogue.curation.apply_action`."""
 
 from __future__ import annotations
@@ -8,13 +9,9 @@ from typing import Annotated, Any
 
 import typer
 
+from surfgen import Catalogue
 from surfgen.generator.formula.limits import MAX_STARS
-from surfgen.pipelines.catalogue.curation import (
-    apply_action,
-    dedupe_catalogue,
-    get_shape,
-    select_shapes,
-)
+from surfgen.pipelines.catalogue.curation import dedupe_catalogue
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
 from surfgen.pipelines.cli.common import CatalogueOption, emit_json
 
@@ -52,8 +49,8 @@ def list_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON records.")] = False,
 ) -> None:
     """List shapes, filtered and sorted by their metrics, tags and curation."""
-    with open_catalogue(catalogue, readonly=True) as cat:
-        recs = select_shapes(cat, where=where, sort=sort, limit=limit, everything=everything)
+    found = Catalogue(catalogue).query(where, sort, limit=limit, everything=everything)
+    recs = [r.to_dict() for r in found]
     if as_json:
         emit_json(recs)
         return
@@ -79,8 +76,7 @@ def show_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Everything about one shape: formula, spec, metrics, curation, files, provenance."""
-    with open_catalogue(catalogue, readonly=True) as cat:
-        rec = get_shape(cat, key)
+    rec = Catalogue(catalogue)[key].to_dict()
     if as_json:
         emit_json(rec)
         return
@@ -119,8 +115,7 @@ def star_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Give a shape stars."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "star", stars))
+    _report(Catalogue(catalogue).star(key, stars).to_dict())
 
 
 @catalogue_app.command("reject")
@@ -130,8 +125,7 @@ def reject_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Reject a shape by hand (it stays in the catalogue, hidden from the gallery)."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "reject", why))
+    _report(Catalogue(catalogue).reject(key, why).to_dict())
 
 
 @catalogue_app.command("unreject")
@@ -140,8 +134,7 @@ def unreject_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Undo a curator's rejection."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "unreject"))
+    _report(Catalogue(catalogue).unreject(key).to_dict())
 
 
 @catalogue_app.command("tag")
@@ -151,8 +144,7 @@ def tag_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Add tags to a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "tag", tags))
+    _report(Catalogue(catalogue).tag(key, *tags).to_dict())
 
 
 @catalogue_app.command("untag")
@@ -162,8 +154,7 @@ def untag_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Remove tags from a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "untag", tags))
+    _report(Catalogue(catalogue).untag(key, *tags).to_dict())
 
 
 @catalogue_app.command("note")
@@ -173,8 +164,7 @@ def note_cmd(
     catalogue: CatalogueOption = DEFAULT_CATALOGUE,
 ) -> None:
     """Write a note on a shape."""
-    with open_catalogue(catalogue, must_exist=True) as cat:
-        _report(apply_action(cat, key, "note", text))
+    _report(Catalogue(catalogue).note(key, text).to_dict())
 
 
 @catalogue_app.command("dedupe")

@@ -6,17 +6,17 @@ command runs, so that ``--help`` and the other commands do not load them.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from surfgen import Catalogue
 from surfgen.generator.errors import SpecError
 from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import MESH_SUFFIXES
 from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
+from surfgen.pipelines.catalogue.store import CatalogueError
 from surfgen.pipelines.cli.common import (
     MaxMemoryOption,
     echo_err,
@@ -197,19 +197,17 @@ def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")]
 def catalogued_spec(root: Path, key: str) -> SurfaceSpec:
     """The spec of a catalogued shape for ``render --from``: refused for a draw that was never
     evaluated (timeout, crash), with a warning for one the filters rejected."""
-    with open_catalogue(root, readonly=True) as cat:
-        row = cat.shape(key)
-    spec = SurfaceSpec.from_json(row["spec"])
-    reasons = json.loads(row.get("reasons") or "[]")
+    record = Catalogue(root)[key]
+    spec = record.spec
     if "failed" in spec.provenance:
         raise CatalogueError(
-            f"shape {row['key']} was never evaluated ({spec.provenance['failed']}): its spec "
+            f"shape {record.key} was never evaluated ({spec.provenance['failed']}): its spec "
             "has no d, so it cannot be rendered"
         )
-    if row.get("verdict") != "accepted":
+    if not record.accepted:
         typer.echo(
-            f"warning: shape {row['key']} was rejected by the filters "
-            f"({', '.join(reasons) or 'no reason recorded'}); rendering it anyway",
+            f"warning: shape {record.key} was rejected by the filters "
+            f"({', '.join(record.reasons) or 'no reason recorded'}); rendering it anyway",
             err=True,
         )
     return spec

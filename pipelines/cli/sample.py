@@ -1,7 +1,7 @@
 """``surfgen sample``: draw random shapes until N pass the filters, with a live progress bar.
 
-The sampling run (numba, trimesh, pymeshlab) is imported when the command runs, so that
-``--help`` and the other commands do not load it.
+The run is :func:`surfgen.sample`'s; it loads the sampler (numba, trimesh, pymeshlab) when it
+runs, so that ``--help`` and the other commands do not load it.
 """
 
 from __future__ import annotations
@@ -15,11 +15,13 @@ from typing import Annotated, Any
 
 import typer
 
+import surfgen
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
 from surfgen.generator.formula.limits import MAX_COUNT, check_count, check_seed, parse_size
 from surfgen.generator.model.families import family_help
 from surfgen.pipelines.cli.common import MaxMemoryOption, echo_err, quiet_after_interrupt
+from surfgen.settings import run_config
 
 SHOWN_SETUP = 5.0  # seconds: a sampling run's setup is mentioned from this long on
 
@@ -82,9 +84,6 @@ def sample(
         TimeRemainingColumn,
     )
 
-    from surfgen.pipelines.run.config import load_config
-    from surfgen.pipelines.run.sampling import run_sample
-
     # Every number is checked before anything is created (a catalogue folder, a run row).
     check_count(n, "--n")
     check_seed(seed)
@@ -97,13 +96,7 @@ def sample(
     limit = parse_size(max_memory) if max_memory is not None else None
     if executor == "dask" and not scheduler:
         scheduler = os.environ.get("SURFGEN_SCHEDULER") or None
-    cfg = load_config(config).with_grid(grid)
-    if family is not None:
-        cfg = cfg.with_family(family)
-    if dedupe is not None:
-        cfg = cfg.with_run(dedupe=dedupe)
-    if not thumbnails:
-        cfg = cfg.with_run(thumbnails=False)
+    cfg = run_config(config, grid=grid, family=family, dedupe=dedupe, thumbnails=thumbnails)
     columns = (
         TextColumn("accepted"),
         BarColumn(),
@@ -130,11 +123,11 @@ def sample(
             )
 
         try:
-            summary = run_sample(
-                n=n,
-                seed=seed,
+            summary = surfgen.sample(
+                n,
+                seed,
                 config=cfg,
-                catalogue=out,
+                out=out,
                 workers=workers,
                 max_draws=max_draws,
                 resume=resume,
@@ -143,7 +136,7 @@ def sample(
                 scheduler=scheduler,
                 max_memory=limit,
                 notice=echo_err,  # above the live bar (rich redirects stderr)
-            )
+            ).summary
         except KeyboardInterrupt:
             quiet_after_interrupt()
             bar.stop()

@@ -37,13 +37,13 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import write_atomic
-from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.expr import Expr, substitute_params
 from surfgen.generator.mesh.exchange import encode_mesh
 from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas
 from surfgen.generator.mesh.walls import label_walls
 from surfgen.generator.model.draw import Draw
 from surfgen.generator.model.families.carving import envelope_departure
-from surfgen.generator.model.sampler import SAMPLER_VERSION, choose_d, draw_equation
+from surfgen.generator.model.sampler import draw_spec
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.pictures.raster import THUMBNAIL_SIZE, render_thumbnail
 from surfgen.pipelines.run.config import Config
@@ -125,14 +125,10 @@ def make_shape(
     does not depend on the later checks. ``duplicates`` (a worker's view of the shapes already
     accepted) lets the worker stop there when it already knows; the row is the same."""
     watch = Stopwatch()
-    draw = draw_equation(seed, index, config.sampler)
-    d = choose_d(draw, config.sampler, threads=1)  # one process per core: numba serial inside
+    # one process per core: numba serial inside
+    draw, d, spec = draw_spec(seed, index, config.sampler, config.run.grid, config.hash, threads=1)
     equation = draw.equation.with_d(d or 0.0)
     tree = equation.to_tree()
-    provenance = {"seed": seed, "index": index, "sampler": SAMPLER_VERSION, "config": config.hash}
-    spec = SurfaceSpec.from_tree(
-        tree, draw.box.bounds(), (config.run.grid,) * 3, provenance=provenance
-    )
     watch.lap("eval")
     verdict, metrics, mesh, rest = _judge(tree, spec, d, config, watch, draw)
 
@@ -177,6 +173,25 @@ def make_shape(
 
 
 DUPLICATE = Verdict.reject("duplicate")
+
+
+def judge_spec(
+    spec: SurfaceSpec, config: Config, draw: Draw | None = None, d: float | None = 0.0
+) -> tuple[Verdict, dict[str, Any], Mesh | None]:
+    """The sampler's verdict on one spec: the cascade of :func:`make_shape` (without the
+    near-duplicate check, which needs the run), with ``config``'s filters, cap and walls.
+
+    ``draw``: the draw the spec came from (a sculpture's envelope is measured against it);
+    ``d``: its d (None: no d made a surface, rejected as ``no_crossing``). Returns the verdict,
+    the metrics measured on the way (rounded as the catalogue stores them: all of them for an
+    accepted shape) and the mesh (None when the checks stopped before meshing). Raises what
+    evaluation raises for a spec that cannot be evaluated.
+    """
+    tree = substitute_params(spec.tree(), spec.params)  # the cascade evaluates without params
+    verdict, metrics, mesh, rest = _judge(tree, spec, d, config, Stopwatch(), draw)
+    if verdict.accepted:
+        verdict = rest()
+    return verdict, _round_metrics(metrics), mesh
 
 
 def _timings(watch: Stopwatch) -> str:
