@@ -37,14 +37,55 @@ _EPS = float(np.spacing(1.0))
 
 # The tables skimage's LutProvider takes, in its order; each is stored flat in one int8 array
 # with its shape, and read as skimage's Lut.get1/get2/get3 read them (row-major offsets).
-_NAMES = (
-    "CASES TILING1 TILING2 TILING3_1 TILING3_2 TILING4_1 TILING4_2 TILING5 TILING6_1_1 "
-    "TILING6_1_2 TILING6_2 TILING7_1 TILING7_2 TILING7_3 TILING7_4_1 TILING7_4_2 TILING8 "
-    "TILING9 TILING10_1_1 TILING10_1_1_ TILING10_1_2 TILING10_2 TILING10_2_ TILING11 "
-    "TILING12_1_1 TILING12_1_1_ TILING12_1_2 TILING12_2 TILING12_2_ TILING13_1 TILING13_1_ "
-    "TILING13_2 TILING13_2_ TILING13_3 TILING13_3_ TILING13_4 TILING13_5_1 TILING13_5_2 "
-    "TILING14 TEST3 TEST4 TEST6 TEST7 TEST10 TEST12 TEST13 SUBCONFIG13"
-).split()
+_NAMES = [
+    "CASES",
+    "TILING1",
+    "TILING2",
+    "TILING3_1",
+    "TILING3_2",
+    "TILING4_1",
+    "TILING4_2",
+    "TILING5",
+    "TILING6_1_1",
+    "TILING6_1_2",
+    "TILING6_2",
+    "TILING7_1",
+    "TILING7_2",
+    "TILING7_3",
+    "TILING7_4_1",
+    "TILING7_4_2",
+    "TILING8",
+    "TILING9",
+    "TILING10_1_1",
+    "TILING10_1_1_",
+    "TILING10_1_2",
+    "TILING10_2",
+    "TILING10_2_",
+    "TILING11",
+    "TILING12_1_1",
+    "TILING12_1_1_",
+    "TILING12_1_2",
+    "TILING12_2",
+    "TILING12_2_",
+    "TILING13_1",
+    "TILING13_1_",
+    "TILING13_2",
+    "TILING13_2_",
+    "TILING13_3",
+    "TILING13_3_",
+    "TILING13_4",
+    "TILING13_5_1",
+    "TILING13_5_2",
+    "TILING14",
+    "TEST3",
+    "TEST4",
+    "TEST6",
+    "TEST7",
+    "TEST10",
+    "TEST12",
+    "TEST13",
+    "SUBCONFIG13",
+]
 (
     CASES, T1, T2, T3_1, T3_2, T4_1, T4_2, T5, T6_1_1, T6_1_2, T6_2, T7_1, T7_2, T7_3, T7_4_1,
     T7_4_2, T8, T9, T10_1_1, T10_1_1_, T10_1_2, T10_2, T10_2_, T11, T12_1_1, T12_1_1_, T12_1_2,
@@ -124,7 +165,12 @@ def _test_internal(v, lut, meta, case, config, subconfig, s):
     At = Bt = Ct = Dt = 0.0
     if case == 4 or case == 10:
         a = (v[4] - v[0]) * (v[6] - v[2]) - (v[7] - v[3]) * (v[5] - v[1])
-        b = v[2] * (v[4] - v[0]) + v[0] * (v[6] - v[2]) - v[1] * (v[7] - v[3]) - v[3] * (v[5] - v[1])
+        b = (
+            v[2] * (v[4] - v[0])
+            + v[0] * (v[6] - v[2])
+            - v[1] * (v[7] - v[3])
+            - v[3] * (v[5] - v[1])
+        )
         t = -b / (2 * a + _EPS)
         if t < 0 or t > 1:
             return s > 0
