@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.eval.compiler import Program, compile_tree
-from surfgen.generator.eval.grid import Grid
+from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import program_bounds
 from surfgen.generator.eval.tape import evaluate_axes, evaluate_points
 from surfgen.generator.formula.expr import Expr
@@ -107,6 +107,25 @@ class SparseField:
         skipped blocks' samples are not known)."""
         return int(_count_nonfinite(self.values, self.extent, self.corner, self.slot, self.block))
 
+    def sign_proxy(self) -> Field:
+        """A dense :class:`Field` with F where sampled, and in the skipped leaves a value of
+        the leaf's side: +inf (outside) or ``level - max(1, |level| / 2)`` (inside: finite,
+        and far enough below the level that an interpolation keeps the sign).  Every
+        grid cell lies in one leaf, so whatever reads a cell's corners for their sides, or
+        interpolates within a cell and compares with the level, reads it as from the dense
+        field (the sweep's inside-sample comparisons)."""
+        b = self.block
+        values = np.empty(self.grid.shape)
+        below = self.level - max(1.0, abs(self.level) / 2)
+        for side, fill in ((OUTSIDE, np.inf), (INSIDE, below)):
+            for leaf in np.argwhere(self.state == side):
+                sl = tuple(slice(c * b, c * b + b + 1) for c in leaf)
+                values[sl] = fill
+        for brick, (c0, c1, c2) in enumerate(self.corner):
+            e0, e1, e2 = self.extent[brick]
+            values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = self.values[brick, :e0, :e1, :e2]
+        return Field(self.grid, values)
+
     def any_inside(self) -> bool:
         """Whether some sample is inside (``F < level``, finite)."""
         if np.any(self.state == INSIDE):
@@ -154,16 +173,26 @@ def evaluate_sparse(
     faces: bool = False,
     block: int = BLOCK,
     bounds: Bounds = program_bounds,
-) -> SparseField:
+    max_share: float | None = None,
+) -> SparseField | None:
     """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
 
     ``faces``: also sample the inside leaves on the box's faces (for capped meshes);
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
-    bounds (:func:`~surfgen.generator.eval.intervals.program_bounds`).
+    bounds (:func:`~surfgen.generator.eval.intervals.program_bounds`); ``max_share``: return
+    None, having only bounded the blocks, when the leaves left to sample hold more than this
+    share of the grid's points (the dense grid is then cheaper).
     Raises ``FormulaError`` as compiling the formula does.
     """
     return evaluate_sparse_program(
-        compile_tree(tree, dict(params or {})), grid, threads, level, faces, block, bounds
+        compile_tree(tree, dict(params or {})),
+        grid,
+        threads,
+        level,
+        faces,
+        block,
+        bounds,
+        max_share,
     )
 
 
@@ -175,7 +204,8 @@ def evaluate_sparse_program(
     faces: bool = False,
     block: int = BLOCK,
     bounds: Bounds = program_bounds,
-) -> SparseField:
+    max_share: float | None = None,
+) -> SparseField | None:
     """:func:`evaluate_sparse` of a compiled program."""
     if int(block) != block or block < 1:
         raise ValueError(f"block must be a whole number >= 1, got {block!r}")
@@ -191,6 +221,11 @@ def evaluate_sparse_program(
     corner = leaves * block
     shape = np.asarray(grid.shape, dtype=np.int64)
     extent = np.minimum(block + 1, shape[None, :] - corner)
+    if max_share is not None and np.prod(extent, axis=1).sum() > max_share * grid.size:
+        log.debug(
+            "sparse: %d of %d leaves to sample, over the share asked", len(leaves), state.size
+        )
+        return None
     values = np.empty((len(leaves), block + 1, block + 1, block + 1))
     partial = np.flatnonzero(np.any(extent <= block, axis=1))
     values[partial] = np.nan  # entries past the grid's end: never read, but defined

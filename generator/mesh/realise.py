@@ -11,7 +11,8 @@ checks, calls the same steps (:func:`~surfgen.generator.mesh.mesh.extract_with_e
 (:mod:`surfgen.generator.eval.sparse`) and meshes them
 (:mod:`surfgen.generator.mesh.sparse_marching`): the same mesh as the dense path, bit for bit,
 in time and memory that grow with the surface rather than the grid.  ``"auto"`` picks it for
-grids of :data:`AUTO_SPARSE_FROM` points or more (:func:`resolve_evaluator`).
+grids of :data:`AUTO_SPARSE_FROM` points or more (:func:`resolve_evaluator`), unless the blocks'
+bounds leave most of the grid to sample (:data:`AUTO_MAX_SHARE`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,13 @@ from surfgen.generator.model.spec import SurfaceSpec
 #: the sparse path is faster from 128^3 on for the presets and sampled sculptures; below, the
 #: dense grid's setup is cheaper than bounding and gathering blocks).
 AUTO_SPARSE_FROM = 128**3
+
+#: ``auto`` meshes densely after all when the sparse path would sample more than this share of
+#: the grid's points (formulas whose bounds cannot exclude the level anywhere, e.g. the paper's
+#: equation A, which is -inf on planes through every block), where the dense field fits in
+#: memory (grids up to :data:`AUTO_DENSE_UP_TO` points).
+AUTO_MAX_SHARE = 0.5
+AUTO_DENSE_UP_TO = 640**3
 
 #: The names :func:`realise` takes for ``evaluator``.
 EVALUATOR_CHOICES = ("auto", *EVALUATORS)
@@ -104,10 +112,19 @@ def realise(
         grid = spec.to_grid() if grid is None else grid
         name = resolve_evaluator(evaluator, grid)
         if name == "sparse":
+            fallback = evaluator == "auto" and grid.size <= AUTO_DENSE_UP_TO
             field = evaluate_sparse(
-                tree, grid, spec.params, threads=threads, level=spec.level, faces=cap
+                tree,
+                grid,
+                spec.params,
+                threads=threads,
+                level=spec.level,
+                faces=cap,
+                max_share=AUTO_MAX_SHARE if fallback else None,
             )
-        else:
+            if field is None:
+                name = "fast"
+        if name != "sparse":
             field = evaluate(tree, grid, spec.params, evaluator=name, threads=threads)
     elif isinstance(field, SparseField) and field.level != spec.level:
         raise ValueError(f"sparse field sampled at level {field.level}, not {spec.level}")
