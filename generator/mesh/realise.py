@@ -29,10 +29,10 @@ from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_spars
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
 from surfgen.generator.model.spec import SurfaceSpec
 
-#: ``auto`` meshes grids of at least this many points sparsely (``benchmarks/bench_sparse.py``:
-#: the sparse path is faster from 128^3 on for the presets and sampled sculptures; below, the
-#: dense grid's setup is cheaper than bounding and gathering blocks).
-AUTO_SPARSE_FROM = 128**3
+#: ``auto`` meshes grids of at least this many points sparsely (``benchmarks/bench_sparse.py``,
+#: docs/performance: at 128^3 the sparse path took 0.6-1.3x the dense time, at 256^3 it was
+#: 1.4-4.8x faster on five of six sampled shapes; at 64^3 it samples 77-96 % of the points).
+AUTO_SPARSE_FROM = 192**3
 
 #: ``auto`` meshes densely after all when the sparse path would sample more than this share of
 #: the grid's points (formulas whose bounds cannot exclude the level anywhere, e.g. the paper's

@@ -62,7 +62,7 @@ def export_command(
     evaluator: Annotated[
         str,
         typer.Option(
-            help="auto (sparse from 128^3 points on, else fast), sparse (only the blocks the "
+            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
             "surface may cross) or fast (every grid point); the same mesh."
         ),
     ] = "auto",

@@ -57,7 +57,7 @@ def render(
     evaluator: Annotated[
         str,
         typer.Option(
-            help="auto (sparse from 128^3 points on, else fast), sparse (only the blocks the "
+            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
             "surface may cross), fast (every grid point) or reference; the same mesh."
         ),
     ] = "auto",

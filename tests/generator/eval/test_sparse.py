@@ -131,14 +131,14 @@ def test_sign_proxy_compares_as_the_dense_field():
 
 
 def test_auto_picks_sparse_on_large_grids_and_falls_back():
-    small, large = Grid(Box.cube(1), (64,) * 3), Grid(Box.cube(1), (160,) * 3)
+    small, large = Grid(Box.cube(1), (128,) * 3), Grid(Box.cube(1), (192,) * 3)
     assert resolve_evaluator("auto", small) == "fast"
     assert resolve_evaluator("auto", large) == "sparse" and large.size >= AUTO_SPARSE_FROM
     assert resolve_evaluator("reference", large) == "reference"
-    sphere = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (132,) * 3)
+    sphere = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (192,) * 3)
     assert realise(sphere, evaluator="auto", cap=True).sparse
     # equation A is -inf on planes through every block: no block can be skipped
-    eq_a = PRESETS["eqA"].spec().replace(grid=(132, 132, 132))
+    eq_a = PRESETS["eqA"].spec().replace(grid=(192, 192, 192))
     made = realise(eq_a, evaluator="auto", allow_empty=True)
     assert not made.sparse
 
