@@ -1,14 +1,16 @@
 """Interval bounds over boxes (``intervals.program_bounds``) against the point evaluator on as
 many points, measured in one run.
 
-    python -m benchmarks.bench_intervals [--boxes 4096] [--formulas 10] [--repeats 5] [--json PATH]
+    python -m benchmarks.bench_intervals [--grid 16] [--formulas 10] [--repeats 5] [--json PATH]
 
-For each of the first ``--formulas`` stored eq. (13) formulas (tests/support/data), K random
-boxes inside the formula's box and K random points: the numba interval interpreter bounds F
-over the boxes, the points kernel (``PointsEvaluator.plain``, every level at every point as the
-box interpreter does) evaluates F at the points; both timed in turns, best of ``--repeats``.
-Prints box evaluations per second, tape operations per second (boxes x code rows / time) and
-the ratio of the box time to the point time (how many point evaluations one box costs).
+For each of the first ``--formulas`` stored eq. (13) formulas (tests/support/data), K = n^3
+boxes (``--grid n``) two ways, the cells of an n^3 grid over the formula's box (what a sparse
+evaluator asks for: the boxes share their x, y, z ranges, so each level is bounded once per
+distinct range) and K random boxes (nothing shared), and K random points: the numba interval
+interpreter bounds F over the boxes, the points kernel (``PointsEvaluator.plain``, every level
+at every point) evaluates F at the points; all timed in turns, best of ``--repeats``. Prints
+box evaluations per second, tape operations per second (boxes x code rows / time) and the
+ratio of the box time to the point time (how many point evaluations one box costs).
 """
 
 from __future__ import annotations
@@ -31,48 +33,54 @@ FORMULAS = (
 
 def main(argv: list[str] | None = None) -> int:
     ap = harness.parser(__doc__, repeats=5)
-    ap.add_argument("--boxes", type=int, default=4096, help="boxes (and points) per formula")
+    ap.add_argument("--grid", type=int, default=16, help="n: n^3 boxes (and points) per formula")
     ap.add_argument("--formulas", type=int, default=10, help="stored formulas to run")
     args = ap.parse_args(argv)
     run = harness.Run("bench_intervals", args)
     rows = [json.loads(line) for line in FORMULAS.read_text().splitlines() if line.strip()]
     rng = np.random.default_rng(5)
-    ratios, box_rates, op_rates = [], [], []
+    K = args.grid**3
+    costs: dict[str, list[float]] = {"grid": [], "random": []}
+    rates: dict[str, list[float]] = {"grid": [], "random": []}
     for i, row in enumerate(rows[: args.formulas]):
         program = compile_tree(parse(row["formula"]))
         lo, hi = np.array(row["lo"]), np.array(row["hi"])
-        c = rng.uniform(lo, hi, (args.boxes, 3))
-        w = (hi - lo) / 32 * rng.uniform(0.5, 1.0, (args.boxes, 3))
-        blo, bhi = c - w, c + w
+        edges = [np.linspace(lo[a], hi[a], args.grid + 1) for a in range(3)]
+        cell = np.stack(np.meshgrid(*[np.arange(args.grid)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        glo = np.stack([edges[a][cell[:, a]] for a in range(3)], axis=1)
+        ghi = np.stack([edges[a][cell[:, a] + 1] for a in range(3)], axis=1)
+        c = rng.uniform(lo, hi, (K, 3))
+        w = (hi - lo) / (2 * args.grid) * rng.uniform(0.5, 1.0, (K, 3))
         pts = [np.ascontiguousarray(c[:, a]) for a in range(3)]
         points = PointsEvaluator(program)
         timings = harness.take_turns(
             {
                 "points": lambda points=points, pts=pts: points.plain(*pts),
-                "boxes": lambda p=program, a=blo, b=bhi: program_bounds(p, a, b),
+                "grid": lambda p=program, a=glo, b=ghi: program_bounds(p, a, b),
+                "random": lambda p=program, a=c - w, b=c + w: program_bounds(p, a, b),
             },
             args.repeats,
         )
-        t_box, t_pt = timings["boxes"].best, timings["points"].best
+        t_pt = timings["points"].best
         ops = len(program.code)
-        ratio = t_box / t_pt
-        ratios.append(ratio)
-        box_rates.append(args.boxes / t_box)
-        op_rates.append(args.boxes * ops / t_box)
-        run.record(**{f"formula {i}": {"ops": ops, "box_seconds": t_box, "point_seconds": t_pt}})
+        line = []
+        for kind in ("grid", "random"):
+            t = timings[kind].best
+            costs[kind].append(t / t_pt)
+            rates[kind].append(K / t)
+            line.append(f"{kind} {K / t / 1e3:7.0f} k boxes/s ({K * ops / t / 1e6:6.1f} M ops/s, "
+                        f"{t / t_pt:5.2f} points)")  # fmt: skip
+        run.record(**{f"formula {i}": {"ops": ops, "point_seconds": t_pt,
+                                       **{k: timings[k].best for k in ("grid", "random")}}})  # fmt: skip
         run.say(
-            f"formula {i:2d} ({ops:3d} ops): {args.boxes / t_box / 1e3:8.1f} k boxes/s, "
-            f"{args.boxes * ops / t_box / 1e6:7.2f} M box-ops/s; points "
-            f"{args.boxes / t_pt / 1e3:8.1f} k/s, {args.boxes * ops / t_pt / 1e6:7.2f} M ops/s: "
-            f"a box costs {ratio:5.1f} points"
+            f"formula {i:2d} ({ops:3d} ops): points {K / t_pt / 1e3:6.0f} k/s; " + "; ".join(line)
         )
-    run.say(
-        f"median: {np.median(box_rates) / 1e3:.1f} k boxes/s, {np.median(op_rates) / 1e6:.2f} M "
-        f"box-ops/s, a box costs {np.median(ratios):.1f} point evaluations"
-    )
-    run.record(
-        median_ratio=float(np.median(ratios)), median_boxes_per_s=float(np.median(box_rates))
-    )
+    for kind in ("grid", "random"):
+        run.say(
+            f"median, {kind} boxes: {np.median(rates[kind]) / 1e3:.0f} k boxes/s, "
+            f"a box costs {np.median(costs[kind]):.2f} point evaluations"
+        )
+        run.record(**{f"median_cost_{kind}": float(np.median(costs[kind]))})
     run.save()
     return 0
 

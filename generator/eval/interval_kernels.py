@@ -325,3 +325,62 @@ def run_code_iv(code, c0, c1, consts, L, H, N, T, n):
             for k in range(n):
                 if L[a, k] > H[a, k] or (not unary and L[b, k] > H[b, k]):
                     put(L, H, N, d, k, EMPTY_LO, EMPTY_HI, True)
+
+
+@njit(**KERNEL)
+def run_boxes(prog, tile, levels, counts, offsets, item_map, SL, SH, out_lo, out_hi, out_nan):
+    """Bounds of a program (``points_program`` form) over the items of each level.
+
+    Level ``lv`` has ``counts[lv]`` items (distinct x ranges for level x, distinct pairs of
+    ranges for xy, the boxes for xyz), stored from column ``offsets[lv]`` of the stores
+    ``SL``, ``SH`` (rows: the level's store rows; row 0 of levels x, y, z holds the ranges of
+    the axis, filled by the caller); ``item_map[s, offsets[lv] + i]`` is the column of the
+    item of level ``s`` that item i of level lv reads. The output is one value per box."""
+    code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
+    n_rows = prog[6]
+    SN = np.zeros(SL.shape, dtype=np.uint8)
+    L = np.empty((n_rows, tile))
+    H = np.empty((n_rows, tile))
+    N = np.zeros((n_rows, tile), dtype=np.uint8)
+    T = np.empty((8, tile))
+    for lv in levels:
+        c0 = blocks[lv, 0]
+        c1 = blocks[lv, 1]
+        if c0 == c1:
+            continue
+        base = offsets[lv]
+        total = counts[lv]
+        for p0 in range(0, total, tile):
+            n = min(tile, total - p0)
+            for q in range(blocks[lv, 2], blocks[lv, 3]):
+                kind = loads[q, 0]
+                row = loads[q, 1]
+                slot = loads[q, 2]
+                if kind == 0:
+                    v = consts[row]
+                    vlo, vhi, vn = (v, v, 0) if v == v else (EMPTY_LO, EMPTY_HI, 1)
+                    for k in range(n):
+                        L[slot, k] = vlo
+                        H[slot, k] = vhi
+                        N[slot, k] = vn
+                else:
+                    for k in range(n):
+                        g = item_map[kind, base + p0 + k]
+                        L[slot, k] = SL[row, g]
+                        H[slot, k] = SH[row, g]
+                        N[slot, k] = SN[row, g]
+            run_code_iv(code, c0, c1, consts, L, H, N, T, n)
+            for q in range(blocks[lv, 4], blocks[lv, 5]):
+                slot = stores[q, 0]
+                kind = stores[q, 1]
+                row = stores[q, 2]
+                if kind == 7:
+                    for k in range(n):
+                        out_lo[p0 + k] = L[slot, k]
+                        out_hi[p0 + k] = H[slot, k]
+                        out_nan[p0 + k] = N[slot, k]
+                else:
+                    for k in range(n):
+                        SL[row, base + p0 + k] = L[slot, k]
+                        SH[row, base + p0 + k] = H[slot, k]
+                        SN[row, base + p0 + k] = N[slot, k]
