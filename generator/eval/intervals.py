@@ -33,6 +33,9 @@ from surfgen.generator.eval.tape import COMPILED_CACHE, points_program
 from surfgen.generator.formula.expr import Expr
 
 BOXES_TILE = 256  # boxes per register row
+# Boxes planned and run at a time: the stores hold up to 7 intervals per box and store row
+# (about 40 MB for 16384 boxes of a program with 20 store rows and nothing shared)
+BOXES_CHUNK = 16384
 _LEVELS = np.array(LEVEL_ORDER, dtype=np.int64)
 
 
@@ -129,16 +132,25 @@ def program_bounds(
     if K:
         interpreter.load_interpreter()  # the elementary rows the rules call
         prog = _boxes_program(program)
-        counts, offsets, item_map, firsts = plan_levels(blo, bhi, share)
         depth = max(1, int(np.max(program.rows)))
-        SL = np.empty((depth, item_map.shape[1]))
-        SH = np.empty((depth, item_map.shape[1]))
-        for a, lv in enumerate((1, 2, 4)):  # row 0 of the x, y, z levels: the axis ranges
-            cols = slice(offsets[lv], offsets[lv] + counts[lv])
-            SL[0, cols] = blo[firsts[lv], a]
-            SH[0, cols] = bhi[firsts[lv], a]
-        run_boxes(prog, BOXES_TILE, _LEVELS, counts, offsets, item_map, SL, SH, flo, fhi, nan)
+        for k0 in range(0, K, BOXES_CHUNK):
+            k1 = min(K, k0 + BOXES_CHUNK)
+            _run_chunk(
+                prog, depth, blo[k0:k1], bhi[k0:k1], share, flo[k0:k1], fhi[k0:k1], nan[k0:k1]
+            )
     return finish(flo, fhi, nan)
+
+
+def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan) -> None:
+    """Bounds of the boxes of one chunk into the views ``flo``, ``fhi``, ``nan``."""
+    counts, offsets, item_map, firsts = plan_levels(blo, bhi, share)
+    SL = np.empty((depth, item_map.shape[1]))
+    SH = np.empty((depth, item_map.shape[1]))
+    for a, lv in enumerate((1, 2, 4)):  # row 0 of the x, y, z levels: the axis ranges
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        SL[0, cols] = blo[firsts[lv], a]
+        SH[0, cols] = bhi[firsts[lv], a]
+    run_boxes(prog, BOXES_TILE, _LEVELS, counts, offsets, item_map, SL, SH, flo, fhi, nan)
 
 
 @functools.lru_cache(maxsize=COMPILED_CACHE)

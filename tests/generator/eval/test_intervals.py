@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from surfgen.generator.errors import GridError
+from surfgen.generator.eval import intervals
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.intervals import program_bounds, tree_bounds
 from surfgen.generator.eval.intervals_reference import reference_bounds
@@ -303,6 +304,15 @@ def test_levels_shared_between_boxes_give_the_same_bounds(row) -> None:
     for a, b in zip(shared, plain, strict=True):
         assert np.array_equal(a, b)
     assert_sound(program.tree, {}, blo, bhi, rng, shared)
+
+
+def test_boxes_run_in_chunks_give_the_same_bounds(monkeypatch) -> None:
+    program = compile_tree(parse(STORED[3]["formula"]))
+    blo, bhi = grid_boxes(STORED[3]["lo"], STORED[3]["hi"], 4)
+    whole = program_bounds(program, blo, bhi)
+    monkeypatch.setattr(intervals, "BOXES_CHUNK", 7)
+    for a, b in zip(whole, program_bounds(program, blo, bhi), strict=True):
+        assert np.array_equal(a, b)
 
 
 def test_params_constants_and_many_boxes() -> None:
