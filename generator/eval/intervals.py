@@ -22,82 +22,60 @@ import functools
 from collections.abc import Mapping
 
 import numpy as np
-from numba import njit
 
 from surfgen.generator.errors import GridError
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval.compiler import Program, compile_tree
-from surfgen.generator.eval.interval_kernels import run_code_iv
-from surfgen.generator.eval.interval_rules import EMPTY_HI, EMPTY_LO
+from surfgen.generator.eval.interval_kernels import run_boxes
 from surfgen.generator.eval.opcodes import LEVEL_ORDER
+from surfgen.generator.eval.point_driver import dedupe
 from surfgen.generator.eval.tape import COMPILED_CACHE, points_program
 from surfgen.generator.formula.expr import Expr
-from surfgen.generator.jit.options import KERNEL
 
 BOXES_TILE = 256  # boxes per register row
+# Boxes planned and run at a time: the stores hold up to 7 intervals per box and store row
+# (about 40 MB for 16384 boxes of a program with 20 store rows and nothing shared)
+BOXES_CHUNK = 16384
 _LEVELS = np.array(LEVEL_ORDER, dtype=np.int64)
 
 
-@njit(**KERNEL)
-def run_boxes(prog, tile, levels, blo, bhi, out_lo, out_hi, out_nan):
-    """Bounds of a program (``points_program`` form) over the boxes ``[blo[k], bhi[k]]``."""
-    code, blocks, loads, stores, consts, rows = prog[0], prog[1], prog[2], prog[3], prog[4], prog[5]
-    n_rows = prog[6]
-    depth = 1
-    for lv in range(8):
-        depth = max(depth, rows[lv])
-    SL = np.empty((8, depth, tile))
-    SH = np.empty((8, depth, tile))
-    SN = np.zeros((8, depth, tile), dtype=np.uint8)
-    L = np.empty((n_rows, tile))
-    H = np.empty((n_rows, tile))
-    N = np.zeros((n_rows, tile), dtype=np.uint8)
-    T = np.empty((8, tile))
-    total = blo.shape[0]
-    for p0 in range(0, total, tile):
-        n = min(tile, total - p0)
-        for axis in range(3):
-            kind = 1 << axis
-            for k in range(n):
-                SL[kind, 0, k] = blo[p0 + k, axis]
-                SH[kind, 0, k] = bhi[p0 + k, axis]
-                SN[kind, 0, k] = 0
-        for lv in levels:
-            c0 = blocks[lv, 0]
-            c1 = blocks[lv, 1]
-            if c0 == c1:
-                continue
-            for q in range(blocks[lv, 2], blocks[lv, 3]):
-                kind = loads[q, 0]
-                row = loads[q, 1]
-                slot = loads[q, 2]
-                if kind == 0:
-                    v = consts[row]
-                    vlo, vhi, vn = (v, v, 0) if v == v else (EMPTY_LO, EMPTY_HI, 1)
-                    for k in range(n):
-                        L[slot, k] = vlo
-                        H[slot, k] = vhi
-                        N[slot, k] = vn
-                else:
-                    for k in range(n):
-                        L[slot, k] = SL[kind, row, k]
-                        H[slot, k] = SH[kind, row, k]
-                        N[slot, k] = SN[kind, row, k]
-            run_code_iv(code, c0, c1, consts, L, H, N, T, n)
-            for q in range(blocks[lv, 4], blocks[lv, 5]):
-                slot = stores[q, 0]
-                kind = stores[q, 1]
-                row = stores[q, 2]
-                if kind == 7:
-                    for k in range(n):
-                        out_lo[p0 + k] = L[slot, k]
-                        out_hi[p0 + k] = H[slot, k]
-                        out_nan[p0 + k] = N[slot, k]
-                else:
-                    for k in range(n):
-                        SL[kind, row, k] = L[slot, k]
-                        SH[kind, row, k] = H[slot, k]
-                        SN[kind, row, k] = N[slot, k]
+def plan_levels(
+    blo: np.ndarray, bhi: np.ndarray, share: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The items of each level for :func:`~.interval_kernels.run_boxes`:
+    ``(counts, offsets, item_map, firsts)``.
+
+    With ``share``, a level of some axes gets one item per distinct combination of the boxes'
+    ranges on those axes (boxes on a grid share them: the x level of a 32^3 grid of boxes runs
+    32 times, not 32768), told apart by their bits; level xyz keeps one item per box. Without,
+    every level has one item per box (the check of the sharing). ``firsts[lv]``: a box of each
+    item of level lv. Distinct values are found by hashing (:func:`.point_driver.dedupe`)."""
+    K = blo.shape[0]
+    every = np.arange(K, dtype=np.int64)
+    axis_ids = []
+    if share:
+        for a in range(3):
+            lo_ids, lo_first = dedupe(np.ascontiguousarray(blo[:, a]).view(np.int64))
+            hi_ids, hi_first = dedupe(np.ascontiguousarray(bhi[:, a]).view(np.int64))
+            axis_ids.append(dedupe(lo_ids * len(hi_first) + hi_ids))
+    inverse: list[np.ndarray] = [every] * 8
+    firsts: list[np.ndarray] = [every] * 8
+    for lv in range(1, 7 if share else 1):
+        key = np.zeros(K, np.int64)
+        for a in range(3):
+            if lv >> a & 1:
+                ids, first = axis_ids[a]
+                key = key * len(first) + ids
+        inverse[lv], firsts[lv] = dedupe(key)
+    counts = np.array([0] + [len(firsts[lv]) for lv in range(1, 8)], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    item_map = np.zeros((8, int(counts.sum())), dtype=np.int64)
+    for lv in range(1, 8):
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        for sub in range(1, 8):
+            if sub & ~lv == 0:  # the levels of lv's axes (lv itself too)
+                item_map[sub, cols] = offsets[sub] + inverse[sub][firsts[lv]]
+    return counts, offsets, item_map, firsts
 
 
 def check_boxes(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,7 +107,7 @@ def _boxes_program(program: Program) -> tuple:
 
 
 def program_bounds(
-    program: Program, lo: np.ndarray, hi: np.ndarray
+    program: Program, lo: np.ndarray, hi: np.ndarray, share: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of F over K closed boxes ``[lo[k], hi[k]]`` (float64 ``(K, 3)``, world coordinates).
 
@@ -139,6 +117,10 @@ def program_bounds(
     not ±inf) everywhere in box k. A box where F is NaN everywhere gets ``flo = +inf``,
     ``fhi = -inf``. Raises :class:`GridError` for malformed boxes, :class:`TypeError` for a
     ``program`` that is not a :class:`Program`.
+
+    A value of some axes is bounded once per distinct combination of the boxes' ranges on
+    those axes (:func:`plan_levels`); ``share=False`` bounds every level once per box (the
+    same bounds, slower: the check of the sharing).
     """
     if not isinstance(program, Program):
         raise TypeError(f"expected a Program, got {type(program).__name__}")
@@ -149,8 +131,26 @@ def program_bounds(
     nan = np.zeros(K, dtype=np.uint8)
     if K:
         interpreter.load_interpreter()  # the elementary rows the rules call
-        run_boxes(_boxes_program(program), BOXES_TILE, _LEVELS, blo, bhi, flo, fhi, nan)
+        prog = _boxes_program(program)
+        depth = max(1, int(np.max(program.rows)))
+        for k0 in range(0, K, BOXES_CHUNK):
+            k1 = min(K, k0 + BOXES_CHUNK)
+            _run_chunk(
+                prog, depth, blo[k0:k1], bhi[k0:k1], share, flo[k0:k1], fhi[k0:k1], nan[k0:k1]
+            )
     return finish(flo, fhi, nan)
+
+
+def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan) -> None:
+    """Bounds of the boxes of one chunk into the views ``flo``, ``fhi``, ``nan``."""
+    counts, offsets, item_map, firsts = plan_levels(blo, bhi, share)
+    SL = np.empty((depth, item_map.shape[1]))
+    SH = np.empty((depth, item_map.shape[1]))
+    for a, lv in enumerate((1, 2, 4)):  # row 0 of the x, y, z levels: the axis ranges
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        SL[0, cols] = blo[firsts[lv], a]
+        SH[0, cols] = bhi[firsts[lv], a]
+    run_boxes(prog, BOXES_TILE, _LEVELS, counts, offsets, item_map, SL, SH, flo, fhi, nan)
 
 
 @functools.lru_cache(maxsize=COMPILED_CACHE)
@@ -167,4 +167,4 @@ def tree_bounds(
     return program_bounds(_compiled(tree, tuple(sorted((params or {}).items()))), lo, hi)
 
 
-__all__ = ["BOXES_TILE", "program_bounds", "run_boxes", "tree_bounds"]
+__all__ = ["BOXES_TILE", "plan_levels", "program_bounds", "tree_bounds"]

@@ -211,11 +211,11 @@ def _series(a: Iv, consts: np.ndarray, base: int) -> Iv:
     ohi = np.full_like(hi, top)
     with np.errstate(all="ignore"):
         i = np.floor(lo / r) + 1.0
-    for j in (i - 1.0, i, i + 1.0):
-        a0, b0 = r * (j - 1.0), r * j
-        one = (-p <= j) & (j <= p) & (a0 <= lo) & (lo < b0) & (hi < b0) & ~nan
-        olo = np.where(one, 0.0 + 2.0 * (lo - a0), olo)
-        ohi = np.where(one, 0.0 + 2.0 * (hi - a0), ohi)
+        for j in (i - 1.0, i, i + 1.0):
+            a0, b0 = r * (j - 1.0), r * j
+            one = (-p <= j) & (j <= p) & (a0 <= lo) & (lo < b0) & (hi < b0) & ~nan
+            olo = np.where(one, 0.0 + 2.0 * (lo - a0), olo)
+            ohi = np.where(one, 0.0 + 2.0 * (hi - a0), ohi)
     outside = (hi < r * (-p - 1.0)) | (lo >= r * p)
     return np.where(outside, 0.0, olo), np.where(outside, 0.0, ohi), nan
 
@@ -435,10 +435,11 @@ NON_STRICT = {"not", "lt", "le", "eq", "ne", "and", "or", "pick", "pickn", "pow"
 def apply_op(name: str, args: list[Iv], consts: np.ndarray, imm: int, same: bool = False) -> Iv:
     """The interval of opcode ``name`` of the intervals ``args`` (``same``: both operands are
     one value, as in ``x*x``)."""
-    if len(args) == 1:
-        out = _unary(name, args[0], consts, imm)
-    else:
-        out = _binary(name, args[0], args[1], same)
+    with np.errstate(all="ignore"):  # inf - inf, 0 * inf...: values, not errors
+        if len(args) == 1:
+            out = _unary(name, args[0], consts, imm)
+        else:
+            out = _binary(name, args[0], args[1], same)
     lo, hi, nan = (np.asarray(v) for v in out)
     out = (lo.astype(np.float64), hi.astype(np.float64), nan.astype(bool))
     if name not in NON_STRICT:  # a NaN operand everywhere: NaN everywhere
