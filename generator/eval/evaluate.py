@@ -2,7 +2,11 @@
 
 Evaluators are registered by name in :data:`EVALUATORS`: ``fast`` (the compiled tape run by the
 numba interpreter, :mod:`surfgen.generator.eval.tape`) and ``reference`` (plain numpy,
-:mod:`surfgen.generator.eval.reference`); both give the same values bit for bit. An evaluator
+:mod:`surfgen.generator.eval.reference`); both give the same values bit for bit.  ``sparse``
+(:mod:`surfgen.generator.eval.sparse`) samples only the blocks of the grid that the level set
+``F = level`` may cross (interval bounds decide the others): its grid operation returns a
+:class:`~surfgen.generator.eval.sparse.SparseField` for one level, whose samples are the fast
+evaluator's, and its points operation is the fast one's. An evaluator
 is a module with two operations, on a grid (:func:`evaluate`) and at points
 (:func:`evaluate_points`), and an entry here: a new one (a sparse evaluator) is a module and an
 entry. The modules are imported on first use: the fast one imports numba, and importing
@@ -47,7 +51,8 @@ class Evaluator:
     """An evaluator: the module that implements it (imported on first use) and the names of
     its two operations there.
 
-    - ``on_grid(tree, grid, params[, threads=])`` returns a :class:`Field`;
+    - ``on_grid(tree, grid, params[, threads=][, level=])`` returns a :class:`Field` (a
+      :class:`~surfgen.generator.eval.sparse.SparseField` for ``sparse``);
     - ``at_points(tree, x, y, z, params)`` returns F at the points (broadcast together).
     """
 
@@ -55,6 +60,7 @@ class Evaluator:
     on_grid: str
     at_points: str
     threads: bool  # whether on_grid takes ``threads``
+    level: bool = False  # whether on_grid takes ``level`` (and samples for that level only)
 
     def load(self) -> ModuleType:
         return importlib.import_module(self.module)
@@ -65,11 +71,15 @@ class Evaluator:
         grid: Grid,
         params: Mapping[str, float] | None = None,
         threads: int | None = None,
-    ) -> Field:
+        level: float = 0.0,
+    ) -> Any:
         on_grid = getattr(self.load(), self.on_grid)
+        kwargs: dict[str, Any] = {}
         if self.threads:
-            return on_grid(tree, grid, params, threads=threads)
-        return on_grid(tree, grid, params)
+            kwargs["threads"] = threads
+        if self.level:
+            kwargs["level"] = level
+        return on_grid(tree, grid, params, **kwargs)
 
     def evaluate_points(
         self,
@@ -86,6 +96,9 @@ EVALUATORS: dict[str, Evaluator] = {
     "fast": Evaluator(_FAST, "evaluate_fast", "evaluate_points", threads=True),
     "reference": Evaluator(
         "surfgen.generator.eval.reference", "evaluate_reference", "evaluate_points", False
+    ),
+    "sparse": Evaluator(
+        "surfgen.generator.eval.sparse", "evaluate_sparse", "evaluate_points", True, level=True
     ),
 }
 
@@ -106,12 +119,16 @@ def evaluate(
     params: Mapping[str, float] | None = None,
     evaluator: str = "fast",
     threads: int | None = None,
-) -> Field:
-    """Sample ``tree`` on ``grid`` with the named evaluator (``fast`` or ``reference``).
+    level: float = 0.0,
+) -> Any:
+    """Sample ``tree`` on ``grid`` with the named evaluator (``fast``, ``reference`` or
+    ``sparse``): a :class:`Field`, or for ``sparse`` a
+    :class:`~surfgen.generator.eval.sparse.SparseField` sampled where ``F = level`` may pass.
 
-    ``threads`` is for the fast evaluator: 1 in worker processes, ``None`` for numba's default.
+    ``threads`` is for the fast and sparse evaluators: 1 in worker processes, ``None`` for
+    numba's default.
     """
-    return _evaluator(evaluator).evaluate(tree, grid, params, threads)
+    return _evaluator(evaluator).evaluate(tree, grid, params, threads, level)
 
 
 def evaluate_points(

@@ -320,6 +320,24 @@ def rows_program(program: Program) -> tuple:
     )
 
 
+def evaluate_axes(program: Program, ax: np.ndarray, ay: np.ndarray, az: np.ndarray) -> np.ndarray:
+    """``program`` on the tensor product of the 1-D coordinates ``ax``, ``ay``, ``az`` (any
+    values, e.g. slices or selections of a grid's axes), one thread: shape
+    ``(ax.size, ay.size, az.size)``. Each point's value is the one :func:`evaluate_program`
+    gives on a grid whose axes hold the same coordinates, bit for bit (every operation is
+    elementwise): the sparse evaluator's way to evaluate pieces of a grid."""
+    interpreter.load_interpreter()
+    axes = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (ax, ay, az)]
+    out = np.empty(tuple(a.size for a in axes), np.float64)
+    if out.size == 0:
+        return out
+    tile = _tile(out.shape[2])
+    prog = _prog(program, tile >= 2 * out.shape[2])
+    stores = kernels.grid_stores(prog[5], *axes)
+    kernels.run_grid(prog, tile, *stores, out, _NO_PROFILE, kernels.GRID_ALL, 0, 0)
+    return out
+
+
 def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:
     """Run ``program`` on one thread counting CPU cycles per code row.
 

@@ -157,14 +157,40 @@ MARCHING_BYTES_PER_POINT = 20
 MESH_BYTES_PER_POINT = 30
 CLEANUP_MESH_COPIES = 4  # pymeshlab's cleanup and remeshing hold a few copies of the mesh
 
+# The sparse path (surfgen.generator.eval.sparse) holds only the blocks the surface may cross,
+# so its memory grows with the surface, about N^2 for an N^3 grid.  Per N^2 (measured with
+# benchmarks/bench_sparse.py, RSS peaks at 256-1024 on the presets and sampled sculptures, the
+# largest ratio found, rounded up): sampled points (their values, float32 offsets, inside flags,
+# duplicated on shared block faces) and the mesh with marching cubes' lists.
+SPARSE_POINTS_PER_AREA = 96
+SPARSE_BYTES_PER_SAMPLE = 24
+SPARSE_MESH_BYTES_PER_AREA = 3000
+
 
 def estimate_memory(
-    points: int, mesh: bool = True, field_copy: bool = False, cleanup: bool = False
+    points: int,
+    mesh: bool = True,
+    field_copy: bool = False,
+    cleanup: bool = False,
+    sparse: bool = False,
 ) -> dict[str, int]:
     """The memory a command needs for a grid of ``points`` samples, by part (bytes).
 
     ``mesh``: marching cubes and a mesh are made; ``field_copy``: the field is also encoded
-    as a file in memory; ``cleanup``: the mesh goes through the export cleanup chain."""
+    as a file in memory; ``cleanup``: the mesh goes through the export cleanup chain;
+    ``sparse``: the sparse path (only the blocks the surface may cross: parts that grow with
+    ``points ** (2/3)``, a surface's size)."""
+    if sparse:
+        area = round(points ** (2 / 3))
+        sampled = min(points * 1.5, SPARSE_POINTS_PER_AREA * area)
+        parts = {"sparse field": int(SPARSE_BYTES_PER_SAMPLE * sampled)}
+        if mesh:
+            copies = CLEANUP_MESH_COPIES if cleanup else 1
+            parts["mesh"] = min(
+                SPARSE_MESH_BYTES_PER_AREA * area * copies,
+                (MARCHING_BYTES_PER_POINT + MESH_BYTES_PER_POINT * copies) * points,
+            )
+        return parts
     parts = {"field": FIELD_BYTES_PER_POINT * points}
     if field_copy:
         parts["field file"] = FIELD_BYTES_PER_POINT * points

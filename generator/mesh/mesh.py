@@ -16,7 +16,7 @@ from numba import njit
 from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface, MeshError
-from surfgen.generator.eval.grid import Field
+from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import (
     _keep_off_cell_faces,
@@ -204,7 +204,16 @@ def extract_with_edges(
     verts, faces, _normals, _values = marching_cubes(
         work, 0.0, gradient_direction="descent", mask=_mixed_cells(work)
     )
-    grid = field.grid
+    return finish_marching(verts, faces, field.grid, level, cap)
+
+
+def finish_marching(
+    verts: np.ndarray, faces: np.ndarray, grid: Grid, level: float, cap: bool
+) -> tuple[Mesh, np.ndarray]:
+    """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``:
+    skimage's, in index coordinates, with the cap's pad when ``cap``): vertices placed on the
+    box, interior vertices kept off their cell's faces, one vertex per grid edge.  The sparse
+    path (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
     spacing = np.asarray(grid.spacing, dtype=np.float64)

@@ -6,6 +6,13 @@ reproduce, MathMod models, catalogue repair).  The sampler's cascade, which scre
 field before the full one and classifies the walls only for the shapes that pass its cheap
 checks, calls the same steps (:func:`~surfgen.generator.mesh.mesh.extract_with_edges`,
 :func:`~surfgen.generator.mesh.walls.label_walls`) in its own order.
+
+``evaluator="sparse"`` samples only the blocks of the grid the surface may cross
+(:mod:`surfgen.generator.eval.sparse`) and meshes them
+(:mod:`surfgen.generator.mesh.sparse_marching`): the same mesh as the dense path, bit for bit,
+in time and memory that grow with the surface rather than the grid.  ``"auto"`` picks it for
+grids of :data:`AUTO_SPARSE_FROM` points or more (:func:`resolve_evaluator`), unless the blocks'
+bounds leave most of the grid to sample (:data:`AUTO_MAX_SHARE`).
 """
 
 from __future__ import annotations
@@ -13,33 +20,68 @@ from __future__ import annotations
 import dataclasses
 import time
 
-from surfgen.generator.errors import EmptySurface
-from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.errors import EmptySurface, FormulaError
+from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
 from surfgen.generator.eval.grid import Field, Grid
+from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
+from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_sparse_labelled
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
 from surfgen.generator.model.spec import SurfaceSpec
+
+#: ``auto`` meshes grids of at least this many points sparsely (``benchmarks/bench_sparse.py``,
+#: docs/performance: at 128^3 the sparse path took 0.6-1.3x the dense time, at 256^3 it was
+#: 1.4-4.8x faster on five of six sampled shapes; at 64^3 it samples 77-96 % of the points).
+AUTO_SPARSE_FROM = 192**3
+
+#: ``auto`` meshes densely after all when the sparse path would sample more than this share of
+#: the grid's points (formulas whose bounds cannot exclude the level anywhere, e.g. the paper's
+#: equation A, which is -inf on planes through every block), where the dense field fits in
+#: memory (grids up to :data:`AUTO_DENSE_UP_TO` points).
+AUTO_MAX_SHARE = 0.5
+AUTO_DENSE_UP_TO = 640**3
+
+#: The names :func:`realise` takes for ``evaluator``.
+EVALUATOR_CHOICES = ("auto", *EVALUATORS)
+
+
+def resolve_evaluator(evaluator: str, grid: Grid) -> str:
+    """The evaluator ``evaluator`` means on ``grid``: ``auto`` is ``sparse`` from
+    :data:`AUTO_SPARSE_FROM` points on, else ``fast``; others are themselves.  Raises
+    :class:`FormulaError` for an unknown name."""
+    if evaluator == "auto":
+        return "sparse" if grid.size >= AUTO_SPARSE_FROM else "fast"
+    if evaluator not in EVALUATORS:
+        raise FormulaError(
+            f"unknown evaluator '{evaluator}' (allowed: {', '.join(EVALUATOR_CHOICES)})"
+        )
+    return evaluator
 
 
 @dataclasses.dataclass(frozen=True)
 class Realised:
-    """What :func:`realise` made: the field, the mesh (None when the surface is empty and that
-    was allowed: ``empty`` says why), the walls' report (None when the crossings were not
-    classified), and the seconds spent evaluating and meshing."""
+    """What :func:`realise` made: the field (a :class:`SparseField` on the sparse path), the
+    mesh (None when the surface is empty and that was allowed: ``empty`` says why), the walls'
+    report (None when the crossings were not classified), and the seconds spent evaluating and
+    meshing."""
 
     spec: SurfaceSpec
-    field: Field
+    field: Field | SparseField
     mesh: Mesh | None
     walls: WallReport | None = None
     empty: str | None = None
     seconds: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    @property
+    def sparse(self) -> bool:
+        return isinstance(self.field, SparseField)
 
 
 def realise(
     spec: SurfaceSpec,
     *,
     grid: Grid | None = None,
-    field: Field | None = None,
+    field: Field | SparseField | None = None,
     evaluator: str = "fast",
     threads: int | None = None,
     cap: bool = False,
@@ -49,12 +91,15 @@ def realise(
     """Evaluate ``spec`` and extract ``F = spec.level`` (with box caps when ``cap``).
 
     ``grid``: evaluate there instead of ``spec.to_grid()`` (a re-gridded export); ``field``: an
-    already evaluated field of ``spec`` (nothing is evaluated); ``evaluator``/``threads``: as
+    already evaluated field of ``spec`` (nothing is evaluated; a :class:`SparseField` must have
+    been sampled at ``spec.level``, with ``faces=True`` for ``cap``); ``evaluator``: ``fast``,
+    ``reference``, ``sparse`` or ``auto`` (:func:`resolve_evaluator`); ``threads``: as
     :func:`~surfgen.generator.eval.evaluate.evaluate`. ``walls``: None extracts without
     classifying the crossings (:func:`~surfgen.generator.mesh.mesh.extract_mesh`); ``keep``,
     ``mark`` or ``remove`` classifies them and keeps, labels or removes the walls
     (:func:`~surfgen.generator.mesh.walls.extract_labelled`). ``allow_empty``: an empty surface
-    gives ``mesh=None`` and its message in ``empty`` instead of raising.
+    gives ``mesh=None`` and its message in ``empty`` instead of raising.  Every evaluator gives
+    the same mesh, bit for bit.
 
     Raises :class:`EmptySurface` (unless ``allow_empty``), ``SpecError`` for an unknown walls
     mode, and what evaluation raises (``FormulaError``, ``LimitError``...).
@@ -65,13 +110,35 @@ def realise(
     tree = spec.tree()
     if field is None:
         grid = spec.to_grid() if grid is None else grid
-        field = evaluate(tree, grid, spec.params, evaluator=evaluator, threads=threads)
+        name = resolve_evaluator(evaluator, grid)
+        if name == "sparse":
+            fallback = evaluator == "auto" and grid.size <= AUTO_DENSE_UP_TO
+            field = evaluate_sparse(
+                tree,
+                grid,
+                spec.params,
+                threads=threads,
+                level=spec.level,
+                faces=cap,
+                max_share=AUTO_MAX_SHARE if fallback else None,
+            )
+            if field is None:
+                name = "fast"
+        if name != "sparse":
+            field = evaluate(tree, grid, spec.params, evaluator=name, threads=threads)
+    elif isinstance(field, SparseField) and field.level != spec.level:
+        raise ValueError(f"sparse field sampled at level {field.level}, not {spec.level}")
     t1 = time.perf_counter()
     mesh: Mesh | None = None
     report: WallReport | None = None
     empty: str | None = None
     try:
-        if walls is None:
+        if isinstance(field, SparseField):
+            if walls is None:
+                mesh = extract_sparse(field, cap=cap)
+            else:
+                mesh, report = extract_sparse_labelled(field, tree, spec.params, cap, walls)
+        elif walls is None:
             mesh = extract_mesh(field, spec.level, cap=cap)
         else:
             mesh, report = extract_labelled(field, tree, spec.params, spec.level, cap, walls)

@@ -74,6 +74,7 @@ from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import points_evaluator
 from surfgen.generator.eval.grid import Field
 from surfgen.generator.eval.row_operations import unsigned
+from surfgen.generator.eval.sparse import SparseField
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.mesh.mesh import (
@@ -162,23 +163,27 @@ def extract_labelled(
 def label_walls(
     mesh: Mesh,
     edges: np.ndarray,
-    field: Field,
+    field: Field | SparseField,
     tree: Expr,
     params: Mapping[str, float] | None = None,
     level: float = 0.0,
     cap: bool = False,
     walls: str = "mark",
     areas: np.ndarray | None = None,
+    lines: np.ndarray | None = None,
 ) -> tuple[Mesh, WallReport]:
     """The second half of :func:`extract_labelled`, for a mesh and edges that
     :func:`~surfgen.generator.mesh.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
     lets a caller look at the mesh before paying for the classification.  ``areas``: the
     mesh's face areas (:func:`~surfgen.generator.mesh.mesh.face_areas`) where the caller has them
-    (the sampler's filters need them too: computed once); else computed here."""
+    (the sampler's filters need them too: computed once); else computed here.  ``lines``: F
+    at the four samples of each edge's grid line (a sparse field's,
+    :func:`~surfgen.generator.mesh.sparse_marching.sparse_edge_lines`); ``field`` is then only
+    read for its grid."""
     check_walls_mode(walls)
     if areas is not None and len(areas) != mesh.n_faces:
         raise ValueError(f"{len(areas)} face areas for {mesh.n_faces} faces")
-    kinds, refined, points = _classify(field, tree, params, level, edges)
+    kinds, refined, points = _classify(field, tree, params, level, edges, lines)
     roots, poles, jumps = _count_kinds(kinds)
     any_wall = bool(poles + jumps)
     if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
@@ -239,19 +244,33 @@ def classify_edges(
 
 
 def _classify(
-    field: Field,
+    field: Field | SparseField,
     tree: Expr,
     params: Mapping[str, float] | None,
     level: float,
     edges: np.ndarray,
+    lines: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int, int]:
-    """:func:`classify_edges`, and how many points the formula was evaluated at."""
-    values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
-    shape = np.asarray(field.values.shape, dtype=np.int64)
+    """:func:`classify_edges`, and how many points the formula was evaluated at.  ``lines``: F
+    at the four samples of each row's grid line, ``(4, V)``, instead of reading them in
+    ``field.values`` (a sparse field's, :func:`~.sparse_marching.sparse_edge_lines`)."""
+    shape = np.asarray(field.grid.shape, dtype=np.int64)
     edges = np.ascontiguousarray(edges, dtype=np.int64)
-    kinds, idx, fa, fb, ina, ijk, axis = _crossings_core(
-        values, shape, edges, float(level), SMOOTH_RATIO
-    )
+    if lines is None:
+        values = np.ascontiguousarray(field.values, dtype=np.float64).reshape(-1)
+        kinds, idx, fa, fb, ina, ijk, axis = _crossings_core(
+            values, shape, edges, float(level), SMOOTH_RATIO
+        )
+    else:
+        inner, both = _line_flags(shape, edges)
+        kinds, idx, fa, fb, ina, ijk, axis = _crossings_of_lines(
+            np.ascontiguousarray(lines, dtype=np.float64),
+            inner,
+            both,
+            edges,
+            float(level),
+            SMOOTH_RATIO,
+        )
     if idx.size == 0:
         return kinds, 0, 0
     prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
@@ -296,9 +315,9 @@ def _crossings_core(values, shape, edges, level, ratio):
 
     Three passes, so that the test runs on arrays: the samples of every row's grid line
     (scalar loads), the test itself (no loads, no branches: it vectorises), then the suspects
-    gathered.  Indices are unsigned (:func:`row_operations.unsigned`)."""
+    gathered (:func:`_crossings_of_lines`).  Indices are unsigned
+    (:func:`row_operations.unsigned`)."""
     n = edges.shape[0]
-    kinds = np.empty(n, dtype=np.uint8)
     # F at the edge's samples a, b and at its neighbours before a and after b along the grid
     # line; a neighbour that does not exist (the grid's border) is the edge's own sample, and
     # a row on no edge (axis -1, or at the grid's end) reads sample 0 four times
@@ -325,6 +344,32 @@ def _crossings_core(values, shape, edges, level, ratio):
         line[3, v] = values[ib + us * np.uint64(hi_ok)]
         inner[v] = on_edge
         both[v] = on_edge & lo_ok & hi_ok
+    return _crossings_of_lines(line, inner, both, edges, level, ratio)
+
+
+@njit(**KERNEL)
+def _line_flags(shape, edges):
+    """Per row: whether it is on a grid edge, and whether that edge has both neighbours along
+    its grid line (as :func:`_crossings_core` reads them)."""
+    n = edges.shape[0]
+    inner = np.empty(n, dtype=np.bool_)
+    both = np.empty(n, dtype=np.bool_)
+    for v in range(n):
+        axis = edges[v, 0]
+        pos = edges[v, 1 + axis] if axis >= 0 else 0
+        length = shape[axis] if axis >= 0 else 0
+        on_edge = (axis >= 0) & (pos + 1 < length)
+        inner[v] = on_edge
+        both[v] = on_edge & (pos >= 1) & (pos + 2 < length)
+    return inner, both
+
+
+@njit(**KERNEL)
+def _crossings_of_lines(line, inner, both, edges, level, ratio):
+    """The test and the suspects of :func:`_crossings_core` from F at each row's four line
+    samples ``line`` (4, V) (a sparse field gives them without a dense array)."""
+    n = edges.shape[0]
+    kinds = np.empty(n, dtype=np.uint8)
     suspect = np.empty(n, dtype=np.bool_)
     for v in range(n):
         fm = line[0, v] - level

@@ -59,6 +59,13 @@ def export_command(
     regrid: Annotated[
         int | None, typer.Option(help="Re-evaluate the formula on N^3 points first.")
     ] = None,
+    evaluator: Annotated[
+        str,
+        typer.Option(
+            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
+            "surface may cross) or fast (every grid point); the same mesh."
+        ),
+    ] = "auto",
     force: Annotated[
         bool,
         typer.Option(
@@ -103,7 +110,13 @@ def export_command(
         smooth=smooth,
     )
     options = ExportOptions(
-        format=fmt, cleanup=cleanup, size=size, regrid=regrid, force=force, walls=walls
+        format=fmt,
+        cleanup=cleanup,
+        size=size,
+        regrid=regrid,
+        force=force,
+        walls=walls,
+        evaluator=evaluator,
     )
     with Progress(
         TextColumn("export"),

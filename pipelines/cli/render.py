@@ -54,7 +54,13 @@ def render(
         Path | None, typer.Option(help="Write the float64 field to FIELD.npy.")
     ] = None,
     png: Annotated[Path | None, typer.Option(help="Write a shaded picture (PNG).")] = None,
-    evaluator: Annotated[str, typer.Option(help="fast or reference.")] = "fast",
+    evaluator: Annotated[
+        str,
+        typer.Option(
+            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
+            "surface may cross), fast (every grid point) or reference; the same mesh."
+        ),
+    ] = "auto",
     from_catalogue: Annotated[
         tuple[Path, str] | None,
         typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),
@@ -121,7 +127,7 @@ def render(
         grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid is not None else None,
         level=level,
     )
-    if evaluator == "fast":
+    if evaluator in ("fast", "sparse", "auto"):
         compile_first(echo_err)
     result = render_spec(
         spec_obj,

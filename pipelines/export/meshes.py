@@ -49,7 +49,7 @@ from surfgen.generator.formula.limits import (
 from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, FORMATS, MARKABLE, PRINTABLE
 from surfgen.generator.mesh.mesh import CAP, WALL_KINDS, Mesh, face_areas, wall_fraction
-from surfgen.generator.mesh.realise import realise
+from surfgen.generator.mesh.realise import EVALUATOR_CHOICES, realise, resolve_evaluator
 from surfgen.generator.mesh.walls import WALL_MODES
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now, open_catalogue
@@ -74,7 +74,9 @@ class ExportOptions:
     box units without.  ``size`` is the longest bbox side wanted; ``regrid`` re-evaluates the
     formula on ``regrid``³ points; ``force`` writes printable formats that fail the checks.
     ``walls``: keep (the solid), remove (only the zero set: open sheets, no caps, holes left
-    open) or mark (walls labelled; PLY and GLB only)."""
+    open) or mark (walls labelled; PLY and GLB only).  ``evaluator``: how a formula is meshed
+    (``auto`` is sparse on large grids); every evaluator makes the same mesh, so it is not
+    part of :meth:`to_dict`."""
 
     format: str = "stl"
     cleanup: CleanupOptions = field(default_factory=CleanupOptions)
@@ -82,6 +84,7 @@ class ExportOptions:
     regrid: int | None = None
     force: bool = False
     walls: str = "keep"
+    evaluator: str = "auto"
 
     def __post_init__(self) -> None:
         fmt = self.format.lower().lstrip(".")
@@ -105,6 +108,10 @@ class ExportOptions:
             raise ExportError(f"--size must be a positive number of millimetres, got {self.size}")
         if self.regrid is not None:
             Grid(Box.cube(1.0), (self.regrid,) * 3)  # GridError for a size out of range
+        if self.evaluator not in EVALUATOR_CHOICES:
+            raise ExportError(
+                f"unknown --evaluator '{self.evaluator}' (allowed: {', '.join(EVALUATOR_CHOICES)})"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -220,9 +227,10 @@ def export_shapes(
     for s in sources:  # refuse before any work, not after the first shapes
         if s.spec is not None and (options.regrid is not None or not _has_mesh(s)):
             n = options.regrid if options.regrid is not None else None
-            points = n**3 if n is not None else s.spec.to_grid().size
+            grid = Grid(Box.from_bounds(s.spec.box), (n,) * 3) if n else s.spec.to_grid()
+            sparse = resolve_evaluator(options.evaluator, grid) == "sparse"
             check_memory(
-                estimate_memory(points, mesh=True, cleanup=True),
+                estimate_memory(grid.size, mesh=True, cleanup=True, sparse=sparse),
                 max_memory,
                 f"exporting {s.name} on a {n or 'x'.join(map(str, s.spec.grid))}"
                 f"{'^3' if n else ''} grid",
@@ -325,7 +333,7 @@ def _no_json_constant(name: str) -> float:
 
 
 def load_source(
-    source: Source, regrid: int | None = None, walls: str = "keep"
+    source: Source, regrid: int | None = None, walls: str = "keep", evaluator: str = "auto"
 ) -> tuple[Mesh, list[str]]:
     """The mesh to clean and any warnings: the stored mesh, or the spec meshed with caps.
 
@@ -363,7 +371,8 @@ def load_source(
         warnings.append(f"{source.name}: mesh file {source.mesh_file} is missing, regenerated")
     for w in warnings:
         log.info("%s", w)  # the CLI prints the warnings it gets back
-    return realise(spec, grid=grid, cap=True, walls=walls).mesh, warnings  # type: ignore[return-value]
+    made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls)
+    return made.mesh, warnings  # type: ignore[return-value]
 
 
 def _without_walls(mesh: Mesh, name: str) -> Mesh:
@@ -397,7 +406,7 @@ def _transfer_kinds(labelled: Mesh, target: Mesh) -> Mesh:
 def prepare_export(source: Source, options: ExportOptions) -> Prepared:
     """Load, clean, remesh, smooth and scale one input; measure before and after."""
     start = time.perf_counter()
-    mesh, warnings = load_source(source, options.regrid, options.walls)
+    mesh, warnings = load_source(source, options.regrid, options.walls, options.evaluator)
     before = measure_mesh(mesh)
     result = repair_mesh(mesh, options.cleanup)
     cleanup = options.cleanup

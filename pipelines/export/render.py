@@ -16,6 +16,7 @@ import numpy as np
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.eval.sparse import SparseField
 from surfgen.generator.files import write_all_atomic, write_atomic
 from surfgen.generator.formula.limits import (
     MAX_SPEC_FILE_BYTES,
@@ -26,7 +27,7 @@ from surfgen.generator.formula.limits import (
 from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
 from surfgen.generator.mesh.formats import FORMATS, MESH_SUFFIXES
 from surfgen.generator.mesh.mesh import Mesh
-from surfgen.generator.mesh.realise import realise
+from surfgen.generator.mesh.realise import realise, resolve_evaluator
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
@@ -44,12 +45,13 @@ OPEN_SUFFIXES = tuple(s for s in MESH_SUFFIXES if s not in PRINTABLE_SUFFIXES)
 @dataclass(frozen=True)
 class RenderResult:
     spec: SurfaceSpec
-    field: Field
+    field: Field | SparseField
     mesh: Mesh | None
     seconds: float
     files: Mapping[str, str]
     walls: str = "keep"
     crossings: WallReport | None = None
+    evaluator: str = "fast"
 
     def summary(self) -> dict[str, Any]:
         """The JSON object ``surfgen render --json`` prints."""
@@ -63,6 +65,7 @@ class RenderResult:
             "vertices": None if self.mesh is None else self.mesh.n_vertices,
             "faces": None if self.mesh is None else self.mesh.n_faces,
             "nonfinite": self.field.nonfinite,
+            "evaluator": self.evaluator,
             "walls": self.walls,
             "wall_fraction": None if self.crossings is None else self.crossings.wall_fraction,
             "crossings": None if self.crossings is None else self.crossings.to_dict(),
@@ -150,7 +153,7 @@ def render_spec(
     spec: SurfaceSpec,
     *,
     cap: bool = False,
-    evaluator: str = "fast",
+    evaluator: str = "auto",
     mesh_path: Path | None = None,
     field_path: Path | None = None,
     png_path: Path | None = None,
@@ -165,7 +168,10 @@ def render_spec(
     picture), ``"remove"`` keeps only the zero set (open, no caps): an STL of it is refused
     unless ``force``.  With ``field_path`` and neither ``mesh_path`` nor ``png_path`` no mesh
     is extracted.  ``max_memory`` (bytes; None: the machine's available memory) refuses a grid
-    whose estimated memory is larger, before anything is allocated.  Raises
+    whose estimated memory is larger, before anything is allocated.  ``evaluator``: ``fast``,
+    ``reference``, ``sparse`` or ``auto`` (sparse on large grids:
+    :func:`~surfgen.generator.mesh.realise.resolve_evaluator`; a field file needs every sample,
+    so ``auto`` evaluates densely then; every evaluator makes the same mesh).  Raises
     :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, ``LimitError``); on error no file
     is written.
     """
@@ -184,24 +190,37 @@ def render_spec(
         check_output_path(Path(png_path), (".png",), "picture")
     want_mesh = mesh_path is not None or png_path is not None or field_path is None
     grid = spec.to_grid()
+    name = resolve_evaluator(evaluator, grid)
+    if field_path is not None and name == "sparse":
+        if evaluator == "sparse":
+            raise SpecError(
+                "--save-field writes every sample, which the sparse evaluator does not make; "
+                "use --evaluator auto, fast or reference"
+            )
+        name = "fast"
     check_memory(
-        estimate_memory(grid.size, mesh=want_mesh, field_copy=field_path is not None),
+        estimate_memory(
+            grid.size,
+            mesh=want_mesh,
+            field_copy=field_path is not None,
+            sparse=name == "sparse",
+        ),
         max_memory,
-        f"render on a {'x'.join(map(str, grid.shape))} grid",
+        f"render on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)",
     )
     start = time.perf_counter()
     mesh: Mesh | None = None
     crossings: WallReport | None = None
     if want_mesh:
-        made = realise(spec, grid=grid, evaluator=evaluator, cap=cap, walls=walls)
+        made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls)
         field, mesh, crossings = made.field, made.mesh, made.walls
     else:
-        field = evaluate(spec.tree(), grid, spec.params, evaluator=evaluator)
+        field = evaluate(spec.tree(), grid, spec.params, evaluator=name)
     seconds = time.perf_counter() - start
     # Every file is made in memory first, then all are written together: a full disk or a
     # bad folder for one of them leaves none of them behind.
     outputs: dict[str, tuple[Path, bytes]] = {}
-    if field_path is not None:
+    if field_path is not None and isinstance(field, Field):
         outputs["field"] = (Path(field_path), field_bytes(field))
     if mesh is not None and mesh_path is not None:
         outputs["mesh"] = (Path(mesh_path), encode_mesh(mesh, mesh_format(mesh_path)))
@@ -210,7 +229,7 @@ def render_spec(
     write_all_atomic(list(outputs.values()))
     files = {kind: str(path) for kind, (path, _) in outputs.items()}
     log.info("rendered %s in %.3f s", spec.key, seconds)
-    return RenderResult(spec, field, mesh, seconds, files, walls, crossings)
+    return RenderResult(spec, field, mesh, seconds, files, walls, crossings, name)
 
 
 __all__ = ["RenderResult", "SurfgenError", "build_spec", "render_spec", "read_spec", "save_field"]

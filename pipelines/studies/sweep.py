@@ -33,6 +33,7 @@ import numpy as np
 from surfgen.filters.compare import inside_samples, surface_samples
 from surfgen.generator.errors import SpecError, SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.sparse import SparseField
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.formula.expr import params_of
 from surfgen.generator.formula.parser import parse
@@ -252,9 +253,11 @@ def _sweep_into(
     first_inside = first_points = prev_inside = prev_points = None
     for i, (value, spec) in enumerate(zip(values, specs, strict=True)):
         t0 = time.perf_counter()
-        made = realise(spec, cap=cap, allow_empty=True)
+        made = realise(spec, evaluator="auto", cap=cap, allow_empty=True)
         field, mesh, empty = made.field, made.mesh, made.empty
-        inside = inside_samples(field, target, spec.level)
+        # the comparisons read the sides of cells (a sparse field's proxy gives the same)
+        dense = field.sign_proxy() if isinstance(field, SparseField) else field
+        inside = inside_samples(dense, target, spec.level)
         points = points_on(mesh)
         stem = f"step-{i:03d}"
         mesh_rel = None

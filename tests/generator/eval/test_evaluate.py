@@ -21,11 +21,11 @@ def _tree():
 
 
 def test_the_registry_names_every_evaluator() -> None:
-    assert list(ev.EVALUATORS) == ["fast", "reference"]
+    assert list(ev.EVALUATORS) == ["fast", "reference", "sparse"]
     with pytest.raises(
-        FormulaError, match=r"unknown evaluator 'sparse' \(allowed: fast, reference\)"
+        FormulaError, match=r"unknown evaluator 'dense' \(allowed: fast, reference, sparse\)"
     ):
-        ev.evaluate(_tree(), Grid(Box.cube(1.0), (4, 4, 4)), PARAMS, evaluator="sparse")
+        ev.evaluate(_tree(), Grid(Box.cube(1.0), (4, 4, 4)), PARAMS, evaluator="dense")
     with pytest.raises(FormulaError, match="unknown evaluator 'nope'"):
         ev.evaluate_points(_tree(), 0.0, 0.0, 0.0, PARAMS, evaluator="nope")
 

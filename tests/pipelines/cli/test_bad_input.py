@@ -153,14 +153,22 @@ def test_where_negation_chains_are_flat(template, capsys) -> None:
 
 
 def test_memory_is_estimated_before_anything_is_allocated(template, tmp_path: Path, capsys) -> None:
+    dense = ["render", "--preset", "sphere", "--grid", "1000", "--evaluator", "fast"]
+    line = refused([*dense, "--max-memory", "4G"], capsys, "needs about", tmp_path)
+    assert "7.5 GiB" in line and "limit of 4.0 GiB" in line  # the field alone is 7.45 GiB
+    # the default (auto: sparse on large grids) counts the work that grows with the surface
     line = refused(
-        ["render", "--preset", "sphere", "--grid", "1000", "--max-memory", "4G"],
+        ["render", "--preset", "sphere", "--grid", "1000", "--max-memory", "2G"],
         capsys,
         "needs about",
         tmp_path,
     )
-    assert "7.5 GiB" in line and "limit of 4.0 GiB" in line  # the field alone is 7.45 GiB
-    refused(["render", "--preset", "sphere", "--grid", "2048"], capsys, "the available memory")
+    assert "sparse evaluator" in line and "sparse field" in line and "7.5 GiB" not in line
+    refused(
+        ["render", "--preset", "sphere", "--grid", "2048", "--evaluator", "fast"],
+        capsys,
+        "the available memory",
+    )
     refused(
         ["sample", "--n", "2", "--grid", "2048", "--out", tmp_path / "cat"],
         capsys,

@@ -1,0 +1,193 @@
+"""Sparse against dense meshing: time, peak memory, share of points evaluated, op-evaluations/s.
+
+    python -m benchmarks.bench_sparse [--grids 128,256,512,1024] [--shapes eqA,eqB,eqC,...]
+
+Each shape is meshed as ``surfgen render`` meshes it (``realise``, caps as the shape has them)
+with ``--evaluator fast`` (every grid point) and ``--evaluator sparse``, each run in a fresh
+process (numba's allocations are invisible to tracemalloc: the peak is the process's VmHWM
+from ``/proc/self/status``, and ``rss0`` the process after its warm-up on a small grid, so
+``peak - rss0`` is what the run added).  Both runs hash their mesh (vertices and faces bytes):
+the table says whether they are the same mesh, bit for bit.  Dense runs are skipped where the
+dense estimate exceeds the available memory (``--dense-max`` caps the grid too).
+
+Shapes: the paper's equations A, B, C (presets) and the first draws of each sampler family
+(seed 5) that have a surface: ``sculpture-1``, ``sculpture-3``, ``lattice-0``, ``free-0``...
+``ops/s`` is the program's length times the points evaluated per second of evaluation
+(dense: the grid; sparse: the bricks' points), beside Fidget's published figures for its
+Prospero benchmark (7866 clauses on 1024^2 points, brute force: 5.8 s bytecode, 0.182 s JIT;
+M. Keeter's Fidget write-up): 1.4e9 and 4.5e10 clause-evaluations/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from typing import Any
+
+from benchmarks import harness
+from surfgen.generator.eval.compiler import compile_tree
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.limits import available_memory, estimate_memory
+from surfgen.generator.mesh.realise import realise
+from surfgen.generator.model.presets import PRESETS
+from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
+from surfgen.generator.model.spec import SurfaceSpec
+
+FIDGET_OPS = {"fidget VM (brute force)": 7866 * 1024**2 / 5.8, "fidget JIT": 7866 * 1024**2 / 0.182}
+DEFAULT_SHAPES = "eqA,eqB,eqC,sculpture-1,sculpture-3,sculpture-5,lattice-0,free-0"
+
+
+def spec_of(name: str):
+    """The spec of a shape name: a preset, or ``family-index`` (a draw of seed 5)."""
+    if name in PRESETS:
+        return PRESETS[name].spec(), PRESETS[name].cap
+    family, index = name.rsplit("-", 1)
+    cfg = SamplerConfig(family=family)
+    draw = draw_equation(5, int(index), cfg)
+    d = choose_d(draw, cfg, threads=1)
+    if d is None:
+        raise SystemExit(f"{name}: the draw has no d")
+    tree = draw.equation.with_d(d).to_tree()
+    return SurfaceSpec.from_tree(tree, draw.box.bounds(), (64, 64, 64)), True
+
+
+def vm_hwm() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def vm_rss() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def child(job: dict[str, Any]) -> dict[str, Any]:
+    """One run in this (fresh) process: warm up on 24^3, then mesh on the job's grid."""
+    spec, cap = spec_of(job["shape"])
+    box = Box.from_bounds(spec.box)
+    realise(spec, grid=Grid(box, (24,) * 3), evaluator=job["evaluator"], cap=cap, allow_empty=True)
+    rss0 = vm_rss()
+    n = job["grid"]
+    t0 = time.perf_counter()
+    made = realise(spec, grid=Grid(box, (n,) * 3), evaluator=job["evaluator"], cap=cap,
+                   allow_empty=True)  # fmt: skip
+    seconds = time.perf_counter() - t0
+    mesh = made.mesh
+    digest = hashlib.sha256()
+    faces = 0
+    if mesh is not None:
+        digest.update(mesh.vertices.tobytes())
+        digest.update(mesh.faces.tobytes())
+        faces = mesh.n_faces
+    ops = len(compile_tree(spec.tree(), dict(spec.params)).code)
+    if made.sparse:
+        points = made.field.points_evaluated
+        eval_s = made.field.stats["sample_seconds"]
+        share = made.field.share
+        boxes = made.field.stats["boxes"]
+    else:
+        points, share, boxes = n**3, 1.0, 0
+        eval_s = made.seconds["evaluate"]
+    return {
+        "seconds": seconds,
+        "evaluate": made.seconds["evaluate"],
+        "mesh_seconds": made.seconds["mesh"],
+        "peak": vm_hwm(),
+        "rss0": rss0,
+        "points": points,
+        "share": share,
+        "boxes": boxes,
+        "faces": faces,
+        "ops_per_s": ops * points / eval_s if eval_s > 0 else None,
+        "hash": digest.hexdigest()[:16] if mesh is not None else None,
+    }
+
+
+def run_job(job: dict[str, Any]) -> dict[str, Any] | None:
+    cmd = [sys.executable, "-m", "benchmarks.bench_sparse", "--child", json.dumps(job)]
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=harness.ROOT, check=False)
+    if out.returncode != 0:
+        print(f"  {job}: failed\n{out.stderr[-2000:]}", flush=True)
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def dense_fits(n: int, dense_max: int) -> bool:
+    need = sum(estimate_memory(n**3, mesh=True).values())
+    return n <= dense_max and need < 0.8 * available_memory()
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = harness.parser(__doc__)
+    ap.add_argument("--grids", default="128,256,512,1024")
+    ap.add_argument("--shapes", default=DEFAULT_SHAPES)
+    ap.add_argument("--dense-max", type=int, default=1024, help="largest grid run densely")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        print(json.dumps(child(json.loads(args.child))))
+        return
+    run = harness.Run("bench_sparse", args)
+    grids = [int(g) for g in args.grids.split(",")]
+    shapes = args.shapes.split(",")
+    rows = []
+    run.say(
+        "| shape | grid | dense s | sparse s | speed-up | dense peak MiB | sparse peak MiB "
+        "| memory ratio | share | faces | same mesh | sparse ops/s |"
+    )
+    run.say("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for shape in shapes:
+        for n in grids:
+            sparse = run_job({"shape": shape, "grid": n, "evaluator": "sparse"})
+            dense = None
+            if dense_fits(n, args.dense_max):
+                dense = run_job({"shape": shape, "grid": n, "evaluator": "fast"})
+            if sparse is None:
+                continue
+            row = {"shape": shape, "grid": n, "sparse": sparse, "dense": dense}
+            rows.append(row)
+            mib = 1 << 20
+            if dense is not None:
+                speed = f"{dense['seconds'] / sparse['seconds']:.1f}x"
+                memory = f"{dense['peak'] / sparse['peak']:.1f}x"
+                same = "yes" if dense["hash"] == sparse["hash"] else "NO"
+                d_s, d_m = f"{dense['seconds']:.2f}", f"{dense['peak'] / mib:.0f}"
+            else:
+                speed = memory = same = d_s = d_m = "not run"
+            ops = sparse["ops_per_s"]
+            run.say(
+                f"| {shape} | {n} | {d_s} | {sparse['seconds']:.2f} | {speed} | {d_m} | "
+                f"{sparse['peak'] / mib:.0f} | {memory} | {sparse['share']:.3f} | "
+                f"{sparse['faces']} | {same} | {ops:.2g} |"
+                if ops
+                else f"| {shape} | {n} | {d_s} | {sparse['seconds']:.2f} | {speed} | {d_m} | "
+                f"{sparse['peak'] / mib:.0f} | {memory} | {sparse['share']:.3f} | "
+                f"{sparse['faces']} | {same} | - |"
+            )
+    for label, value in FIDGET_OPS.items():
+        run.say(f"{label}: {value:.2g} clause-evaluations/s (published)")
+    sculptures = [r for r in rows if r["shape"].startswith("sculpture") and r["dense"]]
+    for n in grids:
+        ratios = [r["dense"]["seconds"] / r["sparse"]["seconds"] for r in sculptures
+                  if r["grid"] == n]  # fmt: skip
+        if ratios:
+            run.say(f"median sculpture speed-up at {n}^3: {statistics.median(ratios):.1f}x")
+    run.record(rows=rows, cpu=os.cpu_count())
+    run.save()
+
+
+if __name__ == "__main__":
+    main()

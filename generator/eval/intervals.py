@@ -1,0 +1,170 @@
+"""Interval arithmetic on the tape: bounds of a formula over boxes (issue 41).
+
+    flo, fhi, finite = program_bounds(program, lo, hi)   # K boxes [lo[k], hi[k]], (K, 3) each
+
+For every point p of box k, the value the fast evaluator computes, F(p), is NaN or lies in
+``[flo[k], fhi[k]]`` (``±inf`` allowed), and ``finite[k]`` guarantees that F is finite (not NaN,
+not ±inf) everywhere in the box. A sparse evaluator skips a box as all outside when
+``flo > level`` and as all inside when ``finite and fhi < level``.
+
+The interval interpreter runs the program's blocks like the points interpreter
+(:func:`surfgen.generator.eval.point_driver.run_points`, with the program rewritten by
+:func:`surfgen.generator.eval.tape.points_program`): each level's store holds one interval per
+box, so a value of level x is bounded over the box's x range only. The rules of every opcode:
+:mod:`surfgen.generator.eval.interval_kernels` and :mod:`surfgen.generator.eval.interval_rules`;
+the plain-numpy reference they are tested against: :mod:`surfgen.generator.eval.intervals_reference`.
+docs/reference/intervals.md explains how the rules are built.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+
+import numpy as np
+
+from surfgen.generator.errors import GridError
+from surfgen.generator.eval import interpreter
+from surfgen.generator.eval.compiler import Program, compile_tree
+from surfgen.generator.eval.interval_kernels import run_boxes
+from surfgen.generator.eval.opcodes import LEVEL_ORDER
+from surfgen.generator.eval.point_driver import dedupe
+from surfgen.generator.eval.tape import COMPILED_CACHE, points_program
+from surfgen.generator.formula.expr import Expr
+
+BOXES_TILE = 256  # boxes per register row
+# Boxes planned and run at a time: the stores hold up to 7 intervals per box and store row
+# (about 40 MB for 16384 boxes of a program with 20 store rows and nothing shared)
+BOXES_CHUNK = 16384
+_LEVELS = np.array(LEVEL_ORDER, dtype=np.int64)
+
+
+def plan_levels(
+    blo: np.ndarray, bhi: np.ndarray, share: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The items of each level for :func:`~.interval_kernels.run_boxes`:
+    ``(counts, offsets, item_map, firsts)``.
+
+    With ``share``, a level of some axes gets one item per distinct combination of the boxes'
+    ranges on those axes (boxes on a grid share them: the x level of a 32^3 grid of boxes runs
+    32 times, not 32768), told apart by their bits; level xyz keeps one item per box. Without,
+    every level has one item per box (the check of the sharing). ``firsts[lv]``: a box of each
+    item of level lv. Distinct values are found by hashing (:func:`.point_driver.dedupe`)."""
+    K = blo.shape[0]
+    every = np.arange(K, dtype=np.int64)
+    axis_ids = []
+    if share:
+        for a in range(3):
+            lo_ids, lo_first = dedupe(np.ascontiguousarray(blo[:, a]).view(np.int64))
+            hi_ids, hi_first = dedupe(np.ascontiguousarray(bhi[:, a]).view(np.int64))
+            axis_ids.append(dedupe(lo_ids * len(hi_first) + hi_ids))
+    inverse: list[np.ndarray] = [every] * 8
+    firsts: list[np.ndarray] = [every] * 8
+    for lv in range(1, 7 if share else 1):
+        key = np.zeros(K, np.int64)
+        for a in range(3):
+            if lv >> a & 1:
+                ids, first = axis_ids[a]
+                key = key * len(first) + ids
+        inverse[lv], firsts[lv] = dedupe(key)
+    counts = np.array([0] + [len(firsts[lv]) for lv in range(1, 8)], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    item_map = np.zeros((8, int(counts.sum())), dtype=np.int64)
+    for lv in range(1, 8):
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        for sub in range(1, 8):
+            if sub & ~lv == 0:  # the levels of lv's axes (lv itself too)
+                item_map[sub, cols] = offsets[sub] + inverse[sub][firsts[lv]]
+    return counts, offsets, item_map, firsts
+
+
+def check_boxes(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``lo`` and ``hi`` as C-contiguous float64 ``(K, 3)`` arrays; :class:`GridError` when the
+    shapes differ or are not ``(K, 3)``, a bound is NaN, or ``lo > hi`` somewhere."""
+    blo = np.ascontiguousarray(lo, dtype=np.float64)
+    bhi = np.ascontiguousarray(hi, dtype=np.float64)
+    if blo.ndim != 2 or blo.shape[1:] != (3,) or blo.shape != bhi.shape:
+        raise GridError(
+            f"boxes: lo and hi must both have shape (K, 3), got {blo.shape} and {bhi.shape}"
+        )
+    if np.isnan(blo).any() or np.isnan(bhi).any():
+        raise GridError("boxes: a bound is NaN (allowed: numbers and ±inf)")
+    if (blo > bhi).any():
+        k = int(np.argmax((blo > bhi).any(axis=1)))
+        raise GridError(f"boxes: box {k} has lo > hi ({blo[k].tolist()} > {bhi[k].tolist()})")
+    return blo, bhi
+
+
+def finish(flo: np.ndarray, fhi: np.ndarray, nan: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(flo, fhi, finite)`` of the API from the bounds and the may-be-NaN flags."""
+    finite = (nan == 0) & (flo > -np.inf) & (fhi < np.inf) & (flo <= fhi)
+    return flo, fhi, finite
+
+
+@functools.lru_cache(maxsize=COMPILED_CACHE)
+def _boxes_program(program: Program) -> tuple:
+    return points_program(program)
+
+
+def program_bounds(
+    program: Program, lo: np.ndarray, hi: np.ndarray, share: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds of F over K closed boxes ``[lo[k], hi[k]]`` (float64 ``(K, 3)``, world coordinates).
+
+    Returns float64 ``flo``, ``fhi`` ``(K,)`` and bool ``finite`` ``(K,)``: for every point p of
+    box k, F(p) as the fast evaluator computes it is NaN or lies in ``[flo[k], fhi[k]]`` (±inf
+    allowed as values and bounds), and ``finite[k]`` True guarantees F(p) is finite (not NaN,
+    not ±inf) everywhere in box k. A box where F is NaN everywhere gets ``flo = +inf``,
+    ``fhi = -inf``. Raises :class:`GridError` for malformed boxes, :class:`TypeError` for a
+    ``program`` that is not a :class:`Program`.
+
+    A value of some axes is bounded once per distinct combination of the boxes' ranges on
+    those axes (:func:`plan_levels`); ``share=False`` bounds every level once per box (the
+    same bounds, slower: the check of the sharing).
+    """
+    if not isinstance(program, Program):
+        raise TypeError(f"expected a Program, got {type(program).__name__}")
+    blo, bhi = check_boxes(lo, hi)
+    K = blo.shape[0]
+    flo = np.empty(K)
+    fhi = np.empty(K)
+    nan = np.zeros(K, dtype=np.uint8)
+    if K:
+        interpreter.load_interpreter()  # the elementary rows the rules call
+        prog = _boxes_program(program)
+        depth = max(1, int(np.max(program.rows)))
+        for k0 in range(0, K, BOXES_CHUNK):
+            k1 = min(K, k0 + BOXES_CHUNK)
+            _run_chunk(
+                prog, depth, blo[k0:k1], bhi[k0:k1], share, flo[k0:k1], fhi[k0:k1], nan[k0:k1]
+            )
+    return finish(flo, fhi, nan)
+
+
+def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan) -> None:
+    """Bounds of the boxes of one chunk into the views ``flo``, ``fhi``, ``nan``."""
+    counts, offsets, item_map, firsts = plan_levels(blo, bhi, share)
+    SL = np.empty((depth, item_map.shape[1]))
+    SH = np.empty((depth, item_map.shape[1]))
+    for a, lv in enumerate((1, 2, 4)):  # row 0 of the x, y, z levels: the axis ranges
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        SL[0, cols] = blo[firsts[lv], a]
+        SH[0, cols] = bhi[firsts[lv], a]
+    run_boxes(prog, BOXES_TILE, _LEVELS, counts, offsets, item_map, SL, SH, flo, fhi, nan)
+
+
+@functools.lru_cache(maxsize=COMPILED_CACHE)
+def _compiled(tree: Expr, params: tuple[tuple[str, float], ...]) -> Program:
+    return compile_tree(tree, dict(params))
+
+
+def tree_bounds(
+    tree: Expr, params: Mapping[str, float] | None, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`program_bounds` of ``tree`` with ``params`` (compiled programs of recent trees
+    are kept). Raises :class:`~surfgen.generator.errors.FormulaError` as
+    :func:`~surfgen.generator.eval.compiler.compile_tree` does."""
+    return program_bounds(_compiled(tree, tuple(sorted((params or {}).items()))), lo, hi)
+
+
+__all__ = ["BOXES_TILE", "plan_levels", "program_bounds", "tree_bounds"]

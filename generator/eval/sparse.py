@@ -1,0 +1,464 @@
+"""Sparse evaluation: sample a formula only in the blocks of the grid the surface may cross.
+
+The grid's cells are split into cubic *leaf blocks* of :data:`BLOCK` cells a side.  Coarse to
+fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic
+(:func:`~surfgen.generator.eval.intervals.program_bounds` over the closed box of the block's grid
+points): a block whose bounds lie above the level is *outside* (every sample is above the level
+or non-finite, which meshing counts as outside), one whose bounds are finite and below the level
+is *inside*; the others are split in eight and bounded again, down to the leaves.  Only the
+leaves left uncertain are *sampled*: their ``(BLOCK + 1)**3`` grid points (the points of the
+neighbouring blocks' shared faces included, so a leaf's cells have all their corners) are
+evaluated with the fast evaluator's grid kernel on those coordinates
+(:func:`~surfgen.generator.eval.tape.evaluate_axes`), bit for bit the dense grid's values.
+
+A cell lies in exactly one leaf, and its corners in that leaf's closed box: a cell whose corners
+are not all on one side lies in a sampled leaf.  So the sampled leaves hold every crossing, and
+the signs of every other sample are known from its leaf's state.  :class:`SparseField` holds the
+states, the sampled bricks and a lookup of any sampled grid point
+(:func:`sample_at`); the sparse meshing (:mod:`surfgen.generator.mesh.sparse_marching`) works on
+it.  ``faces=True`` also samples the inside leaves on the box's faces: a capped mesh closes the
+surface there with caps, whose vertices need those samples.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from numba import njit
+
+from surfgen.generator.eval.compiler import Program, compile_tree
+from surfgen.generator.eval.grid import Field, Grid
+from surfgen.generator.eval.intervals import program_bounds
+from surfgen.generator.eval.tape import evaluate_axes, evaluate_points
+from surfgen.generator.formula.expr import Expr
+from surfgen.generator.jit.options import INLINE, KERNEL
+
+log = logging.getLogger(__name__)
+
+#: Cells per side of a leaf block.  8 measured best at 256-1024 (benchmarks/bench_sparse.py):
+#: 4 bounds four times as many boxes and evaluates 125/64 points per cell; 16 samples
+#: ~2x more cells around the surface.
+BLOCK = 8
+#: Blocks per side at the coarsest level (at most): the first bounding pass.
+TOP_BLOCKS = 8
+
+OUTSIDE, INSIDE, SAMPLED = np.int8(0), np.int8(1), np.int8(2)
+
+__all__ = ["SparseField", "evaluate_points", "evaluate_sparse", "evaluate_sparse_program"]
+
+#: ``(program, lo, hi) -> (flo, fhi, finite)``: what bounds F over boxes.
+Bounds = Callable[[Program, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True, eq=False)
+class SparseField:
+    """A formula sampled where its level set may pass (see the module's docstring).
+
+    ``state``: int8 per leaf block (:data:`OUTSIDE`, :data:`INSIDE`, :data:`SAMPLED`);
+    ``slot``: the brick of each sampled leaf (-1 otherwise); ``corner``: ``(K, 3)`` first grid
+    index of each brick; ``values``: ``(K, B+1, B+1, B+1)`` samples of each brick (entries past
+    the grid's last point are NaN and never read); ``extent``: ``(K, 3)`` points of each brick
+    per axis.  ``level`` is the level the states refer to.  ``stats``: boxes bounded, points
+    evaluated, seconds.
+    """
+
+    grid: Grid
+    level: float
+    block: int
+    state: np.ndarray
+    slot: np.ndarray
+    corner: np.ndarray
+    extent: np.ndarray
+    values: np.ndarray
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.grid.shape
+
+    @property
+    def n_bricks(self) -> int:
+        return int(self.corner.shape[0])
+
+    @property
+    def points_evaluated(self) -> int:
+        """Grid points evaluated (shared faces of neighbouring bricks once per brick)."""
+        return int(np.prod(self.extent, axis=1).sum()) if self.n_bricks else 0
+
+    @property
+    def share(self) -> float:
+        """Points evaluated per grid point (1.0 = as many as the dense grid)."""
+        return self.points_evaluated / self.grid.size
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.values.nbytes + self.state.nbytes + self.slot.nbytes)
+
+    @property
+    def nonfinite(self) -> int:
+        """How many of the sampled points are NaN or infinite (each grid point once; the
+        skipped blocks' samples are not known)."""
+        return int(_count_nonfinite(self.values, self.extent, self.corner, self.slot, self.block))
+
+    def sign_proxy(self) -> Field:
+        """A dense :class:`Field` with F where sampled, and in the skipped leaves a value of
+        the leaf's side: +inf (outside) or ``level - max(1, |level| / 2)`` (inside: finite,
+        and far enough below the level that an interpolation keeps the sign).  Every
+        grid cell lies in one leaf, so whatever reads a cell's corners for their sides, or
+        interpolates within a cell and compares with the level, reads it as from the dense
+        field (the sweep's inside-sample comparisons)."""
+        b = self.block
+        values = np.empty(self.grid.shape)
+        below = self.level - max(1.0, abs(self.level) / 2)
+        for side, fill in ((OUTSIDE, np.inf), (INSIDE, below)):
+            for leaf in np.argwhere(self.state == side):
+                sl = tuple(slice(c * b, c * b + b + 1) for c in leaf)
+                values[sl] = fill
+        for brick, (c0, c1, c2) in enumerate(self.corner):
+            e0, e1, e2 = self.extent[brick]
+            values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = self.values[brick, :e0, :e1, :e2]
+        return Field(self.grid, values)
+
+    def any_inside(self) -> bool:
+        """Whether some sample is inside (``F < level``, finite)."""
+        if np.any(self.state == INSIDE):
+            return True
+        return bool(_bricks_count_inside(self.values, self.extent, self.level) > 0)
+
+    def all_inside(self) -> bool:
+        """Whether every sample is inside."""
+        if np.any(self.state == OUTSIDE):
+            return False
+        return bool(
+            _bricks_count_inside(self.values, self.extent, self.level) == self.points_evaluated
+        )
+
+    def lookup(self) -> tuple:
+        """What :func:`sample_at` takes after the index: ``(slot, corner, values, block)``."""
+        return self.slot, self.corner, self.values, self.block
+
+    def values_at(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """F at grid indices ``(i, j, k)`` where sampled; NaN where not (:func:`sample_at`)."""
+        ii, jj, kk = (np.ascontiguousarray(a, dtype=np.int64).reshape(-1) for a in (i, j, k))
+        out = np.empty(ii.size)
+        _values_at(ii, jj, kk, *self.lookup(), out)
+        return out
+
+    def sampled_at(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """Whether the grid points ``(i, j, k)`` lie in a sampled brick."""
+        ii, jj, kk = (np.ascontiguousarray(a, dtype=np.int64).reshape(-1) for a in (i, j, k))
+        out = np.empty(ii.size, dtype=np.bool_)
+        _sampled_at(ii, jj, kk, self.slot, self.block, out)
+        return out
+
+
+def leaf_counts(grid: Grid, block: int = BLOCK) -> tuple[int, int, int]:
+    """Leaf blocks per axis: ``ceil((N - 1) / block)``."""
+    return tuple(-(-(n - 1) // block) for n in grid.shape)  # type: ignore[return-value]
+
+
+def evaluate_sparse(
+    tree: Expr,
+    grid: Grid,
+    params: Mapping[str, float] | None = None,
+    threads: int | None = None,
+    level: float = 0.0,
+    faces: bool = False,
+    block: int = BLOCK,
+    bounds: Bounds = program_bounds,
+    max_share: float | None = None,
+) -> SparseField | None:
+    """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
+
+    ``faces``: also sample the inside leaves on the box's faces (for capped meshes);
+    ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
+    bounds (:func:`~surfgen.generator.eval.intervals.program_bounds`); ``max_share``: return
+    None, having only bounded the blocks, when the leaves left to sample hold more than this
+    share of the grid's points (the dense grid is then cheaper).
+    Raises ``FormulaError`` as compiling the formula does.
+    """
+    return evaluate_sparse_program(
+        compile_tree(tree, dict(params or {})),
+        grid,
+        threads,
+        level,
+        faces,
+        block,
+        bounds,
+        max_share,
+    )
+
+
+def evaluate_sparse_program(
+    program: Program,
+    grid: Grid,
+    threads: int | None = None,
+    level: float = 0.0,
+    faces: bool = False,
+    block: int = BLOCK,
+    bounds: Bounds = program_bounds,
+    max_share: float | None = None,
+) -> SparseField | None:
+    """:func:`evaluate_sparse` of a compiled program."""
+    if int(block) != block or block < 1:
+        raise ValueError(f"block must be a whole number >= 1, got {block!r}")
+    t0 = time.perf_counter()
+    axes = grid.axes()
+    state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
+    if faces:
+        _sample_face_leaves(state)
+    t1 = time.perf_counter()
+    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
+    slot = np.full(state.shape, -1, dtype=np.int32)
+    slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
+    corner = leaves * block
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    extent = np.minimum(block + 1, shape[None, :] - corner)
+    if max_share is not None and np.prod(extent, axis=1).sum() > max_share * grid.size:
+        log.debug(
+            "sparse: %d of %d leaves to sample, over the share asked", len(leaves), state.size
+        )
+        return None
+    values = np.empty((len(leaves), block + 1, block + 1, block + 1))
+    partial = np.flatnonzero(np.any(extent <= block, axis=1))
+    values[partial] = np.nan  # entries past the grid's end: never read, but defined
+    _evaluate_bricks(program, axes, leaves, corner, extent, values, _threads(threads))
+    t2 = time.perf_counter()
+    sf = SparseField(grid, float(level), int(block), state, slot, corner, extent, values)
+    sf.stats.update(
+        boxes=boxes,
+        points=sf.points_evaluated,
+        share=sf.share,
+        bound_seconds=t1 - t0,
+        sample_seconds=t2 - t1,
+    )
+    log.debug(
+        "sparse: %d boxes bounded, %d of %d leaves sampled, %.3g of the grid's points",
+        boxes,
+        len(leaves),
+        state.size,
+        sf.share,
+    )
+    return sf
+
+
+def _threads(threads: int | None) -> int:
+    if threads is None:
+        return int(numba.config.NUMBA_NUM_THREADS)
+    return max(1, int(threads))
+
+
+# ----------------------------------------------------------------------------- coarse to fine
+
+
+def classify_blocks(
+    program: Program,
+    grid: Grid,
+    axes: tuple[np.ndarray, np.ndarray, np.ndarray],
+    level: float,
+    block: int,
+    bounds: Bounds,
+) -> tuple[np.ndarray, int]:
+    """The leaves' states (int8 array of :func:`leaf_counts`) and the number of boxes bounded.
+
+    Levels of blocks ``block * 2**l`` cells a side, from the coarsest (at most
+    :data:`TOP_BLOCKS` a side) to the leaves: every block of the coarsest level is bounded; at
+    each finer level the children of the uncertain blocks are.  A state is inherited from the
+    parent where the parent was decided.
+    """
+    n_leaf = np.asarray(leaf_counts(grid, block), dtype=np.int64)
+    cells = np.asarray(grid.shape, dtype=np.int64) - 1
+    top = 0
+    while np.any(-(-n_leaf // (1 << top)) > TOP_BLOCKS):
+        top += 1
+    boxes = 0
+    state = None  # states at the current level
+    for lv in range(top, -1, -1):
+        size = block << lv
+        counts = -(-cells // size)
+        if state is None:
+            todo = np.argwhere(np.ones(tuple(counts), dtype=bool)).astype(np.int64)
+            state = np.full(tuple(counts), SAMPLED, dtype=np.int8)
+        else:
+            parent = state
+            state = np.repeat(np.repeat(np.repeat(parent, 2, 0), 2, 1), 2, 2)
+            state = np.ascontiguousarray(state[: counts[0], : counts[1], : counts[2]])
+            todo = np.argwhere(state == SAMPLED).astype(np.int64)
+        if len(todo) == 0:
+            continue
+        first = todo * size
+        last = np.minimum(first + size, cells[None, :])
+        lo = np.stack([axes[a][first[:, a]] for a in range(3)], axis=1)
+        hi = np.stack([axes[a][last[:, a]] for a in range(3)], axis=1)
+        flo, fhi, finite = bounds(program, lo, hi)
+        boxes += len(todo)
+        flo = np.asarray(flo, dtype=np.float64)
+        fhi = np.asarray(fhi, dtype=np.float64)
+        finite = np.asarray(finite, dtype=bool)
+        decided = np.full(len(todo), SAMPLED, dtype=np.int8)
+        decided[flo > level] = OUTSIDE
+        decided[finite & (fhi < level)] = INSIDE
+        state[tuple(todo.T)] = decided
+    assert state is not None
+    return state, boxes
+
+
+def _sample_face_leaves(state: np.ndarray) -> None:
+    """Sample the inside leaves on the box's faces (in place)."""
+    for axis in range(3):
+        for end in (0, state.shape[axis] - 1):
+            face = state[(slice(None),) * axis + (end,)]  # a view of the face
+            face[face == INSIDE] = SAMPLED
+
+
+# ----------------------------------------------------------------------------- the bricks
+
+
+def _evaluate_bricks(
+    program: Program,
+    axes: tuple[np.ndarray, np.ndarray, np.ndarray],
+    leaves: np.ndarray,
+    corner: np.ndarray,
+    extent: np.ndarray,
+    values: np.ndarray,
+    threads: int,
+) -> None:
+    """Fill ``values`` with F at each brick's points: per column of leaves (one x and y block)
+    the grid kernel runs once on the union of the column's z points
+    (:func:`~surfgen.generator.eval.tape.evaluate_axes`); the values are scattered to the
+    bricks."""
+    if len(leaves) == 0:
+        return
+    ax, ay, az = axes
+    order = np.lexsort((leaves[:, 2], leaves[:, 1], leaves[:, 0]))
+    cols = leaves[order, :2]
+    starts = np.flatnonzero(np.r_[True, np.any(cols[1:] != cols[:-1], axis=1)])
+    ends = np.r_[starts[1:], len(order)]
+
+    def column(c: int) -> None:
+        members = order[starts[c] : ends[c]]
+        k0 = corner[members, 2]
+        kn = extent[members, 2]
+        zs = np.unique(np.concatenate([np.arange(a, a + n) for a, n in zip(k0, kn, strict=True)]))
+        m = members[0]
+        i0, j0 = corner[m, 0], corner[m, 1]
+        ni, nj = extent[m, 0], extent[m, 1]
+        out = evaluate_axes(program, ax[i0 : i0 + ni], ay[j0 : j0 + nj], az[zs])
+        where = np.searchsorted(zs, k0)
+        for b, w, n in zip(members, where, kn, strict=True):
+            values[b, :ni, :nj, :n] = out[:, :, w : w + n]
+
+    n_cols = len(starts)
+    if threads <= 1 or n_cols < 2:
+        for c in range(n_cols):
+            column(c)
+    else:
+        with ThreadPoolExecutor(min(threads, n_cols)) as pool:
+            list(pool.map(column, range(n_cols), chunksize=max(1, n_cols // (8 * threads))))
+
+
+@njit(**KERNEL)
+def _bricks_count_inside(values, extent, level):
+    """Inside samples of the bricks (a point shared by bricks once per brick)."""
+    n = 0
+    for b in range(values.shape[0]):
+        for i in range(extent[b, 0]):
+            for j in range(extent[b, 1]):
+                for k in range(extent[b, 2]):
+                    x = values[b, i, j, k]
+                    if np.isfinite(x) and x < level:
+                        n += 1
+    return n
+
+
+@njit(**KERNEL)
+def _count_nonfinite(values, extent, corner, slot, block):
+    """Non-finite samples of the bricks, a point shared by bricks counted in the first brick
+    :func:`locate` finds for it."""
+    n = 0
+    for b in range(values.shape[0]):
+        for i in range(extent[b, 0]):
+            for j in range(extent[b, 1]):
+                for k in range(extent[b, 2]):
+                    if np.isfinite(values[b, i, j, k]):
+                        continue
+                    gi, gj, gk = corner[b, 0] + i, corner[b, 1] + j, corner[b, 2] + k
+                    n += locate(slot, block, gi, gj, gk)[0] == b
+    return n
+
+
+@njit(**INLINE)
+def locate(slot, block, i, j, k):
+    """The brick holding grid point ``(i, j, k)`` and the point's place in it, or brick -1.
+
+    A point on a leaf's face is in up to 8 bricks (all hold the same value); the one of the
+    leaf ``index // block`` is tried first, then the lower neighbours where the point is on
+    their face."""
+    n0, n1, n2 = slot.shape
+    b0, b1, b2 = i // block, j // block, k // block
+    for d0 in range(2):
+        c0 = b0 - d0
+        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+            continue
+        for d1 in range(2):
+            c1 = b1 - d1
+            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+                continue
+            for d2 in range(2):
+                c2 = b2 - d2
+                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                    continue
+                s = slot[c0, c1, c2]
+                if s >= 0:
+                    return s, i - c0 * block, j - c1 * block, k - c2 * block
+    return -1, 0, 0, 0
+
+
+@njit(**INLINE)
+def sample_at(i, j, k, slot, corner, values, block):
+    """F at grid point ``(i, j, k)``, NaN where no brick holds it (:func:`locate`)."""
+    s, li, lj, lk = locate(slot, block, i, j, k)
+    if s < 0:
+        return np.nan
+    return values[s, li, lj, lk]
+
+
+@njit(**KERNEL)
+def _values_at(ii, jj, kk, slot, corner, values, block, out):
+    for p in range(ii.size):
+        out[p] = sample_at(ii[p], jj[p], kk[p], slot, corner, values, block)
+
+
+@njit(**KERNEL)
+def _sampled_at(ii, jj, kk, slot, block, out):
+    for p in range(ii.size):
+        out[p] = locate(slot, block, ii[p], jj[p], kk[p])[0] >= 0
+
+
+def leaf_state_at(sf: SparseField, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The state of the leaf ``index // block`` (clipped to the leaves) of grid points."""
+    b = sf.block
+    n = sf.state.shape
+    ii = np.minimum(np.asarray(i) // b, n[0] - 1)
+    jj = np.minimum(np.asarray(j) // b, n[1] - 1)
+    kk = np.minimum(np.asarray(k) // b, n[2] - 1)
+    return sf.state[ii, jj, kk]
+
+
+def memory_estimate(grid: Grid, block: int = BLOCK, share: float = 0.25) -> int:
+    """Bytes of a sparse evaluation and meshing of ``grid`` if ``share`` of its leaves are
+    sampled: the bricks (float64 values, float32 offsets, the inside flags), the leaves'
+    states and slots, and the mixed cells' corners (about a quarter of a sampled leaf's cells,
+    8 float32 corners, 3 int64 indices).  The default share is generous: sculptures sample
+    2-15 % of their leaves at 256-1024 (``benchmarks/bench_sparse.py``)."""
+    leaves = math.prod(leaf_counts(grid, block))
+    bricks = share * leaves
+    per_brick = (block + 1) ** 3 * (8 + 4 + 1) + 0.25 * block**3 * (8 * 4 + 3 * 8) * 2
+    return int(leaves * 5 + bricks * per_brick)

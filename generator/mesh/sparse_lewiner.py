@@ -1,0 +1,524 @@
+"""scikit-image's Lewiner marching cubes over a list of cells, bit for bit.
+
+The dense path (:func:`~surfgen.generator.mesh.mesh.extract_with_edges`) hands skimage the whole
+float32 volume and a mask of the mixed cells.  The sparse path has no whole volume, only the
+mixed cells and their corners, so this module runs the same algorithm on such a list:
+skimage's Cython ``marching_cubes`` (``skimage/measure/_marching_cubes_lewiner_cy.pyx``) ported
+to numba with skimage's own lookup tables (:mod:`skimage.measure._marching_cubes_lewiner_luts`,
+read at import).  Given the cells skimage's mask lets through, in the order skimage visits them
+(C order of the volume: axis 0 outer), it returns the vertices and faces skimage returns, in the
+same order and with the same float32 bits:
+
+- a vertex's coordinates are computed in double as ``cell + fx / ff`` from the cell's corner
+  values and rounded once to float32, with the absolute cell index (a block-wise run shifted
+  afterwards would round differently);
+- vertices are shared through skimage's two "face layers" (the vertices of the current and the
+  next plane of cells, keyed by cell and edge), emulated with hash tables cleared as skimage
+  clears its layers, so the same duplicates appear where skimage's cache misses;
+- the ambiguous cases' face and interior tests use the same double arithmetic.
+
+:func:`lewiner_cells` is the kernel; ``tests/generator/mesh/test_sparse_lewiner.py`` compares it
+with skimage on random volumes full of ambiguous cells.  The axis names follow the Cython
+(``x`` is the volume's last axis, ``z`` its first); the caller flips the vertices as skimage's
+wrapper does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from skimage.measure import _marching_cubes_lewiner as _sk
+from skimage.measure import _marching_cubes_lewiner_luts as _luts
+
+from surfgen.generator.jit.options import INLINE, KERNEL
+
+# skimage's FLT_EPSILON is np.spacing(1.0): the double epsilon, despite the name.
+_EPS = float(np.spacing(1.0))
+
+# The tables skimage's LutProvider takes, in its order; each is stored flat in one int8 array
+# with its shape, and read as skimage's Lut.get1/get2/get3 read them (row-major offsets).
+_NAMES = [
+    "CASES",
+    "TILING1",
+    "TILING2",
+    "TILING3_1",
+    "TILING3_2",
+    "TILING4_1",
+    "TILING4_2",
+    "TILING5",
+    "TILING6_1_1",
+    "TILING6_1_2",
+    "TILING6_2",
+    "TILING7_1",
+    "TILING7_2",
+    "TILING7_3",
+    "TILING7_4_1",
+    "TILING7_4_2",
+    "TILING8",
+    "TILING9",
+    "TILING10_1_1",
+    "TILING10_1_1_",
+    "TILING10_1_2",
+    "TILING10_2",
+    "TILING10_2_",
+    "TILING11",
+    "TILING12_1_1",
+    "TILING12_1_1_",
+    "TILING12_1_2",
+    "TILING12_2",
+    "TILING12_2_",
+    "TILING13_1",
+    "TILING13_1_",
+    "TILING13_2",
+    "TILING13_2_",
+    "TILING13_3",
+    "TILING13_3_",
+    "TILING13_4",
+    "TILING13_5_1",
+    "TILING13_5_2",
+    "TILING14",
+    "TEST3",
+    "TEST4",
+    "TEST6",
+    "TEST7",
+    "TEST10",
+    "TEST12",
+    "TEST13",
+    "SUBCONFIG13",
+]
+(
+    CASES, T1, T2, T3_1, T3_2, T4_1, T4_2, T5, T6_1_1, T6_1_2, T6_2, T7_1, T7_2, T7_3, T7_4_1,
+    T7_4_2, T8, T9, T10_1_1, T10_1_1_, T10_1_2, T10_2, T10_2_, T11, T12_1_1, T12_1_1_, T12_1_2,
+    T12_2, T12_2_, T13_1, T13_1_, T13_2, T13_2_, T13_3, T13_3_, T13_4, T13_5_1, T13_5_2, T14,
+    TEST3, TEST4, TEST6, TEST7, TEST10, TEST12, TEST13, SUBCONFIG13,
+) = range(len(_NAMES))  # fmt: skip
+
+
+def _tables() -> tuple[np.ndarray, np.ndarray]:
+    """The tables in one flat int8 array, and per table ``(offset, L1, L2)`` (skimage's Lut)."""
+    arrays = [_sk._to_array(getattr(_luts, name)) for name in _NAMES]
+    meta = np.zeros((len(arrays), 3), dtype=np.int64)
+    offset = 0
+    for t, a in enumerate(arrays):
+        meta[t] = (offset, a.shape[1] if a.ndim > 1 else 1, a.shape[2] if a.ndim > 2 else 1)
+        offset += a.size
+    flat = np.concatenate([a.reshape(-1) for a in arrays]).astype(np.int8)
+    return flat, meta
+
+
+LUT, LUT_META = _tables()
+# Edge -> relative corner positions (skimage's EDGETORELATIVEPOS{X,Y,Z}), shape (12, 2).
+EDGE_X = np.ascontiguousarray(_sk.EDGETORELATIVEPOSX, dtype=np.int64)
+EDGE_Y = np.ascontiguousarray(_sk.EDGETORELATIVEPOSY, dtype=np.int64)
+EDGE_Z = np.ascontiguousarray(_sk.EDGETORELATIVEPOSZ, dtype=np.int64)
+
+
+@njit(**INLINE)
+def _get1(lut, meta, t, i0):
+    return np.int64(lut[meta[t, 0] + i0])
+
+
+@njit(**INLINE)
+def _get2(lut, meta, t, i0, i1):
+    return np.int64(lut[meta[t, 0] + i0 * meta[t, 1] + i1])
+
+
+@njit(**INLINE)
+def _get3(lut, meta, t, i0, i1, i2):
+    return np.int64(lut[meta[t, 0] + i0 * meta[t, 1] * meta[t, 2] + i1 * meta[t, 2] + i2])
+
+
+@njit(**INLINE)
+def _test_face(v, face):
+    """skimage's ``test_face``: whether the face ``face`` (signed) holds part of the surface;
+    ``v`` the cell's corners v0..v7."""
+    a = face if face >= 0 else -face
+    if a == 1:
+        A, B, C, D = v[0], v[4], v[5], v[1]
+    elif a == 2:
+        A, B, C, D = v[1], v[5], v[6], v[2]
+    elif a == 3:
+        A, B, C, D = v[2], v[6], v[7], v[3]
+    elif a == 4:
+        A, B, C, D = v[3], v[7], v[4], v[0]
+    elif a == 5:
+        A, B, C, D = v[0], v[3], v[2], v[1]
+    else:
+        A, B, C, D = v[4], v[7], v[6], v[5]
+    ac_bd = A * C - B * D
+    if ac_bd > -_EPS and ac_bd < _EPS:
+        return face >= 0
+    return np.float64(face) * A * ac_bd >= 0
+
+
+@njit(**INLINE)
+def _edge_t(v, p, q, b0, b1, c0, c1, d0, d1):
+    """``t`` on the edge from corner p to q and the three other interpolations of
+    ``test_internal`` (Bt, Ct, Dt from the corner pairs)."""
+    t = v[p] / (v[p] - v[q] + _EPS)
+    return t, v[b0] + (v[b1] - v[b0]) * t, v[c0] + (v[c1] - v[c0]) * t, v[d0] + (v[d1] - v[d0]) * t
+
+
+@njit(**KERNEL)
+def _test_internal(v, lut, meta, case, config, subconfig, s):
+    """skimage's ``test_internal`` (cases 4, 6, 7, 10, 12, 13)."""
+    At = Bt = Ct = Dt = 0.0
+    if case == 4 or case == 10:
+        a = (v[4] - v[0]) * (v[6] - v[2]) - (v[7] - v[3]) * (v[5] - v[1])
+        b = (
+            v[2] * (v[4] - v[0])
+            + v[0] * (v[6] - v[2])
+            - v[1] * (v[7] - v[3])
+            - v[3] * (v[5] - v[1])
+        )
+        t = -b / (2 * a + _EPS)
+        if t < 0 or t > 1:
+            return s > 0
+        At = v[0] + (v[4] - v[0]) * t
+        Bt = v[3] + (v[7] - v[3]) * t
+        Ct = v[2] + (v[6] - v[2]) * t
+        Dt = v[1] + (v[5] - v[1]) * t
+    else:
+        if case == 6:
+            edge = _get2(lut, meta, TEST6, config, 2)
+        elif case == 7:
+            edge = _get2(lut, meta, TEST7, config, 4)
+        elif case == 12:
+            edge = _get2(lut, meta, TEST12, config, 3)
+        else:
+            edge = _get3(lut, meta, T13_5_1, config, subconfig, 0)
+        At = 0.0
+        if edge == 0:
+            _t, Bt, Ct, Dt = _edge_t(v, 0, 1, 3, 2, 7, 6, 4, 5)
+        elif edge == 1:
+            _t, Bt, Ct, Dt = _edge_t(v, 1, 2, 0, 3, 4, 7, 5, 6)
+        elif edge == 2:
+            _t, Bt, Ct, Dt = _edge_t(v, 2, 3, 1, 0, 5, 4, 6, 7)
+        elif edge == 3:
+            _t, Bt, Ct, Dt = _edge_t(v, 3, 0, 2, 1, 6, 5, 7, 4)
+        elif edge == 4:
+            _t, Bt, Ct, Dt = _edge_t(v, 4, 5, 7, 6, 3, 2, 0, 1)
+        elif edge == 5:
+            _t, Bt, Ct, Dt = _edge_t(v, 5, 6, 4, 7, 0, 3, 1, 2)
+        elif edge == 6:
+            _t, Bt, Ct, Dt = _edge_t(v, 6, 7, 5, 4, 1, 0, 2, 3)
+        elif edge == 7:
+            _t, Bt, Ct, Dt = _edge_t(v, 7, 4, 6, 5, 2, 1, 3, 0)
+        elif edge == 8:
+            _t, Bt, Ct, Dt = _edge_t(v, 0, 4, 3, 7, 2, 6, 1, 5)
+        elif edge == 9:
+            _t, Bt, Ct, Dt = _edge_t(v, 1, 5, 0, 4, 3, 7, 2, 6)
+        elif edge == 10:
+            _t, Bt, Ct, Dt = _edge_t(v, 2, 6, 1, 5, 0, 4, 3, 7)
+        elif edge == 11:
+            _t, Bt, Ct, Dt = _edge_t(v, 3, 7, 2, 6, 1, 5, 0, 4)
+    test = 0
+    if At >= 0:
+        test += 1
+    if Bt >= 0:
+        test += 2
+    if Ct >= 0:
+        test += 4
+    if Dt >= 0:
+        test += 8
+    if test == 5:
+        return s > 0 if At * Ct - Bt * Dt < _EPS else False
+    if test == 10:
+        return s > 0 if At * Ct - Bt * Dt >= _EPS else False
+    if test in (7, 11, 13, 14, 15):
+        return s < 0
+    return s > 0
+
+
+# ----------------------------------------------------------------------------- face layers
+
+
+@njit(**INLINE)
+def _slot(keys, key):
+    """The slot of ``key`` in the open-addressing table ``keys`` (-1: empty)."""
+    mask = keys.size - 1
+    h = np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(20)) & mask
+    while keys[h] != -1 and keys[h] != key:
+        h = (h + 1) & mask
+    return h
+
+
+@njit(**KERNEL)
+def _clear(keys, used, n_used):
+    for u in range(n_used):
+        keys[used[u]] = -1
+
+
+# ----------------------------------------------------------------------------- the cells
+
+
+@njit(**KERNEL)
+def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
+    """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``(cz, cy, cx)``
+    (int64, sorted in skimage's visiting order: z, then y, then x) with corner values
+    ``corners`` (C, 8) float32 in skimage's order v0..v7 (``im[z, y, x]``, ``im[z, y, x+1]``,
+    ``im[z, y+1, x+1]``, ``im[z, y+1, x]``, then the same at ``z+1``), the level 0.
+
+    ``nx``, ``ny``: the volume's sizes along x (last axis) and y.  Returns skimage's raw float32
+    vertices ``(V, 3)`` in (x, y, z) order and int32 faces ``(F*3,)``.
+    """
+    n_cells = cz.size
+    # face-layer tables: sized for the two largest planes of cells (13 keys per cell at most)
+    most = 1
+    run = 0
+    for c in range(n_cells):
+        run = run + 1 if c > 0 and cz[c] == cz[c - 1] else 1
+        most = max(most, run)
+    size = 64
+    while size < 4 * 13 * most:  # a table holds two planes' keys; at most half full
+        size *= 2
+    keys1 = np.full(size, -1, dtype=np.int64)
+    vals1 = np.empty(size, dtype=np.int64)
+    used1 = np.empty(size, dtype=np.int64)
+    keys2 = np.full(size, -1, dtype=np.int64)
+    vals2 = np.empty(size, dtype=np.int64)
+    used2 = np.empty(size, dtype=np.int64)
+    n1 = 0
+    n2 = 0
+    verts = np.empty((max(16, 4 * n_cells), 3), dtype=np.float32)
+    faces = np.empty(max(48, 12 * n_cells), dtype=np.int32)
+    nv = 0
+    nf = 0
+    v = np.empty(8)  # v0..v7
+    vv = np.empty(8)  # skimage's vv: the corners indexed by bits (x, y, z)
+    tri = np.empty(36, dtype=np.int64)  # edge indices of the cell's triangles
+    last_z = np.int64(-2)
+    for c in range(n_cells):
+        z, y, x = cz[c], cy[c], cx[c]
+        if z != last_z:
+            # skimage swaps its layers at every z (new_z_value): a layer's vertices live on
+            # for the next plane only
+            if z == last_z + 1:
+                _clear(keys1, used1, n1)
+                keys1, keys2 = keys2, keys1
+                vals1, vals2 = vals2, vals1
+                used1, used2 = used2, used1
+                n1 = n2
+                n2 = 0
+            else:
+                _clear(keys1, used1, n1)
+                _clear(keys2, used2, n2)
+                n1 = 0
+                n2 = 0
+            last_z = z
+        index = 0
+        for k in range(8):
+            v[k] = np.float64(corners[c, k])
+            if v[k] > 0.0:
+                index += 1 << k
+        case = _get2(lut, meta, CASES, index, 0)
+        if case <= 0:
+            continue
+        config = _get2(lut, meta, CASES, index, 1)
+        nt, table, i1, three = _big_switch(v, lut, meta, case, config)
+        if nt == 0:
+            continue
+        for q in range(3 * nt):
+            if three:
+                tri[q] = _get3(lut, meta, table, config, i1, q)
+            else:
+                tri[q] = _get2(lut, meta, table, config, q)
+        vv[0], vv[1], vv[2], vv[3] = v[0], v[1], v[3], v[2]
+        vv[4], vv[5], vv[6], vv[7] = v[4], v[5], v[7], v[6]
+        # the centre vertex (computed on first use, as skimage does)
+        cx12 = cy12 = cz12 = 0.0
+        have12 = False
+        if verts.shape[0] < nv + 13:
+            grown = np.empty((2 * verts.shape[0] + 13, 3), dtype=np.float32)
+            grown[:nv] = verts[:nv]
+            verts = grown
+        if faces.size < nf + 3 * nt:
+            grown_f = np.empty(2 * faces.size + 3 * nt, dtype=np.int32)
+            grown_f[:nf] = faces[:nf]
+            faces = grown_f
+        for q in range(3 * nt):
+            vi = tri[q]
+            # skimage's get_index_in_facelayer
+            i = nx * y + x
+            j = 0
+            second = False
+            if vi < 8:
+                e = vi
+                if vi >= 4:
+                    e = vi - 4
+                    second = True
+                if e == 1:
+                    i += 1
+                    j = 1
+                elif e == 2:
+                    i += nx
+                elif e == 3:
+                    j = 1
+            elif vi < 12:
+                j = 2
+                if vi == 9:
+                    i += 1
+                elif vi == 10:
+                    i += nx + 1
+                elif vi == 11:
+                    i += nx
+            else:
+                j = 3
+            key = 4 * i + j
+            if second:
+                h = _slot(keys2, key)
+                found = keys2[h] == key
+                at = vals2[h] if found else -1
+            else:
+                h = _slot(keys1, key)
+                found = keys1[h] == key
+                at = vals1[h] if found else -1
+            if at < 0:
+                if vi == 12:
+                    if not have12:
+                        fx = fy = fz = ff = 0.0
+                        for k in range(8):
+                            w = 1.0 / (_EPS + abs(v[k]))
+                            # corners v0..v7 at (x, y, z) bits 000 100 110 010 001 101 111 011
+                            bx = 1.0 if k in (1, 2, 5, 6) else 0.0
+                            by = 1.0 if k in (2, 3, 6, 7) else 0.0
+                            bz = 1.0 if k >= 4 else 0.0
+                            fx += bx * w
+                            fy += by * w
+                            fz += bz * w
+                            ff += w
+                        cx12 = np.float64(x) + 1.0 * fx / ff
+                        cy12 = np.float64(y) + 1.0 * fy / ff
+                        cz12 = np.float64(z) + 1.0 * fz / ff
+                        have12 = True
+                    px, py, pz = cx12, cy12, cz12
+                else:
+                    dx1, dx2 = ex[vi, 0], ex[vi, 1]
+                    dy1, dy2 = ey[vi, 0], ey[vi, 1]
+                    dz1, dz2 = ez[vi, 0], ez[vi, 1]
+                    w1 = 1.0 / (_EPS + abs(vv[dz1 * 4 + dy1 * 2 + dx1]))
+                    w2 = 1.0 / (_EPS + abs(vv[dz2 * 4 + dy2 * 2 + dx2]))
+                    fx = 0.0 + np.float64(dx1) * w1
+                    fy = 0.0 + np.float64(dy1) * w1
+                    fz = 0.0 + np.float64(dz1) * w1
+                    ff = 0.0 + w1
+                    fx += np.float64(dx2) * w2
+                    fy += np.float64(dy2) * w2
+                    fz += np.float64(dz2) * w2
+                    ff += w2
+                    px = np.float64(x) + 1.0 * fx / ff
+                    py = np.float64(y) + 1.0 * fy / ff
+                    pz = np.float64(z) + 1.0 * fz / ff
+                verts[nv, 0] = np.float32(px)
+                verts[nv, 1] = np.float32(py)
+                verts[nv, 2] = np.float32(pz)
+                at = nv
+                nv += 1
+                if second:
+                    keys2[h] = key
+                    vals2[h] = at
+                    used2[n2] = h
+                    n2 += 1
+                else:
+                    keys1[h] = key
+                    vals1[h] = at
+                    used1[n1] = h
+                    n1 += 1
+            faces[nf] = at
+            nf += 1
+    return verts[:nv].copy(), faces[:nf].copy()
+
+
+@njit(**KERNEL)
+def _big_switch(v, lut, meta, case, config):
+    """skimage's ``the_big_switch``: ``(triangles, table, second index, 3-d table?)``."""
+    sub = 0
+    if case == 1:
+        return 1, T1, 0, False
+    if case == 2:
+        return 2, T2, 0, False
+    if case == 3:
+        if _test_face(v, _get1(lut, meta, TEST3, config)):
+            return 4, T3_2, 0, False
+        return 2, T3_1, 0, False
+    if case == 4:
+        if _test_internal(v, lut, meta, case, config, sub, _get1(lut, meta, TEST4, config)):
+            return 2, T4_1, 0, False
+        return 6, T4_2, 0, False
+    if case == 5:
+        return 3, T5, 0, False
+    if case == 6:
+        if _test_face(v, _get2(lut, meta, TEST6, config, 0)):
+            return 5, T6_2, 0, False
+        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, TEST6, config, 1)):
+            return 3, T6_1_1, 0, False
+        return 9, T6_1_2, 0, False
+    if case == 7:
+        if _test_face(v, _get2(lut, meta, TEST7, config, 0)):
+            sub += 1
+        if _test_face(v, _get2(lut, meta, TEST7, config, 1)):
+            sub += 2
+        if _test_face(v, _get2(lut, meta, TEST7, config, 2)):
+            sub += 4
+        if sub == 0:
+            return 3, T7_1, 0, False
+        if sub == 1:
+            return 5, T7_2, 0, True
+        if sub == 2:
+            return 5, T7_2, 1, True
+        if sub == 3:
+            return 9, T7_3, 0, True
+        if sub == 4:
+            return 5, T7_2, 2, True
+        if sub == 5:
+            return 9, T7_3, 1, True
+        if sub == 6:
+            return 9, T7_3, 2, True
+        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, TEST7, config, 3)):
+            return 9, T7_4_2, 0, False
+        return 5, T7_4_1, 0, False
+    if case == 8:
+        return 2, T8, 0, False
+    if case == 9:
+        return 4, T9, 0, False
+    if case == 10 or case == 12:
+        test = TEST10 if case == 10 else TEST12
+        if _test_face(v, _get2(lut, meta, test, config, 0)):
+            if _test_face(v, _get2(lut, meta, test, config, 1)):
+                return 4, (T10_1_1_ if case == 10 else T12_1_1_), 0, False
+            return 8, (T10_2 if case == 10 else T12_2), 0, False
+        if _test_face(v, _get2(lut, meta, test, config, 1)):
+            return 8, (T10_2_ if case == 10 else T12_2_), 0, False
+        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, test, config, 2)):
+            return 4, (T10_1_1 if case == 10 else T12_1_1), 0, False
+        return 8, (T10_1_2 if case == 10 else T12_1_2), 0, False
+    if case == 11:
+        return 4, T11, 0, False
+    if case == 13:
+        for f in range(6):
+            if _test_face(v, _get2(lut, meta, TEST13, config, f)):
+                sub += 1 << f
+        sub = _get1(lut, meta, SUBCONFIG13, sub)
+        if sub == 0:
+            return 4, T13_1, 0, False
+        if sub <= 6:
+            return 6, T13_2, sub - 1, True
+        if sub <= 18:
+            return 10, T13_3, sub - 7, True
+        if sub <= 22:
+            return 12, T13_4, sub - 19, True
+        if sub <= 26:
+            s = sub - 23
+            if _test_internal(v, lut, meta, case, config, s, _get2(lut, meta, TEST13, config, 6)):
+                return 6, T13_5_1, s, True
+            return 10, T13_5_2, s, True
+        if sub <= 38:
+            return 10, T13_3_, sub - 27, True
+        if sub <= 44:
+            return 6, T13_2_, sub - 39, True
+        if sub == 45:
+            return 4, T13_1_, 0, False
+        return 0, T1, 0, False  # skimage prints "impossible case 13" and adds nothing
+    if case == 14:
+        return 4, T14, 0, False
+    return 0, T1, 0, False

@@ -1,0 +1,157 @@
+"""Sparse evaluation (:mod:`surfgen.generator.eval.sparse`) with the real interval bounds: the
+sampled values are the dense grid's, bit for bit; every skipped leaf is on the side its state
+says; the registry, the share limit and the sign proxy; and the real bounds' meshes are the
+dense ones (the stand-in bounds of ``tests/generator/mesh/test_sparse_marching.py`` push the
+skipping further)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surfgen.filters.compare import inside_samples
+from surfgen.generator.eval.evaluate import EVALUATORS, evaluate, evaluate_points
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.sparse import (
+    INSIDE,
+    OUTSIDE,
+    SAMPLED,
+    SparseField,
+    evaluate_sparse,
+    leaf_counts,
+    memory_estimate,
+)
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_with_edges
+from surfgen.generator.mesh.realise import AUTO_SPARSE_FROM, realise, resolve_evaluator
+from surfgen.generator.mesh.sparse_marching import extract_sparse_with_edges
+from surfgen.generator.model.presets import PRESETS
+from surfgen.generator.model.spec import SurfaceSpec
+
+SPHERE = parse("x^2+y^2+z^2-1")
+
+
+def leaf_slices(sf: SparseField, leaf) -> tuple[slice, ...]:
+    b = sf.block
+    return tuple(slice(c * b, c * b + b + 1) for c in leaf)
+
+
+@pytest.mark.parametrize("name", ["eqC", "schwarz", "chmutov", "clebsch"])
+def test_states_and_values_match_the_dense_field(name):
+    spec = PRESETS[name].spec()
+    grid = Grid(spec.to_grid().box, (57, 50, 43))
+    dense = evaluate(spec.tree(), grid, spec.params).values
+    sf = evaluate_sparse(spec.tree(), grid, spec.params, level=spec.level)
+    assert sf.state.shape == leaf_counts(grid)
+    assert set(np.unique(sf.state)) <= {OUTSIDE, INSIDE, SAMPLED}
+    for leaf in np.argwhere(sf.state != SAMPLED):
+        v = dense[leaf_slices(sf, leaf)]
+        inside = np.isfinite(v) & (v < spec.level)
+        if sf.state[tuple(leaf)] == OUTSIDE:
+            assert not inside.any()
+        else:
+            assert inside.all()
+    # every sampled point holds the dense value, bit for bit
+    for b, (c0, c1, c2) in enumerate(sf.corner):
+        e0, e1, e2 = sf.extent[b]
+        got = sf.values[b, :e0, :e1, :e2]
+        want = dense[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2]
+        assert got.tobytes() == want.tobytes()
+
+
+def test_real_bounds_skip_blocks_and_keep_the_mesh():
+    grid = Grid(Box.cube(1.5), (96, 96, 96))
+    sf = evaluate_sparse(SPHERE, grid, faces=True)
+    assert 0 < sf.share < 0.5
+    assert np.any(sf.state == OUTSIDE) and np.any(sf.state == INSIDE)
+    dense = extract_with_edges(evaluate(SPHERE, grid), 0.0, True)
+    sparse = extract_sparse_with_edges(sf, True)
+    assert dense[0].vertices.tobytes() == sparse[0].vertices.tobytes()
+    assert dense[0].faces.tobytes() == sparse[0].faces.tobytes()
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_presets_with_real_bounds(name):
+    spec = PRESETS[name].spec()
+    grid = Grid(spec.to_grid().box, (44, 45, 46))
+    cap = PRESETS[name].cap
+    field = evaluate(spec.tree(), grid, spec.params)
+    dense = extract_with_edges(field, spec.level, cap)
+    sf = evaluate_sparse(spec.tree(), grid, spec.params, level=spec.level, faces=cap)
+    sparse = extract_sparse_with_edges(sf, cap)
+    assert dense[0].vertices.tobytes() == sparse[0].vertices.tobytes()
+    assert dense[0].faces.tobytes() == sparse[0].faces.tobytes()
+    assert dense[1].tobytes() == sparse[1].tobytes()
+
+
+def test_values_at_and_sampled_at():
+    grid = Grid(Box.cube(1.5), (40, 40, 40))
+    sf = evaluate_sparse(SPHERE, grid)
+    dense = evaluate(SPHERE, grid).values
+    i, j, k = (a.ravel() for a in np.indices(grid.shape))
+    have = sf.sampled_at(i, j, k)
+    got = sf.values_at(i, j, k)
+    assert have.any() and not have.all()
+    assert np.array_equal(got[have], dense.ravel()[have])
+    assert np.isnan(got[~have]).all()
+
+
+def test_nonfinite_counts_each_sampled_point_once():
+    tree = parse("sqrt(1-x^2-y^2-z^2)-0.3")
+    grid = Grid(Box.cube(1.2), (33, 33, 33))
+    sf = evaluate_sparse(tree, grid, bounds=lambda p, lo, hi: (
+        np.full(len(lo), -np.inf), np.full(len(lo), np.inf), np.zeros(len(lo), bool)))  # fmt: skip
+    assert sf.nonfinite == evaluate(tree, grid).nonfinite > 0
+
+
+def test_registry_entry():
+    grid = Grid(Box.cube(1.5), (24, 24, 24))
+    assert "sparse" in EVALUATORS
+    sf = evaluate(SPHERE, grid, evaluator="sparse", level=0.25)
+    assert isinstance(sf, SparseField) and sf.level == 0.25
+    x = np.linspace(-1, 1, 7)
+    assert np.array_equal(
+        evaluate_points(SPHERE, x, x, x, evaluator="sparse"), evaluate_points(SPHERE, x, x, x)
+    )
+
+
+def test_max_share_gives_up_before_sampling():
+    grid = Grid(Box.cube(1.5), (40, 40, 40))
+    assert evaluate_sparse(SPHERE, grid, max_share=0.0) is None
+    assert evaluate_sparse(SPHERE, grid, max_share=1.5) is not None
+
+
+def test_sign_proxy_compares_as_the_dense_field():
+    grid = Grid(Box.cube(1.5), (48, 48, 48))
+    sf = evaluate_sparse(SPHERE, grid)
+    target = Grid(Box.cube(1.6), (37, 37, 37))
+    assert np.array_equal(
+        inside_samples(sf.sign_proxy(), target), inside_samples(evaluate(SPHERE, grid), target)
+    )
+
+
+def test_auto_picks_sparse_on_large_grids_and_falls_back():
+    small, large = Grid(Box.cube(1), (128,) * 3), Grid(Box.cube(1), (192,) * 3)
+    assert resolve_evaluator("auto", small) == "fast"
+    assert resolve_evaluator("auto", large) == "sparse" and large.size >= AUTO_SPARSE_FROM
+    assert resolve_evaluator("reference", large) == "reference"
+    sphere = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (192,) * 3)
+    assert realise(sphere, evaluator="auto", cap=True).sparse
+    # equation A is -inf on planes through every block: no block can be skipped
+    eq_a = PRESETS["eqA"].spec().replace(grid=(192, 192, 192))
+    made = realise(eq_a, evaluator="auto", allow_empty=True)
+    assert not made.sparse
+
+
+def test_bad_block_and_evaluator():
+    grid = Grid(Box.cube(1), (16,) * 3)
+    with pytest.raises(ValueError, match="block"):
+        evaluate_sparse(SPHERE, grid, block=0)
+    with pytest.raises(Exception, match="unknown evaluator 'dense'"):
+        resolve_evaluator("dense", grid)
+
+
+def test_memory_estimate_grows_with_the_surface():
+    a = memory_estimate(Grid(Box.cube(1), (256,) * 3))
+    b = memory_estimate(Grid(Box.cube(1), (512,) * 3))
+    assert 0 < a < b < 9 * a
