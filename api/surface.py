@@ -327,7 +327,7 @@ class Surface:
         *,
         cap: bool | None = None,
         walls: Walls | None = None,
-        evaluator: str = "fast",
+        evaluator: str = "auto",
     ) -> trimesh.Trimesh:
         """The surface ``F = level`` as a triangle mesh (marching cubes).
 
@@ -340,8 +340,10 @@ class Surface:
         walls : {'keep', 'remove', 'mark'}, optional
             Classify the crossings and keep the walls (poles, jumps), remove them (open
             sheets), or mark them (face attribute ``kind``; default: :attr:`walls`).
-        evaluator : {'fast', 'reference'}
-            As :meth:`field`.
+        evaluator : {'auto', 'sparse', 'fast', 'reference'}
+            ``sparse`` evaluates only the blocks the surface may cross (interval arithmetic),
+            ``fast`` every grid point, ``reference`` in plain numpy; ``auto`` (default) is
+            sparse on large grids (from 192^3 points). All make the same mesh, bit for bit.
 
         Returns
         -------

@@ -226,7 +226,7 @@ SCRIPT_SUFFIX = {"mathmod": ".mathmod.json", "k3dsurf": ".k3dsurf.txt"}
 
 def export_scripts(inputs: Sequence[str], out_dir: Path, fmt: str, catalogue: Path) -> list[Path]:
     """One script per input (catalogue key or prefix, or spec file) in ``out_dir``; all or none."""
-    from surfgen.pipelines.export.meshes import resolve_sources
+    from surfgen.pipelines.export.sources import resolve_sources
 
     fmt = fmt.lower()
     if fmt not in SCRIPT_FORMATS:

@@ -35,24 +35,24 @@ from surfgen.filters.cleanup import (
     repair_mesh,
 )
 from surfgen.filters.metrics import Metrics, measure_mesh
-from surfgen.generator.errors import SurfgenError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import write_all_atomic
 from surfgen.generator.formula.limits import (
-    MAX_JSON_DEPTH,
-    MAX_SPEC_FILE_BYTES,
     check_memory,
     estimate_memory,
-    json_depth_ok,
-    read_text_file,
 )
 from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, FORMATS, MARKABLE, PRINTABLE
 from surfgen.generator.mesh.mesh import CAP, WALL_KINDS, Mesh, face_areas, wall_fraction
 from surfgen.generator.mesh.realise import EVALUATOR_CHOICES, realise, resolve_evaluator
 from surfgen.generator.mesh.walls import WALL_MODES
-from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now, open_catalogue
+from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now
+from surfgen.pipelines.export.sources import (
+    ExportError,
+    Source,
+    has_mesh,
+    resolve_sources,
+)
 from surfgen.pipelines.run.sampling import versions
 
 log = logging.getLogger(__name__)
@@ -62,10 +62,6 @@ GRID_WARNING = (
     "shapes whose look depends on the grid (the paper's Figure 3: one formula and box give "
     "different shapes on 34^3 and 33^3) will change"
 )
-
-
-class ExportError(SurfgenError):
-    """An export that cannot be done as asked (bad option, refused shape, clashing names...)."""
 
 
 @dataclass(frozen=True)
@@ -121,27 +117,6 @@ class ExportOptions:
             "force": self.force,
             "walls": self.walls,
             "cleanup": self.cleanup.to_dict(),
-        }
-
-
-@dataclass(frozen=True)
-class Source:
-    """One resolved input: a catalogue entry, a spec file or a mesh file."""
-
-    argument: str
-    kind: str  # "catalogue" | "spec" | "mesh"
-    name: str  # file stem of the outputs
-    key: str | None = None
-    spec: SurfaceSpec | None = None
-    mesh_file: Path | None = None
-    catalogue: Path | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": self.kind,
-            "argument": self.argument,
-            "catalogue": None if self.catalogue is None else str(self.catalogue),
-            "mesh_file": None if self.mesh_file is None else str(self.mesh_file),
         }
 
 
@@ -225,7 +200,7 @@ def export_shapes(
         raise ExportError(f"output folder {out_dir} is a file")
     _check_names(sources, out_dir, options.format)
     for s in sources:  # refuse before any work, not after the first shapes
-        if s.spec is not None and (options.regrid is not None or not _has_mesh(s)):
+        if s.spec is not None and (options.regrid is not None or not has_mesh(s)):
             n = options.regrid if options.regrid is not None else None
             grid = Grid(Box.from_bounds(s.spec.box), (n,) * 3) if n else s.spec.to_grid()
             sparse = resolve_evaluator(options.evaluator, grid) == "sparse"
@@ -265,71 +240,6 @@ def export_shapes(
         raise
     log.info("wrote %d files into %s", 2 * len(files), out_dir)
     return [result for _, result in files]
-
-
-def _has_mesh(source: Source) -> bool:
-    return source.mesh_file is not None and source.mesh_file.is_file()
-
-
-def resolve_sources(inputs: Sequence[str], catalogue: Path) -> list[Source]:
-    """Classify and resolve the inputs, in order, without duplicates.
-
-    ``*.json`` is a spec file (or an export sidecar); a name with a mesh suffix, a path or an
-    existing file is a mesh file; anything else is a catalogue key or unique key prefix.
-    """
-    sources: list[Source] = []
-    keys = [a for a in inputs if _kind(a) == "catalogue"]
-    rows: dict[str, Source] = {}
-    if keys:
-        with open_catalogue(catalogue, readonly=True) as cat:
-            for arg in keys:
-                key = cat.resolve(arg)
-                row = cat.shape(key)
-                mesh_path = row.get("mesh_path")
-                rows[arg] = Source(
-                    argument=arg,
-                    kind="catalogue",
-                    name=key,
-                    key=key,
-                    spec=SurfaceSpec.from_json(row["spec"]),
-                    mesh_file=cat.root / mesh_path if mesh_path else None,
-                    catalogue=cat.root,
-                )
-    for arg in inputs:
-        kind = _kind(arg)
-        if kind == "catalogue":
-            source = rows[arg]
-        elif kind == "spec":
-            spec = read_spec_or_sidecar(Path(arg))
-            source = Source(arg, "spec", Path(arg).stem, key=spec.key, spec=spec)
-        else:
-            source = Source(arg, "mesh", Path(arg).stem, mesh_file=Path(arg))
-        if all((s.kind, s.name) != (source.kind, source.name) for s in sources):
-            sources.append(source)
-    return sources
-
-
-def read_spec_or_sidecar(path: Path) -> SurfaceSpec:
-    """A spec from a spec file (``SurfaceSpec.to_json``) or from an export sidecar's ``spec``."""
-
-    text = read_text_file(Path(path), MAX_SPEC_FILE_BYTES, "spec file")
-    if not json_depth_ok(text):
-        raise ExportError(f"{path}: JSON nested more than {MAX_JSON_DEPTH} levels deep")
-    try:
-        data = json.loads(text, parse_constant=_no_json_constant)
-    except json.JSONDecodeError as exc:
-        raise ExportError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if isinstance(data, dict) and "spec" in data and "box" not in data:  # a sidecar
-        if data["spec"] is None:
-            raise ExportError(f"{path}: this export came from a mesh file and has no spec")
-        data = data["spec"]
-    if not isinstance(data, dict):
-        raise ExportError(f"{path}: expected a JSON object")
-    return SurfaceSpec.from_dict(data)
-
-
-def _no_json_constant(name: str) -> float:
-    raise json.JSONDecodeError(f"{name} is not a JSON number", name, 0)
 
 
 def load_source(
@@ -462,17 +372,6 @@ def printability_problems(m: Metrics) -> list[str]:
 
 
 # --- helpers ------------------------------------------------------------------------------------
-
-
-def _kind(arg: str) -> str:
-    path = Path(arg)
-    if path.suffix.lower() == ".json":
-        return "spec"
-    # Keys are bare hex digits: anything with a suffix, a folder or on disk is a mesh file
-    # (load_mesh names the allowed suffixes, MESH_SUFFIXES, when it is not one).
-    if path.suffix or os.sep in arg or path.exists():
-        return "mesh"
-    return "catalogue"
 
 
 def _check_names(sources: list[Source], out_dir: Path, fmt: str) -> None:
