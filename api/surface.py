@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from surfgen.display import facts_html, picture, png_of, shorten, to_trimesh
-from surfgen.generator.errors import SpecError, SurfgenError
+from surfgen.generator.errors import FormulaError, SpecError, SurfgenError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.limits import MAX_SPEC_FILE_BYTES, read_text_file
@@ -316,10 +316,17 @@ class Surface:
         FormulaError, LimitError
             What evaluation raises.
         """
+        if evaluator not in ("fast", "reference"):  # sparse gives no dense array
+            raise FormulaError(
+                f"unknown field evaluator '{evaluator}' (allowed: fast, reference; "
+                "mesh() also takes sparse and auto)"
+            )
         spec = self._on(grid).spec
-        return evaluate(
+        sampled = evaluate(
             spec.tree(), spec.to_grid(), spec.params, evaluator=evaluator, threads=threads
-        ).values
+        )
+        values: np.ndarray = sampled.values
+        return values
 
     def mesh(
         self,
