@@ -75,9 +75,17 @@ class RunSettings:
 
 @dataclass(frozen=True)
 class Config:
+    """A run's settings: ``[run]``, ``[sampler]`` (with its family tables), ``[filters]``.
+
+    The sampler draws for the run's grid (its priors are bounded by the cell size): building a
+    config copies ``[run] grid`` into the sampler's, so ``--grid`` changes both at once."""
+
     run: RunSettings
     sampler: SamplerConfig
     filters: FilterConfig
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sampler", self.sampler.with_grid(self.run.grid))
 
     def to_dict(self) -> dict[str, Any]:
         """The canonical form: what a catalogue stores (``runs.config``) and the hash covers,

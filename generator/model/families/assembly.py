@@ -1,0 +1,322 @@
+"""The ``assembly`` family: 2-5 bodies placed by a symmetry group, joined or kept apart,
+optionally carved by an ornament — compositions, all inside equation (13).
+
+The bodies (:mod:`.bodies`: balls, rounded boxes, tori — polynomials, so power functions) sit
+on the orbit of an **arrangement**: ``pair`` (two along x), ``row`` (three along x),
+``triangle`` (three in the plane x+y+z = 0, the cyclic permutations of one point), ``tetra``
+(the four vertices of a tetrahedron), ``square`` (four in the xy plane), optionally one more at
+the centre; or a ``chain`` of 2-4 linked tori. They are put together by a **join**:
+
+- ``blend``: the field ``t - Σ w / (ρ_i + ε)`` of the bodies' shape functions ``ρ_i`` (one
+  factor ``A/D`` each, A the constant ``-w``, D the body's ``ρ_i + ε``): near bodies merge
+  smoothly, far ones stay apart (t sets how far they reach);
+- ``product``: ``Π B_i`` (one sum term of one factor per body): the union of bodies that do not
+  overlap (linked tori, separate rings), kept apart;
+- ``boolean``: two bodies by min/max through ``|·|`` (:func:`~.bodies.union`,
+  :func:`~.bodies.intersection`, :func:`~.bodies.difference`): a ring through a ball, a box
+  with a ball cut out, ...
+
+With probability ``ornament_prob`` an ornament of the sculpture family is summed over the
+arrangement's group and carves the assembly as it carves an envelope (:mod:`.sculpture`).
+Its keys: the ``[sampler.assembly]`` table (:class:`AssemblySettings`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from surfgen.generator.eval.grid import Box
+from surfgen.generator.formula.expr import Expr, add_all, mul_all
+from surfgen.generator.model.draw import (
+    Draw,
+    DrawSettings,
+    Family,
+    choose,
+    constant,
+    rng_for,
+    round_significant,
+)
+from surfgen.generator.model.equation13 import Equation13
+from surfgen.generator.model.families import sculpture
+from surfgen.generator.model.families.bodies import (
+    Polynomial,
+    ball,
+    body_factor,
+    difference,
+    intersection,
+    torus,
+    union,
+)
+from surfgen.generator.model.families.symmetry import GROUP_PERMUTATIONS
+from surfgen.generator.model.settings import (
+    require_fractions,
+    require_low_high,
+    require_names,
+    require_numbers,
+    require_range,
+    require_weighted_pairs,
+)
+
+ARRANGEMENTS = ("pair", "row", "triangle", "tetra", "square", "chain")
+BODIES = ("ball", "box", "torus")
+JOINS = ("blend", "product", "boolean")
+TABLE = "sampler.assembly"
+_S6 = 1.0 / (3.0 * math.sqrt(2.0))
+_UNIT_ORBITS: dict[str, tuple[tuple[float, float, float], ...]] = {
+    # centres at unit spacing (nearest centres 1 apart)
+    "pair": ((-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)),
+    "row": ((-1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)),
+    "triangle": tuple(
+        (2 * _S6 * a, 2 * _S6 * b, 2 * _S6 * c)
+        for a, b, c in ((1.0, -0.5, -0.5), (-0.5, 1.0, -0.5), (-0.5, -0.5, 1.0))
+    ),
+    "tetra": tuple(
+        (s[0] / (2 * math.sqrt(2)), s[1] / (2 * math.sqrt(2)), s[2] / (2 * math.sqrt(2)))
+        for s in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))
+    ),
+    "square": ((0.5, 0.5, 0.0), (-0.5, 0.5, 0.0), (-0.5, -0.5, 0.0), (0.5, -0.5, 0.0)),
+}
+# The ornament's group for each arrangement: its permutations and whether it mirrors.
+_GROUPS = {
+    "pair": "mirror",
+    "row": "mirror",
+    "triangle": "cyclic",
+    "tetra": "cyclic",
+    "square": "mirror",
+    "chain": "none",
+}
+
+
+@dataclass(frozen=True)
+class AssemblySettings:
+    """The ``[sampler.assembly]`` table (``surfgen config show``)."""
+
+    arrangements: tuple[str, ...] = ARRANGEMENTS
+    arrangement_weights: tuple[float, ...] = (0.15, 0.15, 0.2, 0.2, 0.1, 0.2)
+    bodies: tuple[str, ...] = BODIES
+    body_weights: tuple[float, ...] = (0.25, 0.25, 0.5)
+    joins: tuple[str, ...] = JOINS
+    join_weights: tuple[float, ...] = (0.45, 0.25, 0.3)
+    spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
+    reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
+    centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
+    ornament_prob: float = 0.7  # carved by a sculpture's ornament summed over the group
+    depth: tuple[float, float] = (0.12, 0.3)  # the ornament's carving depth / body size
+    margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
+
+    def __post_init__(self) -> None:
+        require_names(self, "arrangements", ARRANGEMENTS, TABLE)
+        require_names(self, "bodies", BODIES, TABLE)
+        require_names(self, "joins", JOINS, TABLE)
+        require_numbers(self, ("arrangement_weights", "body_weights", "join_weights"), TABLE)
+        require_weighted_pairs(
+            self,
+            (
+                ("arrangements", "arrangement_weights"),
+                ("bodies", "body_weights"),
+                ("joins", "join_weights"),
+            ),
+            TABLE,
+        )
+        require_fractions(self, ("centre_prob", "ornament_prob"), TABLE, "a probability")
+        require_low_high(self, ("spacing", "reach", "depth", "margin"), TABLE)
+        require_range(self, "spacing", 0.5, 5.0, TABLE)
+        require_range(self, "reach", 0.05, 0.99, TABLE)
+        require_range(self, "depth", 0.0, 1.0, TABLE)
+        require_range(self, "margin", 0.0, 2.0, TABLE)
+
+
+def _body(kind: str, centre, size: float, axis, p: int) -> Polynomial:
+    if kind == "torus":
+        return torus(centre, axis, size, round(size * 0.32, 3))
+    return ball(centre, (size,) * 3, 2 if kind == "ball" else p)
+
+
+def _shape_function(kind: str, centre, size: float, p: int) -> Polynomial:
+    """``ρ = Σ ((x_k - c_k)/r)^p`` (>= 0, 1 on the body's surface), for the blend."""
+    return ball(centre, (size,) * 3, 2 if kind == "ball" else p) + Polynomial.constant(1.0)
+
+
+def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings) -> Draw:
+    """The ``assembly`` family (see the module docstring)."""
+    rng = rng_for(seed, index)
+    arrangement = str(choose(rng, s.arrangements, s.arrangement_weights))
+    kind = str(choose(rng, s.bodies, s.body_weights))
+    join = str(choose(rng, s.joins, s.join_weights))
+    spacing = round(float(rng.uniform(*s.spacing)), 2)
+    p = 4 if rng.random() < 0.5 else 6  # a rounded box's exponent
+    axis = [0.0, 0.0, 0.0]
+    axis[int(rng.integers(0, 3))] = 1.0
+    centre_body = bool(rng.random() < s.centre_prob)
+    reach = float(rng.uniform(*s.reach))
+    ornamented = bool(rng.random() < s.ornament_prob)
+    depth = round(float(rng.uniform(*s.depth)), 2)
+    margin = float(rng.uniform(*s.margin))
+    if arrangement == "chain":
+        kind, join = "torus", "product"
+    if join == "blend" and kind == "torus":
+        join = "product"  # a torus has no positive shape function to blend
+    if join == "boolean":
+        arrangement = "pair"
+    info: dict[str, Any] = {
+        "arrangement": arrangement,
+        "body": kind,
+        "join": join,
+        "spacing": spacing,
+    }
+    size = 0.5  # body radius (ring radius of a torus)
+    t = 0.0  # the blend's level
+    if arrangement == "chain":
+        terms, bodies_tree, n = _chain(rng, size)
+        info["bodies"] = n
+    elif join == "boolean":
+        terms, bodies_tree, op = _boolean(rng, kind, size, spacing, p, axis)
+        info.update(bodies=2, operation=op)
+    else:
+        centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+        if centre_body and arrangement in ("triangle", "tetra", "square") and kind != "torus":
+            centres.append((0.0, 0.0, 0.0))
+        axes = _axes(arrangement, centres, axis, kind)
+        if join == "blend" or kind != "torus" and (spacing < 2.05 or not ornamented):
+            # balls overlapping (their product would hollow the overlap) or apart and plain
+            # (convex lumps): blended
+            join = info["join"] = "blend"
+            terms, bodies_tree, t = _blend(kind, centres, size, p, reach)
+            info["reach"] = round(reach, 3)
+        else:
+            factors = [
+                body_factor(_body(kind, c, size, a, p)) for c, a in zip(centres, axes, strict=True)
+            ]
+            terms = [tuple(factors)]
+            bodies_tree = mul_all([f.to_tree() for f in factors])
+        info["bodies"] = len(centres)
+    if kind == "box":
+        info["exponent"] = p
+    group = _GROUPS[arrangement] if kind != "torus" or arrangement in ("pair", "row") else "none"
+    info["group"] = group
+    extent = sculpture.envelope_extent(bodies_tree)
+    if extent is None:
+        extent = 2.5
+    half = round(extent * (1 + depth * ornamented + margin), 2)
+    d = -t if join == "blend" else 0.0
+    if ornamented:
+        s_sc = _sculpture_settings(cfg)
+        perms = GROUP_PERMUTATIONS[group]
+        ornament, freq, products, checks, strength_d, tries = sculpture.coarse_ornament(
+            rng,
+            cfg,
+            s_sc,
+            bodies_tree,
+            Box.cube(half),
+            perms,
+            group.endswith("mirror"),
+            1,
+            depth * size,
+        )
+        strength, od = strength_d
+        if od is not None and checks is not None and _clean(checks, s_sc, cfg):
+            for coef, prod in products:
+                c = round_significant(strength * coef, 3) or 1.0
+                terms.append((constant(c), *prod))
+            d = round_significant(d + od, 6)
+            info["ornament"] = {
+                "factor": Equation13(((ornament,),)).to_dict()["terms"][0][0],
+                "frequency": freq,
+                "depth": depth,
+                "strength": strength,
+                "tries": tries,
+            }
+            info["ornament"]["cells_per_period"] = round(min(checks[4], 9999.0), 2)
+    info["extent"] = round(extent, 4)
+    envelope = bodies_tree if "ornament" in info else None
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "assembly", info, d, envelope)
+
+
+def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
+    """The sculpture family's settings of this config (or the defaults) for the ornaments,
+    always pole-free: a pole between two bodies throws sheets across the gap."""
+    settings = getattr(cfg, "settings", None)
+    found = settings("sculpture") if callable(settings) else None
+    found = found if found is not None else sculpture.SculptureSettings()
+    return replace(found, pole_free_prob=1.0, bounded_prob=1.0)
+
+
+def _clean(checks: tuple, s: sculpture.SculptureSettings, cfg: DrawSettings) -> bool:
+    """Whether the ornament carves cleanly (the sculpture's checks); if not the assembly is
+    left bare rather than carved badly."""
+    feature, stray, departure, n_pieces, cells = checks
+    return (
+        feature >= s.min_feature
+        and stray <= s.max_stray
+        and n_pieces <= s.max_pieces
+        and cells >= cfg.period_cells * 0.999
+    )
+
+
+def _axes(arrangement: str, centres, axis, kind: str) -> list:
+    """Each body's axis (a torus's): radial on the triangle and the tetrahedron (so the group
+    maps ring to ring), else the drawn one."""
+    if kind != "torus" or arrangement not in ("triangle", "tetra"):
+        return [axis] * len(centres)
+    return [list(c) if any(c) else [1.0, 1.0, 1.0] for c in centres]
+
+
+def _blend(kind: str, centres, size: float, p: int, reach: float) -> tuple[list, Expr, float]:
+    """``Σ -1 / (ρ_i + ε)`` (one factor A/D per body) and t: the blend's terms, its tree and t."""
+    eps = 0.1
+    terms = []
+    for c in centres:
+        rho = _shape_function(kind, c, size, p) + Polynomial.constant(eps)
+        one = body_factor(Polynomial.constant(-1.0))
+        powers = (one.powers[0], rho.to_power_function(), *one.powers[2:])
+        terms.append((replace(one, powers=powers, lambdas=(1.0, 1.0, *one.lambdas[2:])),))
+    t = round_significant(reach / (1 + eps), 4)
+    tree = add_all([f.to_tree() for (f,) in terms])
+    return terms, add_all([tree, constant(t).to_tree()]), t
+
+
+def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, int]:
+    """2-4 linked tori along x, their planes alternating (xy, xz): one product."""
+    n = int(rng.integers(2, 5))
+    tube = round(size * float(rng.uniform(0.22, 0.32)), 3)
+    factors = []
+    for i in range(n):
+        centre = ((i - (n - 1) / 2) * size, 0.0, 0.0)
+        axis = (0.0, 0.0, 1.0) if i % 2 == 0 else (0.0, 1.0, 0.0)
+        factors.append(body_factor(torus(centre, axis, size, tube)))
+    return [tuple(factors)], mul_all([f.to_tree() for f in factors]), n
+
+
+def _boolean(
+    rng: np.random.Generator, kind: str, size: float, spacing: float, p: int, axis
+) -> tuple[list, Expr, str]:
+    """Two bodies, the second smaller and off-centre, as their union, intersection or
+    difference (intersections of two convex bodies are convex: those become differences)."""
+    second = str(rng.choice(BODIES))
+    op = str(rng.choice(("union", "intersection", "difference")))
+    if op == "intersection" and "torus" not in (kind, second):
+        op = "difference"
+    r2 = size * float(rng.uniform(0.55, 0.95))
+    offset = size * float(rng.uniform(0.3, 1.1))
+    direction = [0.0, 0.0, 0.0]
+    direction[int(rng.integers(0, 3))] = 1.0
+    axis2 = [0.0, 0.0, 0.0]
+    axis2[int(rng.integers(0, 3))] = 1.0
+    a = _body(kind, (0.0, 0.0, 0.0), size * 1.2, axis, p)
+    b = _body(second, tuple(offset * v for v in direction), r2, axis2, p)
+    terms = {"union": union, "intersection": intersection, "difference": difference}[op](a, b)
+    tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+    return terms, tree, f"{kind} {op} {second}"
+
+
+FAMILY = Family(
+    "assembly",
+    draw_assembly,
+    "2-5 bodies placed by a symmetry group, blended, kept apart or combined by min/max",
+    AssemblySettings,
+    mix_weight=0.2,
+)
