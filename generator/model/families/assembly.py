@@ -98,13 +98,13 @@ class AssemblySettings:
     arrangements: tuple[str, ...] = ARRANGEMENTS
     arrangement_weights: tuple[float, ...] = (0.15, 0.15, 0.2, 0.2, 0.1, 0.2)
     bodies: tuple[str, ...] = BODIES
-    body_weights: tuple[float, ...] = (0.25, 0.25, 0.5)
+    body_weights: tuple[float, ...] = (0.2, 0.2, 0.6)
     joins: tuple[str, ...] = JOINS
-    join_weights: tuple[float, ...] = (0.45, 0.25, 0.3)
+    join_weights: tuple[float, ...] = (0.35, 0.35, 0.3)
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
     reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
     centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
-    ornament_prob: float = 0.7  # carved by a sculpture's ornament summed over the group
+    ornament_prob: float = 0.5  # rings carved by a sculpture's ornament (balls, boxes: always)
     depth: tuple[float, float] = (0.12, 0.3)  # the ornament's carving depth / body size
     margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
 
@@ -156,6 +156,8 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     ornamented = bool(rng.random() < s.ornament_prob)
     depth = round(float(rng.uniform(*s.depth)), 2)
     margin = float(rng.uniform(*s.margin))
+    if kind != "torus":
+        ornamented = True  # bare balls and boxes, blended or apart, are plain lumps
     if arrangement == "chain":
         kind, join = "torus", "product"
     if join == "blend" and kind == "torus":
@@ -218,7 +220,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
             depth * size,
         )
         strength, od = strength_d
-        if od is not None and checks is not None and _clean(checks, s_sc, cfg):
+        if od is not None and checks is not None and (kind != "torus" or _clean(checks, s_sc, cfg)):
             for coef, prod in products:
                 c = round_significant(strength * coef, 3) or 1.0
                 terms.append((constant(c), *prod))
@@ -246,8 +248,9 @@ def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
 
 
 def _clean(checks: tuple, s: sculpture.SculptureSettings, cfg: DrawSettings) -> bool:
-    """Whether the ornament carves cleanly (the sculpture's checks); if not the assembly is
-    left bare rather than carved badly."""
+    """Whether the ornament carves cleanly (the sculpture's checks); if not, rings are left
+    bare rather than carved badly (balls and boxes keep the best ornament: bare, they are
+    plain lumps)."""
     feature, stray, departure, n_pieces, cells = checks
     return (
         feature >= s.min_feature

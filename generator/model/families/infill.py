@@ -19,7 +19,7 @@ the pores (``L > t``) is measured (twice the 10th percentile of the distance tra
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -36,7 +36,13 @@ from surfgen.generator.model.draw import (
     rng_for,
     round_significant,
 )
-from surfgen.generator.model.equation13 import Equation13, Factor, Transform
+from surfgen.generator.model.equation13 import (
+    Equation13,
+    Factor,
+    PowerFunction,
+    PowerTerm,
+    Transform,
+)
 from surfgen.generator.model.families.bodies import positive_part, torus
 from surfgen.generator.model.families.gridbound import scale_arguments
 from surfgen.generator.model.families.lattice import lattice_terms
@@ -66,10 +72,11 @@ class InfillSettings:
     stretch_prob: float = 0.35  # one axis of the envelope stretched by 0.6-1.5
     patterns: tuple[str, ...] = INFILL_PATTERNS
     pattern_weights: tuple[float, ...] = (0.3, 0.25, 0.15, 0.15, 0.15)
-    periods: tuple[float, float] = (1.5, 4.0)  # periods across the envelope's width
+    periods: tuple[float, float] = (1.2, 4.5)  # periods across the envelope's width
     strut_cells: float = 3.0  # the thinner of struts and pores spans at least this many cells
-    level: tuple[float, float] = (0.3, 0.6)  # t at this quantile of L: the solid's share
+    level: tuple[float, float] = (0.25, 0.65)  # t at this quantile of L: the solid's share
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
+    phase_prob: float = 0.6  # the lattice shifted by one drawn share of a period along x, y, z
 
     def __post_init__(self) -> None:
         require_names(self, "envelopes", INFILL_ENVELOPES, TABLE)
@@ -78,7 +85,7 @@ class InfillSettings:
         require_weighted_pairs(
             self, (("envelopes", "envelope_weights"), ("patterns", "pattern_weights")), TABLE
         )
-        require_fractions(self, ("stretch_prob",), TABLE, "a probability")
+        require_fractions(self, ("stretch_prob", "phase_prob"), TABLE, "a probability")
         require_low_high(self, ("exponent", "periods", "level", "margin"), TABLE)
         require_range(self, "exponent", 1.0, 10.0, TABLE)
         require_range(self, "periods", 0.5, 50.0, TABLE)
@@ -156,6 +163,7 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     periods = float(rng.uniform(*s.periods))
     q = float(rng.uniform(*s.level))
     margin = float(rng.uniform(*s.margin))
+    phase = round(float(rng.uniform(0.1, 0.9)), 2) if rng.random() < s.phase_prob else 0.0
     env_tree = mul_all([f.to_tree() for f in envelope])
     extent = envelope_extent(env_tree) or 2.5
     half = round(extent * (1 + margin), 2)
@@ -167,7 +175,11 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
         period = max(period, s.strut_cells * cell / share)
     period = round_significant(period, 3)
     lattice = [
-        tuple(scale_arguments(f, 1.0 / period) if any(f.mus) else f for f in t) for t in unit
+        tuple(
+            _shifted(scale_arguments(f, 1.0 / period), phase * period) if any(f.mus) else f
+            for f in t
+        )
+        for t in unit
     ]
     lo, hi = _range(unit)
     # outside, F = L - t + c E: E grows by about |grad E| per unit length; c clears L's range
@@ -181,6 +193,7 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
         "period": period,
         "periods": round(2 * extent / period, 3),
         "level_quantile": round(q, 3),
+        "phase": phase,
         "strut_cells": round(share * period / cell, 2),
         "clip": c,
         "extent": round(extent, 4),
@@ -196,6 +209,17 @@ def _transforms(pattern: str) -> tuple[tuple[Transform, float], tuple[Transform,
     w = round_significant(2 * math.pi, 6)
     h1 = Transform("sin") if pattern in ("gyroid", "diamond") else Transform("cos")
     return (h1, w), (Transform("cos"), w)
+
+
+def _shifted(f: Factor, shift: float) -> Factor:
+    """The wave ``H(w x_k)`` as ``H(w x_k + w shift)``: the lattice moved by ``-shift`` along
+    every axis (along the diagonal, which the axis permutations keep: so is the symmetry)."""
+    if shift == 0:
+        return f
+    p = f.powers[2]
+    w = sum(t.a for t in p.terms)
+    terms = (*p.terms, PowerTerm(round_significant(w * shift, 4)))
+    return replace(f, powers=(*f.powers[:2], PowerFunction(terms, p.absolute), *f.powers[3:]))
 
 
 def _range(unit: list) -> tuple[float, float]:
