@@ -16,8 +16,9 @@ the centre; or a ``chain`` of 2-4 linked tori. They are put together by a **join
   :func:`~.bodies.intersection`, :func:`~.bodies.difference`): a ring through a ball, a box
   with a ball cut out, ...
 
-With probability ``ornament_prob`` an ornament of the sculpture family is summed over the
-arrangement's group and carves the assembly as it carves an envelope (:mod:`.sculpture`).
+Balls and boxes (plain lumps, bare) are carved by a pole-free ornament of the sculpture family
+summed over the arrangement's group, as it carves an envelope (:mod:`.sculpture`); rings are
+left bare (an ornament on a product of rings throws the surface out to the box).
 Its keys: the ``[sampler.assembly]`` table (:class:`AssemblySettings`).
 """
 
@@ -40,7 +41,7 @@ from surfgen.generator.model.draw import (
     rng_for,
     round_significant,
 )
-from surfgen.generator.model.equation13 import Equation13
+from surfgen.generator.model.equation13 import Equation13, Factor, PowerFunction, PowerTerm
 from surfgen.generator.model.families import sculpture
 from surfgen.generator.model.families.bodies import (
     Polynomial,
@@ -104,9 +105,10 @@ class AssemblySettings:
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
     reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
     centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
-    ornament_prob: float = 0.5  # rings carved by a sculpture's ornament (balls, boxes: always)
     depth: tuple[float, float] = (0.12, 0.3)  # the ornament's carving depth / body size
     margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
+    tube: tuple[float, float] = (0.22, 0.42)  # a torus's tube radius / ring radius
+    stretch_prob: float = 0.3  # the whole assembly stretched along the axes by 0.75-1.3 each
 
     def __post_init__(self) -> None:
         require_names(self, "arrangements", ARRANGEMENTS, TABLE)
@@ -122,17 +124,19 @@ class AssemblySettings:
             ),
             TABLE,
         )
-        require_fractions(self, ("centre_prob", "ornament_prob"), TABLE, "a probability")
-        require_low_high(self, ("spacing", "reach", "depth", "margin"), TABLE)
+        probabilities = ("centre_prob", "stretch_prob")
+        require_fractions(self, probabilities, TABLE, "a probability")
+        require_low_high(self, ("spacing", "reach", "depth", "margin", "tube"), TABLE)
+        require_range(self, "tube", 0.05, 0.9, TABLE)
         require_range(self, "spacing", 0.5, 5.0, TABLE)
         require_range(self, "reach", 0.05, 0.99, TABLE)
         require_range(self, "depth", 0.0, 1.0, TABLE)
         require_range(self, "margin", 0.0, 2.0, TABLE)
 
 
-def _body(kind: str, centre, size: float, axis, p: int) -> Polynomial:
+def _body(kind: str, centre, size: float, axis, p: int, tube: float = 0.32) -> Polynomial:
     if kind == "torus":
-        return torus(centre, axis, size, round(size * 0.32, 3))
+        return torus(centre, axis, size, round(size * tube, 3))
     return ball(centre, (size,) * 3, 2 if kind == "ball" else p)
 
 
@@ -153,11 +157,15 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     axis[int(rng.integers(0, 3))] = 1.0
     centre_body = bool(rng.random() < s.centre_prob)
     reach = float(rng.uniform(*s.reach))
-    ornamented = bool(rng.random() < s.ornament_prob)
     depth = round(float(rng.uniform(*s.depth)), 2)
     margin = float(rng.uniform(*s.margin))
-    if kind != "torus":
-        ornamented = True  # bare balls and boxes, blended or apart, are plain lumps
+    tube = round(float(rng.uniform(*s.tube)), 2)
+    stretch = (1.0, 1.0, 1.0)
+    if rng.random() < s.stretch_prob:
+        stretch = tuple(round(float(rng.uniform(0.75, 1.3)), 2) for _ in range(3))
+    # bare balls and boxes, blended or apart, are plain lumps: they are carved; rings are not
+    # (an ornament on a product of rings throws the surface out to the box)
+    ornamented = kind != "torus"
     if arrangement == "chain":
         kind, join = "torus", "product"
     if join == "blend" and kind == "torus":
@@ -191,14 +199,25 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
             info["reach"] = round(reach, 3)
         else:
             factors = [
-                body_factor(_body(kind, c, size, a, p)) for c, a in zip(centres, axes, strict=True)
+                body_factor(_body(kind, c, size, a, p, tube))
+                for c, a in zip(centres, axes, strict=True)
             ]
             terms = [tuple(factors)]
             bodies_tree = mul_all([f.to_tree() for f in factors])
         info["bodies"] = len(centres)
+    if stretch != (1.0, 1.0, 1.0):  # the whole assembly stretched along the axes
+        terms = [tuple(_stretched(f, stretch) for f in t) for t in terms]
+        bodies_tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+        if join == "blend":
+            bodies_tree = add_all([bodies_tree, constant(t).to_tree()])
+        info["stretch"] = list(stretch)
+    if kind == "torus":
+        info["tube"] = tube
     if kind == "box":
         info["exponent"] = p
     group = _GROUPS[arrangement] if kind != "torus" or arrangement in ("pair", "row") else "none"
+    if stretch != (1.0, 1.0, 1.0):
+        group = "mirror" if _GROUPS[arrangement] == "mirror" else "none"
     info["group"] = group
     extent = sculpture.envelope_extent(bodies_tree)
     if extent is None:
@@ -220,7 +239,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
             depth * size,
         )
         strength, od = strength_d
-        if od is not None and checks is not None and (kind != "torus" or _clean(checks, s_sc, cfg)):
+        if od is not None and checks is not None:
             for coef, prod in products:
                 c = round_significant(strength * coef, 3) or 1.0
                 terms.append((constant(c), *prod))
@@ -238,6 +257,22 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "assembly", info, d, envelope)
 
 
+def _stretched(f: Factor, k: tuple[float, float, float]) -> Factor:
+    """The factor with x, y, z replaced by x/kx, y/ky, z/kz (each power term's coefficient
+    divided by the stretches to its exponents)."""
+
+    def pf(p: PowerFunction) -> PowerFunction:
+        terms = tuple(
+            PowerTerm(
+                round_significant(t.a / (k[0] ** t.b * k[1] ** t.c * k[2] ** t.d), 6), t.b, t.c, t.d
+            )
+            for t in p.terms
+        )
+        return PowerFunction(terms, p.absolute)
+
+    return replace(f, powers=tuple(pf(p) for p in f.powers))
+
+
 def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
     """The sculpture family's settings of this config (or the defaults) for the ornaments,
     always pole-free: a pole between two bodies throws sheets across the gap."""
@@ -245,19 +280,6 @@ def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
     found = settings("sculpture") if callable(settings) else None
     found = found if found is not None else sculpture.SculptureSettings()
     return replace(found, pole_free_prob=1.0, bounded_prob=1.0)
-
-
-def _clean(checks: tuple, s: sculpture.SculptureSettings, cfg: DrawSettings) -> bool:
-    """Whether the ornament carves cleanly (the sculpture's checks); if not, rings are left
-    bare rather than carved badly (balls and boxes keep the best ornament: bare, they are
-    plain lumps)."""
-    feature, stray, departure, n_pieces, cells = checks
-    return (
-        feature >= s.min_feature
-        and stray <= s.max_stray
-        and n_pieces <= s.max_pieces
-        and cells >= cfg.period_cells * 0.999
-    )
 
 
 def _axes(arrangement: str, centres, axis, kind: str) -> list:

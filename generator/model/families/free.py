@@ -27,7 +27,7 @@ from surfgen.generator.model.draw import (
 from surfgen.generator.model.equation13 import Equation13
 from surfgen.generator.model.families.gridbound import cells_per_period
 
-CHECK_GRID = 16  # samples per axis of the box the bound's arguments are sampled on
+CHECK_GRID = 24  # samples per axis of the box the bound's arguments are sampled on
 
 
 def draw_free(seed: int, index: int, cfg: DrawSettings, settings: None = None) -> Draw:

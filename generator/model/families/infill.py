@@ -77,6 +77,7 @@ class InfillSettings:
     level: tuple[float, float] = (0.25, 0.65)  # t at this quantile of L: the solid's share
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
     phase_prob: float = 0.6  # the lattice shifted by one drawn share of a period along x, y, z
+    grade_prob: float = 0.4  # graded: the level goes from the centre's to a rim's (both in level)
 
     def __post_init__(self) -> None:
         require_names(self, "envelopes", INFILL_ENVELOPES, TABLE)
@@ -85,7 +86,8 @@ class InfillSettings:
         require_weighted_pairs(
             self, (("envelopes", "envelope_weights"), ("patterns", "pattern_weights")), TABLE
         )
-        require_fractions(self, ("stretch_prob", "phase_prob"), TABLE, "a probability")
+        probabilities = ("stretch_prob", "phase_prob", "grade_prob")
+        require_fractions(self, probabilities, TABLE, "a probability")
         require_low_high(self, ("exponent", "periods", "level", "margin"), TABLE)
         require_range(self, "exponent", 1.0, 10.0, TABLE)
         require_range(self, "periods", 0.5, 50.0, TABLE)
@@ -122,11 +124,18 @@ def _draw_envelope(
     return (first, only_a(superellipsoid(p2, (r2,) * 3))), info
 
 
-def strut_share(pattern_terms: list[tuple[Factor, ...]], q: float) -> tuple[float, float]:
-    """The level t at the ``q`` quantile of the lattice of period 1 and the thinner of its struts
-    and pores there, as a share of the period: on two periods sampled :data:`CELL_SAMPLES` times per
-    period, twice the 10th percentile of the distance transform's ridge (its local maxima) in
-    the middle period, for ``L < t`` and for ``L > t``."""
+def strut_share(
+    pattern_terms: list[tuple[Factor, ...]],
+    q: float,
+    q_rim: float | None = None,
+    reach: float = 1.0,
+) -> tuple[float, float, float]:
+    """The levels of the lattice of period 1 at the ``q`` (centre) and ``q_rim`` (rim, default:
+    the same) quantiles of its values, and the thinner of its struts (``L < t``) and pores
+    (``L > t``) as a share of the period, at the centre's level and at ``t_c + (t_r - t_c)
+    reach`` (the farthest a graded level goes inside the envelope): on two periods sampled
+    :data:`CELL_SAMPLES` times per period, twice the 10th percentile of the distance
+    transform's ridge (its local maxima) in the middle period. Returns ``(t_c, t_r, share)``."""
     # Deferred on purpose, as the sculpture's carving: reading the registry (``--help``,
     # ``config show``) loads no scipy.
     from scipy import ndimage
@@ -135,20 +144,21 @@ def strut_share(pattern_terms: list[tuple[Factor, ...]], q: float) -> tuple[floa
     n = 2 * m
     grid = Grid(Box((0.0,) * 3, ((n - 1) / m,) * 3), (n,) * 3)
     values = evaluate(_tree(pattern_terms), grid, threads=1).values
-    t = float(np.quantile(values, q))
+    t_c = float(np.quantile(values, q))
+    t_r = t_c if q_rim is None else float(np.quantile(values, q_rim))
+    middle = np.zeros(values.shape, dtype=bool)
+    middle[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m] = True
     thinnest = math.inf
-    for phase in (values < t, values >= t):
-        if not phase.any():
-            return t, 0.0
-        dist = ndimage.distance_transform_edt(phase)
-        ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3))
-        middle = np.zeros_like(ridge)
-        middle[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m] = True
-        found = dist[ridge & middle]
-        if found.size == 0:
-            return t, 0.0
-        thinnest = min(thinnest, 2.0 * float(np.quantile(found, 0.1)) / m)
-    return t, thinnest
+    for t in {t_c, t_c + (t_r - t_c) * reach}:
+        for phase in (values < t, values >= t):
+            if not phase.any():
+                return t_c, t_r, 0.0
+            dist = ndimage.distance_transform_edt(phase)
+            ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3)) & middle
+            if not ridge.any():
+                return t_c, t_r, 0.0
+            thinnest = min(thinnest, 2.0 * float(np.quantile(dist[ridge], 0.1)) / m)
+    return t_c, t_r, thinnest
 
 
 def _tree(terms: list[tuple[Factor, ...]]) -> Expr:
@@ -169,8 +179,11 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     half = round(extent * (1 + margin), 2)
     cell = cfg.cell(half)
     period = 2 * extent / periods
+    graded = bool(rng.random() < s.grade_prob)
+    q_rim = float(rng.uniform(*s.level)) if graded else q
     unit = lattice_terms(rng, pattern, *_transforms(pattern), [1.0, 1.0, 1.0])  # period 1
-    t_unit, share = strut_share(unit, q)
+    slope, reach = _surface_slope(env_tree, half, extent)
+    t_unit, t_rim, share = strut_share(unit, q, q_rim, reach)
     if share > 0 and s.strut_cells > 0:
         period = max(period, s.strut_cells * cell / share)
     period = round_significant(period, 3)
@@ -184,15 +197,19 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     lo, hi = _range(unit)
     # outside, F = L - t + c E: E grows by about |grad E| per unit length; c clears L's range
     # within half a cell
-    slope = _surface_slope(env_tree, half)
     c = round_significant(2.0 * (hi - lo) / max(slope * cell, 1e-9), 3)
-    terms = [*lattice, *positive_part(envelope, c)]
+    grade = []
+    if graded:  # the level from t_c at the centre to t_r at r = extent: - (t_r - t_c) r^2/extent^2
+        k = round_significant(-(t_rim - t_unit) / extent**2, 4)
+        grade = [(only_a(PowerFunction(tuple(PowerTerm(k, *_axis(j, 2.0)) for j in range(3)))),)]
+    terms = [*lattice, *grade, *positive_part(envelope, c)]
     structure = {
         "envelope": env_info,
         "pattern": pattern,
         "period": period,
         "periods": round(2 * extent / period, 3),
         "level_quantile": round(q, 3),
+        "rim_quantile": round(q_rim, 3) if graded else None,
         "phase": phase,
         "strut_cells": round(share * period / cell, 2),
         "clip": c,
@@ -229,15 +246,25 @@ def _range(unit: list) -> tuple[float, float]:
     return float(v.min()), float(v.max())
 
 
-def _surface_slope(env_tree: Expr, half: float) -> float:
-    """The median |grad E| near the envelope's surface, on a 24^3 grid of the box."""
+def _surface_slope(env_tree: Expr, half: float, extent: float) -> tuple[float, float]:
+    """The median |grad E| near the envelope's surface, and the largest ``r^2 / extent^2``
+    inside it, on a 24^3 grid of the box."""
     n = 24
-    e = evaluate(env_tree, Grid(Box.cube(half), (n,) * 3), threads=1).values
+    grid = Grid(Box.cube(half), (n,) * 3)
+    e = evaluate(env_tree, grid, threads=1).values
     step = 2 * half / (n - 1)
     with np.errstate(invalid="ignore", over="ignore"):
         g = np.sqrt(sum(x**2 for x in np.gradient(e, step)))
         band = np.isfinite(e) & np.isfinite(g) & (np.abs(e) < 1.5 * step * g)
-    return float(np.median(g[band])) if band.any() else 1.0
+        inside = np.isfinite(e) & (e < 0)
+    x, y, z = np.meshgrid(*grid.axes(), indexing="ij")
+    r2 = (x**2 + y**2 + z**2)[inside]
+    reach = float(r2.max()) / extent**2 if r2.size else 1.0
+    return (float(np.median(g[band])) if band.any() else 1.0), reach
+
+
+def _axis(j: int, e: float) -> tuple[float, float, float]:
+    return tuple(e if k == j else 0.0 for k in range(3))  # type: ignore[return-value]
 
 
 FAMILY = Family(

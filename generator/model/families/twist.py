@@ -139,11 +139,54 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
     braid_eps = round(eps * float(rng.uniform(0.25, 0.5)), 2)
     axis = int(rng.integers(0, 3))
     margin = float(rng.uniform(*s.margin))
-    # the column has radius 1 and half-height H; its extent bounds the box first, for the cell
-    extent_guess = max(height, 1.0 / math.sqrt(max(1e-3, 1.0 - eps)))
-    cell = cfg.cell(extent_guess * (1 + margin))
+    # the column has radius 1 and half-height H: a first box for the cell, grown (and the
+    # column built again for its cell) until it holds the column's measured extent
+    half = round(max(height, 1.0 / math.sqrt(1.0 - eps)) * (1 + margin), 2)
+    for _ in range(4):
+        cell = cfg.cell(half)
+        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, cell, cfg)
+        terms, m_used, braided, alpha, cells = column
+        tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+        extent = envelope_extent(tree) or 2.5
+        need = round(extent * (1 + margin), 2)
+        if need <= half:
+            break
+        half = need
+    structure: dict[str, Any] = {
+        "lobes": m_used,
+        "lobe_depth": eps,
+        "turns": round(turns * alpha, 3),
+        "height": height,
+        "cap": q,
+        "bulge": beta,
+        "braid": braided,
+        "axis": "xyz"[axis],
+        "cells_per_period": round(min(cells, 9999.0), 2),
+        "extent": round(extent, 4),
+    }
+    if braided:
+        structure["braid_depth"] = braid_eps
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "twist", structure, 0.0)
+
+
+def _column(
+    m: int,
+    eps: float,
+    turns: float,
+    height: float,
+    q: float,
+    beta: float,
+    braid: bool,
+    braid_eps: float,
+    axis: int,
+    cell: float,
+    cfg: DrawSettings,
+) -> tuple[list[tuple[Factor, ...]], int, bool, float, float]:
+    """The column's sum terms for the run's ``cell``: (terms, lobes, braided, the twist's
+    slow-down, cells per period). Lobes around the axis are fewer when ``2 pi R / m`` (R the
+    valleys' radius) would span fewer than ``period_cells`` cells; the braid is left out then."""
     valley = 1.0 / math.sqrt(1.0 + eps)
-    if cfg.period_cells > 0:  # lobes around the axis: 2 pi R / m spans period_cells cells
+    if cfg.period_cells > 0:
         m = max(2, min(m, int(2 * math.pi * valley / (cfg.period_cells * cell))))
     rate = round_significant(2 * math.pi * turns / (2 * height), 4)  # radians per unit of z
     body = PowerFunction(
@@ -158,33 +201,14 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
         absolute=True,
     )
     lobes = lobe_terms(m, eps, rate)
-    if braid and 2 * math.pi * valley / (2 * m) >= cfg.period_cells * cell:
+    braid = braid and 2 * math.pi * valley / (2 * m) >= cfg.period_cells * cell
+    if braid:
         lobes += lobe_terms(2 * m, braid_eps, -rate)
-    else:
-        braid = False
-    box = Box.cube(round(extent_guess * (1 + margin), 2))
-    lobes, alpha, cells = fit_terms(lobes, box, cell, cfg.period_cells, n=6)
+    box = Box.cube(1.0)  # the arguments are linear: any box measures them exactly
+    lobes, alpha, cells = fit_terms(lobes, box, cell, cfg.period_cells, n=4)
     terms = [(only_a(body),), *lobes]
     perm = tuple((k + axis + 1) % 3 for k in range(3))  # z goes to the drawn axis
-    terms = [tuple(permute_factor(f, perm) for f in t) for t in terms]
-    tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
-    extent = envelope_extent(tree) or 2.5
-    half = round(extent * (1 + margin), 2)
-    structure: dict[str, Any] = {
-        "lobes": m,
-        "lobe_depth": eps,
-        "turns": round(turns * alpha, 3),
-        "height": height,
-        "cap": q,
-        "bulge": beta,
-        "braid": braid,
-        "axis": "xyz"[axis],
-        "cells_per_period": round(min(cells, 9999.0), 2),
-        "extent": round(extent, 4),
-    }
-    if braid:
-        structure["braid_depth"] = braid_eps
-    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "twist", structure, 0.0)
+    return [tuple(permute_factor(f, perm) for f in t) for t in terms], m, braid, alpha, cells
 
 
 FAMILY = Family(
