@@ -160,6 +160,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     depth = round(float(rng.uniform(*s.depth)), 2)
     margin = float(rng.uniform(*s.margin))
     tube = round(float(rng.uniform(*s.tube)), 2)
+    tilt = round(float(rng.uniform(0.0, 1.2)), 2)
     stretch = (1.0, 1.0, 1.0)
     if rng.random() < s.stretch_prob:
         stretch = tuple(round(float(rng.uniform(0.75, 1.3)), 2) for _ in range(3))
@@ -181,8 +182,8 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     size = 0.5  # body radius (ring radius of a torus)
     t = 0.0  # the blend's level
     if arrangement == "chain":
-        terms, bodies_tree, n = _chain(rng, size)
-        info["bodies"] = n
+        terms, bodies_tree, chain = _chain(rng, size)
+        info.update(chain)
     elif join == "boolean":
         terms, bodies_tree, op = _boolean(rng, kind, size, spacing, p, axis)
         info.update(bodies=2, operation=op)
@@ -190,7 +191,9 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
         centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
         if centre_body and arrangement in ("triangle", "tetra", "square") and kind != "torus":
             centres.append((0.0, 0.0, 0.0))
-        axes = _axes(arrangement, centres, axis, kind)
+        axes = _axes(arrangement, centres, axis, kind, tilt)
+        if kind == "torus" and arrangement in ("triangle", "tetra"):
+            info["tilt"] = tilt
         if join == "blend" or kind != "torus" and (spacing < 2.05 or not ornamented):
             # balls overlapping (their product would hollow the overlap) or apart and plain
             # (convex lumps): blended
@@ -211,7 +214,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
         if join == "blend":
             bodies_tree = add_all([bodies_tree, constant(t).to_tree()])
         info["stretch"] = list(stretch)
-    if kind == "torus":
+    if kind == "torus" and arrangement != "chain":
         info["tube"] = tube
     if kind == "box":
         info["exponent"] = p
@@ -282,12 +285,19 @@ def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
     return replace(found, pole_free_prob=1.0, bounded_prob=1.0)
 
 
-def _axes(arrangement: str, centres, axis, kind: str) -> list:
-    """Each body's axis (a torus's): radial on the triangle and the tetrahedron (so the group
-    maps ring to ring), else the drawn one."""
+def _axes(arrangement: str, centres, axis, kind: str, tilt: float) -> list:
+    """Each body's axis (a torus's): on the triangle and the tetrahedron, the radial direction
+    turned by ``tilt`` towards the diagonal (1, 1, 1), which the cyclic permutations keep (so
+    the group maps ring to ring); else the drawn one."""
     if kind != "torus" or arrangement not in ("triangle", "tetra"):
         return [axis] * len(centres)
-    return [list(c) if any(c) else [1.0, 1.0, 1.0] for c in centres]
+    out = []
+    for c in centres:
+        norm = math.sqrt(sum(v * v for v in c)) or 1.0
+        out.append(
+            [round(math.cos(tilt) * v / norm + math.sin(tilt) / math.sqrt(3.0), 4) for v in c]
+        )
+    return out
 
 
 def _blend(kind: str, centres, size: float, p: int, reach: float) -> tuple[list, Expr, float]:
@@ -304,16 +314,45 @@ def _blend(kind: str, centres, size: float, p: int, reach: float) -> tuple[list,
     return terms, add_all([tree, constant(t).to_tree()]), t
 
 
-def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, int]:
-    """2-4 linked tori along x, their planes alternating (xy, xz): one product."""
+def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str, Any]]:
+    """2-4 linked tori along x, each turned a quarter turn (plus a drawn twist) about x from
+    the one before, their centres a drawn share of the ring radius apart; the tube is kept
+    under half the closest approach of neighbouring rings (so links never touch): a product."""
     n = int(rng.integers(2, 5))
-    tube = round(size * float(rng.uniform(0.22, 0.32)), 3)
-    factors = []
-    for i in range(n):
-        centre = ((i - (n - 1) / 2) * size, 0.0, 0.0)
-        axis = (0.0, 0.0, 1.0) if i % 2 == 0 else (0.0, 1.0, 0.0)
-        factors.append(body_factor(torus(centre, axis, size, tube)))
-    return [tuple(factors)], mul_all([f.to_tree() for f in factors]), n
+    gap = round(size * float(rng.uniform(0.8, 1.2)), 3)
+    twist = round(float(rng.uniform(-0.5, 0.5)), 2)
+    tube = size * float(rng.uniform(0.2, 0.32))
+    axes = [
+        (
+            0.0,
+            round(math.sin(i * (math.pi / 2 + twist)), 4),
+            round(math.cos(i * (math.pi / 2 + twist)), 4),
+        )
+        for i in range(n)
+    ]
+    centres = [((i - (n - 1) / 2) * gap, 0.0, 0.0) for i in range(n)]
+    closest = min(
+        _ring_gap(centres[i], axes[i], centres[i + 1], axes[i + 1], size) for i in range(n - 1)
+    )
+    tube = round(min(tube, 0.45 * closest), 3)
+    factors = [body_factor(torus(c, a, size, tube)) for c, a in zip(centres, axes, strict=True)]
+    info = {"bodies": n, "gap": gap, "twist": twist, "tube": round(tube / size, 3)}
+    return [tuple(factors)], mul_all([f.to_tree() for f in factors]), info
+
+
+def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:
+    """The closest approach of two circles of ``radius`` (centres c, unit axes a), sampled."""
+
+    def circle(c, a) -> np.ndarray:
+        a = np.asarray(a, dtype=float) / np.linalg.norm(a)
+        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(a, u)
+        t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
+        return np.asarray(c) + radius * (np.cos(t) * u + np.sin(t) * v)
+
+    p, q = circle(c1, a1), circle(c2, a2)
+    return float(np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min())
 
 
 def _boolean(

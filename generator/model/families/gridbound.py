@@ -1,11 +1,13 @@
 """The resolution bound: priors the run's grid can resolve.
 
-A factor ``H(P)`` repeats (or jumps) every *period* of H in units of its argument: ``2 pi`` for
-sin, cos, sec, csc, ``pi`` for tan, cot, ``r`` for a saw, triangle or staircase of base r, and for
-a rectangular pulse twice its shorter level (a pulse of width w and gap g is resolved when
-``min(w, g)`` spans half the cells a period would). Where the argument P changes by ``|grad P|``
-per unit length, one period spans ``period / |grad P|`` in space, and
-``period / (|grad P| * cell)`` cells of the run's grid (cell = box size / (grid - 1)).
+A factor ``H(P)`` repeats every *period* of H in units of its argument: ``2 pi`` for sin, cos,
+sec, csc, ``pi`` for tan, cot. A constituent function jumps or turns a corner: a jump (saw,
+staircase: every r; a pulse's edges: its shorter level apart) or a corner (triangles: every
+r/2) is drawn by marching cubes as a step or a crease a cell wide, and needs as many cells
+around it as a whole smooth period does, so the length counted is the spacing of those
+(:func:`period_of`). Where the argument P changes by ``|grad P|`` per unit length, that length
+spans ``period / |grad P|`` in space, and ``period / (|grad P| * cell)`` cells of the run's
+grid (cell = box size / (grid - 1)).
 
 :func:`cells_per_period` measures that on a coarse grid — the argument P is a power function
 (smooth, slow), so a coarse grid samples its gradient well even where ``H(P)`` is far finer — at
@@ -32,8 +34,9 @@ _ARGUMENT_POWERS = (2, 3, 4, 6)  # P3, P4, P5, P7: the arguments of H (P6, P8 di
 
 
 def period_of(t: Transform) -> float:
-    """The period of H (its finest repeat, in units of its argument); pulses count twice their
-    shorter level (see the module docstring)."""
+    """The length, in units of its argument, that must span ``period_cells`` cells: a smooth
+    H's period; for a constituent with jumps or corners, the spacing of those (a jump or a
+    corner needs the cells a whole smooth period does: see the module docstring)."""
     name, p = t.name, t.params
     if name in ("sin", "cos", "sec", "csc"):
         return _TWO_PI
@@ -41,16 +44,18 @@ def period_of(t: Transform) -> float:
         return math.pi
     if name == "rect1":  # period 2, 1 where sin(pi x) < -t: a share (pi - 2 asin t) / 2 pi
         share = (math.pi - 2.0 * math.asin(max(-1.0, min(1.0, p[0])))) / _TWO_PI
-        return 2.0 * 2.0 * min(share, 1.0 - share)
+        return 2.0 * min(share, 1.0 - share)
     if name == "rect2":  # period r, a pulse of (t/r mod 1) of it
         share = (p[1] / p[0]) % 1.0
-        return 2.0 * p[0] * min(share, 1.0 - share)
+        return p[0] * min(share, 1.0 - share)
     if name == "rect3":  # period 1, a pulse of (t mod 1)
         share = p[0] % 1.0
-        return 2.0 * min(share, 1.0 - share)
+        return min(share, 1.0 - share)
+    if name in ("tri1", "tri2", "tri3"):  # two corners per period r
+        return float(p[0]) / 2.0
     if name in ("asin", "acos", "atan", "acot"):  # not periodic: no bound of its own
         return math.inf
-    return float(p[0])  # saw1, tri1, stair1, saw2, tri2, tri3, stair2: base r
+    return float(p[0])  # saw1, stair1, saw2, stair2: one jump per base r
 
 
 def cells_per_period(

@@ -78,6 +78,7 @@ class InfillSettings:
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
     phase_prob: float = 0.6  # the lattice shifted by one drawn share of a period along x, y, z
     grade_prob: float = 0.4  # graded: the level goes from the centre's to a rim's (both in level)
+    cut_prob: float = 0.3  # cut again by a half-space (a dome) or a slab (a disc)
 
     def __post_init__(self) -> None:
         require_names(self, "envelopes", INFILL_ENVELOPES, TABLE)
@@ -86,7 +87,7 @@ class InfillSettings:
         require_weighted_pairs(
             self, (("envelopes", "envelope_weights"), ("patterns", "pattern_weights")), TABLE
         )
-        probabilities = ("stretch_prob", "phase_prob", "grade_prob")
+        probabilities = ("stretch_prob", "phase_prob", "grade_prob", "cut_prob")
         require_fractions(self, probabilities, TABLE, "a probability")
         require_low_high(self, ("exponent", "periods", "level", "margin"), TABLE)
         require_range(self, "exponent", 1.0, 10.0, TABLE)
@@ -202,7 +203,8 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     if graded:  # the level from t_c at the centre to t_r at r = extent: - (t_r - t_c) r^2/extent^2
         k = round_significant(-(t_rim - t_unit) / extent**2, 4)
         grade = [(only_a(PowerFunction(tuple(PowerTerm(k, *_axis(j, 2.0)) for j in range(3)))),)]
-    terms = [*lattice, *grade, *positive_part(envelope, c)]
+    cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell)
+    terms = [*lattice, *grade, *positive_part(envelope, c), *cut]
     structure = {
         "envelope": env_info,
         "pattern": pattern,
@@ -213,6 +215,8 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
         "phase": phase,
         "strut_cells": round(share * period / cell, 2),
         "clip": c,
+        "cut": cut_info,
+        "clips": 1 + bool(cut),
         "extent": round(extent, 4),
         "group": "cyclic" if env_info.get("radii") == [1.0, 1.0, 1.0] else "none",
     }
@@ -226,6 +230,31 @@ def _transforms(pattern: str) -> tuple[tuple[Transform, float], tuple[Transform,
     w = round_significant(2 * math.pi, 6)
     h1 = Transform("sin") if pattern in ("gyroid", "diamond") else Transform("cos")
     return (h1, w), (Transform("cos"), w)
+
+
+def _cut(
+    rng: np.random.Generator, s: InfillSettings, extent: float, steepness: float
+) -> tuple[list[tuple[Factor, ...]], dict[str, Any] | None]:
+    """With ``cut_prob``, a second clip (another ``c max(P, 0)``): a half-space ``x_k > -h``
+    (a dome, a bowl) or a slab ``x_k^2 < w^2`` (a disc), along a drawn axis; ``steepness`` is
+    the lattice's range per cell (c clears it within half a cell)."""
+    if not rng.random() < s.cut_prob:
+        return [], None
+    axis = int(rng.integers(0, 3))
+    if rng.random() < 0.5:
+        h = round(float(rng.uniform(-0.3, 0.4)) * extent, 3)
+        p = PowerFunction((PowerTerm(-1.0, *_axis(axis, 1.0)), PowerTerm(-h)))
+        info = {"kind": "half", "axis": "xyz"[axis], "at": -h}
+        slope = 1.0
+    else:
+        w = round(float(rng.uniform(0.3, 0.65)) * extent, 3)
+        p = PowerFunction(
+            (PowerTerm(1.0, *_axis(axis, 2.0)), PowerTerm(round_significant(-(w**2), 6)))
+        )
+        info = {"kind": "slab", "axis": "xyz"[axis], "half_width": w}
+        slope = 2.0 * w
+    c = round_significant(2.0 * steepness / slope, 3)
+    return positive_part((only_a(p),), c), info
 
 
 def _shifted(f: Factor, shift: float) -> Factor:

@@ -42,6 +42,7 @@ from surfgen.generator.model.draw import (
     round_significant,
 )
 from surfgen.generator.model.equation13 import (
+    CONSTITUENT_TRANSFORMS,
     Equation13,
     Factor,
     PowerFunction,
@@ -70,6 +71,7 @@ SCULPTURE_GROUPS = tuple(GROUP_PERMUTATIONS)
 EXTENT_GRID = 33  # samples per axis of the search box used to measure an envelope's extent
 EXTENT_BOX = 2.5
 TABLE = "sampler.sculpture"
+JUMPS = ("saw1", "saw2", "stair1", "stair2", "rect1", "rect2", "rect3")
 
 
 @dataclass(frozen=True)
@@ -90,6 +92,7 @@ class SculptureSettings:
     constituent_prob: float = 0.3  # the ornament's H or G is a constituent function
     omit_element_prob: float = 0.55
     bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
+    jump_prob: float = 0.35  # an ornament's saw, staircase or pulse is kept (else: a triangle)
     pole_free_prob: float = 0.5  # an ornament without D, E, F, P6, P8 and poles of H
     min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     max_stray: float = 0.02  # share of the carved surface far from the envelope
@@ -116,6 +119,7 @@ class SculptureSettings:
             "constituent_prob",
             "omit_element_prob",
             "bounded_prob",
+            "jump_prob",
             "pole_free_prob",
         )
         require_fractions(self, probabilities, TABLE, "a probability")
@@ -386,6 +390,12 @@ def draw_ornament(
     if f.h.name in ("tan", "cot", "sec", "csc") and rng.random() < s.bounded_prob:
         # Poles throw debris far from the envelope: mostly keep H to sin and cos.
         f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
+    for part in ("h", "g"):
+        # Jumps cut the envelope into terraces with ragged rims (a wall is a cell wide on any
+        # grid): mostly keep to corners, a triangle of the same base.
+        t = getattr(f, part)
+        if t.name in JUMPS and rng.random() >= s.jump_prob:
+            f = replace(f, **{part: Transform("tri2", (_base(t),))})
     freq = round(float(rng.uniform(*s.frequency)), 1)
     mus = list(f.mus)
     if not any(mus):
@@ -406,6 +416,12 @@ def draw_ornament(
         if mu and lambdas[k] == 0:
             lambdas[k] = 1.0
     return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+def _base(t: Transform) -> float:
+    """A constituent's period: its r, or 2 for rect1 and 1 for rect3."""
+    names = CONSTITUENT_TRANSFORMS[t.name]
+    return t.params[names.index("r")] if "r" in names else (2.0 if t.name == "rect1" else 1.0)
 
 
 def _pole_free(

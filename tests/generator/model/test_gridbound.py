@@ -80,8 +80,9 @@ def test_a_coarser_grid_draws_fewer_lobes_and_periods() -> None:
 def thinnest_cells(draw, grid: int) -> float:
     """The thinner of the infill's struts and pores inside its envelope on the run's own grid
     (``grid`` samples per axis): twice the 10th percentile of the distance transform's ridge."""
-    lattice = Equation13(draw.equation.terms[:-2], draw.d).to_tree()
-    clip = Equation13(draw.equation.terms[-2:], 0.0).to_tree()
+    clips = 2 * draw.structure["clips"]
+    lattice = Equation13(draw.equation.terms[:-clips], draw.d).to_tree()
+    clip = Equation13(draw.equation.terms[-clips:], 0.0).to_tree()
     g = Grid(draw.box, (grid,) * 3)
     v = evaluate(lattice, g, threads=1).values
     inside = evaluate(clip, g, threads=1).values == 0
@@ -141,7 +142,8 @@ def test_fit_factor_slows_a_wave_to_the_bound() -> None:
     slowed, alpha, cells = fit_factor(wave, box, 8, cell, 8.0)
     assert 7.9 <= cells < 8.0 / 0.97 and alpha < 1
     assert slowed == scale_arguments(wave, alpha)
-    # a pulse counts twice its shorter level: rect2 with t/r = 0.1 is 0.2 r
-    assert period_of(Transform("rect2", (1.0, 0.1))) == pytest.approx(0.2)
+    # a pulse counts its shorter level: rect2 with t/r = 0.1 is 0.1 r; a triangle its corners
+    assert period_of(Transform("rect2", (1.0, 0.9))) == pytest.approx(0.1)
     assert period_of(Transform("saw2", (0.7,))) == 0.7
+    assert period_of(Transform("tri3", (0.7,))) == 0.35
     assert period_of(Transform("tan")) == pytest.approx(math.pi)

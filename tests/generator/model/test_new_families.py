@@ -70,13 +70,14 @@ def test_formulas_print_and_parse_back_and_cross_their_box(name: str) -> None:
 
 
 def test_infill_is_its_lattice_inside_the_envelope_and_empty_outside() -> None:
-    for i in range(4):
+    for i in range(8):
         draw = draw_equation(5, i, family("infill"))
         st = draw.structure
-        lattice = draw.equation.terms[:-2]  # the last two terms are c max(E, 0)
+        clips = 2 * st["clips"]  # the last terms are c max(E, 0) (and a cut's c max(P, 0))
+        lattice = draw.equation.terms[:-clips]
         grid = Grid(draw.box, (20,) * 3)
         f = evaluate(draw.equation.with_d(draw.d).to_tree(), grid, threads=1).values
-        envelope_terms = draw.equation.terms[-2:]
+        envelope_terms = draw.equation.terms[-clips:]
         clip = evaluate(type(draw.equation)(envelope_terms, 0.0).to_tree(), grid, threads=1).values
         lat = evaluate(type(draw.equation)(lattice, draw.d).to_tree(), grid, threads=1).values
         inside_env = clip == 0  # max(E, 0) = 0 exactly inside the envelope
