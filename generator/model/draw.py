@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,7 +53,7 @@ BOUNDED_TRANSFORMS = (
     "rect3",
 )
 UNBOUNDED_INVERSE = ("atan", "acot")
-NOT_SAMPLER_KEYS = ("grid",)  # DrawSettings fields that are not keys of [sampler]
+NOT_SAMPLER_KEYS = ("grid",)  # fields that are not keys of [sampler] (metadata config_key False)
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,7 @@ class DrawSettings:
     resolve_tries: int = 8  # free draws redrawn (from the same stream) until one is resolved
     # The run's grid ([run] grid or --grid; not a [sampler] key): the Config copies it here so
     # the draw, a pure function of (seed, index, config), sees the cell size it must resolve.
-    grid: int = 64
+    grid: int = field(default=64, metadata={"config_key": False})
 
     def cell(self, half: float) -> float:
         """The run's cell size in a box ``[-half, half]^3``: ``2 half / (grid - 1)``."""

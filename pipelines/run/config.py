@@ -197,7 +197,8 @@ def _merge(into: dict[str, Any], values: dict[str, Any], table: str, path: Path)
     key; :class:`SpecError` for a key the defaults do not have."""
     bad = sorted(set(values) - set(into))
     if bad:
-        raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
+        hint = " (the grid is [run] grid)" if (table, bad[0]) == ("sampler", "grid") else ""
+        raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]{hint}")
     for key, value in values.items():
         if isinstance(into[key], dict):
             if not isinstance(value, dict):

@@ -66,10 +66,10 @@ class TwistSettings:
     """The ``[sampler.twist]`` table (``surfgen config show``)."""
 
     lobes: tuple[int, ...] = (2, 3, 4, 5, 6)  # m: lobes of the cross-section
-    lobe_weights: tuple[float, ...] = (0.2, 0.25, 0.25, 0.15, 0.15)
-    lobe_depth: tuple[float, float] = (0.35, 0.65)  # ε
-    turns: tuple[float, float] = (0.4, 1.5)  # turns of a lobe from one end to the other
-    height: tuple[float, float] = (1.6, 3.0)  # H / R: half-height over the column's radius
+    lobe_weights: tuple[float, ...] = (0.1, 0.25, 0.25, 0.2, 0.2)
+    lobe_depth: tuple[float, float] = (0.4, 0.65)  # ε
+    turns: tuple[float, float] = (0.6, 1.8)  # turns of a lobe from one end to the other
+    height: tuple[float, float] = (1.8, 3.2)  # H / R: half-height over the column's radius
     cap: tuple[float, float] = (2.0, 8.0)  # q of |z/H|^q: round (2) to flat (8) ends
     bulge: tuple[float, float] = (0.0, 0.8)  # β: straight (0) to a barrel (narrower ends)
     braid_prob: float = 0.3  # a second set of 2m lobes turning the other way

@@ -70,14 +70,19 @@ def config_file(tmp_path: Path, text: str) -> Path:
 
 
 def test_everything_that_lists_families_reads_the_registry() -> None:
-    assert family_names() == ("sculpture", "lattice", "free")
-    assert family_choices() == ("sculpture", "lattice", "free", "mix")
-    assert family_help() == "sculpture, lattice, free or mix (default from the config: mix)."
-    assert FIELDS["family"].help == "sampler family: sculpture, lattice or free"
+    names = ("sculpture", "lattice", "infill", "assembly", "twist", "free")
+    assert family_names() == names
+    assert family_choices() == (*names, "mix")
+    assert family_help() == (
+        "sculpture, lattice, infill, assembly, twist, free or mix (default from the config: mix)."
+    )
+    assert FIELDS["family"].help == (
+        "sampler family: sculpture, lattice, infill, assembly, twist or free"
+    )
     assert describe_families().splitlines()[0].startswith("sculpture: ")
     cfg = SamplerConfig()
-    assert cfg.mix == ("sculpture", "lattice", "free") and cfg.mix_weights == (0.8, 0.08, 0.12)
-    assert [name for name, _ in cfg.tables] == ["sculpture", "lattice"]  # free has no table
+    assert cfg.mix == names and cfg.mix_weights == (0.35, 0.06, 0.2, 0.2, 0.12, 0.07)
+    assert [name for name, _ in cfg.tables] == list(names[:-1])  # free has no table
 
 
 def test_families_build_on_the_sampler_s_base_not_on_the_sampler() -> None:
@@ -145,7 +150,7 @@ def test_a_new_family_reads_its_own_config_table(toy, tmp_path: Path) -> None:
 def test_an_unregistered_family_is_an_unknown_one(tmp_path: Path) -> None:
     with registered(toy_family.FAMILY):
         assert SamplerConfig(family="toy").family == "toy"
-    with pytest.raises(SpecError, match="family must be one of sculpture, lattice, free, mix"):
+    with pytest.raises(SpecError, match="family must be one of sculpture, lattice, infill, assembly, twist, free, mix"):
         SamplerConfig(family="toy")
     with pytest.raises(SpecError, match=r"unknown key 'toy' in \[sampler\]"):
         load_config(config_file(tmp_path, "[sampler.toy]\nmargin = 2.0\n"))
