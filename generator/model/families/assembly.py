@@ -108,7 +108,7 @@ class AssemblySettings:
     depth: tuple[float, float] = (0.12, 0.3)  # the ornament's carving depth / body size
     margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
     tube: tuple[float, float] = (0.22, 0.42)  # a torus's tube radius / ring radius
-    stretch_prob: float = 0.3  # the whole assembly stretched along the axes by 0.75-1.3 each
+    stretch_prob: float = 0.5  # the whole assembly stretched along the axes by 0.75-1.3 each
 
     def __post_init__(self) -> None:
         require_names(self, "arrangements", ARRANGEMENTS, TABLE)

@@ -143,6 +143,20 @@ def difference(a: Polynomial, b: Polynomial) -> list[tuple[Factor, ...]]:
     return _combine(a, b, 1.0, -1.0)
 
 
+def power_max(a: PowerFunction, b: PowerFunction) -> list[tuple[Factor, ...]]:
+    """``max(a, b) = (a + b + |a - b|) / 2`` of two power functions of one kind (both in
+    ``|x|, |y|, |z|`` or neither): the intersection of their bodies, as three sum terms."""
+    if a.absolute != b.absolute:
+        raise ValueError("both power functions must use |x|, |y|, |z| or neither")
+    neg = tuple(PowerTerm(-t.a, t.b, t.c, t.d) for t in b.terms)
+    diff = PowerFunction((*a.terms, *neg), a.absolute)
+    return [
+        _scaled_term(0.5, (only_a(a),)),
+        _scaled_term(0.5, (only_a(b),)),
+        _scaled_term(0.5, (replace(only_a(diff), absolute=(True,) + (False,) * 5),)),
+    ]
+
+
 def _combine(a: Polynomial, b: Polynomial, sign: float, b_sign: float) -> list[tuple[Factor, ...]]:
     """``(a + s_b b + sign |a - s_b b|) / 2`` as three sum terms."""
     b = b.scaled(b_sign)

@@ -78,7 +78,7 @@ class InfillSettings:
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
     phase_prob: float = 0.6  # the lattice shifted by one drawn share of a period along x, y, z
     grade_prob: float = 0.4  # graded: the level goes from the centre's to a rim's (both in level)
-    cut_prob: float = 0.3  # cut again by a half-space (a dome) or a slab (a disc)
+    cut_prob: float = 0.6  # cut again: a half-space, a slab, a cube or an octahedron
 
     def __post_init__(self) -> None:
         require_names(self, "envelopes", INFILL_ENVELOPES, TABLE)
@@ -216,7 +216,7 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
         "strut_cells": round(share * period / cell, 2),
         "clip": c,
         "cut": cut_info,
-        "clips": 1 + bool(cut),
+        "clips": 1 + len(cut) // 2,
         "extent": round(extent, 4),
         "group": "cyclic" if env_info.get("radii") == [1.0, 1.0, 1.0] else "none",
     }
@@ -235,26 +235,36 @@ def _transforms(pattern: str) -> tuple[tuple[Transform, float], tuple[Transform,
 def _cut(
     rng: np.random.Generator, s: InfillSettings, extent: float, steepness: float
 ) -> tuple[list[tuple[Factor, ...]], dict[str, Any] | None]:
-    """With ``cut_prob``, a second clip (another ``c max(P, 0)``): a half-space ``x_k > -h``
-    (a dome, a bowl) or a slab ``x_k^2 < w^2`` (a disc), along a drawn axis; ``steepness`` is
-    the lattice's range per cell (c clears it within half a cell)."""
+    """With ``cut_prob``, more clips (each another ``c max(P, 0)``; a sum of them clips to the
+    intersection of their bodies): a half-space ``x_k > -h`` (a dome, a bowl) or a slab
+    ``x_k^2 < w^2`` (a disc) along a drawn axis, or — keeping the permutations — a cube (a slab
+    along each axis) or an octahedron ``|x| + |y| + |z| < w``: faceted silhouettes.
+    ``steepness`` is the lattice's range per cell (c clears it within half a cell)."""
     if not rng.random() < s.cut_prob:
         return [], None
+    kind = str(rng.choice(("half", "slab", "cube", "octahedron")))
     axis = int(rng.integers(0, 3))
-    if rng.random() < 0.5:
+    parts: list[tuple[PowerFunction, float]] = []  # (P, |grad P| on its surface)
+    if kind == "half":
         h = round(float(rng.uniform(-0.3, 0.4)) * extent, 3)
-        p = PowerFunction((PowerTerm(-1.0, *_axis(axis, 1.0)), PowerTerm(-h)))
-        info = {"kind": "half", "axis": "xyz"[axis], "at": -h}
-        slope = 1.0
+        parts.append((PowerFunction((PowerTerm(-1.0, *_axis(axis, 1.0)), PowerTerm(-h))), 1.0))
+        info: dict[str, Any] = {"kind": kind, "axis": "xyz"[axis], "at": -h}
+    elif kind in ("slab", "cube"):
+        lo, hi = (0.3, 0.65) if kind == "slab" else (0.55, 0.85)
+        w = round(float(rng.uniform(lo, hi)) * extent, 3)
+        for k in (axis,) if kind == "slab" else range(3):
+            square = PowerTerm(1.0, *_axis(k, 2.0))
+            parts.append((PowerFunction((square, PowerTerm(round_significant(-(w**2), 6)))), 2 * w))
+        info = {"kind": kind, "half_width": w} | ({"axis": "xyz"[axis]} if kind == "slab" else {})
     else:
-        w = round(float(rng.uniform(0.3, 0.65)) * extent, 3)
-        p = PowerFunction(
-            (PowerTerm(1.0, *_axis(axis, 2.0)), PowerTerm(round_significant(-(w**2), 6)))
-        )
-        info = {"kind": "slab", "axis": "xyz"[axis], "half_width": w}
-        slope = 2.0 * w
-    c = round_significant(2.0 * steepness / slope, 3)
-    return positive_part((only_a(p),), c), info
+        w = round(float(rng.uniform(0.9, 1.5)) * extent, 3)
+        terms = (*(PowerTerm(1.0, *_axis(k, 1.0)) for k in range(3)), PowerTerm(-w))
+        parts.append((PowerFunction(terms, absolute=True), math.sqrt(3.0)))
+        info = {"kind": kind, "size": w}
+    out: list[tuple[Factor, ...]] = []
+    for p, slope in parts:
+        out += positive_part((only_a(p),), round_significant(2.0 * steepness / slope, 3))
+    return out, info
 
 
 def _shifted(f: Factor, shift: float) -> Factor:

@@ -3,8 +3,9 @@
 An **envelope**, a bounded sum term whose A is a power function with a constant term — a
 superellipsoid ``|x|^p + |y|^p + |z|^p - 1`` (optionally stretched along one axis), a product of
 two of them (the two factors of one sum term, as equation B's
-``(x²+y²+z²-5)(|x|^0.13|y|^0.13|z|^0.13-5)``), or a superellipsoid closed by a cubic term as in
-equation C — plus an **ornament**: one factor of the free draw, summed over a symmetry group
+``(x²+y²+z²-5)(|x|^0.13|y|^0.13|z|^0.13-5)``), a superellipsoid closed by a cubic term as in
+equation C, or a **gem**: a superellipsoid cut by an octahedron or a cube through
+``max(a, b) = (a + b + |a - b|)/2`` (:func:`~.bodies.power_max`) — plus an **ornament**: one factor of the free draw, summed over a symmetry group
 (the 3 cyclic or all 6 axis permutations, each copy one more sum term; ``mirror`` groups use
 ``|x|, |y|, |z|``; :mod:`.symmetry`), optionally under an outer power k (``(O_1 + O_2 + O_3)^k``
 expanded into the sum of its products of k factors, the multinomial coefficients folded into
@@ -49,6 +50,7 @@ from surfgen.generator.model.equation13 import (
     PowerTerm,
     Transform,
 )
+from surfgen.generator.model.families.bodies import power_max
 from surfgen.generator.model.families.gridbound import fit_factor, scale_arguments
 from surfgen.generator.model.families.symmetry import (
     GROUP_PERMUTATIONS,
@@ -64,7 +66,7 @@ from surfgen.generator.model.settings import (
     require_weighted_pairs,
 )
 
-SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
+SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic", "gem")
 # Symmetry groups of a sculpture's ornament: how many axis permutations it is summed over, and
 # whether it uses |x|, |y|, |z| (the mirrors).
 SCULPTURE_GROUPS = tuple(GROUP_PERMUTATIONS)
@@ -79,7 +81,7 @@ class SculptureSettings:
     """The ``[sampler.sculpture]`` table (``surfgen config show``)."""
 
     envelopes: tuple[str, ...] = SCULPTURE_ENVELOPES
-    envelope_weights: tuple[float, ...] = (0.45, 0.25, 0.3)
+    envelope_weights: tuple[float, ...] = (0.3, 0.2, 0.25, 0.25)
     exponent: tuple[float, float] = (1.6, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
     stretch_prob: float = 0.15  # one axis of the envelope stretched (breaks symmetry)
     groups: tuple[str, ...] = SCULPTURE_GROUPS
@@ -183,6 +185,27 @@ def _draw_envelope(
             p2, r2 = round(max(p / 2.2, 1.0), 1), round(float(rng.uniform(1.08, 1.3)), 2)
         info.update(second_exponent=p2, second_radius=r2)
         return [(only_a(first), only_a(superellipsoid(p2, (r2,) * 3)))], info
+    if kind == "gem":
+        # max(S, C): the superellipsoid cut by an octahedron |x|+|y|+|z| < w or a cube
+        # (|x|^10 + ... < r^10): flat facets and creases, full symmetry kept
+        if rng.random() < 0.5:
+            w = round(float(rng.uniform(1.05, 1.5)), 2)
+            cut = PowerFunction(
+                (
+                    *(
+                        PowerTerm(1.0, *(1.0 if j == k else 0.0 for j in range(3)))
+                        for k in range(3)
+                    ),
+                    PowerTerm(-w),
+                ),
+                absolute=True,
+            )
+            info.update(cut="octahedron", cut_size=w)
+        else:
+            r = round(float(rng.uniform(0.7, 0.92)), 2)
+            cut = superellipsoid(10.0, (r, r, r))
+            info.update(cut="cube", cut_size=r)
+        return [tuple(t) for t in power_max(first, cut)], info
     # cubic: a superellipsoid steep enough (p > 3) to stay closed, plus c x^3 (summed over
     # the axes when the ornament is permuted, to keep that symmetry), as in equation C.
     p = round(max(p, 3.5) + 1.0, 1)

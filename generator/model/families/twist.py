@@ -69,10 +69,10 @@ class TwistSettings:
     lobe_weights: tuple[float, ...] = (0.1, 0.25, 0.25, 0.2, 0.2)
     lobe_depth: tuple[float, float] = (0.4, 0.65)  # ε
     turns: tuple[float, float] = (0.6, 1.8)  # turns of a lobe from one end to the other
-    height: tuple[float, float] = (1.8, 3.2)  # H / R: half-height over the column's radius
+    height: tuple[float, float] = (1.3, 4.0)  # H / R: half-height over the column's radius
     cap: tuple[float, float] = (2.0, 8.0)  # q of |z/H|^q: round (2) to flat (8) ends
     bulge: tuple[float, float] = (0.0, 0.8)  # β: straight (0) to a barrel (narrower ends)
-    braid_prob: float = 0.3  # a second set of 2m lobes turning the other way
+    braid_prob: float = 0.6  # a second set of 2m lobes turning the other way
     margin: tuple[float, float] = (0.08, 0.2)  # box half = extent * (1 + margin)
 
     def __post_init__(self) -> None:
