@@ -105,7 +105,7 @@ class AssemblySettings:
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
     reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
     centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
-    depth: tuple[float, float] = (0.12, 0.3)  # the ornament's carving depth / body size
+    depth: tuple[float, float] = (0.2, 0.4)  # the ornament's carving depth / body size
     margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
     tube: tuple[float, float] = (0.22, 0.42)  # a torus's tube radius / ring radius
     stretch_prob: float = 0.5  # the whole assembly stretched along the axes by 0.75-1.3 each

@@ -5,7 +5,8 @@ sec, csc, ``pi`` for tan, cot. A constituent function jumps or turns a corner: a
 staircase: every r; a pulse's edges: its shorter level apart) or a corner (triangles: every
 r/2) is drawn by marching cubes as a step or a crease a cell wide, and needs as many cells
 around it as a whole smooth period does, so the length counted is the spacing of those
-(:func:`period_of`). Where the argument P changes by ``|grad P|`` per unit length, that length
+(:func:`period_of`); an element in ``|.|``, or an asin or acos of a sine in C or F, folds H
+into corners twice a period, so half a period counts. Where the argument P changes by ``|grad P|`` per unit length, that length
 spans ``period / |grad P|`` in space, and ``period / (|grad P| * cell)`` cells of the run's
 grid (cell = box size / (grid - 1)).
 
@@ -64,13 +65,14 @@ def cells_per_period(
     """How many cells of size ``cell`` the factor's finest period spans (``inf`` without an
     H; 0 where an argument is non-finite everywhere considered), its arguments sampled on an
     ``n``-per-axis grid of ``box``; ``where`` (an ``n^3`` mask) restricts the samples."""
-    period = period_of(factor.h)
-    if not math.isfinite(period):
+    base = period_of(factor.h)
+    if not math.isfinite(base):
         return math.inf
     grid = Grid(box, (n,) * 3)
     steps = tuple((hi - lo) / (n - 1) for lo, hi in zip(box.lo, box.hi, strict=True))
     worst = math.inf
-    for arg in factor.h_arguments():
+    for element, arg in factor.h_arguments():
+        period = base / 2 if _folded(factor, element) else base
         values = evaluate(arg, grid, threads=1).values
         with np.errstate(invalid="ignore", over="ignore"):
             slope = np.sqrt(sum(g**2 for g in np.gradient(values, *steps)))
@@ -83,6 +85,19 @@ def cells_per_period(
         if fastest > 0:
             worst = min(worst, period / (fastest * cell))
     return worst
+
+
+_ELEMENT = {"A": 0, "B": 1, "C": 2, "D": 3, "E": 4, "F": 5}
+
+
+def _folded(factor: Factor, element: str) -> bool:
+    """Whether the element folds H into corners twice a period: ``|H(.)|`` (a crease at each
+    zero), or G = asin, acos of a sine or cosine in C or F (a triangle wave, a corner at each
+    extreme)."""
+    if factor.absolute[_ELEMENT[element]]:
+        return True
+    smooth = factor.h.name in ("sin", "cos")
+    return element in "CF" and smooth and factor.g.name in ("asin", "acos")
 
 
 def scale_arguments(factor: Factor, alpha: float) -> Factor:

@@ -88,7 +88,7 @@ class SculptureSettings:
     group_weights: tuple[float, ...] = (0.2, 0.25, 0.2, 0.15, 0.1, 0.1)
     powers: tuple[int, ...] = (1, 2, 3)  # outer power k of the ornament sum
     power_weights: tuple[float, ...] = (0.6, 0.25, 0.15)
-    depth: tuple[float, float] = (0.1, 0.4)  # carving depth / envelope radius
+    depth: tuple[float, float] = (0.15, 0.45)  # carving depth / envelope radius
     margin: tuple[float, float] = (0.15, 0.3)  # box beyond envelope + depth
     frequency: tuple[float, float] = (1.0, 4.0)  # scales the ornament's H arguments
     constituent_prob: float = 0.3  # the ornament's H or G is a constituent function

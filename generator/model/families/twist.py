@@ -9,7 +9,8 @@ the power ``(m - 2)/2``, B the cosine or sine of ``m k z``). The column::
 
     F = r^2 (1 + β z^2/H^2) + ε r^2 cos(m (phi - k z)) + |z/H|^q - 1
 
-(``β >= 0`` narrows its ends into a barrel — a negative one would open it to infinity —,
+(its section flattened to an ellipse with ``ellipse_prob``: ``y^2`` over a drawn ratio
+squared; ``β >= 0`` narrows its ends into a barrel — a negative one would open it to infinity —,
 ``q`` rounds or flattens its ends) is inside where
 ``r^2 (1 + ε cos ...) < 1 - |z/H|^q``: lobes of depth ε. A **braid** adds a second set of lobes
 (2m of them, smaller) turning the other way. The column lies along a drawn axis; the box fits
@@ -73,14 +74,17 @@ class TwistSettings:
     cap: tuple[float, float] = (2.0, 8.0)  # q of |z/H|^q: round (2) to flat (8) ends
     bulge: tuple[float, float] = (0.0, 0.8)  # β: straight (0) to a barrel (narrower ends)
     braid_prob: float = 0.6  # a second set of 2m lobes turning the other way
+    ellipse_prob: float = 0.5  # the column's section flattened along y to an ellipse ...
+    ellipse: tuple[float, float] = (0.55, 0.9)  # ... of this ratio of its axes
     margin: tuple[float, float] = (0.08, 0.2)  # box half = extent * (1 + margin)
 
     def __post_init__(self) -> None:
         require_numbers(self, ("lobe_weights",), TABLE)
         require_weighted_pairs(self, (("lobes", "lobe_weights"),), TABLE)
         require_range(self, "lobes", 2, 12, TABLE)
-        require_fractions(self, ("braid_prob",), TABLE, "a probability")
-        names = ("lobe_depth", "turns", "height", "cap", "bulge", "margin")
+        require_fractions(self, ("braid_prob", "ellipse_prob"), TABLE, "a probability")
+        require_range(self, "ellipse", 0.2, 1.0, TABLE)
+        names = ("lobe_depth", "turns", "height", "cap", "bulge", "margin", "ellipse")
         require_low_high(self, names, TABLE)
         require_range(self, "lobe_depth", 0.0, 0.95, TABLE)
         require_range(self, "turns", 0.0, 10.0, TABLE)
@@ -139,12 +143,13 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
     braid_eps = round(eps * float(rng.uniform(0.25, 0.5)), 2)
     axis = int(rng.integers(0, 3))
     margin = float(rng.uniform(*s.margin))
+    flat = round(float(rng.uniform(*s.ellipse)), 2) if rng.random() < s.ellipse_prob else 1.0
     # the column has radius 1 and half-height H: a first box for the cell, grown (and the
     # column built again for its cell) until it holds the column's measured extent
     half = round(max(height, 1.0 / math.sqrt(1.0 - eps)) * (1 + margin), 2)
     for _ in range(4):
         cell = cfg.cell(half)
-        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, cell, cfg)
+        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, flat, cell, cfg)
         terms, m_used, braided, alpha, cells = column
         tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
         extent = envelope_extent(tree) or 2.5
@@ -161,6 +166,7 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
         "bulge": beta,
         "braid": braided,
         "axis": "xyz"[axis],
+        "flat": flat,
         "cells_per_period": round(min(cells, 9999.0), 2),
         "extent": round(extent, 4),
     }
@@ -179,6 +185,7 @@ def _column(
     braid: bool,
     braid_eps: float,
     axis: int,
+    flat: float,
     cell: float,
     cfg: DrawSettings,
 ) -> tuple[list[tuple[Factor, ...]], int, bool, float, float]:
@@ -192,9 +199,9 @@ def _column(
     body = PowerFunction(
         (
             PowerTerm(1.0, 2.0),
-            PowerTerm(1.0, 0.0, 2.0),
+            PowerTerm(round_significant(flat**-2, 4), 0.0, 2.0),
             PowerTerm(round_significant(beta / height**2, 4), 2.0, 0.0, 2.0),
-            PowerTerm(round_significant(beta / height**2, 4), 0.0, 2.0, 2.0),
+            PowerTerm(round_significant(beta / height**2 / flat**2, 4), 0.0, 2.0, 2.0),
             PowerTerm(round_significant(height**-q, 4), 0.0, 0.0, q),
             PowerTerm(-1.0),
         ),
