@@ -358,8 +358,9 @@ def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:
 def _boolean(
     rng: np.random.Generator, kind: str, size: float, spacing: float, p: int, axis
 ) -> tuple[list, Expr, str]:
-    """Two bodies, the second smaller and off-centre, as their union, intersection or
-    difference (intersections of two convex bodies are convex: those become differences)."""
+    """Two bodies, the second smaller and off-centre (on the ring of a torus), as their union,
+    intersection or difference (intersections of two convex bodies are convex: those become
+    differences)."""
     second = str(rng.choice(BODIES))
     op = str(rng.choice(("union", "intersection", "difference")))
     if op == "intersection" and "torus" not in (kind, second):
@@ -367,9 +368,13 @@ def _boolean(
     r2 = size * float(rng.uniform(0.55, 0.95))
     offset = size * float(rng.uniform(0.3, 1.1))
     direction = [0.0, 0.0, 0.0]
-    direction[int(rng.integers(0, 3))] = 1.0
+    pick = int(rng.integers(0, 3))
     axis2 = [0.0, 0.0, 0.0]
     axis2[int(rng.integers(0, 3))] = 1.0
+    if kind == "torus":  # the second body on the ring (in its hole it would cut nothing)
+        pick = (axis.index(1.0) + 1 + pick % 2) % 3
+        offset = size * 1.2 * (0.8 + 0.4 * offset / (1.1 * size))
+    direction[pick] = 1.0
     a = _body(kind, (0.0, 0.0, 0.0), size * 1.2, axis, p)
     b = _body(second, tuple(offset * v for v in direction), r2, axis2, p)
     terms = {"union": union, "intersection": intersection, "difference": difference}[op](a, b)
