@@ -260,7 +260,10 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"family": "statues"}, "family must be one of sculpture, lattice, infill, assembly, twist, free, mix"),
+        (
+            {"family": "statues"},
+            "family must be one of sculpture, lattice, infill, assembly, twist, free, mix",
+        ),
         ({"family": 3}, "family must be text, got 3"),
         ({"mix": ("sculpture", "blob")}, "mix has unknown 'blob' (allowed: sculpture, lattice"),
         ({"mix_weights": (1.0, 2.0)}, "mix and mix_weights must be non-empty lists of the same"),
