@@ -69,7 +69,7 @@ class InfillSettings:
     envelopes: tuple[str, ...] = INFILL_ENVELOPES
     envelope_weights: tuple[float, ...] = (0.55, 0.2, 0.25)
     exponent: tuple[float, float] = (1.8, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
-    stretch_prob: float = 0.35  # one axis of the envelope stretched by 0.6-1.5
+    stretch_prob: float = 0.6  # the envelope stretched along one or two axes by 0.55-1.6
     patterns: tuple[str, ...] = INFILL_PATTERNS
     pattern_weights: tuple[float, ...] = (0.3, 0.25, 0.15, 0.15, 0.15)
     periods: tuple[float, float] = (1.2, 4.5)  # periods across the envelope's width
@@ -105,7 +105,8 @@ def _draw_envelope(
     p = round(float(rng.uniform(*s.exponent)), 1)
     radii = [1.0, 1.0, 1.0]
     if rng.random() < s.stretch_prob:
-        radii[int(rng.integers(0, 3))] = round(float(rng.uniform(0.6, 1.5)), 2)
+        for k in rng.choice(3, size=int(rng.integers(1, 3)), replace=False):
+            radii[int(k)] = round(float(rng.uniform(0.55, 1.6)), 2)
     info: dict[str, Any] = {"kind": kind}
     if kind == "torus":
         ring = round(float(rng.uniform(0.8, 1.1)), 2)
@@ -311,5 +312,5 @@ FAMILY = Family(
     draw_infill,
     "an envelope filled with a triply periodic lattice (a gyroid-filled sculpture)",
     InfillSettings,
-    mix_weight=0.2,
+    mix_weight=0.14,
 )

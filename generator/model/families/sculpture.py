@@ -489,5 +489,5 @@ FAMILY = Family(
     draw_sculpture,
     "an envelope carved by an ornament summed over a symmetry group",
     SculptureSettings,
-    mix_weight=0.35,
+    mix_weight=0.45,
 )

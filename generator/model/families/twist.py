@@ -223,5 +223,5 @@ FAMILY = Family(
     draw_twist,
     "twisted columns: a capped column whose m lobes turn along its axis (optionally braided)",
     TwistSettings,
-    mix_weight=0.12,
+    mix_weight=0.1,
 )

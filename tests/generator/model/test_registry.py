@@ -84,7 +84,7 @@ def test_everything_that_lists_families_reads_the_registry() -> None:
     )
     assert describe_families().splitlines()[0].startswith("sculpture: ")
     cfg = SamplerConfig()
-    assert cfg.mix == names and cfg.mix_weights == (0.35, 0.06, 0.2, 0.2, 0.12, 0.07)
+    assert cfg.mix == names and cfg.mix_weights == (0.45, 0.06, 0.14, 0.18, 0.1, 0.07)
     assert [name for name, _ in cfg.tables] == list(names[:-1])  # free has no table
 
 
