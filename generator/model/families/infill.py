@@ -186,9 +186,11 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     unit = lattice_terms(rng, pattern, *_transforms(pattern), [1.0, 1.0, 1.0])  # period 1
     slope, reach = _surface_slope(env_tree, half, extent)
     t_unit, t_rim, share = strut_share(unit, q, q_rim, reach)
-    if share > 0 and s.strut_cells > 0:
-        period = max(period, s.strut_cells * cell / share)
-    period = round_significant(period, 3)
+    if share > 0 and s.strut_cells > 0 and period < s.strut_cells * cell / share:
+        # the bound: rounded up, so rounding does not thin the struts below it
+        period = _round_up(s.strut_cells * cell / share, 3)
+    else:
+        period = round_significant(period, 3)
     lattice = [
         tuple(
             _shifted(scale_arguments(f, 1.0 / period), phase * period) if any(f.mus) else f
@@ -223,6 +225,12 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     }
     d = round_significant(t_unit, 6)
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "infill", structure, d)
+
+
+def _round_up(v: float, digits: int) -> float:
+    """``v`` rounded up to ``digits`` significant digits."""
+    unit = 10.0 ** (math.floor(math.log10(v)) - digits + 1)
+    return round_significant(math.ceil(v / unit - 1e-9) * unit, digits)
 
 
 def _transforms(pattern: str) -> tuple[tuple[Transform, float], tuple[Transform, float]]:
