@@ -257,10 +257,13 @@ def solidity(mesh: Mesh, volume: float | None) -> float | None:
 
 def quality_metrics(mesh: Mesh, metrics: dict[str, Any]) -> dict[str, Any]:
     """``free_standing``, ``solidity`` and the symmetry metrics of an accepted mesh, given its
-    other metrics (``box_fraction``, ``volume``)."""
+    other metrics (``box_fraction``, ``volume``; ``solidity`` when already measured)."""
+    measured = (
+        metrics["solidity"] if "solidity" in metrics else solidity(mesh, metrics.get("volume"))
+    )
     out: dict[str, Any] = {
         "free_standing": bool(metrics.get("box_fraction", 1.0) == 0.0),
-        "solidity": solidity(mesh, metrics.get("volume")),
+        "solidity": measured,
     }
     out.update(symmetry_metrics(mesh))
     return out

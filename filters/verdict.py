@@ -45,6 +45,7 @@ REASONS = (
     "plain",  # its envelope with barely a mark on it (sculptures)
     "too_complex",  # genus beyond the limit
     "walls",  # too much of the area is walls (poles and jumps), not the zero set
+    "unresolved",  # the surface changes on the nested grid twice as fine (aliasing)
     "duplicate",  # the same formula and grid is already in the catalogue
     "timeout",  # took longer than the run's timeout
     "crashed",  # its worker process died or raised an unexpected error
@@ -67,8 +68,13 @@ class FilterConfig:
     max_genus: int = 500
     blob_max_curvature: float = 1.25
     plain_max_departure: float = 0.12
+    plain_min_solidity: float = 0.9
     require_manifold: bool = True
     max_wall_fraction: float = 0.25
+    check_resolution: bool = True
+    resolution_band: int = 1
+    max_resolution_shift: float = 0.6
+    max_resolution_area: float = 1.10
 
     def __post_init__(self) -> None:
         if not 4 <= self.coarse_grid <= 256:
@@ -81,9 +87,16 @@ class FilterConfig:
             "min_largest_component_fraction",
             "max_box_fraction",
             "plain_max_departure",
+            "plain_min_solidity",
             "max_wall_fraction",
         )
         require_fractions(self, fractions, "filters")
+        if not 0 <= self.resolution_band <= 8:
+            raise SpecError("config [filters]: resolution_band must be from 0 to 8 (cells)")
+        if not self.max_resolution_shift > 0:
+            raise SpecError("config [filters]: max_resolution_shift must be > 0 (coarse cells)")
+        if not self.max_resolution_area >= 1:
+            raise SpecError("config [filters]: max_resolution_area must be >= 1 (an area ratio)")
         for name in ("min_faces", "max_components", "max_genus"):
             if getattr(self, name) < 0:
                 raise SpecError(f"config [filters]: {name} must be >= 0")
@@ -228,10 +241,35 @@ def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
 
 
 def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
-    """A shape with an envelope (a sculpture) that departs from it by less than
-    ``plain_max_departure`` of its volume: the envelope with barely a mark on it."""
+    """The envelope with barely a mark on it, by either of two measures:
+
+    - a shape with an envelope (a sculpture) that departs from it by less than
+      ``plain_max_departure`` (``departure``: the spread of the surface's offset from the
+      envelope over the envelope's radius);
+    - from the mesh alone, whatever the family: one closed piece of genus 0 that fills at least
+      ``plain_min_solidity`` of its convex hull (``solidity``): a rounded box or ball with at
+      most a scratch (convex blobs; their carving, if any, takes under a tenth of the hull).
+    Measures that are missing are not judged."""
     departure = metrics.get("departure")
-    return departure is not None and departure < cfg.plain_max_departure
+    if departure is not None and departure < cfg.plain_max_departure:
+        return True
+    solidity = metrics.get("solidity")
+    return (
+        solidity is not None
+        and metrics.get("genus") == 0
+        and metrics.get("components") == 1
+        and solidity >= cfg.plain_min_solidity
+    )
+
+
+def unresolved(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
+    """A shape whose surface moves more than ``max_resolution_shift`` coarse cells (95th
+    percentile, either way) or gains more than ``max_resolution_area`` in area on the nested
+    grid twice as fine (:mod:`surfgen.filters.resolution`). False when not measured."""
+    shift = metrics.get("resolution_shift")
+    if shift is None:
+        return False
+    return shift > cfg.max_resolution_shift or metrics["resolution_area"] > cfg.max_resolution_area
 
 
 def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:
@@ -261,6 +299,8 @@ def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdic
         reasons.append("blob")
     if plain(m, cfg):
         reasons.append("plain")
+    if unresolved(m, cfg):
+        reasons.append("unresolved")
     if genus is not None and genus > cfg.max_genus:
         reasons.append("too_complex")
     return Verdict(not reasons, tuple(reasons))

@@ -56,7 +56,11 @@ def config_tables(obj: Any = None, path: tuple[str, ...] = ()) -> Iterator[tuple
 
 def config_keys(table_obj: Any) -> list[str]:
     """The keys of one table: its fields that are values, not tables."""
-    return [f.name for f in fields(table_obj) if not _is_table(getattr(table_obj, f.name))]
+    return [
+        f.name
+        for f in fields(table_obj)
+        if not _is_table(getattr(table_obj, f.name)) and f.metadata.get("config_key", True)
+    ]
 
 
 def render_config_reference() -> str:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,7 @@ BOUNDED_TRANSFORMS = (
     "rect3",
 )
 UNBOUNDED_INVERSE = ("atan", "acot")
+NOT_SAMPLER_KEYS = ("grid",)  # fields that are not keys of [sampler] (metadata config_key False)
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,18 @@ class DrawSettings:
     box_half: tuple[float, float] = (0.8, 2.0)
     d_quantile: tuple[float, float] = (0.05, 0.45)
     d_grid: int = 20  # coarse grid used to choose d
+    # The resolution bound (docs/guide/sampling.md, Priors the grid resolves): every period of
+    # an H (a sine's 2 pi, a constituent's r, a pulse's shorter level twice) spans at least this
+    # many cells of the run's grid where the shape is; 0 turns the bound off.
+    period_cells: float = 6.0
+    resolve_tries: int = 8  # free draws redrawn (from the same stream) until one is resolved
+    # The run's grid ([run] grid or --grid; not a [sampler] key): the Config copies it here so
+    # the draw, a pure function of (seed, index, config), sees the cell size it must resolve.
+    grid: int = field(default=64, metadata={"config_key": False})
+
+    def cell(self, half: float) -> float:
+        """The run's cell size in a box ``[-half, half]^3``: ``2 half / (grid - 1)``."""
+        return 2.0 * half / (self.grid - 1)
 
     def __post_init__(self) -> None:
         table = "sampler"
@@ -121,6 +134,16 @@ class DrawSettings:
             )
         if self.integer_exponent_max < 1:
             raise SpecError("config [sampler]: integer_exponent_max must be >= 1")
+        if not 0 <= self.period_cells <= 64:
+            raise SpecError(
+                f"config [sampler]: period_cells must be from 0 to 64, got {self.period_cells}"
+            )
+        if not 1 <= self.resolve_tries <= 100:
+            raise SpecError(
+                f"config [sampler]: resolve_tries must be from 1 to 100, got {self.resolve_tries}"
+            )
+        if isinstance(self.grid, bool) or not isinstance(self.grid, int) or self.grid < 4:
+            raise SpecError(f"config [run]: grid must be a whole number >= 4, got {self.grid!r}")
         if not 4 <= self.d_grid <= 128:
             raise SpecError("config [sampler]: d_grid must be from 4 to 128")
         # Upper bounds: a formula grows with these, and a huge one only makes every shape crash.

@@ -205,6 +205,15 @@ class Factor:
                 out[name] = call("abs", out[name])
         return out
 
+    def h_arguments(self) -> tuple[tuple[str, Expr], ...]:
+        """The arguments of H in the factor's B, E, C and F (those not left out), with the
+        element's name: ``P3^l3``, ``P4^l4``, ``P5^l5/P6^l6``, ``P7^l7/P8^l8`` (what the
+        resolution bound samples)."""
+        args = (self._p(3), self._p(4), self._ratio(5, 6), self._ratio(7, 8))
+        return tuple(
+            (name, a) for name, a, mu in zip("BECF", args, self.mus, strict=True) if mu != 0
+        )
+
     def _ratio(self, top: int, bottom: int) -> Expr:
         return self._p(top) if self._trivial(bottom) else self._p(top) / self._p(bottom)
 

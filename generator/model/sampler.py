@@ -27,7 +27,13 @@ import numpy as np
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Grid
-from surfgen.generator.model.draw import Draw, DrawSettings, choose, round_significant
+from surfgen.generator.model.draw import (
+    NOT_SAMPLER_KEYS,
+    Draw,
+    DrawSettings,
+    choose,
+    round_significant,
+)
 from surfgen.generator.model.families import (
     MIX,
     default_mix,
@@ -46,7 +52,7 @@ from surfgen.generator.model.settings import (
 )
 from surfgen.generator.model.spec import SurfaceSpec
 
-SAMPLER_VERSION = 5  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror
+SAMPLER_VERSION = 6  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,12 @@ class SamplerConfig(DrawSettings):
         """The settings of ``family`` (its ``[sampler.<family>]`` table; None without one)."""
         return dict(self.tables).get(family)
 
+    def with_grid(self, grid: int) -> SamplerConfig:
+        """The config drawing for a run on ``grid`` points per axis (the cell size the
+        priors resolve; :class:`~surfgen.pipelines.run.config.Config` keeps it equal to
+        ``[run] grid``)."""
+        return self if grid == self.grid else replace(self, grid=grid)
+
     def with_settings(self, family: str, **changes: Any) -> SamplerConfig:
         """The config with keys of ``family``'s table changed (validated)."""
         tables = dict(self.tables)
@@ -95,8 +107,10 @@ class SamplerConfig(DrawSettings):
         """The ``[sampler]`` table with its family tables, in the layout of the TOML (nested)
         or the canonical one (:meth:`canonical_dict`, flat). Raises :class:`SpecError`."""
         data = nest_legacy_keys(data)
-        if "tables" in data:
-            raise SpecError("config [sampler]: unknown key 'tables'")
+        for key in ("tables", *NOT_SAMPLER_KEYS):
+            if key in data:
+                hint = " (the grid is [run] grid)" if key == "grid" else ""
+                raise SpecError(f"config [sampler]: unknown key '{key}'{hint}")
         tables = []
         for family in families():
             if family.settings is None:
@@ -129,7 +143,7 @@ class SamplerConfig(DrawSettings):
         """The keys of ``[sampler]`` itself, lists for tuples (JSON- and TOML-ready)."""
         out = {}
         for f in fields(self):
-            if f.name != "tables":
+            if f.name != "tables" and f.name not in NOT_SAMPLER_KEYS:
                 value = getattr(self, f.name)
                 out[f.name] = list(value) if isinstance(value, tuple) else value
         return out

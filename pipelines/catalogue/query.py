@@ -106,6 +106,20 @@ FIELDS: dict[str, Field] = {
     "wall_fraction": Field(
         "number", _metric("wall_fraction"), "area on walls (poles, jumps) / area"
     ),
+    "resolution_shift": Field(
+        "number",
+        _metric("resolution_shift"),
+        "p95 distance between the mesh and its twice-as-fine remesh, either way, in cells",
+    ),
+    "resolution_to_fine": Field(
+        "number", _metric("resolution_to_fine"), "p95 distance mesh -> twice-as-fine mesh (cells)"
+    ),
+    "resolution_to_coarse": Field(
+        "number", _metric("resolution_to_coarse"), "p95 distance twice-as-fine mesh -> mesh (cells)"
+    ),
+    "resolution_area": Field(
+        "number", _metric("resolution_area"), "area of the twice-as-fine mesh / area"
+    ),
     "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
     "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
     "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),

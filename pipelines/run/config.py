@@ -75,9 +75,17 @@ class RunSettings:
 
 @dataclass(frozen=True)
 class Config:
+    """A run's settings: ``[run]``, ``[sampler]`` (with its family tables), ``[filters]``.
+
+    The sampler draws for the run's grid (its priors are bounded by the cell size): building a
+    config copies ``[run] grid`` into the sampler's, so ``--grid`` changes both at once."""
+
     run: RunSettings
     sampler: SamplerConfig
     filters: FilterConfig
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "sampler", self.sampler.with_grid(self.run.grid))
 
     def to_dict(self) -> dict[str, Any]:
         """The canonical form: what a catalogue stores (``runs.config``) and the hash covers,
@@ -189,7 +197,8 @@ def _merge(into: dict[str, Any], values: dict[str, Any], table: str, path: Path)
     key; :class:`SpecError` for a key the defaults do not have."""
     bad = sorted(set(values) - set(into))
     if bad:
-        raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]")
+        hint = " (the grid is [run] grid)" if (table, bad[0]) == ("sampler", "grid") else ""
+        raise SpecError(f"config {path}: unknown key '{bad[0]}' in [{table}]{hint}")
     for key, value in values.items():
         if isinstance(into[key], dict):
             if not isinstance(value, dict):

@@ -23,7 +23,8 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
-from surfgen.filters.shape import quality_metrics
+from surfgen.filters.resolution import measure_resolution
+from surfgen.filters.shape import quality_metrics, solidity
 from surfgen.filters.verdict import (
     ACCEPT,
     Verdict,
@@ -94,8 +95,8 @@ def _round_metrics(m: dict[str, Any]) -> dict[str, Any]:
 
 
 class Stopwatch:
-    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``filters``, ``describe``,
-    ``io``, ``pictures``)."""
+    """Seconds spent per stage (``eval``, ``mesh``, ``walls``, ``resolution``, ``filters``,
+    ``describe``, ``io``, ``pictures``)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
@@ -211,8 +212,9 @@ def _judge(
     draw: Draw | None = None,
 ) -> tuple[Verdict, dict[str, Any], Mesh | None, Callable[[], Verdict]]:
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
-    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the full mesh
-    checks and the shape-quality metrics of an accepted mesh. Returns the cheap checks'
+    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the resolution
+    check (the nested grid twice as fine), the full mesh checks and the shape-quality metrics
+    of an accepted mesh. Returns the cheap checks'
     verdict, the metrics (``rest()`` adds to them), the mesh (if made) and ``rest``."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
@@ -243,6 +245,7 @@ def _judge(
     capped = run.cap and run.walls != "remove"
     try:
         mesh, edges = extract_with_edges(field_, spec.level, cap=capped)
+        extracted = mesh  # before the walls: the resolution check compares like with like
         areas = face_areas(mesh)  # the walls' and the filters' (computed once)
         if run.walls != "keep":  # the mesh itself depends on the classification
             mesh, crossings = label_walls(
@@ -271,8 +274,20 @@ def _judge(
             metrics["wall_fraction"] = crossings.wall_fraction
             watch.lap("walls")
             verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted and fcfg.check_resolution:
+            # ...then the surface on the nested grid twice as fine (a third of the shapes that
+            # pass the cheap checks fail here: before the slower topology)
+            resolution = measure_resolution(
+                tree, field_, extracted, spec.level, cap=capped, band=fcfg.resolution_band
+            )
+            metrics.update(resolution.to_metrics())
+            watch.lap("resolution")
+            verdict = judge(metrics, fcfg, capped=capped)
         if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
             metrics.update(shape_metrics(mesh, spec.box, quick=quick))
+            verdict = judge(metrics, fcfg, capped=capped)
+        if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
+            metrics["solidity"] = solidity(mesh, metrics.get("volume"))
             verdict = judge(metrics, fcfg, capped=capped)
         if verdict.accepted:
             metrics.update(quality_metrics(mesh, metrics))

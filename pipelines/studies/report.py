@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from surfgen.filters.descriptor import DEFAULT_THRESHOLD, descriptor_from_text, nearest_distances
+from surfgen.filters.diversity import BANDWIDTH, descriptor_vendi
 from surfgen.pipelines.catalogue.store import Catalogue, now, open_catalogue
 from surfgen.pipelines.web.pages import write_page
 
@@ -41,22 +43,46 @@ def _entropy_bits(counts: Counter) -> float:
     return float(-(p * np.log2(p)).sum())
 
 
-def _nearest_by_key(cat: Catalogue, keys: list[str]) -> dict[str, float]:
-    """Each accepted shape's descriptor distance to its nearest other shape (stored descriptors)."""
-    from surfgen.filters.descriptor import descriptor_from_text, nearest_distances
-
+def _descriptors_by_key(cat: Catalogue, keys: list[str]) -> dict[str, np.ndarray]:
+    """The stored descriptors of the accepted shapes ``keys`` (those of another version are
+    left out)."""
     wanted = set(keys)
     rows = cat.conn.execute("SELECT key, descriptor FROM shapes WHERE verdict='accepted'")
-    pairs = [(r["key"], descriptor_from_text(r["descriptor"])) for r in rows if r["key"] in wanted]
-    pairs = [(k, d) for k, d in pairs if d is not None]
-    if len(pairs) < 2:
+    out = {}
+    for r in rows:
+        if r["key"] in wanted and (d := descriptor_from_text(r["descriptor"])) is not None:
+            out[r["key"]] = d
+    return out
+
+
+def _nearest_by_key(descriptors: dict[str, np.ndarray]) -> dict[str, float]:
+    """Each shape's descriptor distance to its nearest other shape."""
+    if len(descriptors) < 2:
         return {}
-    nearest = nearest_distances(np.array([d for _, d in pairs]))
-    return {key: float(dist) for (key, _), dist in zip(pairs, nearest, strict=True)}
+    nearest = nearest_distances(np.array(list(descriptors.values())))
+    return {key: float(dist) for key, dist in zip(descriptors, nearest, strict=True)}
 
 
-def _nearest_distances(cat: Catalogue, keys: list[str]) -> list[float]:
-    return list(_nearest_by_key(cat, keys).values())
+def _vendi(descriptors: dict[str, np.ndarray], keys: list[str]) -> float | None:
+    """The Vendi score (:mod:`surfgen.filters.diversity`) of the shapes ``keys`` that have a
+    descriptor; None when none has."""
+    rows = [descriptors[k] for k in keys if k in descriptors]
+    return descriptor_vendi(np.array(rows)) if rows else None
+
+
+def is_blob(row: dict[str, Any], metrics: dict[str, Any]) -> bool:
+    """A convex blob as issue 40 counts them: one piece of genus 0 filling at least
+    :data:`BLOB_SOLIDITY` of its convex hull."""
+    solidity = metrics.get("solidity")
+    return (
+        row["genus"] == 0
+        and row["components"] == 1
+        and solidity is not None
+        and solidity >= BLOB_SOLIDITY
+    )
+
+
+BLOB_SOLIDITY = 0.9
 
 
 def family_of(row: dict[str, Any]) -> str:
@@ -70,15 +96,17 @@ def family_of(row: dict[str, Any]) -> str:
 SHEET_SHAPES = 24  # thumbnails per family on the report's contact sheets
 
 
-def _family_stats(rows: list[dict[str, Any]], nearest: dict[str, float]) -> dict[str, Any]:
-    """Acceptance, free-standing and symmetric shares, solidity and genus, diversity."""
-    from surfgen.filters.descriptor import DEFAULT_THRESHOLD
-
+def _family_stats(
+    rows: list[dict[str, Any]], nearest: dict[str, float], descriptors: dict[str, np.ndarray]
+) -> dict[str, Any]:
+    """Acceptance, free-standing and symmetric shares, solidity and genus, convex blobs,
+    resolution, diversity (nearest distances, Vendi score)."""
     accepted = [r for r in rows if r["verdict"] == "accepted"]
     metrics = [json.loads(r["metrics"] or "{}") for r in accepted]
     n = len(accepted)
     genus = [r["genus"] for r in accepted if r["genus"] is not None]
     near = [nearest[r["key"]] for r in accepted if r["key"] in nearest]
+    shifts = [m["resolution_shift"] for m in metrics if m.get("resolution_shift") is not None]
     return {
         "drawn": len(rows),
         "accepted": n,
@@ -91,6 +119,10 @@ def _family_stats(rows: list[dict[str, Any]], nearest: dict[str, float]) -> dict
         "distinct_genus": len(set(genus)),
         "nearest_distance_median": float(np.median(near)) if near else None,
         "near_duplicate_rate": float(np.mean(np.array(near) < DEFAULT_THRESHOLD)) if near else None,
+        "vendi": _vendi(descriptors, [r["key"] for r in accepted]),
+        "blobs": sum(1 for r, m in zip(accepted, metrics, strict=True) if is_blob(r, m)),
+        "unresolved": sum(1 for r in rows if "unresolved" in json.loads(r["reasons"] or "[]")),
+        "resolution_shift": shifts,
         "thumbs": [
             (r["thumb_path"], r["key"][:8]) for r in accepted[:SHEET_SHAPES] if r["thumb_path"]
         ],
@@ -114,12 +146,13 @@ def report_stats(cat: Catalogue, run: int | None = None) -> dict[str, Any]:
     tags = Counter(t["tag"] for t in tag_rows if t["key"] in wanted)
     genus = Counter(r["genus"] for r in accepted if r["genus"] is not None)
     pairs = {(r["genus"], r["components"]) for r in accepted}
-    nearest_by_key = _nearest_by_key(cat, keys)
+    descriptors = _descriptors_by_key(cat, keys)
+    nearest_by_key = _nearest_by_key(descriptors)
     nearest = list(nearest_by_key.values())
     families: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
         families.setdefault(family_of(r), []).append(r)
-    everything = _family_stats(rows, nearest_by_key)
+    everything = _family_stats(rows, nearest_by_key, descriptors)
     runs = [r for r in cat.runs() if run is None or r["id"] == run]
     return {
         "scope": f"run {run}" if run is not None else "all runs",
@@ -148,8 +181,13 @@ def report_stats(cat: Catalogue, run: int | None = None) -> dict[str, Any]:
         "symmetric": everything["symmetric"],
         "near_duplicate_rate": everything["near_duplicate_rate"],
         "solidity": everything["solidity"],
+        "vendi": everything["vendi"],
+        "vendi_bandwidth": BANDWIDTH,
+        "blobs": everything["blobs"],
+        "unresolved": everything["unresolved"],
+        "resolution_shift": everything["resolution_shift"],
         "families": {
-            name: _family_stats(family_rows, nearest_by_key)
+            name: _family_stats(family_rows, nearest_by_key, descriptors)
             for name, family_rows in sorted(families.items())
         },
         "runs": [
@@ -306,6 +344,14 @@ def _sheet_uri(root: Path | None, thumbs: list[tuple[str, str]]) -> str | None:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
+def _number(value: float | None) -> str:
+    return "–" if value is None else f"{value:.1f}"
+
+
+def _median(values: list[float]) -> str:
+    return f"{np.median(values):.2f}" if values else "–"
+
+
 def _pct(part: int, whole: int) -> str:
     return f"{100 * part / whole:.0f}%" if whole else "–"
 
@@ -328,13 +374,19 @@ def _families_html(s: dict[str, Any], root: Path | None) -> str:
             f"<td>{f['distinct_genus']}</td>"
             f"<td>{solid}</td>"
             f"<td>{'–' if near is None else f'{near:.3f}'}</td>"
-            f"<td>{'–' if rate is None else f'{100 * rate:.1f}%'}</td></tr>"
+            f"<td>{'–' if rate is None else f'{100 * rate:.1f}%'}</td>"
+            f"<td>{_number(f['vendi'])}</td>"
+            f"<td>{_pct(f['blobs'], f['accepted'])}</td>"
+            f"<td>{_pct(f['unresolved'], f['drawn'])}</td>"
+            f"<td>{_median(f['resolution_shift'])}</td></tr>"
         )
     out = [
         "<h2>Families</h2><table><tr><th>family</th><th>draws</th><th>accepted</th>"
         "<th>acceptance</th><th>free-standing</th><th>permutation symmetry</th>"
         "<th>distinct genera</th><th>median solidity</th><th>median nearest distance</th>"
-        f"<th>near duplicates</th></tr>{''.join(rows)}</table>"
+        "<th>near duplicates</th><th>Vendi score</th><th>convex blobs</th>"
+        "<th>rejected unresolved (of draws)</th><th>median resolution shift (cells)</th>"
+        f"</tr>{''.join(rows)}</table>"
     ]
     for name, f in fams.items():
         if not f["accepted"]:
@@ -389,6 +441,17 @@ def render_report(stats: dict[str, Any], catalogue: str) -> str:
                 "–" if rate is None else f"{100 * rate:.1f}%",
                 "near duplicates (nearest shape closer than 1)",
             ),
+            _card(
+                _number(s.get("vendi")),
+                f"Vendi score: effective number of distinct shapes (descriptor kernel, "
+                f"bandwidth {s.get('vendi_bandwidth', BANDWIDTH):g})",
+            ),
+            _card(
+                _pct(s.get("blobs", 0), accepted),
+                "convex blobs (genus 0, one piece, solidity ≥ 0.9)",
+            ),
+            _card(s.get("unresolved", 0), "rejected as unresolved (twice-as-fine grid)"),
+            _card(_median(s.get("resolution_shift", [])), "median resolution shift (cells)"),
             _card(s["drawn"], "draws"),
             _card(s["accepted"], "accepted"),
             _card(f"{100 * s['acceptance']:.0f}%", "acceptance"),

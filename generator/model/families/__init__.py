@@ -30,12 +30,15 @@ from contextlib import contextmanager
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.model.draw import Family
+from surfgen.generator.model.families.assembly import FAMILY as ASSEMBLY
 from surfgen.generator.model.families.free import FAMILY as FREE
+from surfgen.generator.model.families.infill import FAMILY as INFILL
 from surfgen.generator.model.families.lattice import FAMILY as LATTICE
 from surfgen.generator.model.families.sculpture import FAMILY as SCULPTURE
+from surfgen.generator.model.families.twist import FAMILY as TWIST
 
 MIX = "mix"  # not a family: a weighted pick of one per shape
-BUILT_IN: tuple[Family, ...] = (SCULPTURE, LATTICE, FREE)
+BUILT_IN: tuple[Family, ...] = (SCULPTURE, LATTICE, INFILL, ASSEMBLY, TWIST, FREE)
 _NAME = re.compile(r"[a-z][a-z0-9]*\Z")  # `{name}_{key}` must split at the first "_"
 _REGISTRY: dict[str, Family] = {f.name: f for f in BUILT_IN}
 

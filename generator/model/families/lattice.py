@@ -33,6 +33,7 @@ from surfgen.generator.model.equation13 import (
     PowerTerm,
     Transform,
 )
+from surfgen.generator.model.families.gridbound import fit_terms
 from surfgen.generator.model.settings import (
     require_fractions,
     require_low_high,
@@ -109,6 +110,35 @@ def draw_lattice(seed: int, index: int, cfg: DrawSettings, s: LatticeSettings) -
         h1, w1 = _lattice_transform(rng, s, period)
         h2, w2 = _lattice_transform(rng, s, period)
 
+    terms = lattice_terms(rng, pattern, (h1, w1), (h2, w2), scales)
+    box = Box.cube(half)
+    terms, alpha, cells = fit_terms(terms, box, cfg.cell(half), cfg.period_cells)
+    periods *= alpha
+    q = float(rng.uniform(*s.d_quantile))
+    structure = {
+        "pattern": pattern,
+        "periods": round(periods, 3),
+        "H": [h1.name] if pattern in ("schwarz", "neovius") else [h1.name, h2.name],
+        "group": "cyclic" if scales[0] == scales[1] == scales[2] else "none",
+        "axis_scales": scales,
+    }
+    structure["cells_per_period"] = round(min(cells, 9999.0), 2)
+    return Draw(Equation13(tuple(terms), 0.0), box, q, "lattice", structure)
+
+
+def lattice_terms(
+    rng: np.random.Generator,
+    pattern: str,
+    first: tuple[Transform, float],
+    second: tuple[Transform, float],
+    scales: list[float],
+) -> list[tuple[Factor, ...]]:
+    """The sum terms of ``pattern`` (one of :data:`LATTICE_PATTERNS`) with H1 and H2 and the
+    coefficients of their linear arguments, each axis's scaled by ``scales`` (``product`` and
+    ``neovius`` draw their constant from ``rng``)."""
+    h1, w1 = first
+    h2, w2 = second
+
     def wave(h: Transform, w: float, axis: int, times: float = 1.0) -> Factor:
         return only_b(_linear(round_significant(w * scales[axis], 4) * times, axis), h)
 
@@ -140,15 +170,7 @@ def draw_lattice(seed: int, index: int, cfg: DrawSettings, s: LatticeSettings) -
         )
         terms = [(constant(2.0), wave(h1, w1, k), wave(h1, w1, (k + 1) % 3)) for k in range(3)]
         terms += [(constant(sign), wave(h2, w2, k, 2.0)) for k in range(3)]
-    q = float(rng.uniform(*s.d_quantile))
-    structure = {
-        "pattern": pattern,
-        "periods": round(periods, 3),
-        "H": [h1.name] if pattern in ("schwarz", "neovius") else [h1.name, h2.name],
-        "group": "cyclic" if scales[0] == scales[1] == scales[2] else "none",
-        "axis_scales": scales,
-    }
-    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q, "lattice", structure)
+    return terms
 
 
 FAMILY = Family(
@@ -156,5 +178,5 @@ FAMILY = Family(
     draw_lattice,
     "triply periodic patterns (Schwarz, gyroid, diamond, Neovius, I-WP ...) cut by the box",
     LatticeSettings,
-    mix_weight=0.08,
+    mix_weight=0.06,
 )

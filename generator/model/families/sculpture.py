@@ -3,8 +3,9 @@
 An **envelope**, a bounded sum term whose A is a power function with a constant term — a
 superellipsoid ``|x|^p + |y|^p + |z|^p - 1`` (optionally stretched along one axis), a product of
 two of them (the two factors of one sum term, as equation B's
-``(x²+y²+z²-5)(|x|^0.13|y|^0.13|z|^0.13-5)``), or a superellipsoid closed by a cubic term as in
-equation C — plus an **ornament**: one factor of the free draw, summed over a symmetry group
+``(x²+y²+z²-5)(|x|^0.13|y|^0.13|z|^0.13-5)``), a superellipsoid closed by a cubic term as in
+equation C, or a **gem**: a superellipsoid cut by an octahedron or a cube through
+``max(a, b) = (a + b + |a - b|)/2`` (:func:`~.bodies.power_max`) — plus an **ornament**: one factor of the free draw, summed over a symmetry group
 (the 3 cyclic or all 6 axis permutations, each copy one more sum term; ``mirror`` groups use
 ``|x|, |y|, |z|``; :mod:`.symmetry`), optionally under an outer power k (``(O_1 + O_2 + O_3)^k``
 expanded into the sum of its products of k factors, the multinomial coefficients folded into
@@ -42,13 +43,20 @@ from surfgen.generator.model.draw import (
     round_significant,
 )
 from surfgen.generator.model.equation13 import (
+    CONSTITUENT_TRANSFORMS,
     Equation13,
     Factor,
     PowerFunction,
     PowerTerm,
     Transform,
 )
-from surfgen.generator.model.families.symmetry import GROUP_PERMUTATIONS, ornament_terms
+from surfgen.generator.model.families.bodies import power_max
+from surfgen.generator.model.families.gridbound import fit_factor, scale_arguments
+from surfgen.generator.model.families.symmetry import (
+    GROUP_PERMUTATIONS,
+    ornament_terms,
+    permute_factor,
+)
 from surfgen.generator.model.settings import (
     require_fractions,
     require_low_high,
@@ -58,13 +66,14 @@ from surfgen.generator.model.settings import (
     require_weighted_pairs,
 )
 
-SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic")
+SCULPTURE_ENVELOPES = ("superellipsoid", "product", "cubic", "gem")
 # Symmetry groups of a sculpture's ornament: how many axis permutations it is summed over, and
 # whether it uses |x|, |y|, |z| (the mirrors).
 SCULPTURE_GROUPS = tuple(GROUP_PERMUTATIONS)
 EXTENT_GRID = 33  # samples per axis of the search box used to measure an envelope's extent
 EXTENT_BOX = 2.5
 TABLE = "sampler.sculpture"
+JUMPS = ("saw1", "saw2", "stair1", "stair2", "rect1", "rect2", "rect3")
 
 
 @dataclass(frozen=True)
@@ -72,19 +81,20 @@ class SculptureSettings:
     """The ``[sampler.sculpture]`` table (``surfgen config show``)."""
 
     envelopes: tuple[str, ...] = SCULPTURE_ENVELOPES
-    envelope_weights: tuple[float, ...] = (0.45, 0.25, 0.3)
+    envelope_weights: tuple[float, ...] = (0.3, 0.2, 0.25, 0.25)
     exponent: tuple[float, float] = (1.6, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
     stretch_prob: float = 0.15  # one axis of the envelope stretched (breaks symmetry)
     groups: tuple[str, ...] = SCULPTURE_GROUPS
     group_weights: tuple[float, ...] = (0.2, 0.25, 0.2, 0.15, 0.1, 0.1)
     powers: tuple[int, ...] = (1, 2, 3)  # outer power k of the ornament sum
     power_weights: tuple[float, ...] = (0.6, 0.25, 0.15)
-    depth: tuple[float, float] = (0.1, 0.4)  # carving depth / envelope radius
+    depth: tuple[float, float] = (0.15, 0.45)  # carving depth / envelope radius
     margin: tuple[float, float] = (0.15, 0.3)  # box beyond envelope + depth
     frequency: tuple[float, float] = (1.0, 4.0)  # scales the ornament's H arguments
     constituent_prob: float = 0.3  # the ornament's H or G is a constituent function
     omit_element_prob: float = 0.55
     bounded_prob: float = 0.7  # an ornament's tan, cot, sec or csc becomes sin or cos
+    jump_prob: float = 0.35  # an ornament's saw, staircase or pulse is kept (else: a triangle)
     pole_free_prob: float = 0.5  # an ornament without D, E, F, P6, P8 and poles of H
     min_feature: float = 0.25  # ornament feature size / box half-size (0: any)
     max_stray: float = 0.02  # share of the carved surface far from the envelope
@@ -111,6 +121,7 @@ class SculptureSettings:
             "constituent_prob",
             "omit_element_prob",
             "bounded_prob",
+            "jump_prob",
             "pole_free_prob",
         )
         require_fractions(self, probabilities, TABLE, "a probability")
@@ -135,7 +146,7 @@ class SculptureSettings:
             raise SpecError(f"config [{TABLE}]: powers must be whole numbers 1..3")
 
 
-def _superellipsoid(p: float, radii: tuple[float, float, float]) -> PowerFunction:
+def superellipsoid(p: float, radii: tuple[float, float, float]) -> PowerFunction:
     """``Σ |x_k|^p / r_k^p - 1``: negative inside, a convex body for p >= 1."""
     terms = [
         PowerTerm(round_significant(1.0 / r**p, 4), *(p if j == k else 0.0 for j in range(3)))
@@ -162,7 +173,7 @@ def _draw_envelope(
     if rng.random() < s.stretch_prob:
         radii[int(rng.integers(0, 3))] = round(float(rng.uniform(0.6, 1.5)), 2)
     info: dict[str, Any] = {"kind": kind, "exponent": p, "radii": list(radii)}
-    first = _superellipsoid(p, tuple(radii))
+    first = superellipsoid(p, tuple(radii))
     if kind == "superellipsoid":
         return [(only_a(first),)], info
     if kind == "product":
@@ -173,11 +184,32 @@ def _draw_envelope(
         else:
             p2, r2 = round(max(p / 2.2, 1.0), 1), round(float(rng.uniform(1.08, 1.3)), 2)
         info.update(second_exponent=p2, second_radius=r2)
-        return [(only_a(first), only_a(_superellipsoid(p2, (r2,) * 3)))], info
+        return [(only_a(first), only_a(superellipsoid(p2, (r2,) * 3)))], info
+    if kind == "gem":
+        # max(S, C): the superellipsoid cut by an octahedron |x|+|y|+|z| < w or a cube
+        # (|x|^10 + ... < r^10): flat facets and creases, full symmetry kept
+        if rng.random() < 0.5:
+            w = round(float(rng.uniform(1.05, 1.5)), 2)
+            cut = PowerFunction(
+                (
+                    *(
+                        PowerTerm(1.0, *(1.0 if j == k else 0.0 for j in range(3)))
+                        for k in range(3)
+                    ),
+                    PowerTerm(-w),
+                ),
+                absolute=True,
+            )
+            info.update(cut="octahedron", cut_size=w)
+        else:
+            r = round(float(rng.uniform(0.7, 0.92)), 2)
+            cut = superellipsoid(10.0, (r, r, r))
+            info.update(cut="cube", cut_size=r)
+        return [tuple(t) for t in power_max(first, cut)], info
     # cubic: a superellipsoid steep enough (p > 3) to stay closed, plus c x^3 (summed over
     # the axes when the ornament is permuted, to keep that symmetry), as in equation C.
     p = round(max(p, 3.5) + 1.0, 1)
-    first = _superellipsoid(p, tuple(radii))
+    first = superellipsoid(p, tuple(radii))
     c = round(float(rng.uniform(0.25, 0.7)) * (1 if rng.random() < 0.5 else -1), 2)
     axes = range(3) if permutes else (0,)
     cubic = PowerFunction(
@@ -187,7 +219,7 @@ def _draw_envelope(
     return [(only_a(first),), (only_a(cubic),)], info
 
 
-def _envelope_extent(tree: Expr) -> float | None:
+def envelope_extent(tree: Expr) -> float | None:
     """The largest |coordinate| of the envelope's inside (one search cell added), or None if
     the inside reaches the search box (not bounded there) or is empty."""
     box = Box.cube(EXTENT_BOX)
@@ -215,10 +247,10 @@ def draw_sculpture(seed: int, index: int, cfg: DrawSettings, s: SculptureSetting
     depth = round(float(rng.uniform(*s.depth)), 2)
     margin = float(rng.uniform(*s.margin))
     envelope = _sum_tree(env_terms)
-    extent = _envelope_extent(envelope)
+    extent = envelope_extent(envelope)
     half = EXTENT_BOX if extent is None else round(extent * (1 + depth + margin), 2)
     box = Box.cube(half)
-    ornament, freq, products, checks, strength_d, tries = _coarse_ornament(
+    ornament, freq, products, checks, strength_d, tries = coarse_ornament(
         rng,
         cfg,
         s,
@@ -237,8 +269,9 @@ def draw_sculpture(seed: int, index: int, cfg: DrawSettings, s: SculptureSetting
     }
     structure["ornament"].update(frequency=freq, depth=depth)
     if checks is not None:
-        feature, stray, departure, pieces = checks
+        feature, stray, departure, pieces, cells = checks
         structure["ornament"].update(
+            cells_per_period=round(min(cells, 9999.0), 2),
             feature=round(feature, 4),
             stray=round(stray, 4),
             departure=round(min(departure, 99.0), 4),
@@ -253,7 +286,7 @@ def draw_sculpture(seed: int, index: int, cfg: DrawSettings, s: SculptureSetting
     return _sculpture_draw(env_terms, products, strength, half, d, structure, envelope)
 
 
-def _coarse_ornament(
+def coarse_ornament(
     rng: np.random.Generator,
     cfg: DrawSettings,
     s: SculptureSettings,
@@ -267,7 +300,7 @@ def _coarse_ornament(
     Factor,
     float,
     list,
-    tuple[float, float, float, int] | None,
+    tuple[float, float, float, int, float] | None,
     tuple[float, float | None],
     int,
 ]:
@@ -295,29 +328,42 @@ def _coarse_ornament(
     e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
     ge_d = None if e_d is None else carving.slope_field(e_d, step_d)
     best, best_score = None, -math.inf
+    band = None
+    if e is not None and ge is not None:  # where the carved surface can be: the bound's samples
+        step = (box.hi[0] - box.lo[0]) / (n - 1)
+        with np.errstate(invalid="ignore"):
+            band = np.isfinite(e) & np.isfinite(ge) & (np.abs(e) <= (depth + 2 * step) * ge)
     for tries in range(1, s.ornament_tries + 1):
         ornament, freq = draw_ornament(rng, cfg, s)
         if e is None:
             products = ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
+        ornament, freq, cells = _resolved_ornament(ornament, freq, mirror, box, n, cfg, band)
+        resolved = cells >= cfg.period_cells * 0.999
         program = carving.ornament_program(ornament, mirror)
         o = carving.unit_samples(ornament, perms, mirror, k, box, n, program)
         feature = carving.feature_size(e, o, box, ge)
         o_d = carving.unit_samples(ornament, perms, mirror, k, box, cfg.d_grid, program)
         strength_d = carving.strength_on(e_d, o_d, step_d, depth, ge_d)
         stray, departure, f = carving.carved(e, o, box, depth, ge, strength_d)
-        shaped = feature >= s.min_feature and stray <= s.max_stray and departure >= s.min_departure
+        shaped = (
+            feature >= s.min_feature
+            and stray <= s.max_stray
+            and departure >= s.min_departure
+            and resolved
+        )
         score = (
             min(feature / max(s.min_feature, 1e-9), 1.0)
             + min(departure / max(s.min_departure, 1e-9), 1.0)
             - stray
+            - (not resolved)
         )
         if not shaped and best is not None and score <= best_score:
             continue  # neither clean nor the best, whatever its pieces: no need to count them
         n_pieces = 0 if f is None else carving.pieces(f)
         score -= n_pieces > s.max_pieces
         if best is None or score > best_score:
-            checks = (feature, stray, departure, n_pieces)
+            checks = (feature, stray, departure, n_pieces, cells)
             best, best_score = (ornament, freq, checks, strength_d), score
         if shaped and n_pieces <= s.max_pieces:
             break
@@ -325,6 +371,28 @@ def _coarse_ornament(
     ornament, freq, checks, strength_d = best
     products = ornament_terms(ornament, perms, mirror, k)
     return ornament, freq, products, checks, strength_d, tries
+
+
+def _resolved_ornament(
+    ornament: Factor,
+    freq: float,
+    mirror: bool,
+    box: Box,
+    n: int,
+    cfg: DrawSettings,
+    band: np.ndarray | None,
+) -> tuple[Factor, float, float]:
+    """The ornament slowed down until its finest period spans ``[sampler] period_cells`` cells
+    of the run's grid near the envelope's surface (:func:`~.gridbound.fit_factor`, on the
+    mirrored copy when the group mirrors): the ornament, its frequency, its cells per period."""
+    if cfg.period_cells <= 0:
+        return ornament, freq, math.inf
+    probe = permute_factor(ornament, (0, 1, 2), mirror)
+    _, alpha, cells = fit_factor(probe, box, n, cfg.cell(box.hi[0]), cfg.period_cells, band)
+    if alpha != 1.0:
+        ornament = scale_arguments(ornament, alpha)
+        freq = round_significant(freq * alpha, 3)
+    return ornament, freq, cells
 
 
 def _sculpture_draw(env_terms, products, strength, half, d, structure, envelope) -> Draw:
@@ -345,6 +413,12 @@ def draw_ornament(
     if f.h.name in ("tan", "cot", "sec", "csc") and rng.random() < s.bounded_prob:
         # Poles throw debris far from the envelope: mostly keep H to sin and cos.
         f = replace(f, h=Transform("sin" if rng.random() < 0.5 else "cos"))
+    for part in ("h", "g"):
+        # Jumps cut the envelope into terraces with ragged rims (a wall is a cell wide on any
+        # grid): mostly keep to corners, a triangle of the same base.
+        t = getattr(f, part)
+        if t.name in JUMPS and rng.random() >= s.jump_prob:
+            f = replace(f, **{part: Transform("tri2", (_base(t),))})
     freq = round(float(rng.uniform(*s.frequency)), 1)
     mus = list(f.mus)
     if not any(mus):
@@ -365,6 +439,12 @@ def draw_ornament(
         if mu and lambdas[k] == 0:
             lambdas[k] = 1.0
     return replace(f, powers=powers, mus=tuple(mus), lambdas=tuple(lambdas)), freq
+
+
+def _base(t: Transform) -> float:
+    """A constituent's period: its r, or 2 for rect1 and 1 for rect3."""
+    names = CONSTITUENT_TRANSFORMS[t.name]
+    return t.params[names.index("r")] if "r" in names else (2.0 if t.name == "rect1" else 1.0)
 
 
 def _pole_free(
@@ -409,5 +489,5 @@ FAMILY = Family(
     draw_sculpture,
     "an envelope carved by an ornament summed over a symmetry group",
     SculptureSettings,
-    mix_weight=0.8,
+    mix_weight=0.45,
 )

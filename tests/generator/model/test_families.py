@@ -58,15 +58,31 @@ def test_choice_is_numpys_weighted_choice() -> None:
             assert ours.random() == numpys.random()
 
 
-def test_free_family_keeps_todays_models() -> None:
-    cfg = family("free")
+def test_free_family_keeps_todays_models_without_the_resolution_bound() -> None:
+    cfg = replace(family("free"), period_cells=0.0)
     assert [model_hash(draw_equation(7, i, cfg)) for i in range(30)] == FREE_SEED_7
+
+
+def test_the_bounded_free_family_keeps_the_first_draw_when_it_is_resolved() -> None:
+    """With the bound (sampler version 6), a free draw is the first sampler's draw when that
+    one is resolved on the run's grid, else a later draw of the same stream."""
+    cfg = family("free")
+    kept = 0
+    for i in range(30):
+        draw = draw_equation(7, i, cfg)
+        assert draw.structure["tries"] >= 1
+        if draw.structure["tries"] == 1:
+            assert model_hash(draw) == FREE_SEED_7[i]
+            kept += 1
+        else:
+            assert model_hash(draw) != FREE_SEED_7[i]
+    assert 0 < kept < 30
 
 
 def test_a_free_shape_of_the_mix_is_the_free_shape() -> None:
     mix, free = SamplerConfig(), family("free")
-    picks = [pick_family(7, i, mix) for i in range(60)]
-    assert set(picks) == {"sculpture", "lattice", "free"}
+    picks = [pick_family(7, i, mix) for i in range(120)]
+    assert set(picks) == set(mix.mix) and "free" in picks
     for i, name in enumerate(picks):
         if name == "free":
             assert model_hash(draw_equation(7, i, mix)) == model_hash(draw_equation(7, i, free))
@@ -199,7 +215,7 @@ def test_stray_share_sees_debris_away_from_the_envelope() -> None:
 
 
 def test_sculptures_redraw_fine_ornaments() -> None:
-    loose = family("sculpture").with_settings(
+    loose = replace(family("sculpture"), period_cells=0.0).with_settings(
         "sculpture",
         min_feature=0.0,
         max_stray=1.0,
@@ -244,13 +260,16 @@ def test_mix_weights_decide_the_share_of_each_family() -> None:
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"family": "statues"}, "family must be one of sculpture, lattice, free, mix"),
+        (
+            {"family": "statues"},
+            "family must be one of sculpture, lattice, infill, assembly, twist, free, mix",
+        ),
         ({"family": 3}, "family must be text, got 3"),
         ({"mix": ("sculpture", "blob")}, "mix has unknown 'blob' (allowed: sculpture, lattice"),
         ({"mix_weights": (1.0, 2.0)}, "mix and mix_weights must be non-empty lists of the same"),
-        ({"mix_weights": (1.0, -1.0, 1.0)}, "mix_weights must be non-negative"),
-        ({"mix_weights": (0, 0, 0)}, "mix_weights must be non-negative and not all zero"),
-        ({"mix_weights": ("a", 1, 1)}, "mix_weights must be a list of finite numbers"),
+        ({"mix_weights": (1.0, -1.0, 1.0, 1.0, 1.0, 1.0)}, "mix_weights must be non-negative"),
+        ({"mix_weights": (0, 0, 0, 0, 0, 0)}, "mix_weights must be non-negative and not all zero"),
+        ({"mix_weights": ("a", 1, 1, 1, 1, 1)}, "mix_weights must be a list of finite numbers"),
         ({"sculpture_groups": ("none", "tetra")}, "sculpture]: groups has unknown 'tetra'"),
         ({"sculpture_powers": (1, 4)}, "sculpture]: powers must be whole numbers 1..3"),
         ({"sculpture_feature_grid": 4}, "sculpture]: feature_grid must be from 8 to 128"),
@@ -300,10 +319,10 @@ def test_structure_is_json_ready() -> None:
         (
             ["--family", "statue"],
             "",
-            "error: --family must be one of sculpture, lattice, free, mix",
+            "error: --family must be one of sculpture, lattice, infill, assembly, twist, free, mix",
         ),
         ([], "[sampler]\nfamily = 'x'\n", "error: config [sampler]: family must be one of"),
-        ([], "[sampler]\nmix_weights = [1, -1, 1]\n", "mix_weights must be non-negative"),
+        ([], "[sampler]\nmix_weights = [1, -1, 1, 1, 1, 1]\n", "mix_weights must be non-negative"),
         ([], "[sampler]\nmix = ['free', 'slab']\nmix_weights = [1, 1]\n", "mix has unknown 'slab'"),
     ],
 )

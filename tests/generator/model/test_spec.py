@@ -13,7 +13,7 @@ from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 
 
-@pytest.mark.parametrize("family", ["sculpture", "lattice", "free"])
+@pytest.mark.parametrize("family", ["sculpture", "lattice", "infill", "assembly", "twist", "free"])
 def test_from_tree_is_the_spec_of_the_printed_formula(family: str) -> None:
     cfg = replace(SamplerConfig(), family=family)
     for index in range(8):

@@ -1,0 +1,428 @@
+"""Is a shape resolved by its grid? The surface again on a grid twice as fine, compared.
+
+A shape sampled on an ``N``-point grid is checked against the same formula on the nested grid
+of ``2N - 1`` points per axis (:func:`fine_grid`: every coarse sample is a fine sample, bit for
+bit, and every coarse cell splits into 8 fine cells). A resolved surface barely moves between
+the two; an aliased one — a sheet torn at the coarse grid, a comb of stripes thinner than the
+cell, debris between samples — changes its shape, and usually gains area.
+
+The fine field is evaluated in a **band** only (:func:`fine_field`, ``method="band"``): the coarse
+cells the surface crosses (corners on both sides of the level), widened by ``band`` cells, are
+split and their new fine points evaluated with the fast points evaluator; the other fine points
+take the side of the coarse samples around them (a cell outside the band has all its corners on
+one side), with the coarse field's trilinear value as a magnitude. ``method="dense"`` evaluates
+every fine point (the reference of the tests); inside the band both give the same bits. In both,
+a new fine sample that is non-finite between finite coarse samples (a pole on a plane such as
+``x = 0`` that only the fine grid samples) takes their mean: poles are the walls filter's
+business, and a plane of non-finite samples would cut a slit through the fine surface.
+
+:func:`compare_meshes` measures the two meshes against each other (:class:`Resolution`):
+
+- ``resolution_to_fine``: the 95th percentile of the distance from points of the coarse mesh to
+  the fine one, in coarse cells (coarse features the fine grid does not confirm: tears, debris);
+- ``resolution_to_coarse``: the same from the fine mesh to the coarse one (fine features the
+  coarse grid missed: stripes, ragged terraces);
+- ``resolution_area``: fine area / coarse area (aliasing combs gain area; smooth surfaces keep
+  theirs within a few percent, a staircase at most loses a little);
+- ``resolution_shift``: the larger of the two percentiles, the headline figure.
+
+Distances are measured between area-uniform point samples (:data:`SAMPLES` per mesh, a fixed
+seed) and the other mesh's vertices and face centres (a k-d tree): the nearest such point
+over-estimates the distance to the surface by at most a fraction of a cell (measured: a sphere
+gives 0.1-0.25 cells).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy.ndimage import binary_dilation
+
+from surfgen.generator.errors import EmptySurface, SpecError
+from surfgen.generator.eval.evaluate import evaluate, points_evaluator
+from surfgen.generator.eval.grid import Field, Grid
+from surfgen.generator.formula.expr import Expr
+from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_areas
+
+SAMPLES = 4000  # points drawn on each mesh for the distances
+SAMPLE_SEED = 20261204  # fixed: the measure is a function of the meshes alone
+PERCENTILE = 95.0
+DISTANCE_CAP = 8.0  # cells: farther distances count as this (the verdict's limits are ~1 cell)
+# Fine-field methods of :func:`fine_field` (an interval-pruned sparse evaluator may join them).
+METHODS = ("band", "dense")
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """How a surface changes from its grid to the nested grid twice as fine (module doc)."""
+
+    to_fine: float  # p95 distance coarse -> fine, in coarse cells
+    to_coarse: float  # p95 distance fine -> coarse, in coarse cells
+    area: float  # fine area / coarse area
+    fine_points: int  # fine samples evaluated (the band's size)
+
+    @property
+    def shift(self) -> float:
+        return max(self.to_fine, self.to_coarse)
+
+    def to_metrics(self) -> dict[str, float | int]:
+        """The catalogue's metrics (``resolution_*``)."""
+        return {
+            "resolution_shift": self.shift,
+            "resolution_to_fine": self.to_fine,
+            "resolution_to_coarse": self.to_coarse,
+            "resolution_area": self.area,
+            "resolution_points": self.fine_points,
+        }
+
+
+# Metrics a catalogue row stores (module doc), for the pages that show them.
+METRIC_NAMES = (
+    "resolution_shift",
+    "resolution_to_fine",
+    "resolution_to_coarse",
+    "resolution_area",
+    "resolution_points",
+)
+
+
+def fine_grid(grid: Grid) -> Grid:
+    """The nested grid of ``2N - 1`` points per axis over the same box: its even points are
+    ``grid``'s, bit for bit (``lo + 2i * (h / 2) == lo + i * h`` exactly in floating point)."""
+    return Grid(grid.box, tuple(2 * n - 1 for n in grid.shape))
+
+
+def fine_field(
+    tree: Expr,
+    coarse: Field,
+    level: float,
+    params: Mapping[str, float] | None = None,
+    *,
+    method: str = "band",
+    band: int = 1,
+) -> tuple[Field, int]:
+    """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field and how many fine
+    samples were evaluated.
+
+    ``method="band"``: only the fine points of the coarse cells the surface ``F = level`` crosses,
+    widened by ``band`` cells, are evaluated (the coarse samples are reused); the others take
+    the coarse field's trilinear value, kept on the side of the coarse samples around them.
+    ``method="dense"``: every fine point is evaluated (the reference).
+
+    Raises :class:`SpecError` for an unknown method or a negative band, and what evaluation
+    raises.
+    """
+    if method not in METHODS:
+        raise SpecError(f"unknown fine-field method '{method}' (allowed: {', '.join(METHODS)})")
+    if band < 0:
+        raise SpecError(f"the resolution band must be >= 0 cells, got {band}")
+    grid = fine_grid(coarse.grid)
+    values = np.ascontiguousarray(coarse.values, dtype=np.float64)
+    if method == "dense":
+        fine = evaluate(tree, grid, params, threads=1).values.copy()
+        evaluated = grid.size
+    else:
+        cells = _crossed_cells(values, level)
+        if band:
+            cells = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
+        fine = np.empty(grid.shape)
+        todo = _upsample(values, cells, level, fine)
+        a, b, c = np.nonzero(todo)
+        if a.size:
+            x, y, z = grid.axes()
+            fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
+        evaluated = int(a.size)
+    _patch_singular(values, fine)
+    return Field(grid, fine), evaluated
+
+
+def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
+    """``(N-1, N-1, N-1)`` bool: the cells with corners on both sides of the level (inside is
+    ``F < level`` and finite, as marching cubes has it)."""
+    inside = np.isfinite(values) & (values < level)
+    lo = np.ones(tuple(n - 1 for n in values.shape), dtype=bool)
+    hi = np.zeros_like(lo)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                corner = inside[dx : dx + lo.shape[0], dy : dy + lo.shape[1], dz : dz + lo.shape[2]]
+                lo &= corner
+                hi |= corner
+    return hi & ~lo
+
+
+@numba.njit(**KERNEL)
+def _upsample(values, cells, level, fine):
+    """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; points of a
+    band cell (``cells``) are left to evaluate (returned mask); the others get the mean of the
+    coarse samples around them, kept on their side of the level (all of them are on one side:
+    the cell is not crossed). Non-finite means count as outside, as in marching cubes."""
+    m0, m1, m2 = fine.shape
+    todo = np.zeros(fine.shape, dtype=np.bool_)
+    c0, c1, c2 = cells.shape
+    for i in range(c0):
+        for j in range(c1):
+            for k in range(c2):
+                if cells[i, j, k]:
+                    for a in range(2 * i, 2 * i + 3):
+                        for b in range(2 * j, 2 * j + 3):
+                            for c in range(2 * k, 2 * k + 3):
+                                todo[a, b, c] = True
+    below = np.nextafter(level, -np.inf)
+    for a in range(m0):
+        i0 = a // 2
+        i1 = i0 + (a & 1)
+        for b in range(m1):
+            j0 = b // 2
+            j1 = j0 + (b & 1)
+            for c in range(m2):
+                k0 = c // 2
+                k1 = k0 + (c & 1)
+                if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
+                    fine[a, b, c] = values[i0, j0, k0]
+                    todo[a, b, c] = False
+                    continue
+                if todo[a, b, c]:
+                    continue
+                s = 0.0
+                n = 0
+                for i in (i0, i1):
+                    for j in (j0, j1):
+                        for k in (k0, k1):
+                            s += values[i, j, k]
+                            n += 1
+                # distinct corners are counted 8 / n times each: the mean is unchanged
+                v = s / n
+                corner = values[i0, j0, k0]
+                inside = math.isfinite(corner) and corner < level
+                if inside:
+                    fine[a, b, c] = min(v, below)
+                elif math.isfinite(v) and v < level:  # cannot happen in exact arithmetic
+                    fine[a, b, c] = level
+                else:
+                    fine[a, b, c] = v
+    return todo
+
+
+@numba.njit(**KERNEL)
+def _patch_singular(values, fine):
+    """Give a new fine sample that is non-finite the mean of the coarse samples around it when
+    those are all finite: a pole or 0/0 the coarse grid steps over (a plane x = 0 that only the
+    fine grid samples, where 1/x is inf) is a wall, judged by the walls filter, not a change of
+    the zero set; left non-finite it would cut a slit through the fine surface."""
+    m0, m1, m2 = fine.shape
+    for a in range(m0):
+        i0 = a // 2
+        i1 = i0 + (a & 1)
+        for b in range(m1):
+            j0 = b // 2
+            j1 = j0 + (b & 1)
+            for c in range(m2):
+                if math.isfinite(fine[a, b, c]):
+                    continue
+                if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
+                    continue  # a coarse sample: as it was
+                k0 = c // 2
+                k1 = k0 + (c & 1)
+                s = 0.0
+                n = 0
+                for i in (i0, i1):
+                    for j in (j0, j1):
+                        for k in (k0, k1):
+                            s += values[i, j, k]
+                            n += 1
+                if math.isfinite(s):
+                    fine[a, b, c] = s / n
+
+
+def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.ndarray:
+    """``(n, 3)`` points uniform by area on ``mesh`` (a fixed seed: a function of the mesh)."""
+    areas = face_areas(mesh)
+    total = float(areas.sum())
+    rng = np.random.default_rng(seed)
+    faces = np.searchsorted(np.cumsum(areas), rng.random(n) * total, side="right")
+    faces = np.minimum(faces, mesh.n_faces - 1)
+    r1, r2 = rng.random((2, n))
+    s = np.sqrt(r1)
+    v, corners = mesh.vertices, mesh.faces[faces]
+    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
+    return (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
+
+
+def compare_meshes(
+    coarse: Mesh, fine: Mesh, grid: Grid, fine_points: int = 0, cap: float = DISTANCE_CAP
+) -> Resolution:
+    """:class:`Resolution` of ``coarse`` against ``fine``, distances in cells of ``grid`` (the
+    coarse grid: its mean spacing), each at most ``cap`` cells."""
+    cell = float(np.mean(grid.spacing))
+    lo = np.array(grid.box.lo, dtype=np.float64)
+    dims = np.array([max(n - 1, 1) for n in grid.shape], dtype=np.int64)
+    to_fine = surface_distances(sample_points(coarse), fine, lo, cell, dims, cap)
+    to_coarse = surface_distances(sample_points(fine), coarse, lo, cell, dims, cap)
+    area = float(face_areas(fine).sum()) / float(face_areas(coarse).sum())
+    return Resolution(
+        float(np.percentile(to_fine, PERCENTILE)),
+        float(np.percentile(to_coarse, PERCENTILE)),
+        area,
+        fine_points,
+    )
+
+
+def surface_distances(
+    points: np.ndarray, mesh: Mesh, lo: np.ndarray, cell: float, dims: np.ndarray, cap: float
+) -> np.ndarray:
+    """Distances from ``points`` ``(P, 3)`` to the surface of ``mesh``, in ``cell`` units, at
+    most ``cap``: exact point-to-triangle distances, the triangles found through a lattice of
+    ``dims`` cells of width ``cell`` from ``lo`` (by their centroids; points and triangles
+    outside it count in its border cells)."""
+    v, f = mesh.vertices, mesh.faces
+    centres = (v[f[:, 0]] + v[f[:, 1]] + v[f[:, 2]]) / 3.0
+    reach = float(np.sqrt(((v[f] - centres[:, None, :]) ** 2).sum(axis=2).max()))
+    start, order = _bucket(centres, lo, cell, dims)
+    rings = int(math.ceil(cap + reach / cell)) + 2
+    dist = _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell)
+    return np.minimum(dist / cell, cap)
+
+
+@numba.njit(**KERNEL)
+def _cell_of(p, lo, cell, dims, k):
+    c = int(math.floor((p - lo[k]) / cell))
+    return min(max(c, 0), dims[k] - 1)
+
+
+@numba.njit(**KERNEL)
+def _bucket(pts, lo, cell, dims):
+    """Counting sort of ``pts`` by lattice cell (clamped into the lattice):
+    ``order[start[c]:start[c + 1]]`` are cell ``c``'s points."""
+    n = pts.shape[0]
+    ids = np.empty(n, dtype=np.int64)
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    for i in range(n):
+        cx = _cell_of(pts[i, 0], lo, cell, dims, 0)
+        cy = _cell_of(pts[i, 1], lo, cell, dims, 1)
+        cz = _cell_of(pts[i, 2], lo, cell, dims, 2)
+        ids[i] = (cx * dims[1] + cy) * dims[2] + cz
+        start[ids[i] + 1] += 1
+    for c in range(start.shape[0] - 1):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[ids[i]]] = i
+        fill[ids[i]] += 1
+    return start, order
+
+
+@numba.njit(**KERNEL)
+def _point_triangle(px, py, pz, v, f, t):
+    """Squared distance from a point to triangle ``t`` (Ericson, Real-Time Collision Detection
+    5.1.5: the closest point found by the Voronoi regions of the corners, edges and face)."""
+    ax, ay, az = v[f[t, 0], 0], v[f[t, 0], 1], v[f[t, 0], 2]
+    bx, by, bz = v[f[t, 1], 0], v[f[t, 1], 1], v[f[t, 1], 2]
+    cx, cy, cz = v[f[t, 2], 0], v[f[t, 2], 1], v[f[t, 2], 2]
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    bpx, bpy, bpz = px - bx, py - by, pz - bz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    cpx, cpy, cpz = px - cx, py - cy, pz - cz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
+    if d1 <= 0.0 and d2 <= 0.0:  # corner a
+        qx, qy, qz = ax, ay, az
+    elif d3 >= 0.0 and d4 <= d3:  # corner b
+        qx, qy, qz = bx, by, bz
+    elif d6 >= 0.0 and d5 <= d6:  # corner c
+        qx, qy, qz = cx, cy, cz
+    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:  # edge ab
+        w = d1 / (d1 - d3)
+        qx, qy, qz = ax + w * abx, ay + w * aby, az + w * abz
+    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:  # edge ac
+        w = d2 / (d2 - d6)
+        qx, qy, qz = ax + w * acx, ay + w * acy, az + w * acz
+    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:  # edge bc
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        qx, qy, qz = bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz)
+    else:
+        denom = va + vb + vc
+        if denom == 0.0:  # a degenerate triangle: its corner is near enough
+            qx, qy, qz = ax, ay, az
+        else:  # inside the face
+            sv = vb / denom
+            sw = vc / denom
+            qx = ax + abx * sv + acx * sw
+            qy = ay + aby * sv + acy * sw
+            qz = az + abz * sv + acz * sw
+    dx, dy, dz = px - qx, py - qy, pz - qz
+    return dx * dx + dy * dy + dz * dz
+
+
+@numba.njit(**KERNEL)
+def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap):
+    """Distance from each point to the nearest triangle, searched in shells of lattice cells
+    around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
+    it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
+    points at least ``r * cell - reach``. Stops there, once beyond ``cap``, or after ``rings``
+    shells (then the best found, or inf)."""
+    out = np.empty(points.shape[0])
+    for p in range(points.shape[0]):
+        x, y, z = points[p, 0], points[p, 1], points[p, 2]
+        cx = _cell_of(x, lo, cell, dims, 0)
+        cy = _cell_of(y, lo, cell, dims, 1)
+        cz = _cell_of(z, lo, cell, dims, 2)
+        best = np.inf
+        for r in range(rings):
+            for i in range(max(cx - r, 0), min(cx + r, dims[0] - 1) + 1):
+                for j in range(max(cy - r, 0), min(cy + r, dims[1] - 1) + 1):
+                    shell = abs(i - cx) == r or abs(j - cy) == r
+                    step = 1 if shell else 2 * r
+                    k = max(cz - r, 0) if shell else cz - r
+                    while k <= min(cz + r, dims[2] - 1):
+                        if k >= 0:
+                            base = (i * dims[1] + j) * dims[2] + k
+                            for s in range(start[base], start[base + 1]):
+                                d = _point_triangle(x, y, z, v, f, order[s])
+                                if d < best:
+                                    best = d
+                        k += step
+            bound = r * cell - reach
+            if bound > 0.0 and (math.sqrt(best) <= bound or bound > cap):
+                break
+        out[p] = math.sqrt(best)
+    return out
+
+
+def measure_resolution(
+    tree: Expr,
+    coarse: Field,
+    mesh: Mesh,
+    level: float,
+    *,
+    cap: bool,
+    params: Mapping[str, float] | None = None,
+    method: str = "band",
+    band: int = 1,
+) -> Resolution:
+    """Compare ``mesh`` (extracted from ``coarse`` with ``cap``) with the surface on the nested
+    grid twice as fine (:func:`fine_field`, extracted the same way). A fine surface that
+    vanishes (every fine sample on one side) has moved as far as the coarse one reaches:
+    reported as an infinite shift.
+
+    Raises what :func:`fine_field` raises."""
+    field, evaluated = fine_field(tree, coarse, level, params, method=method, band=band)
+    try:
+        fine = extract_mesh(field, level, cap=cap)
+    except EmptySurface:
+        return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated)
+    return compare_meshes(mesh, fine, coarse.grid, evaluated)

@@ -1,0 +1,391 @@
+"""The ``assembly`` family: 2-5 bodies placed by a symmetry group, joined or kept apart,
+optionally carved by an ornament — compositions, all inside equation (13).
+
+The bodies (:mod:`.bodies`: balls, rounded boxes, tori — polynomials, so power functions) sit
+on the orbit of an **arrangement**: ``pair`` (two along x), ``row`` (three along x),
+``triangle`` (three in the plane x+y+z = 0, the cyclic permutations of one point), ``tetra``
+(the four vertices of a tetrahedron), ``square`` (four in the xy plane), optionally one more at
+the centre; or a ``chain`` of 2-4 linked tori. They are put together by a **join**:
+
+- ``blend``: the field ``t - Σ w / (ρ_i + ε)`` of the bodies' shape functions ``ρ_i`` (one
+  factor ``A/D`` each, A the constant ``-w``, D the body's ``ρ_i + ε``): near bodies merge
+  smoothly, far ones stay apart (t sets how far they reach);
+- ``product``: ``Π B_i`` (one sum term of one factor per body): the union of bodies that do not
+  overlap (linked tori, separate rings), kept apart;
+- ``boolean``: two bodies by min/max through ``|·|`` (:func:`~.bodies.union`,
+  :func:`~.bodies.intersection`, :func:`~.bodies.difference`): a ring through a ball, a box
+  with a ball cut out, ...
+
+Balls and boxes (plain lumps, bare) are carved by a pole-free ornament of the sculpture family
+summed over the arrangement's group, as it carves an envelope (:mod:`.sculpture`); rings are
+left bare (an ornament on a product of rings throws the surface out to the box).
+Its keys: the ``[sampler.assembly]`` table (:class:`AssemblySettings`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from surfgen.generator.eval.grid import Box
+from surfgen.generator.formula.expr import Expr, add_all, mul_all
+from surfgen.generator.model.draw import (
+    Draw,
+    DrawSettings,
+    Family,
+    choose,
+    constant,
+    rng_for,
+    round_significant,
+)
+from surfgen.generator.model.equation13 import Equation13, Factor, PowerFunction, PowerTerm
+from surfgen.generator.model.families import sculpture
+from surfgen.generator.model.families.bodies import (
+    Polynomial,
+    ball,
+    body_factor,
+    difference,
+    intersection,
+    torus,
+    union,
+)
+from surfgen.generator.model.families.symmetry import GROUP_PERMUTATIONS
+from surfgen.generator.model.settings import (
+    require_fractions,
+    require_low_high,
+    require_names,
+    require_numbers,
+    require_range,
+    require_weighted_pairs,
+)
+
+ARRANGEMENTS = ("pair", "row", "triangle", "tetra", "square", "chain")
+BODIES = ("ball", "box", "torus")
+JOINS = ("blend", "product", "boolean")
+TABLE = "sampler.assembly"
+_S6 = 1.0 / (3.0 * math.sqrt(2.0))
+_UNIT_ORBITS: dict[str, tuple[tuple[float, float, float], ...]] = {
+    # centres at unit spacing (nearest centres 1 apart)
+    "pair": ((-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)),
+    "row": ((-1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)),
+    "triangle": tuple(
+        (2 * _S6 * a, 2 * _S6 * b, 2 * _S6 * c)
+        for a, b, c in ((1.0, -0.5, -0.5), (-0.5, 1.0, -0.5), (-0.5, -0.5, 1.0))
+    ),
+    "tetra": tuple(
+        (s[0] / (2 * math.sqrt(2)), s[1] / (2 * math.sqrt(2)), s[2] / (2 * math.sqrt(2)))
+        for s in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))
+    ),
+    "square": ((0.5, 0.5, 0.0), (-0.5, 0.5, 0.0), (-0.5, -0.5, 0.0), (0.5, -0.5, 0.0)),
+}
+# The ornament's group for each arrangement: its permutations and whether it mirrors.
+_GROUPS = {
+    "pair": "mirror",
+    "row": "mirror",
+    "triangle": "cyclic",
+    "tetra": "cyclic",
+    "square": "mirror",
+    "chain": "none",
+}
+
+
+@dataclass(frozen=True)
+class AssemblySettings:
+    """The ``[sampler.assembly]`` table (``surfgen config show``)."""
+
+    arrangements: tuple[str, ...] = ARRANGEMENTS
+    arrangement_weights: tuple[float, ...] = (0.15, 0.15, 0.2, 0.2, 0.1, 0.2)
+    bodies: tuple[str, ...] = BODIES
+    body_weights: tuple[float, ...] = (0.2, 0.2, 0.6)
+    joins: tuple[str, ...] = JOINS
+    join_weights: tuple[float, ...] = (0.35, 0.35, 0.3)
+    spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
+    reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
+    centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
+    depth: tuple[float, float] = (0.2, 0.4)  # the ornament's carving depth / body size
+    margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
+    tube: tuple[float, float] = (0.22, 0.42)  # a torus's tube radius / ring radius
+    stretch_prob: float = 0.5  # the whole assembly stretched along the axes by 0.75-1.3 each
+
+    def __post_init__(self) -> None:
+        require_names(self, "arrangements", ARRANGEMENTS, TABLE)
+        require_names(self, "bodies", BODIES, TABLE)
+        require_names(self, "joins", JOINS, TABLE)
+        require_numbers(self, ("arrangement_weights", "body_weights", "join_weights"), TABLE)
+        require_weighted_pairs(
+            self,
+            (
+                ("arrangements", "arrangement_weights"),
+                ("bodies", "body_weights"),
+                ("joins", "join_weights"),
+            ),
+            TABLE,
+        )
+        probabilities = ("centre_prob", "stretch_prob")
+        require_fractions(self, probabilities, TABLE, "a probability")
+        require_low_high(self, ("spacing", "reach", "depth", "margin", "tube"), TABLE)
+        require_range(self, "tube", 0.05, 0.9, TABLE)
+        require_range(self, "spacing", 0.5, 5.0, TABLE)
+        require_range(self, "reach", 0.05, 0.99, TABLE)
+        require_range(self, "depth", 0.0, 1.0, TABLE)
+        require_range(self, "margin", 0.0, 2.0, TABLE)
+
+
+def _body(kind: str, centre, size: float, axis, p: int, tube: float = 0.32) -> Polynomial:
+    if kind == "torus":
+        return torus(centre, axis, size, round(size * tube, 3))
+    return ball(centre, (size,) * 3, 2 if kind == "ball" else p)
+
+
+def _shape_function(kind: str, centre, size: float, p: int) -> Polynomial:
+    """``ρ = Σ ((x_k - c_k)/r)^p`` (>= 0, 1 on the body's surface), for the blend."""
+    return ball(centre, (size,) * 3, 2 if kind == "ball" else p) + Polynomial.constant(1.0)
+
+
+def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings) -> Draw:
+    """The ``assembly`` family (see the module docstring)."""
+    rng = rng_for(seed, index)
+    arrangement = str(choose(rng, s.arrangements, s.arrangement_weights))
+    kind = str(choose(rng, s.bodies, s.body_weights))
+    join = str(choose(rng, s.joins, s.join_weights))
+    spacing = round(float(rng.uniform(*s.spacing)), 2)
+    p = 4 if rng.random() < 0.5 else 6  # a rounded box's exponent
+    axis = [0.0, 0.0, 0.0]
+    axis[int(rng.integers(0, 3))] = 1.0
+    centre_body = bool(rng.random() < s.centre_prob)
+    reach = float(rng.uniform(*s.reach))
+    depth = round(float(rng.uniform(*s.depth)), 2)
+    margin = float(rng.uniform(*s.margin))
+    tube = round(float(rng.uniform(*s.tube)), 2)
+    tilt = round(float(rng.uniform(0.0, 1.2)), 2)
+    stretch = (1.0, 1.0, 1.0)
+    if rng.random() < s.stretch_prob:
+        stretch = tuple(round(float(rng.uniform(0.75, 1.3)), 2) for _ in range(3))
+    # bare balls and boxes, blended or apart, are plain lumps: they are carved; rings are not
+    # (an ornament on a product of rings throws the surface out to the box)
+    ornamented = kind != "torus"
+    if arrangement == "chain":
+        kind, join = "torus", "product"
+    if join == "blend" and kind == "torus":
+        join = "product"  # a torus has no positive shape function to blend
+    if join == "boolean":
+        arrangement = "pair"
+    info: dict[str, Any] = {
+        "arrangement": arrangement,
+        "body": kind,
+        "join": join,
+        "spacing": spacing,
+    }
+    size = 0.5  # body radius (ring radius of a torus)
+    t = 0.0  # the blend's level
+    if arrangement == "chain":
+        terms, bodies_tree, chain = _chain(rng, size)
+        info.update(chain)
+    elif join == "boolean":
+        terms, bodies_tree, op = _boolean(rng, kind, size, spacing, p, axis)
+        info.update(bodies=2, operation=op)
+    else:
+        centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+        if centre_body and arrangement in ("triangle", "tetra", "square") and kind != "torus":
+            centres.append((0.0, 0.0, 0.0))
+        axes = _axes(arrangement, centres, axis, kind, tilt)
+        if kind == "torus" and arrangement in ("triangle", "tetra"):
+            info["tilt"] = tilt
+        if join == "blend" or kind != "torus" and (spacing < 2.05 or not ornamented):
+            # balls overlapping (their product would hollow the overlap) or apart and plain
+            # (convex lumps): blended
+            join = info["join"] = "blend"
+            terms, bodies_tree, t = _blend(kind, centres, size, p, reach)
+            info["reach"] = round(reach, 3)
+        else:
+            factors = [
+                body_factor(_body(kind, c, size, a, p, tube))
+                for c, a in zip(centres, axes, strict=True)
+            ]
+            terms = [tuple(factors)]
+            bodies_tree = mul_all([f.to_tree() for f in factors])
+        info["bodies"] = len(centres)
+    if stretch != (1.0, 1.0, 1.0):  # the whole assembly stretched along the axes
+        terms = [tuple(_stretched(f, stretch) for f in t) for t in terms]
+        bodies_tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+        if join == "blend":
+            bodies_tree = add_all([bodies_tree, constant(t).to_tree()])
+        info["stretch"] = list(stretch)
+    if kind == "torus" and arrangement != "chain":
+        info["tube"] = tube
+    if kind == "box":
+        info["exponent"] = p
+    group = _GROUPS[arrangement] if kind != "torus" or arrangement in ("pair", "row") else "none"
+    if stretch != (1.0, 1.0, 1.0):
+        group = "mirror" if _GROUPS[arrangement] == "mirror" else "none"
+    info["group"] = group
+    extent = sculpture.envelope_extent(bodies_tree)
+    if extent is None:
+        extent = 2.5
+    half = round(extent * (1 + depth * ornamented + margin), 2)
+    d = -t if join == "blend" else 0.0
+    if ornamented:
+        s_sc = _sculpture_settings(cfg)
+        perms = GROUP_PERMUTATIONS[group]
+        ornament, freq, products, checks, strength_d, tries = sculpture.coarse_ornament(
+            rng,
+            cfg,
+            s_sc,
+            bodies_tree,
+            Box.cube(half),
+            perms,
+            group.endswith("mirror"),
+            1,
+            depth * size,
+        )
+        strength, od = strength_d
+        if od is not None and checks is not None:
+            for coef, prod in products:
+                c = round_significant(strength * coef, 3) or 1.0
+                terms.append((constant(c), *prod))
+            d = round_significant(d + od, 6)
+            info["ornament"] = {
+                "factor": Equation13(((ornament,),)).to_dict()["terms"][0][0],
+                "frequency": freq,
+                "depth": depth,
+                "strength": strength,
+                "tries": tries,
+            }
+            info["ornament"]["cells_per_period"] = round(min(checks[4], 9999.0), 2)
+    info["extent"] = round(extent, 4)
+    envelope = bodies_tree if "ornament" in info else None
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "assembly", info, d, envelope)
+
+
+def _stretched(f: Factor, k: tuple[float, float, float]) -> Factor:
+    """The factor with x, y, z replaced by x/kx, y/ky, z/kz (each power term's coefficient
+    divided by the stretches to its exponents)."""
+
+    def pf(p: PowerFunction) -> PowerFunction:
+        terms = tuple(
+            PowerTerm(
+                round_significant(t.a / (k[0] ** t.b * k[1] ** t.c * k[2] ** t.d), 6), t.b, t.c, t.d
+            )
+            for t in p.terms
+        )
+        return PowerFunction(terms, p.absolute)
+
+    return replace(f, powers=tuple(pf(p) for p in f.powers))
+
+
+def _sculpture_settings(cfg: DrawSettings) -> sculpture.SculptureSettings:
+    """The sculpture family's settings of this config (or the defaults) for the ornaments,
+    always pole-free: a pole between two bodies throws sheets across the gap."""
+    settings = getattr(cfg, "settings", None)
+    found = settings("sculpture") if callable(settings) else None
+    found = found if found is not None else sculpture.SculptureSettings()
+    return replace(found, pole_free_prob=1.0, bounded_prob=1.0)
+
+
+def _axes(arrangement: str, centres, axis, kind: str, tilt: float) -> list:
+    """Each body's axis (a torus's): on the triangle and the tetrahedron, the radial direction
+    turned by ``tilt`` towards the diagonal (1, 1, 1), which the cyclic permutations keep (so
+    the group maps ring to ring); else the drawn one."""
+    if kind != "torus" or arrangement not in ("triangle", "tetra"):
+        return [axis] * len(centres)
+    out = []
+    for c in centres:
+        norm = math.sqrt(sum(v * v for v in c)) or 1.0
+        out.append(
+            [round(math.cos(tilt) * v / norm + math.sin(tilt) / math.sqrt(3.0), 4) for v in c]
+        )
+    return out
+
+
+def _blend(kind: str, centres, size: float, p: int, reach: float) -> tuple[list, Expr, float]:
+    """``Σ -1 / (ρ_i + ε)`` (one factor A/D per body) and t: the blend's terms, its tree and t."""
+    eps = 0.1
+    terms = []
+    for c in centres:
+        rho = _shape_function(kind, c, size, p) + Polynomial.constant(eps)
+        one = body_factor(Polynomial.constant(-1.0))
+        powers = (one.powers[0], rho.to_power_function(), *one.powers[2:])
+        terms.append((replace(one, powers=powers, lambdas=(1.0, 1.0, *one.lambdas[2:])),))
+    t = round_significant(reach / (1 + eps), 4)
+    tree = add_all([f.to_tree() for (f,) in terms])
+    return terms, add_all([tree, constant(t).to_tree()]), t
+
+
+def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str, Any]]:
+    """2-4 linked tori along x, each turned a quarter turn (plus a drawn twist) about x from
+    the one before, their centres a drawn share of the ring radius apart; the tube is kept
+    under half the closest approach of neighbouring rings (so links never touch): a product."""
+    n = int(rng.integers(2, 5))
+    gap = round(size * float(rng.uniform(0.8, 1.2)), 3)
+    twist = round(float(rng.uniform(-0.5, 0.5)), 2)
+    tube = size * float(rng.uniform(0.2, 0.32))
+    axes = [
+        (
+            0.0,
+            round(math.sin(i * (math.pi / 2 + twist)), 4),
+            round(math.cos(i * (math.pi / 2 + twist)), 4),
+        )
+        for i in range(n)
+    ]
+    centres = [((i - (n - 1) / 2) * gap, 0.0, 0.0) for i in range(n)]
+    closest = min(
+        _ring_gap(centres[i], axes[i], centres[i + 1], axes[i + 1], size) for i in range(n - 1)
+    )
+    tube = round(min(tube, 0.45 * closest), 3)
+    factors = [body_factor(torus(c, a, size, tube)) for c, a in zip(centres, axes, strict=True)]
+    info = {"bodies": n, "gap": gap, "twist": twist, "tube": round(tube / size, 3)}
+    return [tuple(factors)], mul_all([f.to_tree() for f in factors]), info
+
+
+def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:
+    """The closest approach of two circles of ``radius`` (centres c, unit axes a), sampled."""
+
+    def circle(c, a) -> np.ndarray:
+        a = np.asarray(a, dtype=float) / np.linalg.norm(a)
+        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(a, u)
+        t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
+        return np.asarray(c) + radius * (np.cos(t) * u + np.sin(t) * v)
+
+    p, q = circle(c1, a1), circle(c2, a2)
+    return float(np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min())
+
+
+def _boolean(
+    rng: np.random.Generator, kind: str, size: float, spacing: float, p: int, axis
+) -> tuple[list, Expr, str]:
+    """Two bodies, the second smaller and off-centre (on the ring of a torus), as their union,
+    intersection or difference (intersections of two convex bodies are convex: those become
+    differences)."""
+    second = str(rng.choice(BODIES))
+    op = str(rng.choice(("union", "intersection", "difference")))
+    if op == "intersection" and "torus" not in (kind, second):
+        op = "difference"
+    r2 = size * float(rng.uniform(0.55, 0.95))
+    offset = size * float(rng.uniform(0.3, 1.1))
+    direction = [0.0, 0.0, 0.0]
+    pick = int(rng.integers(0, 3))
+    axis2 = [0.0, 0.0, 0.0]
+    axis2[int(rng.integers(0, 3))] = 1.0
+    if kind == "torus":  # the second body on the ring (in its hole it would cut nothing)
+        pick = (axis.index(1.0) + 1 + pick % 2) % 3
+        offset = size * 1.2 * (0.8 + 0.4 * offset / (1.1 * size))
+    direction[pick] = 1.0
+    a = _body(kind, (0.0, 0.0, 0.0), size * 1.2, axis, p)
+    b = _body(second, tuple(offset * v for v in direction), r2, axis2, p)
+    terms = {"union": union, "intersection": intersection, "difference": difference}[op](a, b)
+    tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+    return terms, tree, f"{kind} {op} {second}"
+
+
+FAMILY = Family(
+    "assembly",
+    draw_assembly,
+    "2-5 bodies placed by a symmetry group, blended, kept apart or combined by min/max",
+    AssemblySettings,
+    mix_weight=0.18,
+)

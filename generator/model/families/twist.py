@@ -1,0 +1,227 @@
+"""The ``twist`` family: twisted columns — a capped column whose cross-section has m lobes that
+turn along its axis (a twisted bar for m = 2, a drill or a twisted candle for more), all
+inside equation (13).
+
+With ``r^2 = x^2 + y^2`` and ``(x + i y)^m = Re_m + i Im_m`` (whole powers of x and y), the lobes
+``r^2 cos(m (phi - k z))`` are ``(Re_m cos(m k z) + Im_m sin(m k z)) / r^(m-2)``: two factors
+``A/D * B`` (A the polynomial ``Re_m`` or ``Im_m``, D the power function ``(x^2 + y^2 + δ)`` to
+the power ``(m - 2)/2``, B the cosine or sine of ``m k z``). The column::
+
+    F = r^2 (1 + β z^2/H^2) + ε r^2 cos(m (phi - k z)) + |z/H|^q - 1
+
+(its section flattened to an ellipse with ``ellipse_prob``: ``y^2`` over a drawn ratio
+squared; ``β >= 0`` narrows its ends into a barrel — a negative one would open it to infinity —,
+``q`` rounds or flattens its ends) is inside where
+``r^2 (1 + ε cos ...) < 1 - |z/H|^q``: lobes of depth ε. A **braid** adds a second set of lobes
+(2m of them, smaller) turning the other way. The column lies along a drawn axis; the box fits
+it with a margin, so it stands free.
+
+Resolution (:mod:`.gridbound`): the lobes along the axis repeat every ``2 pi / (m k)``, which
+must span ``[sampler] period_cells`` cells (k is lowered), and around it every ``2 pi R / m`` at
+the valleys' radius, likewise (m is lowered). Its keys: the ``[sampler.twist]`` table.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from surfgen.generator.eval.grid import Box
+from surfgen.generator.formula.expr import add_all, mul_all
+from surfgen.generator.model.draw import (
+    ONE,
+    Draw,
+    DrawSettings,
+    Family,
+    choose,
+    only_a,
+    rng_for,
+    round_significant,
+)
+from surfgen.generator.model.equation13 import (
+    Equation13,
+    Factor,
+    PowerFunction,
+    PowerTerm,
+    Transform,
+)
+from surfgen.generator.model.families.bodies import Polynomial
+from surfgen.generator.model.families.gridbound import fit_terms
+from surfgen.generator.model.families.sculpture import envelope_extent
+from surfgen.generator.model.families.symmetry import permute_factor
+from surfgen.generator.model.settings import (
+    require_fractions,
+    require_low_high,
+    require_numbers,
+    require_range,
+    require_weighted_pairs,
+)
+
+TABLE = "sampler.twist"
+DELTA = 0.01  # keeps r^(m-2) from 0/0 on the axis
+
+
+@dataclass(frozen=True)
+class TwistSettings:
+    """The ``[sampler.twist]`` table (``surfgen config show``)."""
+
+    lobes: tuple[int, ...] = (2, 3, 4, 5, 6)  # m: lobes of the cross-section
+    lobe_weights: tuple[float, ...] = (0.1, 0.25, 0.25, 0.2, 0.2)
+    lobe_depth: tuple[float, float] = (0.4, 0.65)  # ε
+    turns: tuple[float, float] = (0.6, 1.8)  # turns of a lobe from one end to the other
+    height: tuple[float, float] = (1.3, 4.0)  # H / R: half-height over the column's radius
+    cap: tuple[float, float] = (2.0, 8.0)  # q of |z/H|^q: round (2) to flat (8) ends
+    bulge: tuple[float, float] = (0.0, 0.8)  # β: straight (0) to a barrel (narrower ends)
+    braid_prob: float = 0.6  # a second set of 2m lobes turning the other way
+    ellipse_prob: float = 0.5  # the column's section flattened along y to an ellipse ...
+    ellipse: tuple[float, float] = (0.55, 0.9)  # ... of this ratio of its axes
+    margin: tuple[float, float] = (0.08, 0.2)  # box half = extent * (1 + margin)
+
+    def __post_init__(self) -> None:
+        require_numbers(self, ("lobe_weights",), TABLE)
+        require_weighted_pairs(self, (("lobes", "lobe_weights"),), TABLE)
+        require_range(self, "lobes", 2, 12, TABLE)
+        require_fractions(self, ("braid_prob", "ellipse_prob"), TABLE, "a probability")
+        require_range(self, "ellipse", 0.2, 1.0, TABLE)
+        names = ("lobe_depth", "turns", "height", "cap", "bulge", "margin", "ellipse")
+        require_low_high(self, names, TABLE)
+        require_range(self, "lobe_depth", 0.0, 0.95, TABLE)
+        require_range(self, "turns", 0.0, 10.0, TABLE)
+        require_range(self, "height", 0.3, 5.0, TABLE)
+        require_range(self, "cap", 1.0, 16.0, TABLE)
+        require_range(self, "bulge", 0.0, 3.0, TABLE)
+        require_range(self, "margin", 0.0, 2.0, TABLE)
+
+
+def harmonic(m: int) -> tuple[Polynomial, Polynomial]:
+    """``Re`` and ``Im`` of ``(x + i y)^m`` as polynomials."""
+    re, im = Polynomial(), Polynomial()
+    for j in range(m + 1):
+        mono = Polynomial({(m - j, j, 0): float(math.comb(m, j))})
+        if j % 2 == 0:
+            re = re + mono.scaled((-1.0) ** (j // 2))
+        else:
+            im = im + mono.scaled((-1.0) ** ((j - 1) // 2))
+    return re, im
+
+
+def lobe_terms(m: int, amplitude: float, rate: float) -> list[tuple[Factor, ...]]:
+    """``amplitude r^2 cos(m (phi - rate z))`` as two sum terms of one factor each."""
+    re, im = harmonic(m)
+    divisor = PowerFunction((PowerTerm(1.0, 2.0), PowerTerm(1.0, 0.0, 2.0), PowerTerm(DELTA)))
+    lam = (m - 2) / 2
+    w = round_significant(m * rate, 4)
+    out = []
+    for poly, h in ((re, "cos"), (im, "sin")):
+        arg = PowerFunction((PowerTerm(w, 0.0, 0.0, 1.0),))
+        powers = (poly.scaled(amplitude).to_power_function(), divisor if lam else ONE, arg)
+        out.append(
+            (
+                Factor(
+                    powers=(*powers, *(ONE,) * 5),
+                    lambdas=(1.0, lam, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                    mus=(1.0, 0.0, 0.0, 0.0),
+                    h=Transform(h),
+                    g=Transform("asin"),
+                ),
+            )
+        )
+    return out
+
+
+def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Draw:
+    """The ``twist`` family (see the module docstring)."""
+    rng = rng_for(seed, index)
+    m = int(choose(rng, s.lobes, s.lobe_weights))
+    eps = round(float(rng.uniform(*s.lobe_depth)), 2)
+    turns = float(rng.uniform(*s.turns)) * (1 if rng.random() < 0.5 else -1)
+    height = round(float(rng.uniform(*s.height)), 2)
+    q = round(float(rng.uniform(*s.cap)), 1)
+    beta = round(float(rng.uniform(*s.bulge)), 2)
+    braid = bool(rng.random() < s.braid_prob)
+    braid_eps = round(eps * float(rng.uniform(0.25, 0.5)), 2)
+    axis = int(rng.integers(0, 3))
+    margin = float(rng.uniform(*s.margin))
+    flat = round(float(rng.uniform(*s.ellipse)), 2) if rng.random() < s.ellipse_prob else 1.0
+    # the column has radius 1 and half-height H: a first box for the cell, grown (and the
+    # column built again for its cell) until it holds the column's measured extent
+    half = round(max(height, 1.0 / math.sqrt(1.0 - eps)) * (1 + margin), 2)
+    for _ in range(4):
+        cell = cfg.cell(half)
+        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, flat, cell, cfg)
+        terms, m_used, braided, alpha, cells = column
+        tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
+        extent = envelope_extent(tree) or 2.5
+        need = round(extent * (1 + margin), 2)
+        if need <= half:
+            break
+        half = need
+    structure: dict[str, Any] = {
+        "lobes": m_used,
+        "lobe_depth": eps,
+        "turns": round(turns * alpha, 3),
+        "height": height,
+        "cap": q,
+        "bulge": beta,
+        "braid": braided,
+        "axis": "xyz"[axis],
+        "flat": flat,
+        "cells_per_period": round(min(cells, 9999.0), 2),
+        "extent": round(extent, 4),
+    }
+    if braided:
+        structure["braid_depth"] = braid_eps
+    return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "twist", structure, 0.0)
+
+
+def _column(
+    m: int,
+    eps: float,
+    turns: float,
+    height: float,
+    q: float,
+    beta: float,
+    braid: bool,
+    braid_eps: float,
+    axis: int,
+    flat: float,
+    cell: float,
+    cfg: DrawSettings,
+) -> tuple[list[tuple[Factor, ...]], int, bool, float, float]:
+    """The column's sum terms for the run's ``cell``: (terms, lobes, braided, the twist's
+    slow-down, cells per period). Lobes around the axis are fewer when ``2 pi R / m`` (R the
+    valleys' radius) would span fewer than ``period_cells`` cells; the braid is left out then."""
+    valley = 1.0 / math.sqrt(1.0 + eps)
+    if cfg.period_cells > 0:
+        m = max(2, min(m, int(2 * math.pi * valley / (cfg.period_cells * cell))))
+    rate = round_significant(2 * math.pi * turns / (2 * height), 4)  # radians per unit of z
+    body = PowerFunction(
+        (
+            PowerTerm(1.0, 2.0),
+            PowerTerm(round_significant(flat**-2, 4), 0.0, 2.0),
+            PowerTerm(round_significant(beta / height**2, 4), 2.0, 0.0, 2.0),
+            PowerTerm(round_significant(beta / height**2 / flat**2, 4), 0.0, 2.0, 2.0),
+            PowerTerm(round_significant(height**-q, 4), 0.0, 0.0, q),
+            PowerTerm(-1.0),
+        ),
+        absolute=True,
+    )
+    lobes = lobe_terms(m, eps, rate)
+    braid = braid and 2 * math.pi * valley / (2 * m) >= cfg.period_cells * cell
+    if braid:
+        lobes += lobe_terms(2 * m, braid_eps, -rate)
+    box = Box.cube(1.0)  # the arguments are linear: any box measures them exactly
+    lobes, alpha, cells = fit_terms(lobes, box, cell, cfg.period_cells, n=4)
+    terms = [(only_a(body),), *lobes]
+    perm = tuple((k + axis + 1) % 3 for k in range(3))  # z goes to the drawn axis
+    return [tuple(permute_factor(f, perm) for f in t) for t in terms], m, braid, alpha, cells
+
+
+FAMILY = Family(
+    "twist",
+    draw_twist,
+    "twisted columns: a capped column whose m lobes turn along its axis (optionally braided)",
+    TwistSettings,
+    mix_weight=0.1,
+)

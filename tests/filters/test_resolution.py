@@ -1,0 +1,188 @@
+"""The resolution check: resolved surfaces stay put on the nested grid twice as fine, aliased
+ones move; the band evaluation agrees with the dense reference where it evaluates."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from surfgen.filters import resolution as res
+from surfgen.filters.resolution import (
+    Resolution,
+    compare_meshes,
+    fine_field,
+    fine_grid,
+    measure_resolution,
+)
+from surfgen.filters.verdict import FilterConfig, judge, unresolved
+from surfgen.generator.errors import SpecError
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
+
+CFG = FilterConfig()
+GYROID = "sin(x)*cos(y)+sin(y)*cos(z)+sin(z)*cos(x)"
+# A ball with stripes 0.063 wide on a grid of 0.097 cells: aliased.
+STRIPES = "x^2+y^2+z^2-1+0.8*sin(50*x)"
+# A ball with a saw-tooth relief whose teeth (jumps of 0.3) are 0.1 apart, about a cell.
+SAW = "x^2+y^2+z^2-1+0.3*(10*x-floor(10*x))"
+
+
+def _measure(formula: str, half: float, n: int, method: str = "band") -> Resolution:
+    tree = parse(formula)
+    coarse = evaluate(tree, Grid(Box.cube(half), (n,) * 3), threads=1)
+    mesh = extract_mesh(coarse, 0.0, cap=True)
+    return measure_resolution(tree, coarse, mesh, 0.0, cap=True, method=method)
+
+
+def _is_unresolved(r: Resolution) -> bool:
+    return unresolved(r.to_metrics(), CFG)
+
+
+@pytest.mark.parametrize(
+    ("formula", "half", "n"),
+    [
+        ("x^2+y^2+z^2-1", 1.5, 32),
+        ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 40),
+        (GYROID, 2 * math.pi, 40),
+    ],
+    ids=["sphere", "torus", "gyroid"],
+)
+def test_resolved_shapes_pass(formula: str, half: float, n: int) -> None:
+    r = _measure(formula, half, n)
+    assert r.shift < 0.6 and 0.97 < r.area < 1.06, r
+    assert not _is_unresolved(r)
+
+
+@pytest.mark.parametrize("formula", [STRIPES, SAW], ids=["stripes", "saw"])
+def test_aliased_shapes_are_unresolved(formula: str) -> None:
+    r = _measure(formula, 1.5, 32)
+    assert _is_unresolved(r), r
+    reasons = judge(
+        {
+            "faces": 1000,
+            "components": 1,
+            "largest_component_fraction": 1.0,
+            "box_fraction": 0.0,
+            **r.to_metrics(),
+        },
+        CFG,
+        capped=True,
+    ).reasons
+    assert reasons == ("unresolved",)
+
+
+def test_the_fine_grid_nests_the_coarse_one() -> None:
+    coarse = Grid(Box((-1.3, -0.7, 0.1), (2.9, 0.35, 3.3)), (17, 23, 30))
+    fine = fine_grid(coarse)
+    assert fine.shape == (33, 45, 59)
+    for a, b in zip(coarse.axes(), fine.axes(), strict=True):
+        assert np.array_equal(a, b[::2])  # bit for bit
+
+
+@pytest.mark.parametrize("formula", ["(sqrt(x^2+y^2)-1)^2+z^2-0.16", STRIPES])
+def test_the_band_evaluates_what_the_dense_reference_does(formula: str) -> None:
+    tree = parse(formula)
+    coarse = evaluate(tree, Grid(Box.cube(1.6), (24,) * 3), threads=1)
+    dense, n_dense = fine_field(tree, coarse, 0.0, method="dense")
+    band, n_band = fine_field(tree, coarse, 0.0, method="band", band=1)
+    assert n_dense == 47**3 and 0 < n_band < n_dense
+    # Same bits on every point of a crossed cell (and its neighbours)...
+    crossed = res._crossed_cells(coarse.values, 0.0)
+    i, j, k = np.nonzero(crossed)
+    for di in range(3):
+        for dj in range(3):
+            for dk in range(3):
+                at = (2 * i + di, 2 * j + dj, 2 * k + dk)
+                assert np.array_equal(band.values[at], dense.values[at])
+    # ...and every other fine point on the side of the dense field (a smooth field: no
+    # surface hides between coarse samples outside the band).
+    assert np.array_equal(band.values < 0, dense.values < 0) or formula == STRIPES
+
+
+def test_band_and_dense_agree_on_a_resolved_shape() -> None:
+    band = _measure("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 32, "band")
+    dense = _measure("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 32, "dense")
+    assert (band.to_fine, band.to_coarse, band.area) == (dense.to_fine, dense.to_coarse, dense.area)
+    assert band.fine_points < dense.fine_points
+
+
+def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
+    # One sample inside, far from the level: only the cells around it are crossed; the fine
+    # points of the other cells keep the coarse side even where their mean would not.
+    values = np.full((6, 6, 6), 5.0)
+    values[2, 2, 2] = -1.0
+    values[5, 5, 5] = np.nan  # non-finite: outside
+    fine = np.empty((11, 11, 11))
+    cells = res._crossed_cells(values, 0.0)
+    assert cells.sum() == 8
+    todo = res._upsample(values, cells, 0.0, fine)
+    assert todo.sum() == 5**3 - 3**3  # the crossed cells' fine points, less the coarse samples
+    assert fine[4, 4, 4] == -1.0 and fine[10, 10, 10] != fine[10, 10, 10]
+    outside = ~todo
+    outside[::2, ::2, ::2] = False
+    assert np.all(~(fine[outside] < 0))
+
+
+def test_surface_distances_are_exact_point_to_triangle_distances() -> None:
+    grid = Grid(Box.cube(1.5), (12,) * 3)
+    mesh = extract_mesh(evaluate(parse("x^2+y^2+z^2-1"), grid, threads=1), 0.0, cap=True)
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1.5, 1.5, (400, 3))  # near, inside and far from the surface
+    cell = grid.spacing[0]
+    dims = np.array([11, 11, 11], dtype=np.int64)
+    got = res.surface_distances(points, mesh, np.array(grid.box.lo), cell, dims, 100.0)
+    want = _brute_distances(points, mesh.vertices[mesh.faces])
+    np.testing.assert_allclose(got * cell, want, rtol=0, atol=1e-12)
+
+
+def _brute_distances(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Point-to-triangle distances by another method: the foot on the plane when it falls
+    inside (barycentric test), else the nearest of the three edges (segments)."""
+    p = points[:, None, :]
+    a, b, c = tri[None, :, 0], tri[None, :, 1], tri[None, :, 2]
+    n = np.cross(b - a, c - a)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    h = ((p - a) * n).sum(-1)
+    foot = p - h[..., None] * n
+    inside = np.ones(h.shape, dtype=bool)
+    for u, w in ((a, b), (b, c), (c, a)):
+        inside &= (np.cross(w - u, foot - u) * n).sum(-1) >= 0
+    best = np.where(inside, np.abs(h), np.inf)
+    for u, w in ((a, b), (b, c), (c, a)):
+        t = np.clip(((p - u) * (w - u)).sum(-1) / ((w - u) ** 2).sum(-1), 0, 1)
+        best = np.minimum(best, np.linalg.norm(p - (u + t[..., None] * (w - u)), axis=-1))
+    return best.min(axis=1)
+
+
+def test_distances_are_in_coarse_cells_and_capped() -> None:
+    grid = Grid(Box.cube(2.0), (33,) * 3)
+    tree = parse("x^2+y^2+z^2-1")
+    a = extract_mesh(evaluate(tree, grid, threads=1), 0.0, cap=True)
+    moved = type(a)(a.vertices + np.array([0.25, 0.0, 0.0]), a.faces)  # two cells of 0.125
+    r = compare_meshes(a, moved, grid)
+    assert 1.7 < r.to_fine < 2.1 and 1.7 < r.to_coarse < 2.1
+    far = type(a)(a.vertices * 0.1, a.faces)  # 0.9 and more away: 7+ cells
+    assert compare_meshes(a, far, grid, cap=3.0).to_fine == 3.0
+
+
+def test_bad_options_are_refused() -> None:
+    tree = parse("x^2+y^2+z^2-1")
+    coarse = evaluate(tree, Grid(Box.cube(1.5), (8,) * 3), threads=1)
+    with pytest.raises(SpecError, match="allowed: band, dense"):
+        fine_field(tree, coarse, 0.0, method="sparse-ish")
+    with pytest.raises(SpecError, match="band"):
+        fine_field(tree, coarse, 0.0, band=-1)
+    with pytest.raises(SpecError, match="max_resolution_area"):
+        FilterConfig(max_resolution_area=0.5)
+    with pytest.raises(SpecError, match="resolution_band"):
+        FilterConfig(resolution_band=9)
+
+
+def test_unmeasured_shapes_are_not_judged() -> None:
+    assert not unresolved({}, CFG)
+    assert unresolved({"resolution_shift": 0.3, "resolution_area": 1.5}, CFG)
+    assert unresolved({"resolution_shift": 1.5, "resolution_area": 1.0}, CFG)

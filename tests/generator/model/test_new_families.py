@@ -1,0 +1,123 @@
+"""The infill, assembly and twist families: pure functions of (seed, index, config), their
+structure in the model JSON, formulas that print and parse back, and shapes that are what the
+structure says (a lattice inside its envelope, bodies where the arrangement puts them, lobes
+that turn)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.expr import to_string
+from surfgen.generator.formula.parser import parse
+from surfgen.generator.model.families.twist import harmonic, lobe_terms
+from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
+
+NEW = ("infill", "assembly", "twist")
+
+
+def family(name: str, **changes) -> SamplerConfig:
+    return replace(SamplerConfig(), family=name, **changes)
+
+
+@pytest.mark.parametrize("name", NEW)
+def test_a_draw_is_a_pure_function_of_seed_index_and_config(name: str) -> None:
+    cfg = family(name)
+    first = [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]
+    assert first == [draw_equation(3, i, cfg).model_dict() for i in (4, 0, 9)]  # any order
+    assert first[0] != draw_equation(4, 4, cfg).model_dict()  # another seed
+    assert first[0] != draw_equation(3, 5, cfg).model_dict()  # another index
+    other = cfg.with_settings(name, margin=[0.5, 0.6])
+    assert first[0] != draw_equation(3, 4, other).model_dict()  # another config
+    assert json.loads(json.dumps(first[0])) == first[0]  # JSON-ready
+
+
+@pytest.mark.parametrize("name", NEW)
+def test_the_model_records_its_family_and_structure(name: str) -> None:
+    keys = {
+        "infill": {"envelope", "pattern", "period", "strut_cells", "clip", "group"},
+        "assembly": {"arrangement", "body", "join", "bodies", "group", "extent"},
+        "twist": {"lobes", "lobe_depth", "turns", "axis", "cells_per_period", "braid"},
+    }[name]
+    for i in range(6):
+        model = draw_equation(7, i, family(name)).model_dict()
+        assert model["family"] == name
+        assert keys <= set(model["structure"])
+
+
+@pytest.mark.parametrize("name", NEW)
+def test_formulas_print_and_parse_back_and_cross_their_box(name: str) -> None:
+    """The printed formula is K3DSurf/MathMod syntax (the parser reads back the same tree) and
+    the surface crosses the box, away from its faces (free-standing)."""
+    cfg = family(name)
+    for i in range(6):
+        draw = draw_equation(11, i, cfg)
+        d = choose_d(draw, cfg)
+        assert d is not None and math.isfinite(d)
+        tree = draw.equation.with_d(d).to_tree()
+        assert parse(to_string(tree)) == tree
+        v = evaluate(tree, Grid(draw.box, (24,) * 3), threads=1).values
+        inside = v < 0
+        assert 0.001 < inside.mean() < 0.8
+        faces = np.concatenate([inside[[0, -1]].ravel(), inside[:, [0, -1]].ravel()])
+        assert faces.mean() < 0.02, f"{name} {i}: the shape touches the box"
+
+
+def test_infill_is_its_lattice_inside_the_envelope_and_empty_outside() -> None:
+    for i in range(8):
+        draw = draw_equation(5, i, family("infill"))
+        st = draw.structure
+        clips = 2 * st["clips"]  # the last terms are c max(E, 0) (and a cut's c max(P, 0))
+        lattice = draw.equation.terms[:-clips]
+        grid = Grid(draw.box, (20,) * 3)
+        f = evaluate(draw.equation.with_d(draw.d).to_tree(), grid, threads=1).values
+        envelope_terms = draw.equation.terms[-clips:]
+        clip = evaluate(type(draw.equation)(envelope_terms, 0.0).to_tree(), grid, threads=1).values
+        lat = evaluate(type(draw.equation)(lattice, draw.d).to_tree(), grid, threads=1).values
+        inside_env = clip == 0  # max(E, 0) = 0 exactly inside the envelope
+        assert inside_env.any() and (~inside_env).any()
+        assert np.allclose(f[inside_env], lat[inside_env])
+        assert (f[~inside_env] > lat[~inside_env]).all()
+        assert st["strut_cells"] >= 3.0 - 1e-9
+
+
+def test_assembly_chains_are_linked_tori_and_blends_join_bodies() -> None:
+    seen = set()
+    cfg = family("assembly")
+    for i in range(40):
+        st = draw_equation(7, i, cfg).structure
+        seen.add((st["arrangement"], st["join"]))
+        assert 2 <= st["bodies"] <= 5
+        if st["arrangement"] == "chain":
+            assert st["body"] == "torus" and st["join"] == "product"
+        if st["join"] == "boolean":
+            assert st["bodies"] == 2 and st["operation"].split()[1] in (
+                "union",
+                "intersection",
+                "difference",
+            )
+    joins = {j for _, j in seen}
+    assert joins == {"blend", "product", "boolean"}
+    assert {a for a, _ in seen} >= {"pair", "triangle", "tetra", "chain"}
+
+
+def test_twist_lobes_are_a_turning_harmonic() -> None:
+    """``lobe_terms(m, a, k)`` is ``a r^2 cos(m (phi - k z))`` (up to the δ on the axis)."""
+    re, im = harmonic(3)
+    assert re.coefficients == {(3, 0, 0): 1.0, (1, 2, 0): -3.0}
+    assert im.coefficients == {(2, 1, 0): 3.0, (0, 3, 0): -1.0}
+    eq = type(draw_equation(1, 0, family("twist")).equation)
+    tree = eq(tuple(lobe_terms(4, 0.5, 1.3)), 0.0).to_tree()
+    box = Box((0.4, -0.7, -1.0), (1.2, 0.9, 1.0))
+    grid = Grid(box, (9, 9, 9))
+    v = evaluate(tree, grid, threads=1).values
+    x, y, z = np.meshgrid(*grid.axes(), indexing="ij")
+    r2 = x**2 + y**2
+    want = 0.5 * r2 * np.cos(4 * (np.arctan2(y, x) - 1.3 * z)) * (r2 / (r2 + 0.01))
+    assert np.allclose(v, want, atol=1e-9)
