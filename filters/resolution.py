@@ -55,6 +55,12 @@ PERCENTILE = 95.0
 DISTANCE_CAP = 8.0  # cells: farther distances count as this (the verdict's limits are ~1 cell)
 # Fine-field methods of :func:`fine_field` (an interval-pruned sparse evaluator may join them).
 METHODS = ("band", "dense")
+# What a point costs the points evaluator, in points of the grid evaluator (which hoists what
+# depends on x, y or z alone): about 20 on the sampler's shapes (python -m benchmarks.resolution).
+POINT_COST = 20.0
+# Distances below this many cells are not searched further (the nearest triangle of the
+# point's own cells counts): the verdict's limits are several times larger.
+DISTANCE_FLOOR = 0.1
 
 
 @dataclass(frozen=True)
@@ -105,6 +111,7 @@ def fine_field(
     *,
     method: str = "band",
     band: int = 1,
+    via_grid: bool | None = None,
 ) -> tuple[Field, int]:
     """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field and how many fine
     samples were evaluated.
@@ -113,6 +120,11 @@ def fine_field(
     widened by ``band`` cells, are evaluated (the coarse samples are reused); the others take
     the coarse field's trilinear value, kept on the side of the coarse samples around them.
     ``method="dense"``: every fine point is evaluated (the reference).
+
+    The band's points are evaluated at the points (:func:`points_evaluator`) or, when that
+    would cost more (``via_grid``; by default when the band holds more than 1/:data:`POINT_COST`
+    of the fine points), on the whole fine grid by the grid evaluator, whose hoisting makes a
+    point several times cheaper; either way the field is the same, bit for bit.
 
     Raises :class:`SpecError` for an unknown method or a negative band, and what evaluation
     raises.
@@ -131,12 +143,18 @@ def fine_field(
         if band:
             cells = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
         fine = np.empty(grid.shape)
-        todo = _upsample(values, cells, level, fine)
-        a, b, c = np.nonzero(todo)
-        if a.size:
-            x, y, z = grid.axes()
-            fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
-        evaluated = int(a.size)
+        todo, evaluated = _band_points(cells, grid.shape)
+        if via_grid is None:
+            via_grid = evaluated * POINT_COST > grid.size
+        if via_grid:  # the same values (bit for bit), taken only where the band needs them
+            dense = evaluate(tree, grid, params, threads=1).values
+            _upsample(values, todo, level, fine, dense)
+        else:
+            _upsample(values, todo, level, fine, np.empty((0, 0, 0)))
+            a, b, c = np.nonzero(todo)
+            if evaluated:
+                x, y, z = grid.axes()
+                fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
     _patch_singular(values, fine)
     return Field(grid, fine), evaluated
 
@@ -157,13 +175,10 @@ def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
 
 
 @numba.njit(**KERNEL)
-def _upsample(values, cells, level, fine):
-    """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; points of a
-    band cell (``cells``) are left to evaluate (returned mask); the others get the mean of the
-    coarse samples around them, kept on their side of the level (all of them are on one side:
-    the cell is not crossed). Non-finite means count as outside, as in marching cubes."""
-    m0, m1, m2 = fine.shape
-    todo = np.zeros(fine.shape, dtype=np.bool_)
+def _band_points(cells, shape):
+    """The fine points ``shape`` of the band ``cells`` (each coarse cell's 27), less the coarse
+    samples (even indices on every axis): the points to evaluate, and how many."""
+    todo = np.zeros(shape, dtype=np.bool_)
     c0, c1, c2 = cells.shape
     for i in range(c0):
         for j in range(c1):
@@ -173,6 +188,27 @@ def _upsample(values, cells, level, fine):
                         for b in range(2 * j, 2 * j + 3):
                             for c in range(2 * k, 2 * k + 3):
                                 todo[a, b, c] = True
+    n = 0
+    for a in range(shape[0]):
+        for b in range(shape[1]):
+            for c in range(shape[2]):
+                if todo[a, b, c]:
+                    if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
+                        todo[a, b, c] = False
+                    else:
+                        n += 1
+    return todo, n
+
+
+@numba.njit(**KERNEL)
+def _upsample(values, todo, level, fine, dense):
+    """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; the band's
+    points (``todo``) take ``dense``'s values if it is given (else they are left for the
+    caller); the others get the mean of the coarse samples around them, kept on their side of
+    the level (all of them are on one side: the cell is not crossed). Non-finite means count
+    as outside, as in marching cubes."""
+    m0, m1, m2 = fine.shape
+    given = dense.size > 0
     below = np.nextafter(level, -np.inf)
     for a in range(m0):
         i0 = a // 2
@@ -185,9 +221,10 @@ def _upsample(values, cells, level, fine):
                 k1 = k0 + (c & 1)
                 if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
                     fine[a, b, c] = values[i0, j0, k0]
-                    todo[a, b, c] = False
                     continue
                 if todo[a, b, c]:
+                    if given:
+                        fine[a, b, c] = dense[a, b, c]
                     continue
                 s = 0.0
                 n = 0
@@ -206,7 +243,6 @@ def _upsample(values, cells, level, fine):
                     fine[a, b, c] = level
                 else:
                     fine[a, b, c] = v
-    return todo
 
 
 @numba.njit(**KERNEL)
@@ -274,19 +310,44 @@ def compare_meshes(
 
 
 def surface_distances(
-    points: np.ndarray, mesh: Mesh, lo: np.ndarray, cell: float, dims: np.ndarray, cap: float
+    points: np.ndarray,
+    mesh: Mesh,
+    lo: np.ndarray,
+    cell: float,
+    dims: np.ndarray,
+    cap: float,
+    floor: float = DISTANCE_FLOOR,
 ) -> np.ndarray:
     """Distances from ``points`` ``(P, 3)`` to the surface of ``mesh``, in ``cell`` units, at
-    most ``cap``: exact point-to-triangle distances, the triangles found through a lattice of
+    most ``cap``: point-to-triangle distances, the triangles found through a lattice of
     ``dims`` cells of width ``cell`` from ``lo`` (by their centroids; points and triangles
-    outside it count in its border cells)."""
+    outside it count in its border cells). Exact from ``floor`` up; below it, the distance to
+    a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
-    centres = (v[f[:, 0]] + v[f[:, 1]] + v[f[:, 2]]) / 3.0
-    reach = float(np.sqrt(((v[f] - centres[:, None, :]) ** 2).sum(axis=2).max()))
+    centres, reach = _centres(v, f)
     start, order = _bucket(centres, lo, cell, dims)
     rings = int(math.ceil(cap + reach / cell)) + 2
-    dist = _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell)
+    dist = _nearest_faces(
+        points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell, floor * cell
+    )
     return np.minimum(dist / cell, cap)
+
+
+@numba.njit(**KERNEL)
+def _centres(v, f):
+    """The triangles' centroids ``(F, 3)`` and the largest distance from one to its corners."""
+    out = np.empty((f.shape[0], 3))
+    reach = 0.0
+    for t in range(f.shape[0]):
+        for k in range(3):
+            out[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+        for c in range(3):
+            d = 0.0
+            for k in range(3):
+                e = v[f[t, c], k] - out[t, k]
+                d += e * e
+            reach = max(reach, d)
+    return out, math.sqrt(reach)
 
 
 @numba.njit(**KERNEL)
@@ -369,12 +430,12 @@ def _point_triangle(px, py, pz, v, f, t):
 
 
 @numba.njit(**KERNEL)
-def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap):
+def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap, floor):
     """Distance from each point to the nearest triangle, searched in shells of lattice cells
     around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
     it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
-    points at least ``r * cell - reach``. Stops there, once beyond ``cap``, or after ``rings``
-    shells (then the best found, or inf)."""
+    points at least ``r * cell - reach``. Stops there, as soon as a triangle within ``floor`` is
+    found, once beyond ``cap``, or after ``rings`` shells (then the best found, or inf)."""
     out = np.empty(points.shape[0])
     for p in range(points.shape[0]):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
@@ -397,7 +458,7 @@ def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap
                                     best = d
                         k += step
             bound = r * cell - reach
-            if bound > 0.0 and (math.sqrt(best) <= bound or bound > cap):
+            if math.sqrt(best) <= max(bound, floor) or bound > cap:
                 break
         out[p] = math.sqrt(best)
     return out
