@@ -474,6 +474,7 @@ def measure_resolution(
     params: Mapping[str, float] | None = None,
     method: str = "band",
     band: int = 1,
+    via_grid: bool | None = None,
 ) -> Resolution:
     """Compare ``mesh`` (extracted from ``coarse`` with ``cap``) with the surface on the nested
     grid twice as fine (:func:`fine_field`, extracted the same way). A fine surface that
@@ -481,7 +482,9 @@ def measure_resolution(
     reported as an infinite shift.
 
     Raises what :func:`fine_field` raises."""
-    field, evaluated = fine_field(tree, coarse, level, params, method=method, band=band)
+    field, evaluated = fine_field(
+        tree, coarse, level, params, method=method, band=band, via_grid=via_grid
+    )
     try:
         fine = extract_mesh(field, level, cap=cap)
     except EmptySurface:
