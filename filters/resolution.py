@@ -490,3 +490,20 @@ def measure_resolution(
     except EmptySurface:
         return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated)
     return compare_meshes(mesh, fine, coarse.grid, evaluated)
+
+
+def warm_kernels(coarse: Field, mesh: Mesh) -> None:
+    """Compile (or load) this module's kernels on a small ``coarse`` field and its ``mesh``
+    without evaluating a formula (the warm-up's child must not load the interpreter): the band,
+    both fillings of the fine field (a read-only dense field, as the grid evaluator returns
+    it, and none), the singular samples and the distances."""
+    values = np.ascontiguousarray(coarse.values, dtype=np.float64)
+    grid = fine_grid(coarse.grid)
+    todo, _ = _band_points(_crossed_cells(values, 0.0), grid.shape)
+    fine = np.empty(grid.shape)
+    _upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
+    dense = fine.copy()
+    dense.flags.writeable = False
+    _upsample(values, todo, 0.0, fine, dense)
+    _patch_singular(values, fine)
+    compare_meshes(mesh, mesh, coarse.grid)

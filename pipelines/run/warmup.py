@@ -230,7 +230,7 @@ def _warm_mesh(field, tree, walls: bool = True):
 def _warm_the_rest(field, box, mesh) -> None:
     """Every kernel after the mesh and the walls, on the tiny shape."""
     from surfgen.filters.descriptor import descriptor
-    from surfgen.filters.resolution import measure_resolution
+    from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.mesh.marching import _merge_same
@@ -241,8 +241,7 @@ def _warm_the_rest(field, box, mesh) -> None:
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)
-    for via_grid in (False, True):  # the band at its points, and taken from the whole grid
-        measure_resolution(parse(WARM_FORMULA), field, mesh, 0.0, cap=True, via_grid=via_grid)
+    warm_kernels(field, mesh)
     render_image(mesh, size=16)
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)
