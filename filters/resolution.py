@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -71,6 +71,7 @@ class Resolution:
     to_coarse: float  # p95 distance fine -> coarse, in coarse cells
     area: float  # fine area / coarse area
     fine_points: int  # fine samples evaluated (the band's size)
+    singular: int = 0  # new fine samples non-finite between finite coarse ones (patched)
 
     @property
     def shift(self) -> float:
@@ -84,6 +85,7 @@ class Resolution:
             "resolution_to_coarse": self.to_coarse,
             "resolution_area": self.area,
             "resolution_points": self.fine_points,
+            "resolution_singular": self.singular,
         }
 
 
@@ -94,6 +96,7 @@ METRIC_NAMES = (
     "resolution_to_coarse",
     "resolution_area",
     "resolution_points",
+    "resolution_singular",
 )
 
 
@@ -112,9 +115,10 @@ def fine_field(
     method: str = "band",
     band: int = 1,
     via_grid: bool | None = None,
-) -> tuple[Field, int]:
-    """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field and how many fine
-    samples were evaluated.
+) -> tuple[Field, int, int]:
+    """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field, how many fine
+    samples were evaluated and how many of them were non-finite between finite coarse samples
+    (given the coarse samples' mean: poles the coarse grid steps over, module doc).
 
     ``method="band"``: only the fine points of the coarse cells the surface ``F = level`` crosses,
     widened by ``band`` cells, are evaluated (the coarse samples are reused); the others take
@@ -155,8 +159,8 @@ def fine_field(
             if evaluated:
                 x, y, z = grid.axes()
                 fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
-    _patch_singular(values, fine)
-    return Field(grid, fine), evaluated
+    singular = _patch_singular(values, fine)
+    return Field(grid, fine), evaluated, singular
 
 
 def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
@@ -252,6 +256,7 @@ def _patch_singular(values, fine):
     fine grid samples, where 1/x is inf) is a wall, judged by the walls filter, not a change of
     the zero set; left non-finite it would cut a slit through the fine surface."""
     m0, m1, m2 = fine.shape
+    patched = 0
     for a in range(m0):
         i0 = a // 2
         i1 = i0 + (a & 1)
@@ -274,6 +279,8 @@ def _patch_singular(values, fine):
                             n += 1
                 if math.isfinite(s):
                     fine[a, b, c] = s / n
+                    patched += 1
+    return patched
 
 
 def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.ndarray:
@@ -482,14 +489,14 @@ def measure_resolution(
     reported as an infinite shift.
 
     Raises what :func:`fine_field` raises."""
-    field, evaluated = fine_field(
+    field, evaluated, singular = fine_field(
         tree, coarse, level, params, method=method, band=band, via_grid=via_grid
     )
     try:
         fine = extract_mesh(field, level, cap=cap)
     except EmptySurface:
-        return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated)
-    return compare_meshes(mesh, fine, coarse.grid, evaluated)
+        return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated, singular)
+    return replace(compare_meshes(mesh, fine, coarse.grid, evaluated), singular=singular)
 
 
 def warm_kernels(coarse: Field, mesh: Mesh) -> None:

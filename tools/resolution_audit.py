@@ -95,7 +95,7 @@ def audit_shape(root: Path, row: dict, cap: bool) -> dict:
     if singular:
         tree = spec.tree()
         coarse_field = Field(coarse, np.ascontiguousarray(coarse_values))
-        field, _ = fine_field(tree, coarse_field, spec.level, spec.params, method="dense")
+        field, _, _ = fine_field(tree, coarse_field, spec.level, spec.params, method="dense")
         patched = _compare(stored, extract_mesh(field, spec.level, cap=cap), cell)
     metrics = json.loads(row["metrics"] or "{}")
     return {

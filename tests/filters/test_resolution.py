@@ -87,11 +87,11 @@ def test_the_fine_grid_nests_the_coarse_one() -> None:
 def test_the_band_evaluates_what_the_dense_reference_does(formula: str) -> None:
     tree = parse(formula)
     coarse = evaluate(tree, Grid(Box.cube(1.6), (24,) * 3), threads=1)
-    dense, n_dense = fine_field(tree, coarse, 0.0, method="dense")
-    band, n_band = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=False)
+    dense, n_dense, _ = fine_field(tree, coarse, 0.0, method="dense")
+    band, n_band, _ = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=False)
     assert n_dense == 47**3 and 0 < n_band < n_dense
     # the band evaluated through the whole grid: the same field, bit for bit
-    via_grid, n_via = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=True)
+    via_grid, n_via, _ = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=True)
     assert n_via == n_band and np.array_equal(via_grid.values, band.values, equal_nan=True)
     # Same bits on every point of a crossed cell (and its neighbours)...
     crossed = res._crossed_cells(coarse.values, 0.0)
@@ -195,3 +195,17 @@ def test_unmeasured_shapes_are_not_judged() -> None:
     assert not unresolved({}, CFG)
     assert unresolved({"resolution_shift": 0.3, "resolution_area": 1.5}, CFG)
     assert unresolved({"resolution_shift": 1.5, "resolution_area": 1.0}, CFG)
+
+
+def test_poles_only_the_fine_grid_samples_are_patched_and_counted() -> None:
+    # 1/x is inf on the plane x = 0, a plane of the 31-point fine grid but not of the 16-point
+    # coarse one: left as it is, it would cut the ball in two
+    tree = parse("x^2+y^2+z^2-1+0.001/x^2")
+    coarse = evaluate(tree, Grid(Box.cube(1.5), (16,) * 3), threads=1)
+    assert np.isfinite(coarse.values).all()
+    field, _, singular = fine_field(tree, coarse, 0.0, method="dense")
+    assert singular == 31 * 31 and np.isfinite(field.values).all()
+    mesh = extract_mesh(coarse, 0.0, cap=True)
+    r = measure_resolution(tree, coarse, mesh, 0.0, cap=True)
+    assert r.singular > 0 and r.to_metrics()["resolution_singular"] == r.singular
+    assert not _is_unresolved(r)
