@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -55,6 +55,12 @@ PERCENTILE = 95.0
 DISTANCE_CAP = 8.0  # cells: farther distances count as this (the verdict's limits are ~1 cell)
 # Fine-field methods of :func:`fine_field` (an interval-pruned sparse evaluator may join them).
 METHODS = ("band", "dense")
+# What a point costs the points evaluator, in points of the grid evaluator (which hoists what
+# depends on x, y or z alone): about 20 on the sampler's shapes (python -m benchmarks.resolution).
+POINT_COST = 20.0
+# Distances below this many cells are not searched further (the nearest triangle of the
+# point's own cells counts): the verdict's limits are several times larger.
+DISTANCE_FLOOR = 0.1
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,7 @@ class Resolution:
     to_coarse: float  # p95 distance fine -> coarse, in coarse cells
     area: float  # fine area / coarse area
     fine_points: int  # fine samples evaluated (the band's size)
+    singular: int = 0  # new fine samples non-finite between finite coarse ones (patched)
 
     @property
     def shift(self) -> float:
@@ -78,6 +85,7 @@ class Resolution:
             "resolution_to_coarse": self.to_coarse,
             "resolution_area": self.area,
             "resolution_points": self.fine_points,
+            "resolution_singular": self.singular,
         }
 
 
@@ -88,6 +96,7 @@ METRIC_NAMES = (
     "resolution_to_coarse",
     "resolution_area",
     "resolution_points",
+    "resolution_singular",
 )
 
 
@@ -105,14 +114,21 @@ def fine_field(
     *,
     method: str = "band",
     band: int = 1,
-) -> tuple[Field, int]:
-    """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field and how many fine
-    samples were evaluated.
+    via_grid: bool | None = None,
+) -> tuple[Field, int, int]:
+    """``tree`` on :func:`fine_grid` of ``coarse.grid``; returns the field, how many fine
+    samples were evaluated and how many of them were non-finite between finite coarse samples
+    (given the coarse samples' mean: poles the coarse grid steps over, module doc).
 
     ``method="band"``: only the fine points of the coarse cells the surface ``F = level`` crosses,
     widened by ``band`` cells, are evaluated (the coarse samples are reused); the others take
     the coarse field's trilinear value, kept on the side of the coarse samples around them.
     ``method="dense"``: every fine point is evaluated (the reference).
+
+    The band's points are evaluated at the points (:func:`points_evaluator`) or, when that
+    would cost more (``via_grid``; by default when the band holds more than 1/:data:`POINT_COST`
+    of the fine points), on the whole fine grid by the grid evaluator, whose hoisting makes a
+    point several times cheaper; either way the field is the same, bit for bit.
 
     Raises :class:`SpecError` for an unknown method or a negative band, and what evaluation
     raises.
@@ -131,14 +147,20 @@ def fine_field(
         if band:
             cells = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
         fine = np.empty(grid.shape)
-        todo = _upsample(values, cells, level, fine)
-        a, b, c = np.nonzero(todo)
-        if a.size:
-            x, y, z = grid.axes()
-            fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
-        evaluated = int(a.size)
-    _patch_singular(values, fine)
-    return Field(grid, fine), evaluated
+        todo, evaluated = _band_points(cells, grid.shape)
+        if via_grid is None:
+            via_grid = evaluated * POINT_COST > grid.size
+        if via_grid:  # the same values (bit for bit), taken only where the band needs them
+            dense = evaluate(tree, grid, params, threads=1).values
+            _upsample(values, todo, level, fine, dense)
+        else:
+            _upsample(values, todo, level, fine, np.empty((0, 0, 0)))
+            a, b, c = np.nonzero(todo)
+            if evaluated:
+                x, y, z = grid.axes()
+                fine[a, b, c] = points_evaluator(tree, params)(x[a], y[b], z[c])
+    singular = _patch_singular(values, fine)
+    return Field(grid, fine), evaluated, singular
 
 
 def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
@@ -157,13 +179,10 @@ def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
 
 
 @numba.njit(**KERNEL)
-def _upsample(values, cells, level, fine):
-    """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; points of a
-    band cell (``cells``) are left to evaluate (returned mask); the others get the mean of the
-    coarse samples around them, kept on their side of the level (all of them are on one side:
-    the cell is not crossed). Non-finite means count as outside, as in marching cubes."""
-    m0, m1, m2 = fine.shape
-    todo = np.zeros(fine.shape, dtype=np.bool_)
+def _band_points(cells, shape):
+    """The fine points ``shape`` of the band ``cells`` (each coarse cell's 27), less the coarse
+    samples (even indices on every axis): the points to evaluate, and how many."""
+    todo = np.zeros(shape, dtype=np.bool_)
     c0, c1, c2 = cells.shape
     for i in range(c0):
         for j in range(c1):
@@ -173,6 +192,27 @@ def _upsample(values, cells, level, fine):
                         for b in range(2 * j, 2 * j + 3):
                             for c in range(2 * k, 2 * k + 3):
                                 todo[a, b, c] = True
+    n = 0
+    for a in range(shape[0]):
+        for b in range(shape[1]):
+            for c in range(shape[2]):
+                if todo[a, b, c]:
+                    if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
+                        todo[a, b, c] = False
+                    else:
+                        n += 1
+    return todo, n
+
+
+@numba.njit(**KERNEL)
+def _upsample(values, todo, level, fine, dense):
+    """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; the band's
+    points (``todo``) take ``dense``'s values if it is given (else they are left for the
+    caller); the others get the mean of the coarse samples around them, kept on their side of
+    the level (all of them are on one side: the cell is not crossed). Non-finite means count
+    as outside, as in marching cubes."""
+    m0, m1, m2 = fine.shape
+    given = dense.size > 0
     below = np.nextafter(level, -np.inf)
     for a in range(m0):
         i0 = a // 2
@@ -185,9 +225,10 @@ def _upsample(values, cells, level, fine):
                 k1 = k0 + (c & 1)
                 if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
                     fine[a, b, c] = values[i0, j0, k0]
-                    todo[a, b, c] = False
                     continue
                 if todo[a, b, c]:
+                    if given:
+                        fine[a, b, c] = dense[a, b, c]
                     continue
                 s = 0.0
                 n = 0
@@ -206,7 +247,6 @@ def _upsample(values, cells, level, fine):
                     fine[a, b, c] = level
                 else:
                     fine[a, b, c] = v
-    return todo
 
 
 @numba.njit(**KERNEL)
@@ -216,6 +256,7 @@ def _patch_singular(values, fine):
     fine grid samples, where 1/x is inf) is a wall, judged by the walls filter, not a change of
     the zero set; left non-finite it would cut a slit through the fine surface."""
     m0, m1, m2 = fine.shape
+    patched = 0
     for a in range(m0):
         i0 = a // 2
         i1 = i0 + (a & 1)
@@ -238,6 +279,8 @@ def _patch_singular(values, fine):
                             n += 1
                 if math.isfinite(s):
                     fine[a, b, c] = s / n
+                    patched += 1
+    return patched
 
 
 def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.ndarray:
@@ -274,19 +317,44 @@ def compare_meshes(
 
 
 def surface_distances(
-    points: np.ndarray, mesh: Mesh, lo: np.ndarray, cell: float, dims: np.ndarray, cap: float
+    points: np.ndarray,
+    mesh: Mesh,
+    lo: np.ndarray,
+    cell: float,
+    dims: np.ndarray,
+    cap: float,
+    floor: float = DISTANCE_FLOOR,
 ) -> np.ndarray:
     """Distances from ``points`` ``(P, 3)`` to the surface of ``mesh``, in ``cell`` units, at
-    most ``cap``: exact point-to-triangle distances, the triangles found through a lattice of
+    most ``cap``: point-to-triangle distances, the triangles found through a lattice of
     ``dims`` cells of width ``cell`` from ``lo`` (by their centroids; points and triangles
-    outside it count in its border cells)."""
+    outside it count in its border cells). Exact from ``floor`` up; below it, the distance to
+    a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
-    centres = (v[f[:, 0]] + v[f[:, 1]] + v[f[:, 2]]) / 3.0
-    reach = float(np.sqrt(((v[f] - centres[:, None, :]) ** 2).sum(axis=2).max()))
+    centres, reach = _centres(v, f)
     start, order = _bucket(centres, lo, cell, dims)
     rings = int(math.ceil(cap + reach / cell)) + 2
-    dist = _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell)
+    dist = _nearest_faces(
+        points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell, floor * cell
+    )
     return np.minimum(dist / cell, cap)
+
+
+@numba.njit(**KERNEL)
+def _centres(v, f):
+    """The triangles' centroids ``(F, 3)`` and the largest distance from one to its corners."""
+    out = np.empty((f.shape[0], 3))
+    reach = 0.0
+    for t in range(f.shape[0]):
+        for k in range(3):
+            out[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+        for c in range(3):
+            d = 0.0
+            for k in range(3):
+                e = v[f[t, c], k] - out[t, k]
+                d += e * e
+            reach = max(reach, d)
+    return out, math.sqrt(reach)
 
 
 @numba.njit(**KERNEL)
@@ -369,12 +437,12 @@ def _point_triangle(px, py, pz, v, f, t):
 
 
 @numba.njit(**KERNEL)
-def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap):
+def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap, floor):
     """Distance from each point to the nearest triangle, searched in shells of lattice cells
     around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
     it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
-    points at least ``r * cell - reach``. Stops there, once beyond ``cap``, or after ``rings``
-    shells (then the best found, or inf)."""
+    points at least ``r * cell - reach``. Stops there, as soon as a triangle within ``floor`` is
+    found, once beyond ``cap``, or after ``rings`` shells (then the best found, or inf)."""
     out = np.empty(points.shape[0])
     for p in range(points.shape[0]):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
@@ -397,7 +465,7 @@ def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap
                                     best = d
                         k += step
             bound = r * cell - reach
-            if bound > 0.0 and (math.sqrt(best) <= bound or bound > cap):
+            if math.sqrt(best) <= max(bound, floor) or bound > cap:
                 break
         out[p] = math.sqrt(best)
     return out
@@ -413,6 +481,7 @@ def measure_resolution(
     params: Mapping[str, float] | None = None,
     method: str = "band",
     band: int = 1,
+    via_grid: bool | None = None,
 ) -> Resolution:
     """Compare ``mesh`` (extracted from ``coarse`` with ``cap``) with the surface on the nested
     grid twice as fine (:func:`fine_field`, extracted the same way). A fine surface that
@@ -420,9 +489,28 @@ def measure_resolution(
     reported as an infinite shift.
 
     Raises what :func:`fine_field` raises."""
-    field, evaluated = fine_field(tree, coarse, level, params, method=method, band=band)
+    field, evaluated, singular = fine_field(
+        tree, coarse, level, params, method=method, band=band, via_grid=via_grid
+    )
     try:
         fine = extract_mesh(field, level, cap=cap)
     except EmptySurface:
-        return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated)
-    return compare_meshes(mesh, fine, coarse.grid, evaluated)
+        return Resolution(DISTANCE_CAP, DISTANCE_CAP, 0.0, evaluated, singular)
+    return replace(compare_meshes(mesh, fine, coarse.grid, evaluated), singular=singular)
+
+
+def warm_kernels(coarse: Field, mesh: Mesh) -> None:
+    """Compile (or load) this module's kernels on a small ``coarse`` field and its ``mesh``
+    without evaluating a formula (the warm-up's child must not load the interpreter): the band,
+    both fillings of the fine field (a read-only dense field, as the grid evaluator returns
+    it, and none), the singular samples and the distances."""
+    values = np.ascontiguousarray(coarse.values, dtype=np.float64)
+    grid = fine_grid(coarse.grid)
+    todo, _ = _band_points(_crossed_cells(values, 0.0), grid.shape)
+    fine = np.empty(grid.shape)
+    _upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
+    dense = fine.copy()
+    dense.flags.writeable = False
+    _upsample(values, todo, 0.0, fine, dense)
+    _patch_singular(values, fine)
+    compare_meshes(mesh, mesh, coarse.grid)

@@ -24,6 +24,10 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+import numpy as np
+
+from surfgen.filters.resolution import METRIC_NAMES as RESOLUTION_METRICS
+from surfgen.filters.verdict import FilterConfig, unresolved
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.mesh.exchange import load_mesh, save_mesh
 from surfgen.generator.mesh.realise import realise
@@ -60,6 +64,7 @@ class CheckReport:
     running: list[int] = field(default_factory=list)
     repaired: list[str] = field(default_factory=list)
     unrepaired: list[str] = field(default_factory=list)
+    resolution: ResolutionSummary | None = None
 
     @property
     def problems(self) -> int:
@@ -80,9 +85,95 @@ class CheckReport:
             out.append(
                 f"runs marked running (interrupted, or running now): {', '.join(map(str, self.running))}"
             )
+        if self.resolution is not None:
+            out += self.resolution.lines()
         out += [f"repaired: {r}" for r in self.repaired]
         out += [f"not repaired: {r}" for r in self.unrepaired]
         return out
+
+
+@dataclass
+class ResolutionSummary:
+    """The accepted shapes' resolution figures (:mod:`surfgen.filters.resolution`): how many
+    were measured, the spread of ``resolution_shift`` (cells) and ``resolution_area``, and how
+    many exceed the default ``[filters]`` limits (shapes accepted before the check existed, or
+    under laxer limits)."""
+
+    accepted: int
+    shifts: list[float]
+    areas: list[float]
+    over: list[str]  # keys above the default limits
+
+    def lines(self) -> list[str]:
+        measured = len(self.shifts)
+        out = [
+            f"resolution (twice-as-fine grid): {measured} of {self.accepted} accepted shapes "
+            f"measured"
+            + (
+                f", {self.accepted - measured} not (sampled before the check)"
+                if measured < self.accepted
+                else ""
+            )
+        ]
+        if measured:
+            s, a = np.asarray(self.shifts), np.asarray(self.areas)
+            out.append(
+                f"  shift (p95 distance, cells): median {np.median(s):.2f}, "
+                f"95th percentile {np.percentile(s, 95):.2f}, max {s.max():.2f}; "
+                f"area ratio: median {np.median(a):.3f}, max {a.max():.3f}"
+            )
+            cfg = FilterConfig()
+            out.append(
+                f"  above the default limits (shift > {cfg.max_resolution_shift:g} or area > "
+                f"{cfg.max_resolution_area:g}): {len(self.over)}"
+            )
+            out += [f"    {k}" for k in self.over[:20]]
+        return out
+
+
+def resolution_summary(shapes: list[dict]) -> ResolutionSummary:
+    """:class:`ResolutionSummary` of the accepted rows of ``shapes`` (their stored metrics)."""
+    cfg = FilterConfig()
+    accepted = [r for r in shapes if r.get("verdict") == "accepted"]
+    shifts, areas, over = [], [], []
+    for row in accepted:
+        try:
+            m = json.loads(row.get("metrics") or "{}")
+        except json.JSONDecodeError:
+            continue
+        if m.get("resolution_shift") is None:
+            continue
+        shifts.append(float(m["resolution_shift"]))
+        areas.append(float(m["resolution_area"]))
+        if unresolved(m, cfg):
+            over.append(row["key"])
+    return ResolutionSummary(len(accepted), shifts, areas, sorted(over))
+
+
+def stored_resolution(mesh_file: Path) -> dict[str, float] | None:
+    """The ``resolution_*`` metrics stored for a catalogue's mesh file (``ROOT/meshes/KEY.ply``
+    beside ``ROOT/catalogue.sqlite``): what ``surfgen check`` shows for a catalogued shape.
+    None for a file outside a catalogue, of a shape the catalogue does not know, or measured
+    before the check existed."""
+    mesh_file = Path(mesh_file).resolve()
+    root = mesh_file.parent.parent
+    if mesh_file.parent.name != FILE_COLUMNS["mesh_path"] or not (root / DB_NAME).is_file():
+        return None
+    try:
+        conn = connect_readonly(root / DB_NAME)
+        try:
+            row = conn.execute(
+                "SELECT metrics FROM shapes WHERE key = ?", (mesh_file.stem,)
+            ).fetchone()
+        finally:
+            conn.close()
+    except sqlite3.Error:
+        return None
+    if row is None:
+        return None
+    metrics = json.loads(row[0] or "{}")
+    found = {k: metrics[k] for k in RESOLUTION_METRICS if metrics.get(k) is not None}
+    return found or None
 
 
 def check_catalogue(
@@ -120,6 +211,7 @@ def check_catalogue(
         _salvage(db, report)
     shapes = [] if empty else _read_shapes(db, report)
     report.shapes = len(shapes)
+    report.resolution = resolution_summary(shapes)
     referenced: set[str] = set()
     for row in shapes:
         for column in FILE_COLUMNS:

@@ -120,6 +120,11 @@ FIELDS: dict[str, Field] = {
     "resolution_area": Field(
         "number", _metric("resolution_area"), "area of the twice-as-fine mesh / area"
     ),
+    "resolution_singular": Field(
+        "number",
+        _metric("resolution_singular"),
+        "non-finite samples only the twice-as-fine grid has (poles on x, y, z = 0)",
+    ),
     "key": Field("key", "shapes.key", "shape key or key prefix (= and != only)"),
     "verdict": Field("text", "shapes.verdict", "accepted or rejected (by the filters)"),
     "formula": Field("text", "shapes.formula", "formula text (~ for contains)"),

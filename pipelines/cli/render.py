@@ -164,15 +164,18 @@ def check(
     mesh: Annotated[Path, typer.Argument(help=f"A mesh file ({'/'.join(MESH_SUFFIXES)}).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
-    """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness."""
+    """Topology and geometry of a mesh: components, Euler characteristic, genus, manifoldness;
+    for a catalogue's mesh file, its resolution figures (the twice-as-fine grid's)."""
     from surfgen.filters.metrics import measure_mesh  # deferred: see the module's docstring
     from surfgen.generator.mesh.exchange import load_mesh
     from surfgen.generator.mesh.mesh import wall_fraction
+    from surfgen.pipelines.catalogue.check import stored_resolution
 
     loaded = load_mesh(mesh)
     m = measure_mesh(loaded).to_dict()
     # Known only for files written with --walls mark (their faces carry a kind).
     m["wall_fraction"] = wall_fraction(loaded)
+    m.update(stored_resolution(mesh) or {})  # a catalogued shape's (meshes/KEY.ply)
     if as_json:
         emit_json(m)
         return

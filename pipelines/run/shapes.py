@@ -212,9 +212,9 @@ def _judge(
     draw: Draw | None = None,
 ) -> tuple[Verdict, dict[str, Any], Mesh | None, Callable[[], Verdict]]:
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
-    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the resolution
-    check (the nested grid twice as fine), the full mesh checks and the shape-quality metrics
-    of an accepted mesh. Returns the cheap checks'
+    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the full mesh
+    checks, the solidity (plain blobs), the resolution check (the nested grid twice as fine)
+    and the shape-quality metrics of an accepted mesh. Returns the cheap checks'
     verdict, the metrics (``rest()`` adds to them), the mesh (if made) and ``rest``."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
@@ -274,20 +274,21 @@ def _judge(
             metrics["wall_fraction"] = crossings.wall_fraction
             watch.lap("walls")
             verdict = judge(metrics, fcfg, capped=capped)
-        if verdict.accepted and fcfg.check_resolution:
-            # ...then the surface on the nested grid twice as fine (a third of the shapes that
-            # pass the cheap checks fail here: before the slower topology)
-            resolution = measure_resolution(
-                tree, field_, extracted, spec.level, cap=capped, band=fcfg.resolution_band
-            )
-            metrics.update(resolution.to_metrics())
-            watch.lap("resolution")
-            verdict = judge(metrics, fcfg, capped=capped)
         if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
             metrics.update(shape_metrics(mesh, spec.box, quick=quick))
             verdict = judge(metrics, fcfg, capped=capped)
         if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
             metrics["solidity"] = solidity(mesh, metrics.get("volume"))
+            verdict = judge(metrics, fcfg, capped=capped)
+        watch.lap("filters")
+        if verdict.accepted and fcfg.check_resolution:
+            # ...then the surface on the nested grid twice as fine (the costliest check: last,
+            # so the blobs and plain shapes, a quarter of the candidates, do not pay for it)
+            resolution = measure_resolution(
+                tree, field_, extracted, spec.level, cap=capped, band=fcfg.resolution_band
+            )
+            metrics.update(resolution.to_metrics())
+            watch.lap("resolution")
             verdict = judge(metrics, fcfg, capped=capped)
         if verdict.accepted:
             metrics.update(quality_metrics(mesh, metrics))

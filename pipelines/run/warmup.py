@@ -230,6 +230,7 @@ def _warm_mesh(field, tree, walls: bool = True):
 def _warm_the_rest(field, box, mesh) -> None:
     """Every kernel after the mesh and the walls, on the tiny shape."""
     from surfgen.filters.descriptor import descriptor
+    from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.mesh.marching import _merge_same
@@ -240,6 +241,7 @@ def _warm_the_rest(field, box, mesh) -> None:
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)
+    warm_kernels(field, mesh)
     render_image(mesh, size=16)
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)

@@ -87,9 +87,12 @@ def test_the_fine_grid_nests_the_coarse_one() -> None:
 def test_the_band_evaluates_what_the_dense_reference_does(formula: str) -> None:
     tree = parse(formula)
     coarse = evaluate(tree, Grid(Box.cube(1.6), (24,) * 3), threads=1)
-    dense, n_dense = fine_field(tree, coarse, 0.0, method="dense")
-    band, n_band = fine_field(tree, coarse, 0.0, method="band", band=1)
+    dense, n_dense, _ = fine_field(tree, coarse, 0.0, method="dense")
+    band, n_band, _ = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=False)
     assert n_dense == 47**3 and 0 < n_band < n_dense
+    # the band evaluated through the whole grid: the same field, bit for bit
+    via_grid, n_via, _ = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=True)
+    assert n_via == n_band and np.array_equal(via_grid.values, band.values, equal_nan=True)
     # Same bits on every point of a crossed cell (and its neighbours)...
     crossed = res._crossed_cells(coarse.values, 0.0)
     i, j, k = np.nonzero(crossed)
@@ -119,8 +122,9 @@ def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
     fine = np.empty((11, 11, 11))
     cells = res._crossed_cells(values, 0.0)
     assert cells.sum() == 8
-    todo = res._upsample(values, cells, 0.0, fine)
-    assert todo.sum() == 5**3 - 3**3  # the crossed cells' fine points, less the coarse samples
+    todo, n = res._band_points(cells, fine.shape)
+    res._upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
+    assert todo.sum() == n == 5**3 - 3**3  # the crossed cells' fine points, less the coarse samples
     assert fine[4, 4, 4] == -1.0 and fine[10, 10, 10] != fine[10, 10, 10]
     outside = ~todo
     outside[::2, ::2, ::2] = False
@@ -134,9 +138,14 @@ def test_surface_distances_are_exact_point_to_triangle_distances() -> None:
     points = rng.uniform(-1.5, 1.5, (400, 3))  # near, inside and far from the surface
     cell = grid.spacing[0]
     dims = np.array([11, 11, 11], dtype=np.int64)
-    got = res.surface_distances(points, mesh, np.array(grid.box.lo), cell, dims, 100.0)
+    got = res.surface_distances(points, mesh, np.array(grid.box.lo), cell, dims, 100.0, 0.0)
     want = _brute_distances(points, mesh.vertices[mesh.faces])
     np.testing.assert_allclose(got * cell, want, rtol=0, atol=1e-12)
+    # with a floor: exact above it, and at most the floor below it
+    floored = res.surface_distances(points, mesh, np.array(grid.box.lo), cell, dims, 100.0, 0.3)
+    above = got >= 0.3
+    np.testing.assert_allclose(floored[above], got[above], rtol=0, atol=1e-12)
+    assert np.all((floored[~above] >= got[~above]) & (floored[~above] <= 0.3))
 
 
 def _brute_distances(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -186,3 +195,17 @@ def test_unmeasured_shapes_are_not_judged() -> None:
     assert not unresolved({}, CFG)
     assert unresolved({"resolution_shift": 0.3, "resolution_area": 1.5}, CFG)
     assert unresolved({"resolution_shift": 1.5, "resolution_area": 1.0}, CFG)
+
+
+def test_poles_only_the_fine_grid_samples_are_patched_and_counted() -> None:
+    # 1/x is inf on the plane x = 0, a plane of the 31-point fine grid but not of the 16-point
+    # coarse one: left as it is, it would cut the ball in two
+    tree = parse("x^2+y^2+z^2-1+0.001/x^2")
+    coarse = evaluate(tree, Grid(Box.cube(1.5), (16,) * 3), threads=1)
+    assert np.isfinite(coarse.values).all()
+    field, _, singular = fine_field(tree, coarse, 0.0, method="dense")
+    assert singular == 31 * 31 and np.isfinite(field.values).all()
+    mesh = extract_mesh(coarse, 0.0, cap=True)
+    r = measure_resolution(tree, coarse, mesh, 0.0, cap=True)
+    assert r.singular > 0 and r.to_metrics()["resolution_singular"] == r.singular
+    assert not _is_unresolved(r)

@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surfgen.filters.shape import solidity
 from surfgen.filters.verdict import (
     FilterConfig,
     field_statistics,
     judge,
+    plain,
     quick_metrics,
     screen_field,
     shape_metrics,
@@ -18,6 +20,7 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.presets import PRESETS
 
 CFG = FilterConfig(min_faces=100)
 
@@ -115,3 +118,43 @@ def test_a_stack_of_plates_is_a_blob() -> None:
     m = shape_metrics(plates, g.box.bounds())
     assert m["components"] >= 2 and m["genus"] == 0
     assert "blob" in judge(m, CFG, capped=True).reasons
+
+
+def _closed_metrics(formula: str, half: float, n: int) -> dict:
+    mesh, g = mesh_of(formula, half, n)
+    m = shape_metrics(mesh, g.box.bounds())
+    m["solidity"] = solidity(mesh, m["volume"])
+    return m
+
+
+def test_a_sphere_with_a_tiny_bump_is_plain() -> None:
+    m = _closed_metrics("x^2+y^2+z^2-1-0.25*exp(-((x-1)^2+y^2+z^2)/0.02)", 1.5, 32)
+    assert m["genus"] == 0 and m["components"] == 1 and m["solidity"] > 0.99
+    assert plain(m, CFG)
+    assert "plain" in judge(m, CFG, capped=True).reasons
+    # the envelope measure alone would not see it: there is no envelope
+    assert "departure" not in m
+
+
+def test_plain_keeps_the_papers_equation_a() -> None:
+    # Equation A as printed, in a box its body fills (in the preset's box of +-155 it is a
+    # speck of 140 faces): a rounded box carved with ridges, a ninth of its hull cut away.
+    spec = PRESETS["eqA"].spec()
+    grid = Grid(Box.cube(8.0), (82,) * 3)
+    mesh = extract_mesh(evaluate_reference(spec.tree(), grid, spec.params), cap=True)
+    m = shape_metrics(mesh, grid.box.bounds())
+    m["solidity"] = solidity(mesh, m["volume"])
+    assert m["solidity"] < 0.9
+    assert not plain(m, CFG)
+    assert not plain({**m, "components": 1}, CFG)  # not for its debris: for its carving
+
+
+def test_plain_by_departure_or_solidity_and_only_when_measured() -> None:
+    assert not plain({}, CFG)
+    assert plain({"departure": 0.05}, CFG) and not plain({"departure": 0.2}, CFG)
+    body = {"genus": 0, "components": 1, "solidity": 0.95}
+    assert plain(body, CFG)
+    assert not plain({**body, "solidity": 0.85}, CFG)
+    assert not plain({**body, "genus": 1}, CFG)  # a ring is not a blob
+    assert not plain({**body, "components": 2}, CFG)
+    assert not plain(body, FilterConfig(plain_min_solidity=0.97))

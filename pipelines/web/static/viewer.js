@@ -194,6 +194,11 @@
       ["area", s.area], ["volume", s.volume], ["box fraction", m.box_fraction],
       ["largest component", m.largest_component_fraction], ["total curvature", m.total_curvature],
       ["watertight", m.watertight], ["non-finite samples", m.nonfinite], ["d", s.d],
+      ["solidity", m.solidity],
+      // the surface again on the nested grid twice as fine (filters/resolution.py)
+      ["resolution shift (cells, p95)", m.resolution_shift],
+      ["… to fine / to coarse", m.resolution_shift === undefined ? undefined : fmt(m.resolution_to_fine) + " / " + fmt(m.resolution_to_coarse)],
+      ["fine area / area", m.resolution_area],
     ]);
     const p = s.provenance || {};
     rows($("provenance"), [

@@ -9,7 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from surfgen.filters.descriptor import D1_BINS, D2_BINS, NORMAL_BINS, SIZE, descriptor_to_text
+from surfgen.filters.descriptor import (
+    D1_BINS,
+    D2_BINS,
+    NORMAL_BINS,
+    SIZE,
+    descriptor_from_text,
+    descriptor_to_text,
+)
+from surfgen.filters.diversity import BANDWIDTH, descriptor_vendi
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.curation import apply_action
 from surfgen.pipelines.catalogue.store import CatalogueError, open_catalogue
@@ -185,3 +193,53 @@ def test_stats_and_report_per_family(tmp_path) -> None:
     for name in ("sculpture", "lattice", "free"):
         assert f"Family: {name}" in html
     assert "free-standing" in html and "permutation symmetry" in html
+
+
+def test_vendi_blobs_and_resolution(tmp_path) -> None:
+    root = tmp_path / "vendi"
+    # (accepted, descriptor bin, genus, components, metrics, reasons)
+    shapes = [
+        (True, 0, 0, 1, {"solidity": 0.95, "resolution_shift": 0.2}, []),  # a convex blob
+        (True, 0, 0, 1, {"solidity": 0.7, "resolution_shift": 0.4}, []),  # same descriptor
+        (True, 5, 1, 1, {"solidity": 0.95, "resolution_shift": 0.1}, []),  # genus 1: no blob
+        (True, 9, 0, 2, {"solidity": 0.99}, []),  # two pieces: no blob; not measured
+        (False, None, None, None, {}, ["unresolved"]),
+        (False, None, None, None, {}, ["unresolved", "walls"]),
+        (False, None, None, None, {}, ["speckle"]),
+    ]
+    with open_catalogue(root) as cat:
+        run = cat.create_run(1, 7, 20, {}, "h", 2, {}).id
+        for i, (ok, shift, genus, comps, metrics, reasons) in enumerate(shapes):
+            spec = SurfaceSpec(f"x^2+y^2+z^2-{i + 1}", (-2, 2) * 3, (20,) * 3)
+            row = {
+                "key": spec.key,
+                "spec": spec.to_json(),
+                "formula": spec.formula,
+                "identity": spec.key,
+                "model": json.dumps({"terms": [], "d": 0.0, "family": "sculpture"}),
+                "verdict": "accepted" if ok else "rejected",
+                "reasons": json.dumps(reasons),
+                "metrics": json.dumps(metrics),
+                "genus": genus,
+                "components": comps,
+            }
+            if ok:
+                row["descriptor"] = descriptor_to_text(_descriptor(shift))
+            cat.record_shape(run, i, row, ok, {})
+        s = report_stats(cat)
+    # as stored: rounded histograms, 8-bit placement
+    rows = np.array(
+        [descriptor_from_text(descriptor_to_text(_descriptor(b))) for b in (0, 0, 5, 9)]
+    )
+    assert s["vendi"] == pytest.approx(descriptor_vendi(rows))
+    assert 2.0 < s["vendi"] < 3.5  # two alike, two apart
+    assert s["vendi_bandwidth"] == BANDWIDTH
+    assert s["blobs"] == 1 and s["unresolved"] == 2
+    assert sorted(s["resolution_shift"]) == [0.1, 0.2, 0.4]
+    sc = s["families"]["sculpture"]
+    assert sc["vendi"] == pytest.approx(s["vendi"]) and sc["blobs"] == 1
+    assert sc["unresolved"] == 2
+    html = render_report(s, str(root))
+    assert "Vendi score" in html and f"{s['vendi']:.1f}" in html
+    assert "convex blobs" in html and "25%" in html  # 1 of 4 accepted
+    assert "rejected as unresolved" in html and "median resolution shift" in html
