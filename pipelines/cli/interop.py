@@ -63,7 +63,7 @@ def render_mathmod(
     model = read_model(script, name, slider=slider, params=parse_params(param))
     for notice in model.notices:
         typer.echo(f"notice: {notice}", err=True)
-    if evaluator == "fast":
+    if evaluator != "reference":  # fast, sparse and auto use the numba kernels
         compile_first(echo_err)
     s = render_model(
         model,

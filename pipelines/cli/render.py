@@ -127,7 +127,7 @@ def render(
         grid=parse_numbers(grid, "--grid", (1, 3), integer=True) if grid is not None else None,
         level=level,
     )
-    if evaluator in ("fast", "sparse", "auto"):
+    if evaluator != "reference":  # fast, sparse and auto use the numba kernels
         compile_first(echo_err)
     result = render_spec(
         spec_obj,
