@@ -69,6 +69,7 @@ class FilterConfig:
     blob_max_curvature: float = 1.25
     plain_max_departure: float = 0.12
     plain_min_solidity: float = 0.9
+    plain_max_curvature: float = 6.0
     require_manifold: bool = True
     max_wall_fraction: float = 0.25
     check_resolution: bool = True
@@ -95,6 +96,8 @@ class FilterConfig:
             raise SpecError("config [filters]: resolution_band must be from 0 to 8 (cells)")
         if not self.max_resolution_shift > 0:
             raise SpecError("config [filters]: max_resolution_shift must be > 0 (coarse cells)")
+        if not self.plain_max_curvature >= 0:
+            raise SpecError("config [filters]: plain_max_curvature must be >= 0 (0: off)")
         if not self.max_resolution_area >= 1:
             raise SpecError("config [filters]: max_resolution_area must be >= 1 (an area ratio)")
         for name in ("min_faces", "max_components", "max_genus"):
@@ -241,24 +244,33 @@ def _total_abs_curvature(v: np.ndarray, f: np.ndarray) -> float:
 
 
 def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
-    """The envelope with barely a mark on it, by either of two measures:
+    """The envelope with barely a mark on it, by any of three measures:
 
     - a shape with an envelope (a sculpture) that departs from it by less than
       ``plain_max_departure`` (``departure``: the spread of the surface's offset from the
       envelope over the envelope's radius);
-    - from the mesh alone, whatever the family: one closed piece of genus 0 that fills at least
+    - from the mesh alone, whatever the family: one closed piece that fills at least
       ``plain_min_solidity`` of its convex hull (``solidity``): a rounded box or ball with at
-      most a scratch (convex blobs; their carving, if any, takes under a tenth of the hull).
+      most a scratch or a pinhole (its carving, if any, takes under a tenth of the hull);
+    - from the mesh alone: one piece of genus 0 whose total absolute curvature
+      (``total_curvature``, integral |K| / 4 pi) is below ``plain_max_curvature``: a lump
+      with a few dents or bulges. A convex body has exactly 1; every saddle region adds, so
+      carved, spiky, lobed and twisted shapes reach 6 and more (calibrated on contact sheets
+      of seed 7: docs/guide/filters.md).
     Measures that are missing are not judged."""
     departure = metrics.get("departure")
     if departure is not None and departure < cfg.plain_max_departure:
         return True
+    if metrics.get("components") != 1:
+        return False
     solidity = metrics.get("solidity")
-    return (
-        solidity is not None
+    if solidity is not None and solidity >= cfg.plain_min_solidity:
+        return True
+    curvature = metrics.get("total_curvature")
+    return (  # from the blobs' bound up: a convex lump is a blob, not also plain
+        curvature is not None
         and metrics.get("genus") == 0
-        and metrics.get("components") == 1
-        and solidity >= cfg.plain_min_solidity
+        and cfg.blob_max_curvature <= curvature < cfg.plain_max_curvature
     )
 
 

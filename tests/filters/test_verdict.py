@@ -149,12 +149,32 @@ def test_plain_keeps_the_papers_equation_a() -> None:
     assert not plain({**m, "components": 1}, CFG)  # not for its debris: for its carving
 
 
-def test_plain_by_departure_or_solidity_and_only_when_measured() -> None:
+def test_plain_by_departure_solidity_or_curvature_and_only_when_measured() -> None:
     assert not plain({}, CFG)
     assert plain({"departure": 0.05}, CFG) and not plain({"departure": 0.2}, CFG)
-    body = {"genus": 0, "components": 1, "solidity": 0.95}
+    body = {"genus": 0, "components": 1, "solidity": 0.95, "total_curvature": 9.0}
     assert plain(body, CFG)
     assert not plain({**body, "solidity": 0.85}, CFG)
-    assert not plain({**body, "genus": 1}, CFG)  # a ring is not a blob
+    assert plain({**body, "genus": 1}, CFG)  # a box with a pinhole: solidity whatever the genus
     assert not plain({**body, "components": 2}, CFG)
     assert not plain(body, FilterConfig(plain_min_solidity=0.97))
+    # a lump with a few dents: one genus-0 piece of low total curvature, whatever its solidity
+    lump = {"genus": 0, "components": 1, "solidity": 0.7, "total_curvature": 3.0}
+    assert plain(lump, CFG)
+    assert not plain({**lump, "total_curvature": 6.5}, CFG)  # carved: saddles add curvature
+    assert not plain({**lump, "genus": 1}, CFG)  # a ring is not a lump
+    assert not plain({**lump, "components": 3}, CFG)  # an assembly of lumps is judged as one
+    assert not plain(lump, FilterConfig(plain_max_curvature=0.0))  # off
+    assert plain({**lump, "total_curvature": 6.5}, FilterConfig(plain_max_curvature=7.0))
+
+
+def test_a_peanut_is_plain_by_curvature_and_a_carved_ball_is_not() -> None:
+    peanut = _closed_metrics("((x-0.7)^2+y^2+z^2)*((x+0.7)^2+y^2+z^2)-0.3", 1.8, 48)
+    assert peanut["genus"] == 0 and peanut["components"] == 1
+    assert peanut["solidity"] < CFG.plain_min_solidity  # the solidity alone would keep it
+    assert peanut["total_curvature"] < CFG.plain_max_curvature
+    assert "plain" in judge(peanut, CFG, capped=True).reasons
+    carved = _closed_metrics("x^2+y^2+z^2-1+0.5*cos(7*x)*cos(7*y)", 1.7, 48)
+    assert carved["genus"] == 0 and carved["components"] == 1
+    assert carved["total_curvature"] > 2 * CFG.plain_max_curvature
+    assert not plain(carved, CFG)
