@@ -11,7 +11,10 @@ the centre; or a ``chain`` of 2-4 linked tori. They are put together by a **join
   factor ``A/D`` each, A the constant ``-w``, D the body's ``ρ_i + ε``): near bodies merge
   smoothly, far ones stay apart (t sets how far they reach);
 - ``product``: ``Π B_i`` (one sum term of one factor per body): the union of bodies that do not
-  overlap (linked tori, separate rings), kept apart;
+  overlap (linked tori, separate rings), kept apart: a product hollows an overlap into webs
+  and debris, so the rings' tube is thinned until any two are apart (under 0.3 of their
+  closest approach each: the gap between them is at least 0.4 of it), and rings that cross (or nearly: a tube under 0.15 of the ring
+  radius) become balls;
 - ``boolean``: two bodies by min/max through ``|·|`` (:func:`~.bodies.union`,
   :func:`~.bodies.intersection`, :func:`~.bodies.difference`): a ring through a ball, a box
   with a ball cut out, ...
@@ -62,6 +65,9 @@ from surfgen.generator.model.settings import (
     require_weighted_pairs,
 )
 
+SIZE = 0.5  # a body's radius (a torus's ring radius)
+APART = 0.3  # a product's rings: tube radius at most this share of their closest approach
+MIN_TUBE = 0.15  # ... and not thinner than this share of the ring radius (else balls)
 ARRANGEMENTS = ("pair", "row", "triangle", "tetra", "square", "chain")
 BODIES = ("ball", "box", "torus")
 JOINS = ("blend", "product", "boolean")
@@ -164,6 +170,14 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     stretch = (1.0, 1.0, 1.0)
     if rng.random() < s.stretch_prob:
         stretch = tuple(round(float(rng.uniform(0.75, 1.3)), 2) for _ in range(3))
+    if kind == "torus" and arrangement != "chain" and join != "boolean":
+        # rings joined by a product must not touch (the product hollows their overlap into
+        # webs and debris): the tube is thinned to keep them apart; rings that cross are balls
+        apart = _rings_apart(arrangement, spacing, axis, tilt, tube)
+        if apart is None:
+            kind = "ball"
+        else:
+            tube = apart
     # bare balls and boxes, blended or apart, are plain lumps: they are carved; rings are not
     # (an ornament on a product of rings throws the surface out to the box)
     ornamented = kind != "torus"
@@ -179,7 +193,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
         "join": join,
         "spacing": spacing,
     }
-    size = 0.5  # body radius (ring radius of a torus)
+    size = SIZE
     t = 0.0  # the blend's level
     if arrangement == "chain":
         terms, bodies_tree, chain = _chain(rng, size)
@@ -338,6 +352,24 @@ def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str,
     factors = [body_factor(torus(c, a, size, tube)) for c, a in zip(centres, axes, strict=True)]
     info = {"bodies": n, "gap": gap, "twist": twist, "tube": round(tube / size, 3)}
     return [tuple(factors)], mul_all([f.to_tree() for f in factors]), info
+
+
+def _rings_apart(
+    arrangement: str, spacing: float, axis, tilt: float, tube: float, size: float = 0.5
+) -> float | None:
+    """The tube (share of the ring radius ``size``) at most ``tube`` with which the rings of
+    ``arrangement`` stay apart: under :data:`APART` of the closest approach of any two rings
+    (so two tubes fill at most 0.6 of it: a gap of cells at the sampler's grid); None when that leaves less than :data:`MIN_TUBE`
+    (the rings cross or nearly do)."""
+    centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+    axes = _axes(arrangement, centres, axis, "torus", tilt)
+    closest = min(
+        _ring_gap(centres[i], axes[i], centres[j], axes[j], size)
+        for i in range(len(centres))
+        for j in range(i + 1, len(centres))
+    )
+    room = APART * closest / size
+    return None if room < MIN_TUBE else round(min(tube, room), 2)
 
 
 def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:

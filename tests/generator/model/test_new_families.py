@@ -12,10 +12,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from surfgen.filters.meshlab import face_components
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import to_string
 from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.families.assembly import APART, MIN_TUBE, _ring_gap, _rings_apart
 from surfgen.generator.model.families.twist import harmonic, lobe_terms
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
 
@@ -121,3 +124,29 @@ def test_twist_lobes_are_a_turning_harmonic() -> None:
     r2 = x**2 + y**2
     want = 0.5 * r2 * np.cos(4 * (np.arctan2(y, x) - 1.3 * z)) * (r2 / (r2 + 0.01))
     assert np.allclose(v, want, atol=1e-9)
+
+
+def test_rings_joined_by_a_product_are_kept_apart() -> None:
+    # two coplanar rings whose centres are 1.3 radii apart cross: no tube keeps them apart
+    assert _ring_gap((0, 0, 0), (0, 1, 0), (0.65, 0, 0), (0, 1, 0), 0.5) < 0.02  # sampled
+    assert _rings_apart("pair", 1.3, [0.0, 1.0, 0.0], 0.0, 0.3) is None
+    # stacked on their common axis they are 1.3 radii apart: the tube fits as drawn...
+    assert _rings_apart("pair", 1.3, [1.0, 0.0, 0.0], 0.0, 0.3) == 0.3
+    # ...or is thinned to fit (0.65 apart: at most 0.45 * 0.65 / 0.5)
+    assert _rings_apart("pair", 1.3, [1.0, 0.0, 0.0], 0.0, 0.9) == round(APART * 0.65 / 0.5, 2)
+    assert MIN_TUBE < APART
+    # every torus product the family draws: one mesh piece per ring (no webs, no debris)
+    cfg = family("assembly")
+    seen = 0
+    for i in range(400):
+        draw = draw_equation(5, i, cfg)
+        info = draw.structure
+        if info["body"] != "torus" or info["join"] != "product" or info["arrangement"] == "chain":
+            continue
+        seen += 1
+        if seen > 4:
+            break
+        field = evaluate(draw.equation.with_d(draw.d).to_tree(), Grid(draw.box, (48,) * 3))
+        pieces = np.bincount(face_components(extract_mesh(field, 0.0, cap=True)))
+        assert len(pieces) == info["bodies"], (i, info)
+    assert seen >= 3
