@@ -76,6 +76,7 @@ class FilterConfig:
     resolution_band: int = 1
     max_resolution_shift: float = 0.6
     max_resolution_area: float = 1.10
+    max_resolution_singular: float = 0.05
 
     def __post_init__(self) -> None:
         if not 4 <= self.coarse_grid <= 256:
@@ -98,6 +99,10 @@ class FilterConfig:
             raise SpecError("config [filters]: max_resolution_shift must be > 0 (coarse cells)")
         if not self.plain_max_curvature >= 0:
             raise SpecError("config [filters]: plain_max_curvature must be >= 0 (0: off)")
+        if not self.max_resolution_singular >= 0:
+            raise SpecError(
+                "config [filters]: max_resolution_singular must be >= 0 (samples per face)"
+            )
         if not self.max_resolution_area >= 1:
             raise SpecError("config [filters]: max_resolution_area must be >= 1 (an area ratio)")
         for name in ("min_faces", "max_components", "max_genus"):
@@ -277,11 +282,19 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
 def unresolved(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     """A shape whose surface moves more than ``max_resolution_shift`` coarse cells (95th
     percentile, either way) or gains more than ``max_resolution_area`` in area on the nested
-    grid twice as fine (:mod:`surfgen.filters.resolution`). False when not measured."""
+    grid twice as fine (:mod:`surfgen.filters.resolution`), or whose fine grid finds more than
+    ``max_resolution_singular`` new non-finite samples per face of its mesh (a pole on a plane
+    such as ``x = 0`` that only the odd fine grid samples: rendered there, the shape is slit).
+    False when not measured."""
     shift = metrics.get("resolution_shift")
     if shift is None:
         return False
-    return shift > cfg.max_resolution_shift or metrics["resolution_area"] > cfg.max_resolution_area
+    singular, faces = metrics.get("resolution_singular", 0), metrics.get("faces")
+    return (
+        shift > cfg.max_resolution_shift
+        or metrics["resolution_area"] > cfg.max_resolution_area
+        or (faces is not None and singular > cfg.max_resolution_singular * faces)
+    )
 
 
 def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:

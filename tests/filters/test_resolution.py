@@ -208,4 +208,13 @@ def test_poles_only_the_fine_grid_samples_are_patched_and_counted() -> None:
     mesh = extract_mesh(coarse, 0.0, cap=True)
     r = measure_resolution(tree, coarse, mesh, 0.0, cap=True)
     assert r.singular > 0 and r.to_metrics()["resolution_singular"] == r.singular
-    assert not _is_unresolved(r)
+    assert r.shift < 0.6 and r.area < 1.1  # patched, the zero set has not moved...
+    # ...but rendered at the fine grid the ball is slit by its pole plane: unresolved, unless
+    # the new non-finite samples are few for the surface (a line of them, not a plane)
+    metrics = {**r.to_metrics(), "faces": mesh.n_faces}
+    assert r.singular > CFG.max_resolution_singular * mesh.n_faces
+    assert unresolved(metrics, CFG)
+    assert not unresolved({**metrics, "faces": 100 * r.singular}, CFG)
+    assert not unresolved(metrics, FilterConfig(max_resolution_singular=1e9))
+    with pytest.raises(SpecError, match="max_resolution_singular"):
+        FilterConfig(max_resolution_singular=-1)
