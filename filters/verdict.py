@@ -257,25 +257,26 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     - from the mesh alone, whatever the family: one closed piece that fills at least
       ``plain_min_solidity`` of its convex hull (``solidity``): a rounded box or ball with at
       most a scratch or a pinhole (its carving, if any, takes under a tenth of the hull);
-    - from the mesh alone: one piece of genus 0 whose total absolute curvature
-      (``total_curvature``, integral |K| / 4 pi) is below ``plain_max_curvature``: a lump
-      with a few dents or bulges. A convex body has exactly 1; every saddle region adds, so
+    - from the mesh alone: genus 0 (one piece or a few) with a total absolute curvature
+      (``total_curvature``, integral |K| / 4 pi, summed over the pieces) below
+      ``plain_max_curvature``: lumps with a few dents or bulges (a pillow, a peanut, two dented
+      balls, a box with a knob). A convex body has exactly 1; every saddle region adds, so
       carved, spiky, lobed and twisted shapes reach 6 and more (calibrated on contact sheets
       of seed 7: docs/guide/filters.md).
     Measures that are missing are not judged."""
     departure = metrics.get("departure")
     if departure is not None and departure < cfg.plain_max_departure:
         return True
-    if metrics.get("components") != 1:
-        return False
     solidity = metrics.get("solidity")
-    if solidity is not None and solidity >= cfg.plain_min_solidity:
-        return True
+    if metrics.get("components") == 1 and solidity is not None:
+        if solidity >= cfg.plain_min_solidity:
+            return True
     curvature = metrics.get("total_curvature")
     return (  # from the blobs' bound up: a convex lump is a blob, not also plain
         curvature is not None
         and metrics.get("genus") == 0
-        and cfg.blob_max_curvature <= curvature < cfg.plain_max_curvature
+        and cfg.blob_max_curvature * metrics.get("components", 1) <= curvature
+        and curvature < cfg.plain_max_curvature
     )
 
 

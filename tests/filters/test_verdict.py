@@ -163,7 +163,8 @@ def test_plain_by_departure_solidity_or_curvature_and_only_when_measured() -> No
     assert plain(lump, CFG)
     assert not plain({**lump, "total_curvature": 6.5}, CFG)  # carved: saddles add curvature
     assert not plain({**lump, "genus": 1}, CFG)  # a ring is not a lump
-    assert not plain({**lump, "components": 3}, CFG)  # an assembly of lumps is judged as one
+    assert plain({**lump, "components": 2}, CFG)  # two dented balls: summed, still low
+    assert not plain({**lump, "components": 2, "total_curvature": 8.0}, CFG)
     assert not plain(lump, FilterConfig(plain_max_curvature=0.0))  # off
     assert plain({**lump, "total_curvature": 6.5}, FilterConfig(plain_max_curvature=7.0))
 
