@@ -268,9 +268,9 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     if departure is not None and departure < cfg.plain_max_departure:
         return True
     solidity = metrics.get("solidity")
-    if metrics.get("components") == 1 and solidity is not None:
-        if solidity >= cfg.plain_min_solidity:
-            return True
+    one_piece = metrics.get("components") == 1
+    if one_piece and solidity is not None and solidity >= cfg.plain_min_solidity:
+        return True
     curvature = metrics.get("total_curvature")
     return (  # from the blobs' bound up: a convex lump is a blob, not also plain
         curvature is not None
