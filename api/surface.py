@@ -347,9 +347,9 @@ class Surface:
         walls : {'keep', 'remove', 'mark'}, optional
             Classify the crossings and keep the walls (poles, jumps), remove them (open
             sheets), or mark them (face attribute ``kind``; default: :attr:`walls`).
-        evaluator : {'auto', 'sparse', 'fast', 'reference'}
+        evaluator : {'auto', 'sparse', 'dense', 'fast', 'reference'}
             ``sparse`` evaluates only the blocks the surface may cross (interval arithmetic),
-            ``fast`` every grid point, ``reference`` in plain numpy; ``auto`` (default) is
+            ``dense`` or ``fast`` every grid point, ``reference`` in plain numpy; ``auto`` (default) is
             sparse on large grids (from 192^3 points). All make the same mesh, bit for bit.
 
         Returns

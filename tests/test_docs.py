@@ -48,6 +48,8 @@ def test_site_builds_strictly(site: Path) -> None:
 def _config_keys(obj: Any, path: tuple[str, ...] = ()) -> Iterator[str]:
     """``table.key`` for every value field of the config's dataclasses, nested tables included."""
     for field in dataclasses.fields(obj):
+        if not field.metadata.get("config_key", True):  # copied from another table (grid)
+            continue
         value = getattr(obj, field.name)
         if dataclasses.is_dataclass(value):
             yield from _config_keys(value, (*path, field.name))

@@ -62,8 +62,9 @@ def export_command(
     evaluator: Annotated[
         str,
         typer.Option(
-            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
-            "surface may cross) or fast (every grid point); the same mesh."
+            help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
+            "blocks the surface may cross), dense or fast (every grid point) or reference; "
+            "all make the same mesh."
         ),
     ] = "auto",
     force: Annotated[

@@ -57,8 +57,9 @@ def render(
     evaluator: Annotated[
         str,
         typer.Option(
-            help="auto (sparse from 192^3 points on, else fast), sparse (only the blocks the "
-            "surface may cross), fast (every grid point) or reference; the same mesh."
+            help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
+            "blocks the surface may cross), dense or fast (every grid point) or reference; "
+            "all make the same mesh."
         ),
     ] = "auto",
     from_catalogue: Annotated[

@@ -12,9 +12,9 @@ import surfgen
 from surfgen.pipelines.cli.main import main
 
 SEED, GRID, N = 7, 24, 6
-# Descriptor distances between the first accepted shapes of seed 7 on 24^3 run from 1.4 to 4:
-# at 1.7 some of them are near duplicates of earlier ones.
-CONFIG = "[run]\ndedupe_threshold = 1.7\n"
+# Descriptor distances between the first accepted shapes of seed 7 on 24^3 (sampler 6) run
+# from about 2 to 4: at 3.0 draw 8 (accepted without the check) is a near duplicate of one.
+CONFIG = "[run]\ndedupe_threshold = 3.0\n"
 
 
 @pytest.fixture(scope="session")

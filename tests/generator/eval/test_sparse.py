@@ -147,8 +147,9 @@ def test_bad_block_and_evaluator():
     grid = Grid(Box.cube(1), (16,) * 3)
     with pytest.raises(ValueError, match="block"):
         evaluate_sparse(SPHERE, grid, block=0)
-    with pytest.raises(Exception, match="unknown evaluator 'dense'"):
-        resolve_evaluator("dense", grid)
+    assert resolve_evaluator("dense", grid) == "fast"  # the name for the fast path
+    with pytest.raises(Exception, match="unknown evaluator 'sparce'.*auto, dense, fast"):
+        resolve_evaluator("sparce", grid)
 
 
 def test_memory_estimate_grows_with_the_surface():

@@ -257,7 +257,7 @@ def test_spec_file_encodings(raw: bytes, message: str, tmp_path: Path, capsys) -
             "[sampler]\nsum_terms_weights = [1e308, 1e308, 1e308]\n",
             "sum_terms_weights add up to inf (each is divided by their sum, which must be finite)",
         ),
-        ("[sampler]\nmix_weights = [1e308, 1e308, 1]\n", "mix_weights add up to inf"),
+        ("[sampler]\nmix_weights = [1e308, 1e308, 1, 1, 1, 1]\n", "mix_weights add up to inf"),
         ("[sampler.sculpture]\ngroup_weights = [1e308, 1e308, 1, 1, 1, 1]\n", "add up to inf"),
         ("[sampler]\ncoefficient_max = nan\n", "coefficient_max must be a finite number"),
         ("[sampler]\nconstituent_p = [2, 100000000]\n", "constituent_p must be from 1 to 64"),

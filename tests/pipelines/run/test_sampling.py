@@ -353,7 +353,7 @@ def test_dedupe_on_the_fly_marks_what_each_duplicate_copies(tmp_path: Path, caps
         "--out",
         str(cat),
         "--max-draws",
-        "12",
+        "30",
     ]
     assert main([*args, "--dedupe"]) == 1  # only 1 of 2 accepted: the rest are duplicates
     with open_catalogue(cat, must_exist=True) as c:
