@@ -166,11 +166,32 @@ def _warm_kernels(config, selected: int) -> None:
     seconds = kernel_warmup.warm_for_suite()
     if say is not None:
         say.write_line(f"kernels compiled in {seconds:.0f} s")
+    global _SPARSE_CHILD
+    _SPARSE_CHILD = kernel_warmup.start_sparse_child()  # meanwhile, the first folders run
+
+
+_SPARSE_CHILD = None
+
+
+def pytest_runtest_setup(item) -> None:
+    """The first test past the folders that mesh densely waits for the sparse kernels' child."""
+    global _SPARSE_CHILD
+    if _SPARSE_CHILD is None:
+        return
+    from tests.support.kernel_warmup import BEFORE_SPARSE
+
+    if not item.nodeid.startswith(BEFORE_SPARSE):
+        child, _SPARSE_CHILD = _SPARSE_CHILD, None
+        child.wait()
 
 
 def pytest_sessionfinish(session, exitstatus) -> None:
     """Stop background parts no test collected (an interrupted or failed-early session)."""
     import sys
+
+    if _SPARSE_CHILD is not None:  # a session that never got past the first folders
+        _SPARSE_CHILD.kill()
+        _SPARSE_CHILD.wait()
 
     for module in list(sys.modules.values()):
         stop = getattr(module, "stop_background", None)

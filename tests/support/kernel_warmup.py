@@ -18,11 +18,20 @@ is missing themselves, as they always could.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 
 import numpy as np
 
 MIN_TESTS = 100  # smaller sessions (a module, a -k selection) compile only what they use
+
+# The sparse path's kernels (interval bounds, the block octree, the sparse marching cubes) take
+# about 100 s to compile, alone.  They are compiled by a child once the interpreter is in the
+# cache, while the first test folders (these, which mesh densely) run; the first test outside
+# them waits for the child (``tests/conftest.py``).
+BEFORE_SPARSE = ("tests/api/", "tests/benchmarks/", "tests/filters/", "tests/generator/elementary/")
+_SPARSE_CHILD = "from tests.support.kernel_warmup import warm_sparse_kernels; warm_sparse_kernels()"
 
 
 def warm_points_kernels() -> None:
@@ -63,3 +72,42 @@ def warm_for_suite() -> float:
     t0 = time.perf_counter()
     warm_shape_kernels(parallel=True, meanwhile=warm_points_kernels)
     return time.perf_counter() - t0
+
+
+def warm_sparse_kernels() -> None:
+    """The interval bounds and the sparse evaluation and marching (with and without the walls'
+    labels) on a small shape with a pole, as ``render --evaluator sparse`` runs them."""
+    from surfgen.generator.eval.intervals import tree_bounds
+    from surfgen.generator.mesh.realise import realise
+    from surfgen.generator.model.spec import SurfaceSpec
+
+    spec = SurfaceSpec("x^2+y^2+z^2-1+0.1*sin(3*x)/y", (-1.5, 1.5) * 3, (40,) * 3)
+    lo = np.array([[-1.0, -1.0, -1.0], [0.0, 0.0, 0.0]])
+    tree_bounds(spec.tree(), None, lo, lo + 0.5)
+    realise(spec, evaluator="sparse", cap=True)
+    realise(spec, evaluator="sparse", cap=True, walls="mark")
+
+
+def sparse_kernels_cached() -> bool:
+    """Whether numba's cache holds the sparse path's kernels (the interval interpreter's and the
+    sparse marcher's)."""
+    from surfgen.generator.eval import interval_kernels
+    from surfgen.generator.mesh import sparse_lewiner
+    from surfgen.pipelines.run.warmup import kernel_cached
+
+    return kernel_cached(interval_kernels.run_boxes) and kernel_cached(sparse_lewiner.lewiner_cells)
+
+
+def start_sparse_child() -> subprocess.Popen | None:
+    """Start compiling the sparse path's kernels in a child (None: cached, or no child)."""
+    if sparse_kernels_cached():
+        return None
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-c", _SPARSE_CHILD],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:  # the tests compile them themselves, as they always could
+        return None
