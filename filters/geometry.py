@@ -212,3 +212,36 @@ def column_bounds(a: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
             lo[k] = np.nan
             hi[k] = np.nan
     return lo, hi
+
+
+@numba.njit(**CHECKED)
+def cell_of(p: float, lo: np.ndarray, cell: float, dims: np.ndarray, k: int) -> int:
+    """The cell of coordinate ``p`` on axis ``k`` of a lattice of ``dims`` cells of width
+    ``cell`` from ``lo``, clamped into the lattice (points outside count in its border cells)."""
+    c = int(math.floor((p - lo[k]) / cell))
+    return min(max(c, 0), dims[k] - 1)
+
+
+@numba.njit(**CHECKED)
+def bucket_points(
+    pts: np.ndarray, lo: np.ndarray, cell: float, dims: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Counting sort of the points ``(N, 3)`` by lattice cell (:func:`cell_of`, clamped):
+    ``order[start[c]:start[c + 1]]`` are cell ``c``'s, ``c = (cx * dims[1] + cy) * dims[2] + cz``."""
+    n = pts.shape[0]
+    ids = np.empty(n, dtype=np.int64)
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    for i in range(n):
+        cx = cell_of(pts[i, 0], lo, cell, dims, 0)
+        cy = cell_of(pts[i, 1], lo, cell, dims, 1)
+        cz = cell_of(pts[i, 2], lo, cell, dims, 2)
+        ids[i] = (cx * dims[1] + cy) * dims[2] + cz
+        start[ids[i] + 1] += 1
+    for c in range(start.shape[0] - 1):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[ids[i]]] = i
+        fill[ids[i]] += 1
+    return start, order

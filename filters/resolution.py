@@ -42,6 +42,7 @@ import numba
 import numpy as np
 from scipy.ndimage import binary_dilation
 
+from surfgen.filters.geometry import bucket_points, cell_of
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
@@ -332,7 +333,7 @@ def surface_distances(
     a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
     centres, reach = _centres(v, f)
-    start, order = _bucket(centres, lo, cell, dims)
+    start, order = bucket_points(centres, lo, cell, dims)
     rings = int(math.ceil(cap + reach / cell)) + 2
     dist = _nearest_faces(
         points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell, floor * cell
@@ -355,35 +356,6 @@ def _centres(v, f):
                 d += e * e
             reach = max(reach, d)
     return out, math.sqrt(reach)
-
-
-@numba.njit(**KERNEL)
-def _cell_of(p, lo, cell, dims, k):
-    c = int(math.floor((p - lo[k]) / cell))
-    return min(max(c, 0), dims[k] - 1)
-
-
-@numba.njit(**KERNEL)
-def _bucket(pts, lo, cell, dims):
-    """Counting sort of ``pts`` by lattice cell (clamped into the lattice):
-    ``order[start[c]:start[c + 1]]`` are cell ``c``'s points."""
-    n = pts.shape[0]
-    ids = np.empty(n, dtype=np.int64)
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
-    for i in range(n):
-        cx = _cell_of(pts[i, 0], lo, cell, dims, 0)
-        cy = _cell_of(pts[i, 1], lo, cell, dims, 1)
-        cz = _cell_of(pts[i, 2], lo, cell, dims, 2)
-        ids[i] = (cx * dims[1] + cy) * dims[2] + cz
-        start[ids[i] + 1] += 1
-    for c in range(start.shape[0] - 1):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[fill[ids[i]]] = i
-        fill[ids[i]] += 1
-    return start, order
 
 
 @numba.njit(**KERNEL)
@@ -446,9 +418,9 @@ def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap
     out = np.empty(points.shape[0])
     for p in range(points.shape[0]):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
-        cx = _cell_of(x, lo, cell, dims, 0)
-        cy = _cell_of(y, lo, cell, dims, 1)
-        cz = _cell_of(z, lo, cell, dims, 2)
+        cx = cell_of(x, lo, cell, dims, 0)
+        cy = cell_of(y, lo, cell, dims, 1)
+        cz = cell_of(z, lo, cell, dims, 2)
         best = np.inf
         for r in range(rings):
             for i in range(max(cx - r, 0), min(cx + r, dims[0] - 1) + 1):

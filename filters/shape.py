@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from surfgen.filters.geometry import (
+    bucket_points,
     column_bounds,
     first_edge_lengths,
     used_mask,
@@ -122,32 +123,8 @@ def _cell_index(
     while np.prod(np.floor(extent / cell) + 1) > max(4 * len(cloud), 4096):
         cell *= 1.25
     dims = (np.floor(extent / cell) + 1).astype(np.int64)
-    start, order = _bucket(cloud, lo, cell, dims)
+    start, order = bucket_points(cloud, lo, cell, dims)  # every point is >= lo
     return start, order, lo, cell, dims
-
-
-@numba.njit(**CHECKED)
-def _bucket(
-    cloud: np.ndarray, lo: np.ndarray, cell: float, dims: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Counting sort of the points by cell: ``order[start[c]:start[c + 1]]`` are cell c's."""
-    n = cloud.shape[0]
-    ids = np.empty(n, dtype=np.int64)
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
-    for i in range(n):
-        cx = min(int((cloud[i, 0] - lo[0]) / cell), dims[0] - 1)
-        cy = min(int((cloud[i, 1] - lo[1]) / cell), dims[1] - 1)
-        cz = min(int((cloud[i, 2] - lo[2]) / cell), dims[2] - 1)
-        ids[i] = (cx * dims[1] + cy) * dims[2] + cz
-        start[ids[i] + 1] += 1
-    for c in range(start.shape[0] - 1):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[fill[ids[i]]] = i
-        fill[ids[i]] += 1
-    return start, order
 
 
 @numba.njit(**CHECKED)

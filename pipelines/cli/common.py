@@ -27,6 +27,14 @@ MaxMemoryOption = Annotated[
         "default: the machine's available memory).",
     ),
 ]
+EvaluatorOption = Annotated[
+    str,
+    typer.Option(
+        help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
+        "blocks the surface may cross), dense or fast (every grid point) or reference; "
+        "all make the same mesh."
+    ),
+]
 WorkersOption = Annotated[
     int | None,
     typer.Option(help="Processes drawing the missing pictures (default: all cores)."),

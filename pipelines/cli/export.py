@@ -16,7 +16,7 @@ import typer
 from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, MARKABLE, PRINTABLE
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
-from surfgen.pipelines.cli.common import CatalogueOption, MaxMemoryOption
+from surfgen.pipelines.cli.common import CatalogueOption, EvaluatorOption, MaxMemoryOption
 
 # ``CleanupOptions.min_component`` (surfgen.filters.cleanup), here without importing pymeshlab;
 # tests/pipelines/test_export.py checks that the two agree.
@@ -59,14 +59,7 @@ def export_command(
     regrid: Annotated[
         int | None, typer.Option(help="Re-evaluate the formula on N^3 points first.")
     ] = None,
-    evaluator: Annotated[
-        str,
-        typer.Option(
-            help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
-            "blocks the surface may cross), dense or fast (every grid point) or reference; "
-            "all make the same mesh."
-        ),
-    ] = "auto",
+    evaluator: EvaluatorOption = "auto",
     force: Annotated[
         bool,
         typer.Option(

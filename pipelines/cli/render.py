@@ -18,6 +18,7 @@ from surfgen.generator.mesh.formats import MESH_SUFFIXES
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import CatalogueError
 from surfgen.pipelines.cli.common import (
+    EvaluatorOption,
     MaxMemoryOption,
     echo_err,
     emit_json,
@@ -54,14 +55,7 @@ def render(
         Path | None, typer.Option(help="Write the float64 field to FIELD.npy.")
     ] = None,
     png: Annotated[Path | None, typer.Option(help="Write a shaded picture (PNG).")] = None,
-    evaluator: Annotated[
-        str,
-        typer.Option(
-            help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
-            "blocks the surface may cross), dense or fast (every grid point) or reference; "
-            "all make the same mesh."
-        ),
-    ] = "auto",
+    evaluator: EvaluatorOption = "auto",
     from_catalogue: Annotated[
         tuple[Path, str] | None,
         typer.Option("--from", help="CATALOGUE KEY: regenerate a catalogued shape."),

@@ -202,7 +202,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
         terms, bodies_tree, op = _boolean(rng, kind, size, spacing, p, axis)
         info.update(bodies=2, operation=op)
     else:
-        centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+        centres = _orbit(arrangement, spacing, size)
         if centre_body and arrangement in ("triangle", "tetra", "square") and kind != "torus":
             centres.append((0.0, 0.0, 0.0))
         axes = _axes(arrangement, centres, axis, kind, tilt)
@@ -354,6 +354,11 @@ def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str,
     return [tuple(factors)], mul_all([f.to_tree() for f in factors]), info
 
 
+def _orbit(arrangement: str, spacing: float, size: float) -> list[tuple[float, ...]]:
+    """The bodies' centres: the arrangement's unit orbit scaled to ``spacing`` body radii."""
+    return [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+
+
 def _rings_apart(
     arrangement: str, spacing: float, axis, tilt: float, tube: float, size: float = 0.5
 ) -> float | None:
@@ -361,7 +366,7 @@ def _rings_apart(
     ``arrangement`` stay apart: under :data:`APART` of the closest approach of any two rings
     (so two tubes fill at most 0.6 of it: a gap of cells at the sampler's grid); None when that leaves less than :data:`MIN_TUBE`
     (the rings cross or nearly do)."""
-    centres = [tuple(size * spacing * c for c in pt) for pt in _UNIT_ORBITS[arrangement]]
+    centres = _orbit(arrangement, spacing, size)
     axes = _axes(arrangement, centres, axis, "torus", tilt)
     closest = min(
         _ring_gap(centres[i], axes[i], centres[j], axes[j], size)
