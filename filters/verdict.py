@@ -40,6 +40,7 @@ REASONS = (
     "nonmanifold",  # non-manifold edges or vertices after repair
     "not_watertight",  # open, although capped
     "speckle",  # too many components, or no dominant one
+    "fragmented",  # drawn as one body (sculpture, infill, twist), broken into pieces
     "box_dominated",  # mostly the caps on the box faces
     "blob",  # only convex lumps (plates, slabs, smooth blobs)
     "plain",  # its envelope with barely a mark on it (sculptures)
@@ -59,11 +60,12 @@ class FilterConfig:
     coarse_grid: int = 24
     max_nonfinite_fraction: float = 0.5
     max_flip_fraction: float = 0.15
-    min_inside_fraction: float = 0.01
+    min_inside_fraction: float = 0.003
     max_inside_fraction: float = 0.75
     min_faces: int = 400
     max_components: int = 60
     min_largest_component_fraction: float = 0.2
+    min_body_fraction: float = 0.8
     max_box_fraction: float = 0.35
     max_genus: int = 500
     blob_max_curvature: float = 1.25
@@ -87,6 +89,7 @@ class FilterConfig:
             "min_inside_fraction",
             "max_inside_fraction",
             "min_largest_component_fraction",
+            "min_body_fraction",
             "max_box_fraction",
             "plain_max_departure",
             "plain_min_solidity",
@@ -262,7 +265,11 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
       ``plain_max_curvature``: lumps with a few dents or bulges (a pillow, a peanut, two dented
       balls, a box with a knob). A convex body has exactly 1; every saddle region adds, so
       carved, spiky, lobed and twisted shapes reach 6 and more (calibrated on contact sheets
-      of seed 7: docs/guide/filters.md).
+      of seed 7: docs/guide/filters.md);
+    - likewise one piece of genus 1 below ``plain_max_curvature``: a plain ring (a torus has
+      exactly 2), a ring with a knob, a ball with one tunnel. Higher genera are not judged
+      this way: a smooth frame or a box with tunnels has little curvature to spare, yet is
+      not plain.
     Measures that are missing are not judged."""
     departure = metrics.get("departure")
     if departure is not None and departure < cfg.plain_max_departure:
@@ -272,11 +279,14 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     if one_piece and solidity is not None and solidity >= cfg.plain_min_solidity:
         return True
     curvature = metrics.get("total_curvature")
-    return (  # from the blobs' bound up: a convex lump is a blob, not also plain
-        curvature is not None
-        and metrics.get("genus") == 0
+    if curvature is None or not curvature < cfg.plain_max_curvature:
+        return False
+    if metrics.get("genus") == 1:
+        return one_piece
+    # genus 0: from the blobs' bound up (a convex lump is a blob, not also plain)
+    return (
+        metrics.get("genus") == 0
         and cfg.blob_max_curvature * metrics.get("components", 1) <= curvature
-        and curvature < cfg.plain_max_curvature
     )
 
 
@@ -298,9 +308,13 @@ def unresolved(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     )
 
 
-def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdict:
+def judge(
+    metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool, one_body: bool = False
+) -> Verdict:
     """The verdict on :func:`shape_metrics` (or only :func:`quick_metrics`: the checks whose
-    metrics are missing are skipped). Every failing reason is listed."""
+    metrics are missing are skipped). Every failing reason is listed. ``one_body``: the shape
+    was drawn as one connected body (a family with ``one_body``: sculpture, infill, twist),
+    so a largest piece under ``min_body_fraction`` of the area is ``fragmented``."""
     m = metrics
     reasons: list[str] = []
     if m["faces"] < cfg.min_faces:
@@ -314,6 +328,8 @@ def judge(metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool) -> Verdic
         or m["largest_component_fraction"] < cfg.min_largest_component_fraction
     ):
         reasons.append("speckle")
+    if one_body and m["largest_component_fraction"] < cfg.min_body_fraction:
+        reasons.append("fragmented")
     if m["box_fraction"] > cfg.max_box_fraction:
         reasons.append("box_dominated")
     if m.get("wall_fraction", 0.0) > cfg.max_wall_fraction:

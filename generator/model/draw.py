@@ -200,7 +200,9 @@ class Family:
 
     ``settings`` is the frozen dataclass its ``[sampler.<name>]`` table is read into (None: the
     family has no keys of its own); ``mix_weight`` its weight in the default ``mix`` (0: not in
-    it); ``description`` one line for ``--help`` and the docs.
+    it); ``description`` one line for ``--help`` and the docs; ``one_body``: its shapes are
+    drawn as one connected body, so the filters reject one broken into pieces (``fragmented``:
+    ``[filters] min_body_fraction``).
     """
 
     name: str
@@ -208,6 +210,7 @@ class Family:
     description: str
     settings: type | None = None
     mix_weight: float = 0.0
+    one_body: bool = False
 
     @property
     def table(self) -> str | None:

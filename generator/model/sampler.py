@@ -52,7 +52,7 @@ from surfgen.generator.model.settings import (
 )
 from surfgen.generator.model.spec import SurfaceSpec
 
-SAMPLER_VERSION = 6  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40)
+SAMPLER_VERSION = 7  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40); 7: spires and swelling lobes in twist, chains of 2-4 rings (every other one smaller) clear of each other and never ornamented, fewer blends, the near-duplicate check after the mesh checks, plain rings (genus 1 by curvature), fragmented bodies (min_body_fraction), min_inside_fraction 0.003
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from surfgen.generator.mesh.exchange import encode_mesh
 from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas
 from surfgen.generator.mesh.walls import label_walls
 from surfgen.generator.model.draw import Draw
+from surfgen.generator.model.families import get_family
 from surfgen.generator.model.families.carving import envelope_departure
 from surfgen.generator.model.sampler import draw_spec
 from surfgen.generator.model.spec import SurfaceSpec
@@ -53,6 +54,9 @@ from surfgen.pipelines.run.duplicates import AcceptedDescriptors
 log = logging.getLogger(__name__)
 
 METRIC_DIGITS = 10  # significant digits kept in stored metrics
+
+#: A later stage of the cascade (:func:`_judge`): runs its checks, returns the verdict.
+Later = Callable[[], Verdict]
 
 
 # Where each file of an accepted shape goes: (catalogue column, ShapeOutcome field).
@@ -120,18 +124,20 @@ def make_shape(
     """Draw, evaluate, mesh, measure and judge shape ``index``: a pure function of its inputs
     (timings aside). Known failures become a rejected verdict with its reason.
 
-    With near-duplicate rejection on, a mesh that passes the cheap checks is described there
-    and the outcome carries that point's row (``early_row``): the parent rejects the shape as a
-    duplicate with that row if an accepted shape is near it (:func:`~surfgen.pipelines.run.sampling._drive`), so that verdict
-    does not depend on the later checks. ``duplicates`` (a worker's view of the shapes already
-    accepted) lets the worker stop there when it already knows; the row is the same."""
+    With near-duplicate rejection on, a mesh that passes every check of the mesh itself is
+    described there, before the costly check on the finer grid, and the outcome carries that
+    point's row (``early_row``): the parent rejects the shape as a duplicate with that row if
+    an accepted shape is near it (:func:`~surfgen.pipelines.run.sampling._drive`), so that
+    verdict does not depend on the later check. ``duplicates`` (a worker's view of the shapes
+    already accepted) lets the worker stop there when it already knows; the row is the same."""
     watch = Stopwatch()
     # one process per core: numba serial inside
     draw, d, spec = draw_spec(seed, index, config.sampler, config.run.grid, config.hash, threads=1)
     equation = draw.equation.with_d(d or 0.0)
     tree = equation.to_tree()
     watch.lap("eval")
-    verdict, metrics, mesh, rest = _judge(tree, spec, d, config, watch, draw)
+    verdict, metrics, mesh, later = _judge(tree, spec, d, config, watch, draw)
+    mesh_checks, fine_checks = later
 
     def row_for(verdict: Verdict) -> dict[str, Any]:
         return {
@@ -146,6 +152,8 @@ def make_shape(
             "reasons": json.dumps(list(verdict.reasons)),
         }
 
+    if verdict.accepted:
+        verdict = mesh_checks()
     early = described = None
     if verdict.accepted and config.run.dedupe:  # where near duplicates are judged
         described = descriptor_to_text(descriptor(mesh))
@@ -156,7 +164,7 @@ def make_shape(
             early["timings"] = _timings(watch)
             return ShapeOutcome(index, dict(early), DUPLICATE, early_row=early, early_stop=True)
     if verdict.accepted:
-        verdict = rest()
+        verdict = fine_checks()
     row = row_for(verdict)
     out = ShapeOutcome(index, row, verdict, early_row=early)
     if verdict.accepted and mesh is not None:
@@ -189,9 +197,13 @@ def judge_spec(
     evaluation raises for a spec that cannot be evaluated.
     """
     tree = substitute_params(spec.tree(), spec.params)  # the cascade evaluates without params
-    verdict, metrics, mesh, rest = _judge(tree, spec, d, config, Stopwatch(), draw)
+    verdict, metrics, mesh, (mesh_checks, fine_checks) = _judge(
+        tree, spec, d, config, Stopwatch(), draw
+    )
     if verdict.accepted:
-        verdict = rest()
+        verdict = mesh_checks()
+    if verdict.accepted:
+        verdict = fine_checks()
     return verdict, _round_metrics(metrics), mesh
 
 
@@ -210,17 +222,19 @@ def _judge(
     config: Config,
     watch: Stopwatch,
     draw: Draw | None = None,
-) -> tuple[Verdict, dict[str, Any], Mesh | None, Callable[[], Verdict]]:
+) -> tuple[Verdict, dict[str, Any], Mesh | None, tuple[Later, Later]]:
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
-    if any), mesh, cheap mesh checks; then, when called, ``rest()``: the walls, the full mesh
-    checks, the solidity (plain blobs), the resolution check (the nested grid twice as fine)
-    and the shape-quality metrics of an accepted mesh. Returns the cheap checks'
-    verdict, the metrics (``rest()`` adds to them), the mesh (if made) and ``rest``."""
+    if any), mesh, cheap mesh checks; then, when called, ``mesh_checks()``: the walls, the full
+    mesh checks, the solidity (plain blobs); then ``fine_checks()``: the resolution check (the
+    nested grid twice as fine) and the shape-quality metrics of an accepted mesh. Returns the
+    cheap checks' verdict, the metrics (the later checks add to them), the mesh (if made) and
+    ``(mesh_checks, fine_checks)``, to be called in that order while the verdict accepts."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
+    one_body = draw is not None and get_family(draw.family).one_body
 
     def stop(verdict: Verdict, mesh: Mesh | None = None):
-        return verdict, metrics, mesh, lambda: verdict
+        return verdict, metrics, mesh, (lambda: verdict, lambda: verdict)
 
     if d is None:
         return stop(Verdict.reject("no_crossing"))
@@ -261,10 +275,10 @@ def _judge(
     # Cheap checks first (most draws fail them)...
     quick = quick_metrics(mesh, spec.box, areas)
     metrics.update(quick)
-    verdict = judge(metrics, fcfg, capped=capped)
+    verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
     watch.lap("filters")
 
-    def rest() -> Verdict:
+    def mesh_checks() -> Verdict:
         verdict = ACCEPT
         if "wall_fraction" not in metrics:
             # ...then the walls (root, pole or jump for every crossing: refines with the formula)
@@ -273,15 +287,19 @@ def _judge(
             )
             metrics["wall_fraction"] = crossings.wall_fraction
             watch.lap("walls")
-            verdict = judge(metrics, fcfg, capped=capped)
+            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
         if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
             metrics.update(shape_metrics(mesh, spec.box, quick=quick))
-            verdict = judge(metrics, fcfg, capped=capped)
+            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
         if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
             metrics["solidity"] = solidity(mesh, metrics.get("volume"))
-            verdict = judge(metrics, fcfg, capped=capped)
+            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
         watch.lap("filters")
-        if verdict.accepted and fcfg.check_resolution:
+        return verdict
+
+    def fine_checks() -> Verdict:
+        verdict = ACCEPT
+        if fcfg.check_resolution:
             # ...then the surface on the nested grid twice as fine (the costliest check: last,
             # so the blobs and plain shapes, a quarter of the candidates, do not pay for it)
             resolution = measure_resolution(
@@ -289,13 +307,13 @@ def _judge(
             )
             metrics.update(resolution.to_metrics())
             watch.lap("resolution")
-            verdict = judge(metrics, fcfg, capped=capped)
+            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
         if verdict.accepted:
             metrics.update(quality_metrics(mesh, metrics))
         watch.lap("filters")
         return verdict
 
-    return verdict, metrics, mesh, rest
+    return verdict, metrics, mesh, (mesh_checks, fine_checks)
 
 
 def _metric_columns(m: dict[str, Any]) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.families import family_names, get_family
 from surfgen.generator.model.presets import PRESETS
 
 CFG = FilterConfig(min_faces=100)
@@ -36,7 +37,8 @@ def test_convex_lump_is_a_blob_and_a_torus_is_not() -> None:
     assert 0.9 < m["total_curvature"] < 1.1  # Gauss-Bonnet: integral |K| = 4 pi for convex
     assert judge(m, CFG, capped=True).reasons == ("blob",)
     torus, g = mesh_of("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6, 40)
-    assert judge(shape_metrics(torus, g.box.bounds()), CFG, capped=True).accepted
+    # not a blob (a ring), but a plain one: plain since sampler 7
+    assert judge(shape_metrics(torus, g.box.bounds()), CFG, capped=True).reasons == ("plain",)
 
 
 def test_a_slab_cut_by_the_box_is_box_dominated_and_convex() -> None:
@@ -162,7 +164,12 @@ def test_plain_by_departure_solidity_or_curvature_and_only_when_measured() -> No
     lump = {"genus": 0, "components": 1, "solidity": 0.7, "total_curvature": 3.0}
     assert plain(lump, CFG)
     assert not plain({**lump, "total_curvature": 6.5}, CFG)  # carved: saddles add curvature
-    assert not plain({**lump, "genus": 1}, CFG)  # a ring is not a lump
+    # one plain ring (a torus has exactly 2): plain; a frame of genus 5 with little curvature
+    # to spare is not judged this way; nor are two rings
+    assert plain({**lump, "genus": 1}, CFG)
+    assert not plain({**lump, "genus": 1, "total_curvature": 6.5}, CFG)
+    assert not plain({**lump, "genus": 1, "components": 2}, CFG)
+    assert not plain({**lump, "genus": 5, "total_curvature": 5.5}, CFG)
     assert plain({**lump, "components": 2}, CFG)  # two dented balls: summed, still low
     assert not plain({**lump, "components": 2, "total_curvature": 8.0}, CFG)
     assert not plain(lump, FilterConfig(plain_max_curvature=0.0))  # off
@@ -179,3 +186,33 @@ def test_a_peanut_is_plain_by_curvature_and_a_carved_ball_is_not() -> None:
     assert carved["genus"] == 0 and carved["components"] == 1
     assert carved["total_curvature"] > 2 * CFG.plain_max_curvature
     assert not plain(carved, CFG)
+
+
+def test_a_plain_ring_and_a_ring_with_a_knob_are_plain_and_a_frame_is_not() -> None:
+    """One piece of genus 1 below ``plain_max_curvature``: a torus (exactly 2) and a torus
+    with a ball on it are plain; a cube frame (genus 5, smooth) is not judged by curvature."""
+    ring = "(x^2+y^2+z^2+0.49-0.04)^2-4*0.49*(x^2+y^2)"
+    torus = _closed_metrics(ring, 1.2, 48)
+    assert torus["genus"] == 1 and torus["components"] == 1
+    assert abs(torus["total_curvature"] - 2.0) < 0.3
+    assert "plain" in judge(torus, CFG, capped=True).reasons
+    knob = _closed_metrics(f"min({ring}, (x-0.7)^2+y^2+z^2-0.09)", 1.2, 48)
+    assert knob["genus"] == 1 and knob["components"] == 1 and plain(knob, CFG)
+    frame = _closed_metrics("x^4-5*x^2+y^4-5*y^2+z^4-5*z^2+11.8", 3.0, 56)  # tanglecube
+    assert frame["genus"] == 5 and frame["components"] == 1, frame
+    assert not plain(frame, CFG)
+
+
+def test_a_body_broken_into_pieces_is_fragmented_only_where_drawn_as_one() -> None:
+    """Families drawn as one body (sculpture, infill, twist) reject a shape whose largest piece
+    holds under ``min_body_fraction`` of the area; others (assemblies of separate bodies,
+    chains, lattices cut by the box) are judged as before."""
+    two = _closed_metrics("((x-0.8)^2+y^2+z^2-0.25)*((x+0.8)^2+y^2+z^2-0.3)", 1.6, 40)
+    assert two["components"] == 2 and 0.4 < two["largest_component_fraction"] < 0.6
+    assert "fragmented" in judge(two, CFG, capped=True, one_body=True).reasons
+    assert "fragmented" not in judge(two, CFG, capped=True).reasons
+    assert "fragmented" not in judge(two, FilterConfig(min_body_fraction=0.5), True, True).reasons
+    one = {**two, "components": 1, "largest_component_fraction": 1.0}
+    assert "fragmented" not in judge(one, CFG, capped=True, one_body=True).reasons
+    bodies = {name for name in family_names() if get_family(name).one_body}
+    assert bodies == {"sculpture", "infill", "twist"}

@@ -5,7 +5,7 @@ The bodies (:mod:`.bodies`: balls, rounded boxes, tori — polynomials, so power
 on the orbit of an **arrangement**: ``pair`` (two along x), ``row`` (three along x),
 ``triangle`` (three in the plane x+y+z = 0, the cyclic permutations of one point), ``tetra``
 (the four vertices of a tetrahedron), ``square`` (four in the xy plane), optionally one more at
-the centre; or a ``chain`` of 2-4 linked tori. They are put together by a **join**:
+the centre; or a ``chain`` of 2-4 linked tori (every other one smaller, or not). They are put together by a **join**:
 
 - ``blend``: the field ``t - Σ w / (ρ_i + ε)`` of the bodies' shape functions ``ρ_i`` (one
   factor ``A/D`` each, A the constant ``-w``, D the body's ``ρ_i + ε``): near bodies merge
@@ -103,11 +103,11 @@ class AssemblySettings:
     """The ``[sampler.assembly]`` table (``surfgen config show``)."""
 
     arrangements: tuple[str, ...] = ARRANGEMENTS
-    arrangement_weights: tuple[float, ...] = (0.15, 0.15, 0.2, 0.2, 0.1, 0.2)
+    arrangement_weights: tuple[float, ...] = (0.175, 0.175, 0.225, 0.225, 0.1, 0.1)
     bodies: tuple[str, ...] = BODIES
     body_weights: tuple[float, ...] = (0.2, 0.2, 0.6)
     joins: tuple[str, ...] = JOINS
-    join_weights: tuple[float, ...] = (0.35, 0.35, 0.3)
+    join_weights: tuple[float, ...] = (0.25, 0.45, 0.3)
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
     reach: tuple[float, float] = (0.45, 0.85)  # blend: t = reach / (1 + ε); lower reaches farther
     centre_prob: float = 0.35  # one more body at the centre (triangle, tetra, square)
@@ -115,22 +115,27 @@ class AssemblySettings:
     margin: tuple[float, float] = (0.1, 0.25)  # box half = extent * (1 + depth + margin)
     tube: tuple[float, float] = (0.22, 0.42)  # a torus's tube radius / ring radius
     stretch_prob: float = 0.5  # the whole assembly stretched along the axes by 0.75-1.3 each
+    chain_links: tuple[int, ...] = (2, 3, 4)  # rings of a chain
+    chain_weights: tuple[float, ...] = (0.2, 0.45, 0.35)
+    alternate_prob: float = 0.5  # every other ring of a chain smaller
 
     def __post_init__(self) -> None:
         require_names(self, "arrangements", ARRANGEMENTS, TABLE)
         require_names(self, "bodies", BODIES, TABLE)
         require_names(self, "joins", JOINS, TABLE)
-        require_numbers(self, ("arrangement_weights", "body_weights", "join_weights"), TABLE)
+        weights = ("arrangement_weights", "body_weights", "join_weights", "chain_weights")
+        require_numbers(self, weights, TABLE)
         require_weighted_pairs(
             self,
             (
                 ("arrangements", "arrangement_weights"),
                 ("bodies", "body_weights"),
                 ("joins", "join_weights"),
+                ("chain_links", "chain_weights"),
             ),
             TABLE,
         )
-        probabilities = ("centre_prob", "stretch_prob")
+        probabilities = ("centre_prob", "stretch_prob", "alternate_prob")
         require_fractions(self, probabilities, TABLE, "a probability")
         require_low_high(self, ("spacing", "reach", "depth", "margin", "tube"), TABLE)
         require_range(self, "tube", 0.05, 0.9, TABLE)
@@ -138,6 +143,7 @@ class AssemblySettings:
         require_range(self, "reach", 0.05, 0.99, TABLE)
         require_range(self, "depth", 0.0, 1.0, TABLE)
         require_range(self, "margin", 0.0, 2.0, TABLE)
+        require_range(self, "chain_links", 2, 8, TABLE)
 
 
 def _body(kind: str, centre, size: float, axis, p: int, tube: float = 0.32) -> Polynomial:
@@ -178,11 +184,11 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
             kind = "ball"
         else:
             tube = apart
-    # bare balls and boxes, blended or apart, are plain lumps: they are carved; rings are not
-    # (an ornament on a product of rings throws the surface out to the box)
-    ornamented = kind != "torus"
     if arrangement == "chain":
         kind, join = "torus", "product"
+    # bare balls and boxes, blended or apart, are plain lumps: they are carved; rings (chains
+    # too) are not (an ornament on a product of rings throws the surface out to the box)
+    ornamented = kind != "torus"
     if join == "blend" and kind == "torus":
         join = "product"  # a torus has no positive shape function to blend
     if join == "boolean":
@@ -196,7 +202,7 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
     size = SIZE
     t = 0.0  # the blend's level
     if arrangement == "chain":
-        terms, bodies_tree, chain = _chain(rng, size)
+        terms, bodies_tree, chain = _chain(rng, size, s)
         info.update(chain)
     elif join == "boolean":
         terms, bodies_tree, op = _boolean(rng, kind, size, spacing, p, axis)
@@ -328,14 +334,21 @@ def _blend(kind: str, centres, size: float, p: int, reach: float) -> tuple[list,
     return terms, add_all([tree, constant(t).to_tree()]), t
 
 
-def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str, Any]]:
-    """2-4 linked tori along x, each turned a quarter turn (plus a drawn twist) about x from
-    the one before, their centres a drawn share of the ring radius apart; the tube is kept
-    under half the closest approach of neighbouring rings (so links never touch): a product."""
-    n = int(rng.integers(2, 5))
-    gap = round(size * float(rng.uniform(0.8, 1.2)), 3)
-    twist = round(float(rng.uniform(-0.5, 0.5)), 2)
+def _chain(
+    rng: np.random.Generator, size: float, s: AssemblySettings
+) -> tuple[list, Expr, dict[str, Any]]:
+    """A chain of linked tori along x, each turned a quarter turn (plus a drawn twist) about
+    x from the one before; with ``alternate_prob`` every other ring smaller (a drawn ratio). Two
+    rings: their centres a drawn share (0.8-1.2) of their mean radius apart; more: near the
+    share (1-1.7) that leaves the most room between any two rings. The tube is kept under :data:`APART` of
+    the closest approach of any two rings (links never touch: a gap of cells between them at
+    the sampler's grid)."""
+    n = int(choose(rng, s.chain_links, s.chain_weights))
+    gap = float(rng.uniform(0.8, 1.2))
+    twist = round(float(rng.uniform(-0.8, 0.8)), 2)
     tube = size * float(rng.uniform(0.2, 0.32))
+    ratio = round(float(rng.uniform(0.75, 0.9)), 2) if rng.random() < s.alternate_prob else 1.0
+    radii = [size * (ratio if i % 2 else 1.0) for i in range(n)]
     axes = [
         (
             0.0,
@@ -344,13 +357,32 @@ def _chain(rng: np.random.Generator, size: float) -> tuple[list, Expr, dict[str,
         )
         for i in range(n)
     ]
-    centres = [((i - (n - 1) / 2) * gap, 0.0, 0.0) for i in range(n)]
-    closest = min(
-        _ring_gap(centres[i], axes[i], centres[i + 1], axes[i + 1], size) for i in range(n - 1)
-    )
-    tube = round(min(tube, 0.45 * closest), 3)
-    factors = [body_factor(torus(c, a, size, tube)) for c, a in zip(centres, axes, strict=True)]
-    info = {"bodies": n, "gap": gap, "twist": twist, "tube": round(tube / size, 3)}
+
+    def layout(gap: float) -> tuple[list[tuple[float, float, float]], float]:
+        steps = [round(gap * (radii[i] + radii[i + 1]) / 2, 3) for i in range(n - 1)]
+        xs = np.concatenate([[0.0], np.cumsum(steps)])
+        centres = [(round(float(x - xs[-1] / 2), 4), 0.0, 0.0) for x in xs]
+        closest = min(
+            _ring_gap(centres[i], axes[i], centres[j], axes[j], radii[i], radii[j])
+            for i in range(n)
+            for j in range(i + 1, n)
+        )
+        return centres, closest
+
+    if n > 2:  # every ring crosses the chain's axis: rings two apart clear each other only
+        # from 1 mean radius on, links thin out towards 2; near the gap with the most room
+        # between any two rings (the drawn share of 0.8-1.2 moves it by -4 to +8 %)
+        best = max(np.linspace(1.0, 1.7, 15), key=lambda g: layout(float(g))[1])
+        gap = min(1.7, float(best) * (1.0 + 0.3 * (gap - 1.0) + 0.02))
+    centres, closest = layout(float(gap))
+    tube = round(min(tube, APART * closest), 3)
+    factors = [
+        body_factor(torus(c, a, round(r, 4), tube))
+        for c, a, r in zip(centres, axes, radii, strict=True)
+    ]
+    info = {"bodies": n, "gap": round(gap, 3), "twist": twist, "tube": round(tube / size, 3)}
+    if ratio != 1.0:
+        info["ratio"] = ratio
     return [tuple(factors)], mul_all([f.to_tree() for f in factors]), info
 
 
@@ -377,10 +409,13 @@ def _rings_apart(
     return None if room < MIN_TUBE else round(min(tube, room), 2)
 
 
-def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:
-    """The closest approach of two circles of ``radius`` (centres c, unit axes a), sampled."""
+def _ring_gap(
+    c1, a1, c2, a2, radius: float, radius2: float | None = None, samples: int = 96
+) -> float:
+    """The closest approach of two circles of ``radius`` (the second of ``radius2`` if given;
+    centres c, unit axes a), sampled."""
 
-    def circle(c, a) -> np.ndarray:
+    def circle(c, a, radius) -> np.ndarray:
         a = np.asarray(a, dtype=float) / np.linalg.norm(a)
         u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
         u /= np.linalg.norm(u)
@@ -388,7 +423,7 @@ def _ring_gap(c1, a1, c2, a2, radius: float, samples: int = 96) -> float:
         t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
         return np.asarray(c) + radius * (np.cos(t) * u + np.sin(t) * v)
 
-    p, q = circle(c1, a1), circle(c2, a2)
+    p, q = circle(c1, a1, radius), circle(c2, a2, radius if radius2 is None else radius2)
     return float(np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min())
 
 

@@ -321,4 +321,5 @@ FAMILY = Family(
     "an envelope filled with a triply periodic lattice (a gyroid-filled sculpture)",
     InfillSettings,
     mix_weight=0.14,
+    one_body=True,
 )

@@ -490,4 +490,5 @@ FAMILY = Family(
     "an envelope carved by an ornament summed over a symmetry group",
     SculptureSettings,
     mix_weight=0.45,
+    one_body=True,
 )

@@ -13,8 +13,13 @@ the power ``(m - 2)/2``, B the cosine or sine of ``m k z``). The column::
 squared; ``β >= 0`` narrows its ends into a barrel — a negative one would open it to infinity —,
 ``q`` rounds or flattens its ends) is inside where
 ``r^2 (1 + ε cos ...) < 1 - |z/H|^q``: lobes of depth ε. A **braid** adds a second set of lobes
-(2m of them, smaller) turning the other way. The column lies along a drawn axis; the box fits
-it with a margin, so it stands free.
+(2m of them, smaller) turning the other way. With ``taper_prob`` the column is a **spire**:
+``r^2`` becomes ``r^2 T(z)`` with ``T = (1 + τ z/H)^2`` (its odd part ``2τ r^2 z/H`` one more sum
+term, of whole powers: no ``|·|``), wide at one end and narrow at the other (a horn, a drill
+bit, a shell's spire), and the lobes scale with it; ``T`` is a square, so the column never
+opens to the box. With ``swell_prob`` the lobes deepen towards one end: their depth
+``ε (1 + γ z/H)`` (at most 0.8), from flutes that fade out to a plain tip to blades. The column lies along a
+drawn axis; the box fits it with a margin, so it stands free.
 
 Resolution (:mod:`.gridbound`): the lobes along the axis repeat every ``2 pi / (m k)``, which
 must span ``[sampler] period_cells`` cells (k is lowered), and around it every ``2 pi R / m`` at
@@ -76,15 +81,30 @@ class TwistSettings:
     braid_prob: float = 0.6  # a second set of 2m lobes turning the other way
     ellipse_prob: float = 0.5  # the column's section flattened along y to an ellipse ...
     ellipse: tuple[float, float] = (0.55, 0.9)  # ... of this ratio of its axes
+    taper_prob: float = 0.5  # a spire: r^2 (1 + τ z/H)^2, wide at one end ...
+    taper: tuple[float, float] = (0.2, 0.45)  # ... |τ| (its sign drawn)
+    swell_prob: float = 0.5  # lobes deeper towards one end: depth ε (1 + γ z/H) ...
+    swell: tuple[float, float] = (0.4, 0.9)  # ... |γ| (its sign drawn; ε(1+|γ|) kept <= 0.8)
     margin: tuple[float, float] = (0.08, 0.2)  # box half = extent * (1 + margin)
 
     def __post_init__(self) -> None:
         require_numbers(self, ("lobe_weights",), TABLE)
         require_weighted_pairs(self, (("lobes", "lobe_weights"),), TABLE)
         require_range(self, "lobes", 2, 12, TABLE)
-        require_fractions(self, ("braid_prob", "ellipse_prob"), TABLE, "a probability")
+        probabilities = ("braid_prob", "ellipse_prob", "taper_prob", "swell_prob")
+        require_fractions(self, probabilities, TABLE, "a probability")
         require_range(self, "ellipse", 0.2, 1.0, TABLE)
-        names = ("lobe_depth", "turns", "height", "cap", "bulge", "margin", "ellipse")
+        names = (
+            "lobe_depth",
+            "turns",
+            "height",
+            "cap",
+            "bulge",
+            "margin",
+            "ellipse",
+            "taper",
+            "swell",
+        )
         require_low_high(self, names, TABLE)
         require_range(self, "lobe_depth", 0.0, 0.95, TABLE)
         require_range(self, "turns", 0.0, 10.0, TABLE)
@@ -92,6 +112,8 @@ class TwistSettings:
         require_range(self, "cap", 1.0, 16.0, TABLE)
         require_range(self, "bulge", 0.0, 3.0, TABLE)
         require_range(self, "margin", 0.0, 2.0, TABLE)
+        require_range(self, "taper", 0.0, 0.9, TABLE)
+        require_range(self, "swell", 0.0, 3.0, TABLE)
 
 
 def harmonic(m: int) -> tuple[Polynomial, Polynomial]:
@@ -106,9 +128,14 @@ def harmonic(m: int) -> tuple[Polynomial, Polynomial]:
     return re, im
 
 
-def lobe_terms(m: int, amplitude: float, rate: float) -> list[tuple[Factor, ...]]:
-    """``amplitude r^2 cos(m (phi - rate z))`` as two sum terms of one factor each."""
+def lobe_terms(
+    m: int, amplitude: float, rate: float, profile: Polynomial | None = None
+) -> list[tuple[Factor, ...]]:
+    """``amplitude P(z) r^2 cos(m (phi - rate z))`` as two sum terms of one factor each (``P``
+    the polynomial ``profile``, 1 when None)."""
     re, im = harmonic(m)
+    if profile is not None:
+        re, im = re * profile, im * profile
     divisor = PowerFunction((PowerTerm(1.0, 2.0), PowerTerm(1.0, 0.0, 2.0), PowerTerm(DELTA)))
     lam = (m - 2) / 2
     w = round_significant(m * rate, 4)
@@ -144,12 +171,18 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
     axis = int(rng.integers(0, 3))
     margin = float(rng.uniform(*s.margin))
     flat = round(float(rng.uniform(*s.ellipse)), 2) if rng.random() < s.ellipse_prob else 1.0
+    tau = _signed(rng, s.taper) if rng.random() < s.taper_prob else 0.0
+    gamma = _signed(rng, s.swell) if rng.random() < s.swell_prob else 0.0
+    if gamma:  # the deepest lobes stay under 0.8 (deeper, thin blades stack into plates)
+        gamma = math.copysign(min(abs(gamma), math.floor((0.8 / eps - 1.0) * 100) / 100), gamma)
+        gamma = gamma if abs(gamma) >= 0.1 else 0.0
+    shape = Shape(flat, tau, gamma)
     # the column has radius 1 and half-height H: a first box for the cell, grown (and the
     # column built again for its cell) until it holds the column's measured extent
-    half = round(max(height, 1.0 / math.sqrt(1.0 - eps)) * (1 + margin), 2)
+    half = round(max(height, 1.0 / (math.sqrt(1.0 - eps) * (1 - abs(tau)))) * (1 + margin), 2)
     for _ in range(4):
         cell = cfg.cell(half)
-        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, flat, cell, cfg)
+        column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, shape, cell, cfg)
         terms, m_used, braided, alpha, cells = column
         tree = add_all([mul_all([f.to_tree() for f in t]) for t in terms])
         extent = envelope_extent(tree) or 2.5
@@ -167,12 +200,29 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
         "braid": braided,
         "axis": "xyz"[axis],
         "flat": flat,
+        "taper": tau,
+        "swell": gamma,
         "cells_per_period": round(min(cells, 9999.0), 2),
         "extent": round(extent, 4),
     }
     if braided:
         structure["braid_depth"] = braid_eps
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), None, "twist", structure, 0.0)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """The column's section and profile: its ellipse ratio ``flat``, taper ``tau`` and the
+    lobes' swell ``gamma`` (0: none)."""
+
+    flat: float = 1.0
+    tau: float = 0.0
+    gamma: float = 0.0
+
+
+def _signed(rng, bounds: tuple[float, float]) -> float:
+    """A magnitude drawn in ``bounds``, rounded to 2 digits, with a drawn sign."""
+    return round(float(rng.uniform(*bounds)), 2) * (1 if rng.random() < 0.5 else -1)
 
 
 def _column(
@@ -185,14 +235,16 @@ def _column(
     braid: bool,
     braid_eps: float,
     axis: int,
-    flat: float,
+    shape: Shape,
     cell: float,
     cfg: DrawSettings,
 ) -> tuple[list[tuple[Factor, ...]], int, bool, float, float]:
     """The column's sum terms for the run's ``cell``: (terms, lobes, braided, the twist's
     slow-down, cells per period). Lobes around the axis are fewer when ``2 pi R / m`` (R the
-    valleys' radius) would span fewer than ``period_cells`` cells; the braid is left out then."""
-    valley = 1.0 / math.sqrt(1.0 + eps)
+    valleys' radius at the column's narrow end, where the lobes are deepest) would span fewer
+    than ``period_cells`` cells; the braid is left out then."""
+    flat, tau, gamma = shape.flat, shape.tau, shape.gamma
+    valley = 1.0 / (math.sqrt(1.0 + eps * (1 + abs(gamma))) * (1 + abs(tau)))
     if cfg.period_cells > 0:
         m = max(2, min(m, int(2 * math.pi * valley / (cfg.period_cells * cell))))
     rate = round_significant(2 * math.pi * turns / (2 * height), 4)  # radians per unit of z
@@ -200,20 +252,33 @@ def _column(
         (
             PowerTerm(1.0, 2.0),
             PowerTerm(round_significant(flat**-2, 4), 0.0, 2.0),
-            PowerTerm(round_significant(beta / height**2, 4), 2.0, 0.0, 2.0),
-            PowerTerm(round_significant(beta / height**2 / flat**2, 4), 0.0, 2.0, 2.0),
+            PowerTerm(round_significant((beta + tau**2) / height**2, 4), 2.0, 0.0, 2.0),
+            PowerTerm(round_significant((beta + tau**2) / height**2 / flat**2, 4), 0.0, 2.0, 2.0),
             PowerTerm(round_significant(height**-q, 4), 0.0, 0.0, q),
             PowerTerm(-1.0),
         ),
         absolute=True,
     )
-    lobes = lobe_terms(m, eps, rate)
+    # the lobes' profile along the axis: T(z) (1 + γ z/H)
+    grow = Polynomial.linear((0.0, 0.0, round_significant(tau / height, 4)), 1.0).power(2)
+    profile = grow * Polynomial.linear((0.0, 0.0, round_significant(gamma / height, 4)), 1.0)
+    profile = profile if tau or gamma else None
+    lobes = lobe_terms(m, eps, rate, profile)
     braid = braid and 2 * math.pi * valley / (2 * m) >= cfg.period_cells * cell
     if braid:
-        lobes += lobe_terms(2 * m, braid_eps, -rate)
+        lobes += lobe_terms(2 * m, braid_eps, -rate, profile)
     box = Box.cube(1.0)  # the arguments are linear: any box measures them exactly
     lobes, alpha, cells = fit_terms(lobes, box, cell, cfg.period_cells, n=4)
     terms = [(only_a(body),), *lobes]
+    if tau:  # the spire's odd part: 2τ/H (x^2 + y^2/flat^2) z, whole powers (its sign matters)
+        k = round_significant(2 * tau / height, 4)
+        spire = PowerFunction(
+            (
+                PowerTerm(k, 2.0, 0.0, 1.0),
+                PowerTerm(round_significant(k / flat**2, 4), 0.0, 2.0, 1.0),
+            )
+        )
+        terms.insert(1, (only_a(spire),))
     perm = tuple((k + axis + 1) % 3 for k in range(3))  # z goes to the drawn axis
     return [tuple(permute_factor(f, perm) for f in t) for t in terms], m, braid, alpha, cells
 
@@ -224,4 +289,5 @@ FAMILY = Family(
     "twisted columns: a capped column whose m lobes turn along its axis (optionally braided)",
     TwistSettings,
     mix_weight=0.1,
+    one_body=True,
 )

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from surfgen.filters.meshlab import face_components
-from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import to_string
 from surfgen.generator.formula.parser import parse
@@ -150,3 +150,89 @@ def test_rings_joined_by_a_product_are_kept_apart() -> None:
         pieces = np.bincount(face_components(extract_mesh(field, 0.0, cap=True)))
         assert len(pieces) == info["bodies"], (i, info)
     assert seen >= 3
+
+
+def test_a_spire_is_wide_at_one_end_and_its_lobes_swell_towards_one() -> None:
+    """``taper``: the column's radius at z = +H/2 and -H/2 differ by (1 + τ/2)/(1 - τ/2) (the
+    sign of τ says which end is wide); ``swell``: the lobes' depth ε (1 + γ z/H) differs
+    between the ends likewise; with the largest settings the column still stands free."""
+    cfg = family("twist").with_settings(
+        "twist", taper_prob=1.0, swell_prob=1.0, braid_prob=0.0, ellipse_prob=0.0
+    )
+    cfg = cfg.with_settings("twist", taper=[0.4, 0.45], swell=[0.8, 0.9], bulge=[0.0, 0.0])
+    for i in range(4):
+        draw = draw_equation(2, i, cfg)
+        st = draw.structure
+        tau, gamma, height = st["taper"], st["swell"], st["height"]
+        assert 0.4 <= abs(tau) <= 0.45 and gamma != 0.0
+        assert st["lobe_depth"] * (1 + abs(gamma)) <= 0.8 + 1e-9
+        tree = draw.equation.with_d(draw.d).to_tree()
+        # along the column's axis: the radius where F crosses 0, halfway up and halfway down
+        axis = "xyz".index(st["axis"])
+        radii = []
+        for z in (height / 2, -height / 2):
+            r = np.linspace(0.0, draw.box.hi[0], 4001)[1:]
+            pts = np.zeros((3, r.size))
+            pts[axis] = z
+            found = []  # around the section: the lobes' phase does not matter for the mean
+            for a in np.linspace(0, 2 * np.pi, 24, endpoint=False):
+                p = pts.copy()
+                p[(axis + 1) % 3] = r * np.cos(a)
+                p[(axis + 2) % 3] = r * np.sin(a)
+                v = points_evaluator(tree, {})(*p)
+                found.append(r[np.argmax(v >= 0)])
+            radii.append(np.array(found))
+        up, down = radii
+        want = (1 - tau / 2) / (1 + tau / 2)  # r ~ 1 / (1 + τ z/H) at the same phase
+        mean_ratio = np.exp(np.mean(np.log(up / down)))
+        assert abs(math.log(mean_ratio) - math.log(want)) < 0.35 * abs(math.log(want)), (
+            i,
+            mean_ratio,
+            want,
+        )
+        # the lobes: the spread of the radius around the section grows towards the swell
+        spread = [np.ptp(r / np.mean(r)) for r in radii]
+        assert (spread[0] > spread[1]) == (gamma > 0), (i, spread, gamma)
+        v = evaluate(tree, Grid(draw.box, (32,) * 3), threads=1).values
+        inside = v < 0
+        faces = np.concatenate([inside[[0, -1]].ravel(), inside[:, [0, -1]].ravel()])
+        assert inside.any() and faces.mean() < 0.02
+
+
+def test_chain_rings_link_their_neighbours_and_clear_the_others() -> None:
+    """A chain's rings: n from chain_links; every other one smaller with alternate_prob; any
+    two rings at least tube / APART apart (links never touch, rings two apart never cross); one
+    mesh piece per ring."""
+    cfg = family("assembly").with_settings(
+        "assembly", arrangement_weights=[0, 0, 0, 0, 0, 1], join_weights=[0.5, 0.5, 0.0]
+    )
+    cfg = cfg.with_settings("assembly", alternate_prob=0.5, stretch_prob=0.0)
+    counts, alternated, meshed = set(), 0, 0
+    for i in range(24):
+        draw = draw_equation(4, i, cfg)
+        st = draw.structure
+        assert st["arrangement"] == "chain" and st["join"] == "product"
+        n = st["bodies"]
+        counts.add(n)
+        alternated += "ratio" in st
+        radius = 0.5
+        radii = [radius * (st.get("ratio", 1.0) if k % 2 else 1.0) for k in range(n)]
+        twist = st["twist"]
+        axes = [
+            (0.0, math.sin(k * (math.pi / 2 + twist)), math.cos(k * (math.pi / 2 + twist)))
+            for k in range(n)
+        ]
+        steps = [st["gap"] * (radii[k] + radii[k + 1]) / 2 for k in range(n - 1)]
+        xs = np.concatenate([[0.0], np.cumsum(steps)])
+        centres = [(x - xs[-1] / 2, 0.0, 0.0) for x in xs]
+        tube = st["tube"] * radius
+        for a in range(n):
+            for b in range(a + 1, n):
+                gap = _ring_gap(centres[a], axes[a], centres[b], axes[b], radii[a], radii[b])
+                assert tube <= APART * gap + 2e-3, (i, a, b, tube, gap)
+        if meshed < 3 and n >= 3:
+            meshed += 1
+            field = evaluate(draw.equation.with_d(draw.d).to_tree(), Grid(draw.box, (56,) * 3))
+            pieces = np.bincount(face_components(extract_mesh(field, 0.0, cap=True)))
+            assert len(pieces) == n, (i, st)
+    assert counts == {2, 3, 4} and 0 < alternated < 24 and meshed == 3

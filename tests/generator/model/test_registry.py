@@ -35,16 +35,19 @@ ROOT = Path(__file__).resolve().parents[3]
 # layout) with and without --grid 32. First recorded from the code before the family tables
 # (commit 32af889); recorded again for sampler version 6 (branch families: new [sampler] keys
 # period_cells and resolve_tries, three new family tables, the resolution filter's keys, plain_max_curvature, max_resolution_singular), which
-# changes every hash: a catalogue of version 5 is not resumed by version 6, as it should not be.
-DEFAULT_HASH = "0a35b4e45bc7"
-FAMILY_HASHES = {"sculpture": "21aeecf25008", "lattice": "9487cb9ba3c3", "free": "85b8752f075e"}
+# changes every hash: a catalogue of version 5 is not resumed by version 6, as it should not be;
+# and for version 7 (keys chain_links, chain_weights, alternate_prob in [sampler.assembly],
+# taper_prob, taper, swell_prob, swell in [sampler.twist], min_inside_fraction 0.003, the
+# assembly's arrangement and join weights, [filters] min_body_fraction).
+DEFAULT_HASH = "da4a39db76e6"
+FAMILY_HASHES = {"sculpture": "025baeb1193e", "lattice": "5c332cbd2eab", "free": "be95332bf478"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("9b93fc7d39db", "9b7767e6cf18")
+OLD_STYLE_HASHES = ("806127b2c59a", "74389ab1fb36")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4

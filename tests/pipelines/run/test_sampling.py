@@ -460,7 +460,7 @@ def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
     rows = con.execute("SELECT * FROM shapes WHERE run = 2 ORDER BY idx").fetchall()
     dups = [r for r in rows if json.loads(r["reasons"]) == ["duplicate"]]
     # every accepted shape of run 1 meets itself; another draw may be near one of them (run 1
-    # rejected it later in the cascade, for its walls or its topology)
+    # rejected it later in the cascade, on the finer grid)
     keys = {f["identity"]: f["key"] for f in first}
     assert {r["duplicate_of"] for r in dups} <= set(keys.values())
     dups = [r for r in dups if r["identity"] in keys]
@@ -471,7 +471,10 @@ def test_workers_stop_at_a_known_duplicate_with_the_row_the_parent_gives(
     compared = ("key", "spec", "d", "model", "verdict", "reasons", "metrics", "descriptor")
     for r in dups:
         assert r["duplicate_of"] == keys[r["identity"]]
-        assert r["faces"] and r["genus"] is None  # the cheap checks' metrics only
+        # the mesh checks' metrics (topology, solidity), not the finer grid's
+        metrics = json.loads(r["metrics"])
+        assert r["faces"] and r["genus"] is not None and "solidity" in metrics
+        assert "resolution_shift" not in metrics
         stopped = make_shape(r["idx"], seed=11, config=config, duplicates=seen)
         went_on = make_shape(r["idx"], seed=11, config=config)
         assert stopped.early_stop and not went_on.early_stop and went_on.verdict.accepted
