@@ -18,8 +18,8 @@ of the surface reads:
    face leaves are sampled for that: ``evaluate_sparse(..., faces=True)``), with their corners
    (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`);
 5. skimage's marching cubes on those cells in skimage's order
-   (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: its vertices and faces, same
-   order, same bits), then the dense path's end
+   (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: the vertices and faces
+   skimage's ``marching_cubes`` returns, same order, same bits), then the dense path's end
    (:func:`~surfgen.generator.mesh.mesh.finish_marching`).
 
 ``tests/generator/mesh/test_sparse_marching.py`` compares the two paths' meshes byte for byte.
@@ -90,17 +90,11 @@ def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh,
         keys = keys[order]
         corners = np.ascontiguousarray(np.concatenate([corners, pad_corners])[order])
     size = shape + 2 * shift
-    cz = keys // (size[1] * size[2])
-    cy = (keys // size[2]) % size[1]
-    cx = keys % size[2]
     verts, faces = lewiner_cells(
-        cz, cy, cx, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
+        keys, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
     )
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
-    # skimage's wrapper: vertices in (axis 0, 1, 2) order, faces wound for 'descent'
-    verts = np.ascontiguousarray(verts[:, ::-1])
-    faces = np.ascontiguousarray(faces.reshape(-1, 3)[:, ::-1])
     return finish_marching(verts, faces, sf.grid, level, cap)
 
 
