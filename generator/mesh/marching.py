@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
 # we have fixed ourselves; magnitudes are clipped to stay finite there.
@@ -69,22 +69,31 @@ def _offsets_kernel(values, level, offset, inside):
     n_bad = 0
     for i in range(v.size):
         x = v[i]
-        finite = np.isfinite(x)
-        d = x - level
-        d = -_CLIP64 if d < -_CLIP64 else (_CLIP64 if d > _CLIP64 else d)  # NaN stays NaN
-        o = np.float32(d)
-        is_in = finite and x < level
+        o, is_in = offset_of(x, level)
         if is_in:
             n_inside += 1
-            if o >= 0:
-                o = -_TINY32
-        elif o <= 0:
-            o = _TINY32
-        if not finite:
+        if not np.isfinite(x):
             n_bad += 1
         out[i] = o
         ins[i] = is_in
     return n_inside, n_bad
+
+
+@njit(**INLINE)
+def offset_of(x, level):
+    """The float32 offset of one sample ``x`` and whether it is inside (:func:`_offsets`' rule;
+    a non-finite sample is left NaN or clipped, for :func:`_mirror_nonfinite`).  The inside
+    samples' offsets are exactly the negative ones."""
+    d = x - level
+    d = -_CLIP64 if d < -_CLIP64 else (_CLIP64 if d > _CLIP64 else d)  # NaN stays NaN
+    o = np.float32(d)
+    is_in = np.isfinite(x) and x < level
+    if is_in:
+        if o >= 0:
+            o = -_TINY32
+    elif o <= 0:
+        o = _TINY32
+    return o, is_in
 
 
 @njit(**KERNEL)
