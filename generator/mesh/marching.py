@@ -32,7 +32,7 @@ _TINY32 = np.float32(_TINY)
 _EDGE_LO = 0.25 * SEPARATION  # a vertex coordinate this far from a whole number is fractional
 _EDGE_HI = 1.0 - 0.25 * SEPARATION
 _FACE_HI = 1.0 - SEPARATION
-_HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed int64
+_HASH_U = 0x9E3779B97F4A7C15  # Fibonacci hashing
 
 
 def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -244,9 +244,10 @@ def _mixed_cells(work):
 
 @njit(**KERNEL)
 def _place(verts, shift, shape, lo, hi, spacing):
-    """Marching cubes' float32 vertices -> grid indices, box coordinates and edges.
+    """Marching cubes' float32 vertices -> box coordinates and edges.
 
-    ``index = verts - shift`` (1 with a cap's pad); ``lo + index * spacing``, clamped: on the
+    Each vertex's grid index is ``verts - shift`` in float64 (1 with a cap's pad: exact, so
+    it is recomputed where needed rather than kept); ``lo + index * spacing``, clamped: on the
     box's faces for indices at or past the first and last samples (the cap lies exactly on
     them; ``lo + (N-1) * spacing`` may miss ``hi`` by an ulp, and a cap vertex clamped onto hi
     and one computed there would differ by an ulp: distinct here, one point in float32).
@@ -257,10 +258,9 @@ def _place(verts, shift, shape, lo, hi, spacing):
     cell's faces (:func:`_keep_off_cell_faces`).
     """
     n = verts.shape[0]
-    index = np.empty((n, 3))
     vertices = np.empty((n, 3))
-    edges = np.full((n, 4), -1, dtype=np.int64)
-    moved = np.zeros(n, dtype=np.bool_)
+    edges = np.empty((n, 4), dtype=np.int64)
+    moved = np.empty(n, dtype=np.bool_)
     off_cell = False
     for v in range(n):
         n_frac = 0
@@ -269,7 +269,6 @@ def _place(verts, shift, shape, lo, hi, spacing):
         out = False
         for c in range(3):
             x = np.float64(verts[v, c]) - shift
-            index[v, c] = x
             last = np.float64(shape[c]) - 1.0
             if x >= last:
                 vertices[v, c] = hi[c]
@@ -290,61 +289,73 @@ def _place(verts, shift, shape, lo, hi, spacing):
         if n_frac == 1 and not out:
             edges[v, 0] = axis
             for c in range(3):
-                x = index[v, c]
+                x = np.float64(verts[v, c]) - shift
                 edges[v, 1 + c] = np.int64(np.rint(np.floor(x) if c == axis else x))
-        elif not out and near_face:
-            off_cell = True
-    return index, vertices, edges, moved, off_cell
+        else:
+            for c in range(4):
+                edges[v, c] = -1
+            if not out and near_face:
+                off_cell = True
+    return vertices, edges, moved, off_cell
 
 
 def _same_targets(
-    index: np.ndarray, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
+    verts: np.ndarray, shift: float, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
 ) -> np.ndarray | None:
     """For each vertex, the first vertex of its group (:func:`_merge_same`), or None when every
-    vertex is alone."""
-    target = np.empty(len(index), dtype=np.int64)
-    if not _targets_kernel(index, edges, moved, shape, target):
-        return None
-    return target
+    vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place`)."""
+    target, any_merge = _targets_kernel(verts, shift, edges, moved, shape)
+    return target if any_merge else None
 
 
 @njit(**KERNEL)
-def _targets_kernel(index, edges, moved, shape, target):
+def _targets_kernel(verts, shift, edges, moved, shape):
     """The vertices of one grid edge form a group, and moved vertices clamped onto one box
-    sample; others are alone.  ``target[v]``: the first vertex of ``v``'s group (an open
-    addressing hash of the keys); returns whether any vertex is not its own target."""
-    n = index.shape[0]
+    sample; others are alone.  Returns ``target`` (``target[v]``: the first vertex of ``v``'s
+    group) and whether any vertex is not its own target.
+
+    The groups are found in an open-addressing table of their keys: the sample's number times
+    4 plus the edge's axis (3: a moved vertex's sample), so the keys of one sample's edges and
+    of a row's samples are close; runs of 32 keys keep their order in the table (the run's
+    number is hashed), so the vertices of a row of cells, which marching cubes emits together,
+    probe a few cache lines rather than one each."""
+    n = verts.shape[0]
     nx, ny, nz = shape[0], shape[1], shape[2]
-    size = 1
+    size = 64
+    bits = 6
     while size < 2 * n + 2:
         size *= 2
-    keys = np.full(size, -1, dtype=np.int64)
-    firsts = np.empty(size, dtype=np.int64)
+        bits += 1
+    mask = size - 1
+    down = np.uint64(64 - (bits - 5))  # Fibonacci hashing of the run: its top bits
+    table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) per slot
+    target = np.empty(n, dtype=np.int64)
     any_merge = False
     for v in range(n):
         target[v] = v
         if edges[v, 0] >= 0:
-            key = ((edges[v, 0] * nx + edges[v, 1]) * ny + edges[v, 2]) * nz + edges[v, 3]
+            key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + edges[v, 0]
         elif moved[v]:
             # A moved vertex was clamped onto a box sample: the sample's number is its key.
-            s0 = min(max(np.int64(np.rint(index[v, 0])), 0), nx - 1)
-            s1 = min(max(np.int64(np.rint(index[v, 1])), 0), ny - 1)
-            s2 = min(max(np.int64(np.rint(index[v, 2])), 0), nz - 1)
-            key = 3 * nx * ny * nz + (s0 * ny + s1) * nz + s2
+            s0 = min(max(np.int64(np.rint(np.float64(verts[v, 0]) - shift)), 0), nx - 1)
+            s1 = min(max(np.int64(np.rint(np.float64(verts[v, 1]) - shift)), 0), ny - 1)
+            s2 = min(max(np.int64(np.rint(np.float64(verts[v, 2]) - shift)), 0), nz - 1)
+            key = (((s0 * ny + s1) * nz + s2) << 2) + 3
         else:
             continue
-        h = (key * _HASH) & (size - 1)
+        run = (np.uint64(key >> 5) * np.uint64(_HASH_U)) >> down
+        h = np.int64(run) << 5 | (key & 31)
         while True:
-            if keys[h] == -1:
-                keys[h] = key
-                firsts[h] = v
+            if table[2 * h] == -1:
+                table[2 * h] = key
+                table[2 * h + 1] = v
                 break
-            if keys[h] == key:
-                target[v] = firsts[h]
+            if table[2 * h] == key:
+                target[v] = table[2 * h + 1]
                 any_merge = True
                 break
-            h = (h + 1) & (size - 1)
-    return any_merge
+            h = (h + 1) & mask
+    return target, any_merge
 
 
 def _merge_same(
