@@ -283,16 +283,20 @@ def _write_sample(offset, slot, block, i, j, k, value):
 
 
 @njit(**KERNEL)
-def brick_cells(offset, extent, corner, shape, shift, n):
-    """The ``n`` mixed cells of the bricks (:func:`scan_bricks`) in skimage's order (C order of
-    the volume): flat numbers in the (padded when ``shift``) volume and their corners in
-    skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).  The bricks are in C order of
+def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
+    """The ``n`` mixed cells of the bricks (:func:`scan_bricks`) and the pad's cells
+    ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's order (C
+    order of the volume): flat numbers in the (padded when ``shift``) volume and their corners
+    in skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).  The bricks are in C order of
     their leaves, so per plane ``i`` of a slab of leaves, the columns (one ``j`` range each)
-    and, per row ``j``, the column's bricks (one ``k`` range each) come in order: no sort."""
+    and, per row ``j``, the column's bricks (one ``k`` range each) come in order: no sort; the
+    pad's cells are written where their numbers fall."""
     n_bricks = offset.shape[0]
     col = np.empty(offset.shape[3], dtype=np.int64)
-    keys = np.empty(n, dtype=np.int64)
-    corners = np.empty((n, 8), dtype=np.float32)
+    n_pad = pad_keys.size
+    keys = np.empty(n + n_pad, dtype=np.int64)
+    corners = np.empty((n + n_pad, 8), dtype=np.float32)
+    q = 0
     p1 = shape[1] + 2 * shift
     p2 = shape[2] + 2 * shift
     m = 0
@@ -318,6 +322,11 @@ def brick_cells(offset, extent, corner, shape, shift, n):
                             t = col[k] + col[k + 1]
                             if t == 0 or t == 8:
                                 continue
+                            while q < n_pad and pad_keys[q] < row + k:
+                                keys[m] = pad_keys[q]
+                                corners[m] = pad_corners[q]
+                                m += 1
+                                q += 1
                             keys[m] = row + k
                             corners[m, 0] = offset[b, i, j, k]
                             corners[m, 1] = offset[b, i, j, k + 1]
@@ -330,4 +339,6 @@ def brick_cells(offset, extent, corner, shape, shift, n):
                             m += 1
                 c0 = c1
         s0 = s1
+    keys[m:] = pad_keys[q:]
+    corners[m:] = pad_corners[q:]
     return keys, corners

@@ -20,7 +20,7 @@ of the surface reads (the passes over the bricks are in
    ``cap`` the cells of the pad around the box next to inside samples of the box's faces (the
    face leaves are sampled for that: ``evaluate_sparse(..., faces=True)``), with their corners
    (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`),
-   the two sorted lists merged;
+   the pad's cells written among the bricks' where their numbers fall;
 5. skimage's marching cubes on those cells in skimage's order
    (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: the vertices and faces
    skimage's ``marching_cubes`` returns, same order, same bits), then the dense path's end
@@ -88,12 +88,14 @@ def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh,
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, offset, slot, block, shape)
     shift = 1 if cap else 0
-    keys, corners = brick_cells(offset, extent, corner, shape, shift, n_cells)
     if cap:
-        pad_keys = _pad_cells(offset, extent, corner, shape)
-        pad_keys = np.unique(pad_keys)
+        pad_keys = np.unique(_pad_cells(offset, extent, corner, shape))
         pad_corners = _pad_corners(pad_keys, offset, slot, block, shape)
-        keys, corners = _merge_cells(keys, corners, pad_keys, pad_corners)
+    else:
+        pad_keys, pad_corners = np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32)
+    keys, corners = brick_cells(
+        offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
+    )
     size = shape + 2 * shift
     verts, faces = lewiner_cells(
         keys, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
@@ -184,6 +186,11 @@ def _pad_cells(offset, extent, corner, shape):
     m = 0
     p1, p2 = shape[1] + 2, shape[2] + 2
     for b in range(offset.shape[0]):
+        on_face = False
+        for a in range(3):
+            on_face |= corner[b, a] == 0 or corner[b, a] + extent[b, a] == shape[a]
+        if not on_face:  # no sample of the brick on the box's faces
+            continue
         for li in range(extent[b, 0]):
             i = corner[b, 0] + li
             for lj in range(extent[b, 1]):
@@ -222,26 +229,6 @@ def _pad_cells(offset, extent, corner, shape):
                                 out[m] = (a * p1 + c) * p2 + d
                                 m += 1
     return out[:m].copy()
-
-
-@njit(**KERNEL)
-def _merge_cells(keys, corners, pad_keys, pad_corners):
-    """The brick cells and the pad's cells (two sorted runs, no key in both) in one sorted
-    list."""
-    n, m = keys.size, pad_keys.size
-    out_keys = np.empty(n + m, dtype=np.int64)
-    out_corners = np.empty((n + m, 8), dtype=np.float32)
-    p = q = 0
-    for r in range(n + m):
-        if q == m or (p < n and keys[p] <= pad_keys[q]):
-            out_keys[r] = keys[p]
-            out_corners[r] = corners[p]
-            p += 1
-        else:
-            out_keys[r] = pad_keys[q]
-            out_corners[r] = pad_corners[q]
-            q += 1
-    return out_keys, out_corners
 
 
 @njit(**KERNEL)
