@@ -359,24 +359,23 @@ def _targets_kernel(verts, shift, edges, moved, shape):
 
 
 def _merge_same(
-    vertices: np.ndarray, faces: np.ndarray, target: np.ndarray
+    vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray, target: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
 
     Other vertices keep theirs even where they are close (merging distinct crossings could
     pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices (the
     others keep their order).  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces,
-    ``(V,)`` targets (:func:`_same_targets`); also returns the ``(V,)`` bool mask of the
-    vertices kept.
+    ``(V, 4)`` edges, ``(V,)`` targets (:func:`_same_targets`); returns the kept vertices,
+    the faces on them and the kept vertices' edges.
     """
-    faces, used, renumber = _merge_kernel(faces, target)
-    return vertices[used], renumber[faces], used
+    return _merge_kernel(vertices, faces, edges, target)
 
 
 @njit(**KERNEL)
-def _merge_kernel(faces, target):
-    """Faces on the targets without the collapsed ones, the used vertices and their new
-    numbers."""
+def _merge_kernel(vertices, faces, edges, target):
+    """Faces on the targets without the collapsed ones, renumbered onto the used vertices,
+    and the used vertices' rows of ``vertices`` and ``edges``, in order."""
     n_faces = faces.shape[0]
     out = np.empty((n_faces, 3), dtype=np.int64)
     used = np.zeros(target.size, dtype=np.bool_)
@@ -393,7 +392,16 @@ def _merge_kernel(faces, target):
         if used[v]:
             k += 1
         renumber[v] = k
-    return out[:m], used, renumber
+    for f in range(m):
+        for c in range(3):
+            out[f, c] = renumber[out[f, c]]
+    kept = np.empty((k + 1, 3))
+    kept_edges = np.empty((k + 1, 4), dtype=np.int64)
+    for v in range(target.size):
+        if used[v]:
+            kept[renumber[v]] = vertices[v]
+            kept_edges[renumber[v]] = edges[v]
+    return kept, out[:m], kept_edges
 
 
 def _keep_off_cell_faces(

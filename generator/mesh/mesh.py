@@ -235,8 +235,7 @@ def finish_marching(
     # Give each such group one index and drop the triangles that collapse.
     target = _same_targets(verts, shift, edges, moved, shape)
     if target is not None:
-        vertices, faces, used = _merge_same(vertices, faces, target)
-        edges = edges[used]
+        vertices, faces, edges = _merge_same(vertices, faces, edges, target)
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),
