@@ -33,6 +33,7 @@ _EDGE_LO = 0.25 * SEPARATION  # a vertex coordinate this far from a whole number
 _EDGE_HI = 1.0 - 0.25 * SEPARATION
 _FACE_HI = 1.0 - SEPARATION
 _HASH_U = 0x9E3779B97F4A7C15  # Fibonacci hashing
+_RUN = 9  # the vertex groups' table keeps runs of 512 keys (128 samples of a row) together
 
 
 def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -316,18 +317,17 @@ def _targets_kernel(verts, shift, edges, moved, shape):
 
     The groups are found in an open-addressing table of their keys: the sample's number times
     4 plus the edge's axis (3: a moved vertex's sample), so the keys of one sample's edges and
-    of a row's samples are close; runs of 32 keys keep their order in the table (the run's
-    number is hashed), so the vertices of a row of cells, which marching cubes emits together,
-    probe a few cache lines rather than one each."""
+    of a row's samples are close; runs of ``2**_RUN`` keys keep their order in the table (the
+    run's number is hashed), so the vertices of a row of cells, which marching cubes emits
+    together, probe a few cache lines rather than one each."""
     n = verts.shape[0]
     nx, ny, nz = shape[0], shape[1], shape[2]
-    size = 64
-    bits = 6
-    while size < 2 * n + 2:
-        size *= 2
+    bits = _RUN + 1
+    while (1 << bits) < 2 * n + 2:
         bits += 1
+    size = 1 << bits
     mask = size - 1
-    down = np.uint64(64 - (bits - 5))  # Fibonacci hashing of the run: its top bits
+    down = np.uint64(64 - (bits - _RUN))  # Fibonacci hashing of the run: its top bits
     table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) per slot
     target = np.empty(n, dtype=np.int64)
     any_merge = False
@@ -343,8 +343,8 @@ def _targets_kernel(verts, shift, edges, moved, shape):
             key = (((s0 * ny + s1) * nz + s2) << 2) + 3
         else:
             continue
-        run = (np.uint64(key >> 5) * np.uint64(_HASH_U)) >> down
-        h = np.int64(run) << 5 | (key & 31)
+        run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
+        h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
         while True:
             if table[2 * h] == -1:
                 table[2 * h] = key
