@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
 # we have fixed ourselves; magnitudes are clipped to stay finite there.
@@ -32,7 +32,8 @@ _TINY32 = np.float32(_TINY)
 _EDGE_LO = 0.25 * SEPARATION  # a vertex coordinate this far from a whole number is fractional
 _EDGE_HI = 1.0 - 0.25 * SEPARATION
 _FACE_HI = 1.0 - SEPARATION
-_HASH = -7046029254386353131  # 0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed int64
+_HASH_U = 0x9E3779B97F4A7C15  # Fibonacci hashing
+_RUN = 9  # the vertex groups' table keeps runs of 512 keys (128 samples of a row) together
 
 
 def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -69,22 +70,31 @@ def _offsets_kernel(values, level, offset, inside):
     n_bad = 0
     for i in range(v.size):
         x = v[i]
-        finite = np.isfinite(x)
-        d = x - level
-        d = -_CLIP64 if d < -_CLIP64 else (_CLIP64 if d > _CLIP64 else d)  # NaN stays NaN
-        o = np.float32(d)
-        is_in = finite and x < level
+        o, is_in = offset_of(x, level)
         if is_in:
             n_inside += 1
-            if o >= 0:
-                o = -_TINY32
-        elif o <= 0:
-            o = _TINY32
-        if not finite:
+        if not np.isfinite(x):
             n_bad += 1
         out[i] = o
         ins[i] = is_in
     return n_inside, n_bad
+
+
+@njit(**INLINE)
+def offset_of(x, level):
+    """The float32 offset of one sample ``x`` and whether it is inside (:func:`_offsets`' rule;
+    a non-finite sample is left NaN or clipped, for :func:`_mirror_nonfinite`).  The inside
+    samples' offsets are exactly the negative ones."""
+    d = x - level
+    d = -_CLIP64 if d < -_CLIP64 else (_CLIP64 if d > _CLIP64 else d)  # NaN stays NaN
+    o = np.float32(d)
+    is_in = np.isfinite(x) and x < level
+    if is_in:
+        if o >= 0:
+            o = -_TINY32
+    elif o <= 0:
+        o = _TINY32
+    return o, is_in
 
 
 @njit(**KERNEL)
@@ -235,9 +245,10 @@ def _mixed_cells(work):
 
 @njit(**KERNEL)
 def _place(verts, shift, shape, lo, hi, spacing):
-    """Marching cubes' float32 vertices -> grid indices, box coordinates and edges.
+    """Marching cubes' float32 vertices -> box coordinates and edges.
 
-    ``index = verts - shift`` (1 with a cap's pad); ``lo + index * spacing``, clamped: on the
+    Each vertex's grid index is ``verts - shift`` in float64 (1 with a cap's pad: exact, so
+    it is recomputed where needed rather than kept); ``lo + index * spacing``, clamped: on the
     box's faces for indices at or past the first and last samples (the cap lies exactly on
     them; ``lo + (N-1) * spacing`` may miss ``hi`` by an ulp, and a cap vertex clamped onto hi
     and one computed there would differ by an ulp: distinct here, one point in float32).
@@ -248,10 +259,9 @@ def _place(verts, shift, shape, lo, hi, spacing):
     cell's faces (:func:`_keep_off_cell_faces`).
     """
     n = verts.shape[0]
-    index = np.empty((n, 3))
     vertices = np.empty((n, 3))
-    edges = np.full((n, 4), -1, dtype=np.int64)
-    moved = np.zeros(n, dtype=np.bool_)
+    edges = np.empty((n, 4), dtype=np.int64)
+    moved = np.empty(n, dtype=np.bool_)
     off_cell = False
     for v in range(n):
         n_frac = 0
@@ -260,7 +270,6 @@ def _place(verts, shift, shape, lo, hi, spacing):
         out = False
         for c in range(3):
             x = np.float64(verts[v, c]) - shift
-            index[v, c] = x
             last = np.float64(shape[c]) - 1.0
             if x >= last:
                 vertices[v, c] = hi[c]
@@ -281,82 +290,92 @@ def _place(verts, shift, shape, lo, hi, spacing):
         if n_frac == 1 and not out:
             edges[v, 0] = axis
             for c in range(3):
-                x = index[v, c]
+                x = np.float64(verts[v, c]) - shift
                 edges[v, 1 + c] = np.int64(np.rint(np.floor(x) if c == axis else x))
-        elif not out and near_face:
-            off_cell = True
-    return index, vertices, edges, moved, off_cell
+        else:
+            for c in range(4):
+                edges[v, c] = -1
+            if not out and near_face:
+                off_cell = True
+    return vertices, edges, moved, off_cell
 
 
 def _same_targets(
-    index: np.ndarray, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
+    verts: np.ndarray, shift: float, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
 ) -> np.ndarray | None:
     """For each vertex, the first vertex of its group (:func:`_merge_same`), or None when every
-    vertex is alone."""
-    target = np.empty(len(index), dtype=np.int64)
-    if not _targets_kernel(index, edges, moved, shape, target):
-        return None
-    return target
+    vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place`)."""
+    target, any_merge = _targets_kernel(verts, shift, edges, moved, shape)
+    return target if any_merge else None
 
 
 @njit(**KERNEL)
-def _targets_kernel(index, edges, moved, shape, target):
+def _targets_kernel(verts, shift, edges, moved, shape):
     """The vertices of one grid edge form a group, and moved vertices clamped onto one box
-    sample; others are alone.  ``target[v]``: the first vertex of ``v``'s group (an open
-    addressing hash of the keys); returns whether any vertex is not its own target."""
-    n = index.shape[0]
+    sample; others are alone.  Returns ``target`` (``target[v]``: the first vertex of ``v``'s
+    group) and whether any vertex is not its own target.
+
+    The groups are found in an open-addressing table of their keys: the sample's number times
+    4 plus the edge's axis (3: a moved vertex's sample), so the keys of one sample's edges and
+    of a row's samples are close; runs of ``2**_RUN`` keys keep their order in the table (the
+    run's number is hashed), so the vertices of a row of cells, which marching cubes emits
+    together, probe a few cache lines rather than one each."""
+    n = verts.shape[0]
     nx, ny, nz = shape[0], shape[1], shape[2]
-    size = 1
-    while size < 2 * n + 2:
-        size *= 2
-    keys = np.full(size, -1, dtype=np.int64)
-    firsts = np.empty(size, dtype=np.int64)
+    bits = _RUN + 1
+    while (1 << bits) < 2 * n + 2:
+        bits += 1
+    size = 1 << bits
+    mask = size - 1
+    down = np.uint64(64 - (bits - _RUN))  # Fibonacci hashing of the run: its top bits
+    table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) per slot
+    target = np.empty(n, dtype=np.int64)
     any_merge = False
     for v in range(n):
         target[v] = v
         if edges[v, 0] >= 0:
-            key = ((edges[v, 0] * nx + edges[v, 1]) * ny + edges[v, 2]) * nz + edges[v, 3]
+            key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + edges[v, 0]
         elif moved[v]:
             # A moved vertex was clamped onto a box sample: the sample's number is its key.
-            s0 = min(max(np.int64(np.rint(index[v, 0])), 0), nx - 1)
-            s1 = min(max(np.int64(np.rint(index[v, 1])), 0), ny - 1)
-            s2 = min(max(np.int64(np.rint(index[v, 2])), 0), nz - 1)
-            key = 3 * nx * ny * nz + (s0 * ny + s1) * nz + s2
+            s0 = min(max(np.int64(np.rint(np.float64(verts[v, 0]) - shift)), 0), nx - 1)
+            s1 = min(max(np.int64(np.rint(np.float64(verts[v, 1]) - shift)), 0), ny - 1)
+            s2 = min(max(np.int64(np.rint(np.float64(verts[v, 2]) - shift)), 0), nz - 1)
+            key = (((s0 * ny + s1) * nz + s2) << 2) + 3
         else:
             continue
-        h = (key * _HASH) & (size - 1)
+        run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
+        h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
         while True:
-            if keys[h] == -1:
-                keys[h] = key
-                firsts[h] = v
+            if table[2 * h] == -1:
+                table[2 * h] = key
+                table[2 * h + 1] = v
                 break
-            if keys[h] == key:
-                target[v] = firsts[h]
+            if table[2 * h] == key:
+                target[v] = table[2 * h + 1]
                 any_merge = True
                 break
-            h = (h + 1) & (size - 1)
-    return any_merge
+            h = (h + 1) & mask
+    return target, any_merge
 
 
 def _merge_same(
-    vertices: np.ndarray, faces: np.ndarray, target: np.ndarray
+    vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray, target: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
 
     Other vertices keep theirs even where they are close (merging distinct crossings could
     pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices (the
     others keep their order).  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces,
-    ``(V,)`` targets (:func:`_same_targets`); also returns the ``(V,)`` bool mask of the
-    vertices kept.
+    ``(V, 4)`` edges, ``(V,)`` targets (:func:`_same_targets`); returns the kept vertices,
+    the faces on them and the kept vertices' edges.
     """
-    faces, used, renumber = _merge_kernel(faces, target)
-    return vertices[used], renumber[faces], used
+    return _merge_kernel(vertices, faces, edges, target)
 
 
 @njit(**KERNEL)
-def _merge_kernel(faces, target):
-    """Faces on the targets without the collapsed ones, the used vertices and their new
-    numbers."""
+def _merge_kernel(vertices, faces, edges, target):
+    """Faces on the targets without the collapsed ones, renumbered onto the used vertices,
+    and the used vertices' rows of ``vertices`` and ``edges``, in order."""
     n_faces = faces.shape[0]
     out = np.empty((n_faces, 3), dtype=np.int64)
     used = np.zeros(target.size, dtype=np.bool_)
@@ -373,7 +392,16 @@ def _merge_kernel(faces, target):
         if used[v]:
             k += 1
         renumber[v] = k
-    return out[:m], used, renumber
+    for f in range(m):
+        for c in range(3):
+            out[f, c] = renumber[out[f, c]]
+    kept = np.empty((k + 1, 3))
+    kept_edges = np.empty((k + 1, 4), dtype=np.int64)
+    for v in range(target.size):
+        if used[v]:
+            kept[renumber[v]] = vertices[v]
+            kept_edges[renumber[v]] = edges[v]
+    return kept, out[:m], kept_edges
 
 
 def _keep_off_cell_faces(

@@ -219,11 +219,11 @@ def finish_marching(
     spacing = np.asarray(grid.spacing, dtype=np.float64)
     shape = np.asarray(grid.shape, dtype=np.int64)
     verts = np.ascontiguousarray(verts, dtype=np.float32)
-    index, vertices, edges, moved, off_cell = _place(
-        verts, 1.0 if cap else 0.0, shape, lo, hi, spacing
-    )
+    shift = 1.0 if cap else 0.0
+    vertices, edges, moved, off_cell = _place(verts, shift, shape, lo, hi, spacing)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     if off_cell:
+        index = verts.astype(np.float64) - shift
         inner = _keep_off_cell_faces(index, faces, edges, moved)
         if inner is not None:
             rows, index_rows = inner
@@ -233,10 +233,9 @@ def finish_marching(
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
     # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
     # Give each such group one index and drop the triangles that collapse.
-    target = _same_targets(index, edges, moved, shape)
+    target = _same_targets(verts, shift, edges, moved, shape)
     if target is not None:
-        vertices, faces, used = _merge_same(vertices, faces, target)
-        edges = edges[used]
+        vertices, faces, edges = _merge_same(vertices, faces, edges, target)
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),

@@ -13,14 +13,17 @@ same order and with the same float32 bits:
   values and rounded once to float32, with the absolute cell index (a block-wise run shifted
   afterwards would round differently);
 - vertices are shared through skimage's two "face layers" (the vertices of the current and the
-  next plane of cells, keyed by cell and edge), emulated with hash tables cleared as skimage
-  clears its layers, so the same duplicates appear where skimage's cache misses;
-- the ambiguous cases' face and interior tests use the same double arithmetic.
+  next plane of cells, keyed by cell and edge): arrays over a plane as skimage's own, the
+  slots set cleared as skimage clears its layers, so the same duplicates appear where
+  skimage's cache misses (a plane's cells are visited in order, so the layers are read and
+  written along rows: no hashing, few cache misses);
+- the ambiguous cases' face and interior tests use the same double arithmetic;
+- skimage's Python wrapper is applied as the results are written: vertices in the volume's
+  axis order, each triangle reversed ('descent'), the faces int64 as the mesh keeps them.
 
 :func:`lewiner_cells` is the kernel; ``tests/generator/mesh/test_sparse_lewiner.py`` compares it
 with skimage on random volumes full of ambiguous cells.  The axis names follow the Cython
-(``x`` is the volume's last axis, ``z`` its first); the caller flips the vertices as skimage's
-wrapper does.
+(``x`` is the volume's last axis, ``z`` its first).
 """
 
 from __future__ import annotations
@@ -230,58 +233,37 @@ def _test_internal(v, lut, meta, case, config, subconfig, s):
     return s > 0
 
 
-# ----------------------------------------------------------------------------- face layers
-
-
-@njit(**INLINE)
-def _slot(keys, key):
-    """The slot of ``key`` in the open-addressing table ``keys`` (-1: empty)."""
-    mask = keys.size - 1
-    h = np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(20)) & mask
-    while keys[h] != -1 and keys[h] != key:
-        h = (h + 1) & mask
-    return h
-
-
-@njit(**KERNEL)
-def _clear(keys, used, n_used):
-    for u in range(n_used):
-        keys[used[u]] = -1
-
-
 # ----------------------------------------------------------------------------- the cells
 
 
 @njit(**KERNEL)
-def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
-    """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``(cz, cy, cx)``
-    (int64, sorted in skimage's visiting order: z, then y, then x) with corner values
-    ``corners`` (C, 8) float32 in skimage's order v0..v7 (``im[z, y, x]``, ``im[z, y, x+1]``,
-    ``im[z, y+1, x+1]``, ``im[z, y+1, x]``, then the same at ``z+1``), the level 0.
+def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
+    """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``keys`` (int64
+    flat numbers ``(z * ny + y) * nx + x`` in the volume, sorted: skimage's visiting order) with
+    corner values ``corners`` (C, 8) float32 in skimage's order v0..v7 (``im[z, y, x]``,
+    ``im[z, y, x+1]``, ``im[z, y+1, x+1]``, ``im[z, y+1, x]``, then the same at ``z+1``), the
+    level 0.
 
-    ``nx``, ``ny``: the volume's sizes along x (last axis) and y.  Returns skimage's raw float32
-    vertices ``(V, 3)`` in (x, y, z) order and int32 faces ``(F*3,)``.
+    ``nx``, ``ny``: the volume's sizes along x (last axis) and y.  Returns what skimage's
+    ``marching_cubes(..., gradient_direction="descent")`` returns: float32 vertices ``(V, 3)``
+    in the volume's axis order (z, y, x) and faces ``(F, 3)`` wound for 'descent' (each
+    triangle of the Cython kernel reversed), here int64 (the mesh's type).  Both are written
+    in place (no reversal or conversion afterwards); they are views of arrays sized for the
+    usual two triangles per cell, grown when a surface needs more.
     """
-    n_cells = cz.size
-    # face-layer tables: sized for the two largest planes of cells (13 keys per cell at most)
-    most = 1
-    run = 0
-    for c in range(n_cells):
-        run = run + 1 if c > 0 and cz[c] == cz[c - 1] else 1
-        most = max(most, run)
-    size = 64
-    while size < 4 * 13 * most:  # a table holds two planes' keys; at most half full
-        size *= 2
-    keys1 = np.full(size, -1, dtype=np.int64)
-    vals1 = np.empty(size, dtype=np.int64)
-    used1 = np.empty(size, dtype=np.int64)
-    keys2 = np.full(size, -1, dtype=np.int64)
-    vals2 = np.empty(size, dtype=np.int64)
-    used2 = np.empty(size, dtype=np.int64)
+    n_cells = keys.size
+    plane = nx * ny
+    # skimage's two face layers, dense as skimage's own: slot 4 * (nx * y + x) + edge kind
+    # (0, 1: the x and y edges of the layer's face, 2: the z edge, 3: the centre) -> vertex;
+    # the slots set are listed to clear them when skimage clears the layer
+    layer1 = np.full(4 * plane, -1, dtype=np.int64)
+    layer2 = np.full(4 * plane, -1, dtype=np.int64)
+    used1 = np.empty(64, dtype=np.int64)
+    used2 = np.empty(64, dtype=np.int64)
     n1 = 0
     n2 = 0
-    verts = np.empty((max(16, 4 * n_cells), 3), dtype=np.float32)
-    faces = np.empty(max(48, 12 * n_cells), dtype=np.int32)
+    verts = np.empty((n_cells + n_cells // 4 + 64, 3), dtype=np.float32)
+    faces = np.empty((2 * n_cells + n_cells // 4 + 64, 3), dtype=np.int64)
     nv = 0
     nf = 0
     v = np.empty(8)  # v0..v7
@@ -289,22 +271,24 @@ def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
     tri = np.empty(36, dtype=np.int64)  # edge indices of the cell's triangles
     last_z = np.int64(-2)
     for c in range(n_cells):
-        z, y, x = cz[c], cy[c], cx[c]
+        key = keys[c]
+        z = key // plane
+        y = (key - z * plane) // nx
+        x = key - z * plane - y * nx
         if z != last_z:
             # skimage swaps its layers at every z (new_z_value): a layer's vertices live on
             # for the next plane only
+            for u in range(n1):
+                layer1[used1[u]] = -1
             if z == last_z + 1:
-                _clear(keys1, used1, n1)
-                keys1, keys2 = keys2, keys1
-                vals1, vals2 = vals2, vals1
+                layer1, layer2 = layer2, layer1
                 used1, used2 = used2, used1
                 n1 = n2
-                n2 = 0
             else:
-                _clear(keys1, used1, n1)
-                _clear(keys2, used2, n2)
+                for u in range(n2):
+                    layer2[used2[u]] = -1
                 n1 = 0
-                n2 = 0
+            n2 = 0
             last_z = z
         index = 0
         for k in range(8):
@@ -329,13 +313,13 @@ def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
         cx12 = cy12 = cz12 = 0.0
         have12 = False
         if verts.shape[0] < nv + 13:
-            grown = np.empty((2 * verts.shape[0] + 13, 3), dtype=np.float32)
-            grown[:nv] = verts[:nv]
-            verts = grown
-        if faces.size < nf + 3 * nt:
-            grown_f = np.empty(2 * faces.size + 3 * nt, dtype=np.int32)
-            grown_f[:nf] = faces[:nf]
-            faces = grown_f
+            verts = _grown(verts, nv, 13)
+        if faces.shape[0] < nf + nt:
+            faces = _grown(faces, nf, nt)
+        if used1.size < n1 + 13:
+            used1 = _grown(used1, n1, 13)
+        if used2.size < n2 + 13:
+            used2 = _grown(used2, n2, 13)
         for q in range(3 * nt):
             vi = tri[q]
             # skimage's get_index_in_facelayer
@@ -364,15 +348,8 @@ def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
                     i += nx
             else:
                 j = 3
-            key = 4 * i + j
-            if second:
-                h = _slot(keys2, key)
-                found = keys2[h] == key
-                at = vals2[h] if found else -1
-            else:
-                h = _slot(keys1, key)
-                found = keys1[h] == key
-                at = vals1[h] if found else -1
+            at_slot = 4 * i + j
+            at = layer2[at_slot] if second else layer1[at_slot]
             if at < 0:
                 if vi == 12:
                     if not have12:
@@ -409,24 +386,32 @@ def lewiner_cells(cz, cy, cx, corners, nx, ny, lut, meta, ex, ey, ez):
                     px = np.float64(x) + 1.0 * fx / ff
                     py = np.float64(y) + 1.0 * fy / ff
                     pz = np.float64(z) + 1.0 * fz / ff
-                verts[nv, 0] = np.float32(px)
+                # skimage's wrapper flips the vertices to the volume's axis order
+                verts[nv, 0] = np.float32(pz)
                 verts[nv, 1] = np.float32(py)
-                verts[nv, 2] = np.float32(pz)
+                verts[nv, 2] = np.float32(px)
                 at = nv
                 nv += 1
                 if second:
-                    keys2[h] = key
-                    vals2[h] = at
-                    used2[n2] = h
+                    layer2[at_slot] = at
+                    used2[n2] = at_slot
                     n2 += 1
                 else:
-                    keys1[h] = key
-                    vals1[h] = at
-                    used1[n1] = h
+                    layer1[at_slot] = at
+                    used1[n1] = at_slot
                     n1 += 1
-            faces[nf] = at
-            nf += 1
-    return verts[:nv].copy(), faces[:nf].copy()
+            # ... and reverses each triangle ('descent')
+            faces[nf + q // 3, 2 - q % 3] = at
+        nf += nt
+    return verts[:nv], faces[:nf]
+
+
+@njit(**KERNEL)
+def _grown(a, n, more):
+    """``a`` (rows ``:n`` used) moved to an array half as large again, room for ``more``."""
+    out = np.empty((a.shape[0] + a.shape[0] // 2 + more,) + a.shape[1:], dtype=a.dtype)
+    out[:n] = a[:n]
+    return out
 
 
 @njit(**KERNEL)

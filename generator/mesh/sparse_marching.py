@@ -3,23 +3,27 @@ mesh, bit for bit, from the sampled bricks alone.
 
 :func:`extract_sparse_with_edges` repeats :func:`~surfgen.generator.mesh.mesh.extract_with_edges`
 step by step on the bricks, each step giving what the dense step gives at every sample a cell
-of the surface reads:
+of the surface reads (the passes over the bricks are in
+:mod:`~surfgen.generator.mesh.sparse_bricks`):
 
-1. the float32 offsets with signs fixed in float64: the dense kernel
-   (:func:`~surfgen.generator.mesh.marching._offsets_kernel`) on the bricks' values;
+1. the float32 offsets with signs fixed in float64, by the dense kernel's rule
+   (:func:`~surfgen.generator.mesh.marching.offset_of`) on the bricks' values; a sample is
+   inside exactly when its offset is negative;
 2. non-finite samples mirror the deepest inside sample of their 3x3x3 neighbourhood: any two
    points at most one step apart share a leaf block, so that neighbourhood is in sampled bricks
    or in an *outside* leaf (no inside sample);
-3. crossings kept apart (:func:`~surfgen.generator.mesh.marching._raise_magnitudes`, the dense
-   kernel) on the crossing edges of the bricks, each sample once (its least fixed point does not
-   depend on the edges' order), raised samples written to every brick holding them;
+3. crossings kept apart (:func:`~surfgen.generator.mesh.marching._raise_magnitudes`' values):
+   one pass counts the mixed cells and lists the crossing edges that need a raise, and the
+   raises spread from those edges only, sample by sample, to the same least solution; raised
+   samples are written to every brick holding them;
 4. the cells whose corners are not all on one side (in sampled leaves only), and with
    ``cap`` the cells of the pad around the box next to inside samples of the box's faces (the
    face leaves are sampled for that: ``evaluate_sparse(..., faces=True)``), with their corners
-   (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`);
+   (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`),
+   the pad's cells written among the bricks' where their numbers fall;
 5. skimage's marching cubes on those cells in skimage's order
-   (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: its vertices and faces, same
-   order, same bits), then the dense path's end
+   (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: the vertices and faces
+   skimage's ``marching_cubes`` returns, same order, same bits), then the dense path's end
    (:func:`~surfgen.generator.mesh.mesh.finish_marching`).
 
 ``tests/generator/mesh/test_sparse_marching.py`` compares the two paths' meshes byte for byte.
@@ -35,12 +39,17 @@ from numba import njit
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import points_evaluator
-from surfgen.generator.eval.point_driver import dedupe
 from surfgen.generator.eval.sparse import SparseField, locate
 from surfgen.generator.formula.expr import Expr
-from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.marching import _RATIO, _TINY32, _offsets_kernel, _raise_magnitudes
+from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.mesh.marching import _TINY32
 from surfgen.generator.mesh.mesh import Mesh, finish_marching
+from surfgen.generator.mesh.sparse_bricks import (
+    brick_cells,
+    brick_offsets,
+    raise_bricks,
+    scan_bricks,
+)
 from surfgen.generator.mesh.sparse_lewiner import (
     EDGE_X,
     EDGE_Y,
@@ -69,38 +78,30 @@ def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh,
         raise EmptySurface(_empty_message("outside", sf))
     if sf.all_inside():
         raise EmptySurface(_empty_message("inside", sf))
-    offset = np.empty(sf.values.shape, dtype=np.float32)
-    inside = np.empty(sf.values.shape, dtype=np.bool_)
-    _offsets_kernel(sf.values, level, offset, inside)
     slot, corner, values, block = sf.lookup()
     extent = sf.extent
     shape = np.asarray(sf.grid.shape, dtype=np.int64)
-    if _mirror_bricks(values, extent, corner, offset, inside, slot, block, shape):
+    offset, n_bad = brick_offsets(values, extent, level)
+    if n_bad and _mirror_bricks(values, extent, corner, offset, slot, block, shape):
         log.debug("sparse marching: non-finite samples mirrored")
-    _separate_bricks(offset, inside, extent, corner, slot, block, shape)
+    n_cells, ta, tb = scan_bricks(offset, extent, corner, shape)
+    if ta.size:  # some crossing too near a sample: raise magnitudes from there
+        raise_bricks(ta, tb, offset, slot, block, shape)
     shift = 1 if cap else 0
-    keys, corners = _brick_cells(offset, extent, corner, shape, shift)
     if cap:
-        pad_keys = _pad_cells(offset, inside, extent, corner, shape)
-        pad_keys = np.unique(pad_keys)
+        pad_keys = np.unique(_pad_cells(offset, extent, corner, shape))
         pad_corners = _pad_corners(pad_keys, offset, slot, block, shape)
-        keys = np.concatenate([keys, pad_keys])
-        # two sorted runs: a stable sort merges them in one pass
-        order = np.argsort(keys, kind="stable")
-        keys = keys[order]
-        corners = np.ascontiguousarray(np.concatenate([corners, pad_corners])[order])
+    else:
+        pad_keys, pad_corners = np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32)
+    keys, corners = brick_cells(
+        offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
+    )
     size = shape + 2 * shift
-    cz = keys // (size[1] * size[2])
-    cy = (keys // size[2]) % size[1]
-    cx = keys % size[2]
     verts, faces = lewiner_cells(
-        cz, cy, cx, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
+        keys, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
     )
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
-    # skimage's wrapper: vertices in (axis 0, 1, 2) order, faces wound for 'descent'
-    verts = np.ascontiguousarray(verts[:, ::-1])
-    faces = np.ascontiguousarray(faces.reshape(-1, 3)[:, ::-1])
     return finish_marching(verts, faces, sf.grid, level, cap)
 
 
@@ -149,7 +150,7 @@ def _empty_message(where: str, sf: SparseField) -> str:
 
 
 @njit(**KERNEL)
-def _mirror_bricks(values, extent, corner, offset, inside, slot, block, shape):
+def _mirror_bricks(values, extent, corner, offset, slot, block, shape):
     """:func:`~surfgen.generator.mesh.marching._mirror_nonfinite` on the bricks: the
     neighbourhood read through :func:`locate` (a neighbour no brick holds is in an outside
     leaf).  Returns whether any sample was non-finite."""
@@ -169,197 +170,15 @@ def _mirror_bricks(values, extent, corner, offset, inside, slot, block, shape):
                         for c in range(max(j - 1, 0), min(j + 2, ny)):
                             for d in range(max(k - 1, 0), min(k + 2, nz)):
                                 s, pa, pc, pd = locate(slot, block, a, c, d)
-                                if (
-                                    s >= 0
-                                    and inside[s, pa, pc, pd]
-                                    and -offset[s, pa, pc, pd] > deepest
-                                ):
+                                # deepest >= 0: only a negative offset (inside) passes
+                                if s >= 0 and -offset[s, pa, pc, pd] > deepest:
                                     deepest = -offset[s, pa, pc, pd]
                     offset[b, li, lj, lk] = max(deepest, tiny)
     return any_bad
 
 
 @njit(**KERNEL)
-def _brick_edges(offset, inside, extent, corner, shape):
-    """Crossing edges of the bricks as global flat sample numbers ``(a, b)`` (an edge on a
-    face shared by two bricks twice), and whether any needs a raise (``|a| < _RATIO |b|`` or
-    the reverse: :func:`~surfgen.generator.mesh.marching._raise_magnitudes`' test)."""
-    tight = False
-    n = 0
-    for b in range(inside.shape[0]):
-        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
-        for i in range(e0):
-            for j in range(e1):
-                for k in range(e2):
-                    s = inside[b, i, j, k]
-                    n += (
-                        (i + 1 < e0 and inside[b, i + 1, j, k] != s)
-                        + (j + 1 < e1 and inside[b, i, j + 1, k] != s)
-                        + (k + 1 < e2 and inside[b, i, j, k + 1] != s)
-                    )
-    ga = np.empty(n, dtype=np.int64)
-    gb = np.empty(n, dtype=np.int64)
-    s1, s2 = shape[1] * shape[2], shape[2]
-    m = 0
-    for b in range(inside.shape[0]):
-        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
-        c0, c1, c2 = corner[b, 0], corner[b, 1], corner[b, 2]
-        for i in range(e0):
-            for j in range(e1):
-                for k in range(e2):
-                    s = inside[b, i, j, k]
-                    g = (c0 + i) * s1 + (c1 + j) * s2 + (c2 + k)
-                    ma = abs(np.float64(offset[b, i, j, k]))
-                    if i + 1 < e0 and inside[b, i + 1, j, k] != s:
-                        ga[m], gb[m] = g, g + s1
-                        tight |= _tight(ma, offset[b, i + 1, j, k])
-                        m += 1
-                    if j + 1 < e1 and inside[b, i, j + 1, k] != s:
-                        ga[m], gb[m] = g, g + s2
-                        tight |= _tight(ma, offset[b, i, j + 1, k])
-                        m += 1
-                    if k + 1 < e2 and inside[b, i, j, k + 1] != s:
-                        ga[m], gb[m] = g, g + 1
-                        tight |= _tight(ma, offset[b, i, j, k + 1])
-                        m += 1
-    return ga, gb, tight
-
-
-@njit(**INLINE)
-def _tight(ma, b):
-    """Whether an edge with magnitudes ``ma`` and ``|b|`` needs a raise."""
-    mb = abs(np.float64(b))
-    return _RATIO * mb > ma or _RATIO * ma > mb
-
-
-@njit(**KERNEL)
-def _gather_samples(ids, shape, offset, inside, slot, block):
-    """Offsets and inside flags of global flat samples ``ids``."""
-    n = ids.size
-    flat = np.empty(n, dtype=np.float32)
-    ins = np.empty(n, dtype=np.bool_)
-    s1, s2 = shape[1] * shape[2], shape[2]
-    for p in range(n):
-        g = ids[p]
-        s, a, b, c = locate(slot, block, g // s1, (g // s2) % shape[1], g % s2)
-        flat[p] = offset[s, a, b, c]
-        ins[p] = inside[s, a, b, c]
-    return flat, ins
-
-
-@njit(**KERNEL)
-def _write_samples(ids, new, old, shape, offset, slot, block):
-    """Write ``new`` offsets of global samples ``ids`` where they differ from ``old``, into
-    every brick holding the sample."""
-    s1, s2 = shape[1] * shape[2], shape[2]
-    n0, n1, n2 = slot.shape
-    for p in range(ids.size):
-        if new[p] == old[p]:
-            continue
-        g = ids[p]
-        i, j, k = g // s1, (g // s2) % shape[1], g % s2
-        for d0 in range(2):
-            c0 = i // block - d0
-            if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
-                continue
-            for d1 in range(2):
-                c1 = j // block - d1
-                if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
-                    continue
-                for d2 in range(2):
-                    c2 = k // block - d2
-                    if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
-                        continue
-                    s = slot[c0, c1, c2]
-                    if s >= 0:
-                        offset[s, i - c0 * block, j - c1 * block, k - c2 * block] = new[p]
-
-
-def _separate_bricks(offset, inside, extent, corner, slot, block, shape) -> None:
-    """:func:`~surfgen.generator.mesh.marching._separate` on the bricks, in place."""
-    ga, gb, tight = _brick_edges(offset, inside, extent, corner, shape)
-    if not tight:  # every crossing already far enough from its samples: nothing is raised
-        return
-    at, first = dedupe(np.concatenate([ga, gb]))
-    ids = np.concatenate([ga, gb])[first]
-    flat, ins = _gather_samples(ids, shape, offset, inside, slot, block)
-    old = flat.copy()
-    _raise_magnitudes(flat, ins, at[: ga.size], at[ga.size :])
-    if not np.array_equal(flat, old):
-        _write_samples(ids, flat, old, shape, offset, slot, block)
-
-
-@njit(**KERNEL)
-def _brick_cells(offset, extent, corner, shape, shift):
-    """The mixed cells of the bricks in skimage's order (C order of the volume): flat numbers
-    in the (padded when ``shift``) volume and their corners in skimage's order
-    (:func:`~.sparse_lewiner.lewiner_cells`).  The bricks are in C order of their leaves, so
-    per plane ``i`` of a slab of leaves, the columns (one ``j`` range each) and, per row ``j``,
-    the column's bricks (one ``k`` range each) come in order: no sort."""
-    n_bricks = offset.shape[0]
-    n = 0
-    for b in range(n_bricks):
-        for i in range(extent[b, 0] - 1):
-            for j in range(extent[b, 1] - 1):
-                for k in range(extent[b, 2] - 1):
-                    n += _mixed(offset, b, i, j, k)
-    keys = np.empty(n, dtype=np.int64)
-    corners = np.empty((n, 8), dtype=np.float32)
-    p1 = shape[1] + 2 * shift
-    p2 = shape[2] + 2 * shift
-    m = 0
-    s0 = 0
-    while s0 < n_bricks:  # a slab: the bricks of one leaf x
-        s1 = s0
-        while s1 < n_bricks and corner[s1, 0] == corner[s0, 0]:
-            s1 += 1
-        for i in range(extent[s0, 0] - 1):
-            c0 = s0
-            while c0 < s1:  # a column: the slab's bricks of one leaf y
-                c1 = c0
-                while c1 < s1 and corner[c1, 1] == corner[c0, 1]:
-                    c1 += 1
-                for j in range(extent[c0, 1] - 1):
-                    for b in range(c0, c1):
-                        for k in range(extent[b, 2] - 1):
-                            if not _mixed(offset, b, i, j, k):
-                                continue
-                            gi = corner[b, 0] + i + shift
-                            gj = corner[b, 1] + j + shift
-                            gk = corner[b, 2] + k + shift
-                            keys[m] = (gi * p1 + gj) * p2 + gk
-                            corners[m, 0] = offset[b, i, j, k]
-                            corners[m, 1] = offset[b, i, j, k + 1]
-                            corners[m, 2] = offset[b, i, j + 1, k + 1]
-                            corners[m, 3] = offset[b, i, j + 1, k]
-                            corners[m, 4] = offset[b, i + 1, j, k]
-                            corners[m, 5] = offset[b, i + 1, j, k + 1]
-                            corners[m, 6] = offset[b, i + 1, j + 1, k + 1]
-                            corners[m, 7] = offset[b, i + 1, j + 1, k]
-                            m += 1
-                c0 = c1
-        s0 = s1
-    return keys, corners
-
-
-@njit(**KERNEL)
-def _mixed(w, b, i, j, k):
-    """Whether cell ``(i, j, k)`` of brick ``b`` has corners on both sides (as
-    :func:`~surfgen.generator.mesh.marching._mixed_cells`)."""
-    neg = w[b, i, j, k] < 0
-    return (
-        (w[b, i, j, k + 1] < 0) != neg
-        or (w[b, i, j + 1, k] < 0) != neg
-        or (w[b, i, j + 1, k + 1] < 0) != neg
-        or (w[b, i + 1, j, k] < 0) != neg
-        or (w[b, i + 1, j, k + 1] < 0) != neg
-        or (w[b, i + 1, j + 1, k] < 0) != neg
-        or (w[b, i + 1, j + 1, k + 1] < 0) != neg
-    )
-
-
-@njit(**KERNEL)
-def _pad_cells(offset, inside, extent, corner, shape):
+def _pad_cells(offset, extent, corner, shape):
     """Flat numbers (padded volume) of the pad's cells next to inside samples of the box's
     faces, with repeats: every mixed cell of the pad is one of them (a pad cell has a pad
     corner, outside, so it is mixed exactly when a box corner is inside)."""
@@ -367,6 +186,11 @@ def _pad_cells(offset, inside, extent, corner, shape):
     m = 0
     p1, p2 = shape[1] + 2, shape[2] + 2
     for b in range(offset.shape[0]):
+        on_face = False
+        for a in range(3):
+            on_face |= corner[b, a] == 0 or corner[b, a] + extent[b, a] == shape[a]
+        if not on_face:  # no sample of the brick on the box's faces
+            continue
         for li in range(extent[b, 0]):
             i = corner[b, 0] + li
             for lj in range(extent[b, 1]):
@@ -382,7 +206,7 @@ def _pad_cells(offset, inside, extent, corner, shape):
                         or k == shape[2] - 1
                     ):
                         continue
-                    if not inside[b, li, lj, lk]:
+                    if not offset[b, li, lj, lk] < 0:  # not inside
                         continue
                     # the cells of the padded sample (i+1, j+1, k+1): first corners i..i+1
                     for a in range(i, i + 2):

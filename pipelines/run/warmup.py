@@ -250,7 +250,12 @@ def _warm_the_rest(field, box, mesh) -> None:
     # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
     # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
     # sample) given an offset from their neighbours; the warm ball has neither.
-    _merge_same(np.zeros((3, 3)), np.array([[0, 1, 2]], dtype=np.int64), np.arange(3))
+    _merge_same(
+        np.zeros((3, 3)),
+        np.array([[0, 1, 2]], dtype=np.int64),
+        np.full((3, 4), -1, dtype=np.int64),
+        np.arange(3),
+    )
     holed = field.values.copy()
     holed[7, 7, 7] = np.nan
     extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's

@@ -14,7 +14,7 @@ from surfgen.generator.mesh.marching import _mixed_cells
 
 def run_port(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The port on the cells ``mask`` lets through (skimage reads a cell's mask at its far
-    corner), wrapped as skimage's ``marching_cubes`` wraps its kernel ('descent')."""
+    corner): it returns what skimage's ``marching_cubes`` returns ('descent'), faces int64."""
     z, y, x = (a.astype(np.int64) for a in np.nonzero(mask[1:, 1:, 1:]))
     w = work
     corners = np.stack(
@@ -24,11 +24,11 @@ def run_port(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray
         ],
         axis=1,
     ).astype(np.float32)  # fmt: skip
-    verts, faces = lw.lewiner_cells(
-        z, y, x, np.ascontiguousarray(corners), work.shape[2], work.shape[1],
+    keys = (z * work.shape[1] + y) * work.shape[2] + x
+    return lw.lewiner_cells(
+        keys, np.ascontiguousarray(corners), work.shape[2], work.shape[1],
         lw.LUT, lw.LUT_META, lw.EDGE_X, lw.EDGE_Y, lw.EDGE_Z,
     )  # fmt: skip
-    return np.ascontiguousarray(verts[:, ::-1]), faces.reshape(-1, 3)[:, ::-1]
 
 
 def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:

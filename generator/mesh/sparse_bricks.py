@@ -1,0 +1,344 @@
+"""The sparse path's passes over the bricks (:mod:`~surfgen.generator.mesh.sparse_marching`):
+the offsets, the crossings kept apart, and the mixed cells with their corners.
+
+Each is what the dense path's step (:mod:`~surfgen.generator.mesh.marching`) gives at every
+sample the bricks hold, in as few passes over the bricks as the steps allow, with nothing the
+size of the grid or of its crossing edges:
+
+- :func:`brick_offsets`: the float32 offsets (:func:`~.marching.offset_of`, the dense kernel's
+  per-sample rule); a sample is inside exactly when its offset is negative, so no inside mask
+  is kept;
+- :func:`scan_bricks`: the mixed cells counted, and the crossing edges that need a raise
+  (:func:`~.marching._raise_magnitudes`' test) listed: usually few;
+- :func:`raise_bricks`: the magnitudes raised from those edges only, sample by sample (a
+  worklist), to the dense path's values: the least solution of ``m[a] >= _RATIO m[b]`` over
+  the crossing edges, which does not depend on the order the edges are visited in;
+- :func:`brick_cells`: the mixed cells in skimage's order with their corners.
+
+A cell is mixed when the sum of its corners' inside flags is neither 0 nor 8; the flags are
+summed per column of four samples along the brick's last axis, each column shared by two
+cells of a row.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from surfgen.generator.eval.sparse import locate
+from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.marching import _RATIO, offset_of
+
+
+@njit(**KERNEL)
+def brick_offsets(values, extent, level):
+    """The bricks' float32 offsets (:func:`~.marching.offset_of`: non-finite samples are left
+    NaN or clipped for the mirror) and the number of non-finite samples within the bricks'
+    extents (entries past the grid's end get offsets too, never read)."""
+    n_bricks, m0, m1, m2 = values.shape
+    offset = np.empty(values.shape, dtype=np.float32)
+    n_bad = 0
+    for b in range(n_bricks):
+        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+        for i in range(m0):
+            for j in range(m1):
+                for k in range(m2):
+                    x = values[b, i, j, k]
+                    offset[b, i, j, k] = offset_of(x, level)[0]
+                    if not np.isfinite(x) and i < e0 and j < e1 and k < e2:
+                        n_bad += 1
+    return offset, n_bad
+
+
+@njit(**INLINE)
+def _columns(w, b, i, j, e2, col):
+    """``col[k]``: how many of the samples ``(i..i+1, j..j+1, k)`` of brick ``b`` are inside."""
+    for k in range(e2):
+        col[k] = (
+            np.int64(w[b, i, j, k] < 0)
+            + np.int64(w[b, i, j + 1, k] < 0)
+            + np.int64(w[b, i + 1, j, k] < 0)
+            + np.int64(w[b, i + 1, j + 1, k] < 0)
+        )
+
+
+@njit(**INLINE)
+def _tight(ma, b):
+    """Whether an edge with magnitudes ``ma`` and ``|b|`` needs a raise."""
+    mb = abs(np.float64(b))
+    return _RATIO * mb > ma or _RATIO * ma > mb
+
+
+@njit(**KERNEL)
+def scan_bricks(offset, extent, corner, shape):
+    """The number of mixed cells of the bricks, and the crossing edges of the bricks that need
+    a raise (``|a| < _RATIO |b|`` or the reverse) as global flat sample numbers ``(a, b)``
+    (an edge on a face shared by two bricks twice)."""
+    col = np.empty(offset.shape[3], dtype=np.int64)
+    n_cells = 0
+    ta = np.empty(64, dtype=np.int64)
+    tb = np.empty(64, dtype=np.int64)
+    m = 0
+    s1, s2 = shape[1] * shape[2], shape[2]
+    for b in range(offset.shape[0]):
+        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+        for i in range(e0 - 1):
+            for j in range(e1 - 1):
+                _columns(offset, b, i, j, e2, col)
+                for k in range(e2 - 1):
+                    t = col[k] + col[k + 1]
+                    n_cells += t != 0 and t != 8
+        c0, c1, c2 = corner[b, 0], corner[b, 1], corner[b, 2]
+        for i in range(e0):
+            for j in range(e1):
+                for k in range(e2):
+                    w = offset[b, i, j, k]
+                    s = w < 0
+                    ma = abs(np.float64(w))
+                    g = (c0 + i) * s1 + (c1 + j) * s2 + (c2 + k)
+                    for axis in range(3):
+                        if axis == 0:
+                            if i + 1 >= e0:
+                                continue
+                            o, step = offset[b, i + 1, j, k], s1
+                        elif axis == 1:
+                            if j + 1 >= e1:
+                                continue
+                            o, step = offset[b, i, j + 1, k], s2
+                        else:
+                            if k + 1 >= e2:
+                                continue
+                            o, step = offset[b, i, j, k + 1], 1
+                        if (o < 0) == s or not _tight(ma, o):
+                            continue
+                        if m == ta.size:
+                            ta = _grown(ta, m)
+                            tb = _grown(tb, m)
+                        ta[m], tb[m] = g, g + step
+                        m += 1
+    return n_cells, ta[:m], tb[:m]
+
+
+@njit(**KERNEL)
+def _grown(a, n):
+    out = np.empty(2 * a.size, dtype=a.dtype)
+    out[:n] = a[:n]
+    return out
+
+
+# ----------------------------------------------------------------------------- raises
+
+
+@njit(**INLINE)
+def _find(keys, g):
+    """The slot of sample ``g`` in the open-addressing table ``keys`` (-1: empty)."""
+    mask = keys.size - 1
+    h = np.int64((np.uint64(g) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(17)) & mask
+    while keys[h] != -1 and keys[h] != g:
+        h = (h + 1) & mask
+    return h
+
+
+@njit(**KERNEL)
+def _rehash(keys, mags):
+    """The table twice as large, with the same entries."""
+    out_keys = np.full(2 * keys.size, -1, dtype=np.int64)
+    out_mags = np.empty(2 * keys.size)
+    for h in range(keys.size):
+        if keys[h] != -1:
+            q = _find(out_keys, keys[h])
+            out_keys[q] = keys[h]
+            out_mags[q] = mags[h]
+    return out_keys, out_mags
+
+
+@njit(**KERNEL)
+def raise_bricks(ta, tb, offset, slot, block, shape):
+    """:func:`~.marching._raise_magnitudes` on the bricks, in place, from the crossing edges
+    ``(ta, tb)`` that need a raise (:func:`scan_bricks`): the magnitudes in float64 end as
+    the least solution of ``m[a] >= _RATIO m[b]`` on every crossing edge above the samples'
+    own, the dense path's (its sweeps end on that solution whatever the edges' order).  An
+    edge raises a sample that is short of it; a raised sample puts its crossing edges (the
+    neighbours on the other side that a brick holds: an edge no brick holds lies in an
+    unsampled leaf, on one side) to the test again.  The raised samples, rounded to float32
+    with their sign, are written to every brick holding them.  Returns how many were raised."""
+    s1, s2 = shape[1] * shape[2], shape[2]
+    size = 64
+    while size < 4 * ta.size:
+        size *= 2
+    keys = np.full(size, -1, dtype=np.int64)  # raised samples -> their magnitude
+    mags = np.empty(size)
+    n = 0
+    stack = np.empty(64, dtype=np.int64)
+    top = 0
+    for e in range(2 * ta.size):
+        # each edge both ways: a from b, then b from (the raised) a
+        x, y = (ta[e // 2], tb[e // 2]) if e % 2 == 0 else (tb[e // 2], ta[e // 2])
+        need = _RATIO * _magnitude(keys, mags, y, offset, slot, block, s1, s2)
+        h = _find(keys, x)
+        if need <= (mags[h] if keys[h] == x else _sample(x, offset, slot, block, s1, s2)):
+            continue
+        if keys[h] != x:
+            keys[h] = x
+            n += 1
+        mags[h] = need
+        if top == stack.size:
+            stack = _grown(stack, top)
+        stack[top] = x
+        top += 1
+        if 2 * n > keys.size:
+            keys, mags = _rehash(keys, mags)
+    while top > 0:
+        top -= 1
+        g = stack[top]
+        i, j, k = g // s1, (g // s2) % shape[1], g % s2
+        need = _RATIO * mags[_find(keys, g)]
+        neg = _sample_at(offset, slot, block, i, j, k) < 0
+        for d in range(6):
+            a, c, f = i, j, k
+            if d == 0:
+                a -= 1
+            elif d == 1:
+                a += 1
+            elif d == 2:
+                c -= 1
+            elif d == 3:
+                c += 1
+            elif d == 4:
+                f -= 1
+            else:
+                f += 1
+            if a < 0 or c < 0 or f < 0 or a >= shape[0] or c >= shape[1] or f >= shape[2]:
+                continue
+            s, la, lc, lf = locate(slot, block, a, c, f)
+            if s < 0 or (offset[s, la, lc, lf] < 0) == neg:
+                continue
+            x = a * s1 + c * s2 + f
+            h = _find(keys, x)
+            held = keys[h] == x
+            if need <= (mags[h] if held else abs(np.float64(offset[s, la, lc, lf]))):
+                continue
+            if not held:
+                keys[h] = x
+                n += 1
+            mags[h] = need
+            if top == stack.size:
+                stack = _grown(stack, top)
+            stack[top] = x
+            top += 1
+            if 2 * n > keys.size:
+                keys, mags = _rehash(keys, mags)
+    for h in range(keys.size):
+        g = keys[h]
+        if g == -1:
+            continue
+        i, j, k = g // s1, (g // s2) % shape[1], g % s2
+        m = np.float32(mags[h])
+        neg = _sample_at(offset, slot, block, i, j, k) < 0
+        _write_sample(offset, slot, block, i, j, k, -m if neg else m)
+    return n
+
+
+@njit(**INLINE)
+def _sample_at(offset, slot, block, i, j, k):
+    s, a, b, c = locate(slot, block, i, j, k)
+    return offset[s, a, b, c]
+
+
+@njit(**INLINE)
+def _sample(g, offset, slot, block, s1, s2):
+    """``|offset|`` in float64 of global sample ``g`` (a brick holds it)."""
+    return abs(np.float64(_sample_at(offset, slot, block, g // s1, (g % s1) // s2, g % s2)))
+
+
+@njit(**INLINE)
+def _magnitude(keys, mags, g, offset, slot, block, s1, s2):
+    """The current magnitude of global sample ``g``: raised, or its own."""
+    h = _find(keys, g)
+    return mags[h] if keys[h] == g else _sample(g, offset, slot, block, s1, s2)
+
+
+@njit(**INLINE)
+def _write_sample(offset, slot, block, i, j, k, value):
+    """Write ``value`` at grid sample ``(i, j, k)`` of every brick holding it."""
+    n0, n1, n2 = slot.shape
+    for d0 in range(2):
+        c0 = i // block - d0
+        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+            continue
+        for d1 in range(2):
+            c1 = j // block - d1
+            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+                continue
+            for d2 in range(2):
+                c2 = k // block - d2
+                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                    continue
+                s = slot[c0, c1, c2]
+                if s >= 0:
+                    offset[s, i - c0 * block, j - c1 * block, k - c2 * block] = value
+
+
+# ----------------------------------------------------------------------------- cells
+
+
+@njit(**KERNEL)
+def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
+    """The ``n`` mixed cells of the bricks (:func:`scan_bricks`) and the pad's cells
+    ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's order (C
+    order of the volume): flat numbers in the (padded when ``shift``) volume and their corners
+    in skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).  The bricks are in C order of
+    their leaves, so per plane ``i`` of a slab of leaves, the columns (one ``j`` range each)
+    and, per row ``j``, the column's bricks (one ``k`` range each) come in order: no sort; the
+    pad's cells are written where their numbers fall."""
+    n_bricks = offset.shape[0]
+    col = np.empty(offset.shape[3], dtype=np.int64)
+    n_pad = pad_keys.size
+    keys = np.empty(n + n_pad, dtype=np.int64)
+    corners = np.empty((n + n_pad, 8), dtype=np.float32)
+    q = 0
+    p1 = shape[1] + 2 * shift
+    p2 = shape[2] + 2 * shift
+    m = 0
+    s0 = 0
+    while s0 < n_bricks:  # a slab: the bricks of one leaf x
+        s1 = s0
+        while s1 < n_bricks and corner[s1, 0] == corner[s0, 0]:
+            s1 += 1
+        for i in range(extent[s0, 0] - 1):
+            c0 = s0
+            while c0 < s1:  # a column: the slab's bricks of one leaf y
+                c1 = c0
+                while c1 < s1 and corner[c1, 1] == corner[c0, 1]:
+                    c1 += 1
+                for j in range(extent[c0, 1] - 1):
+                    for b in range(c0, c1):
+                        e2 = extent[b, 2]
+                        _columns(offset, b, i, j, e2, col)
+                        gi = corner[b, 0] + i + shift
+                        gj = corner[b, 1] + j + shift
+                        row = (gi * p1 + gj) * p2 + corner[b, 2] + shift
+                        for k in range(e2 - 1):
+                            t = col[k] + col[k + 1]
+                            if t == 0 or t == 8:
+                                continue
+                            while q < n_pad and pad_keys[q] < row + k:
+                                keys[m] = pad_keys[q]
+                                corners[m] = pad_corners[q]
+                                m += 1
+                                q += 1
+                            keys[m] = row + k
+                            corners[m, 0] = offset[b, i, j, k]
+                            corners[m, 1] = offset[b, i, j, k + 1]
+                            corners[m, 2] = offset[b, i, j + 1, k + 1]
+                            corners[m, 3] = offset[b, i, j + 1, k]
+                            corners[m, 4] = offset[b, i + 1, j, k]
+                            corners[m, 5] = offset[b, i + 1, j, k + 1]
+                            corners[m, 6] = offset[b, i + 1, j + 1, k + 1]
+                            corners[m, 7] = offset[b, i + 1, j + 1, k]
+                            m += 1
+                c0 = c1
+        s0 = s1
+    keys[m:] = pad_keys[q:]
+    corners[m:] = pad_corners[q:]
+    return keys, corners
