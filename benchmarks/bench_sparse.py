@@ -191,7 +191,9 @@ def main(argv: list[str] | None = None) -> None:
             run.say(f"median sculpture speed-up at {n}^3: {statistics.median(ratios):.1f}x")
             added = [_added(r["dense"]) / _added(r["sparse"]) for r in sculptures
                      if r["grid"] == n]  # fmt: skip
-            run.say(f"median sculpture added-memory ratio at {n}^3: {statistics.median(added):.1f}x")
+            run.say(
+                f"median sculpture added-memory ratio at {n}^3: {statistics.median(added):.1f}x"
+            )
     run.record(rows=rows, cpu=os.cpu_count())
     run.save()
 
