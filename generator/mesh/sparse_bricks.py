@@ -178,16 +178,7 @@ def raise_bricks(ta, tb, offset, slot, block, shape):
         h = _find(keys, x)
         if need <= (mags[h] if keys[h] == x else _sample(x, offset, slot, block, s1, s2)):
             continue
-        if keys[h] != x:
-            keys[h] = x
-            n += 1
-        mags[h] = need
-        if top == stack.size:
-            stack = _grown(stack, top)
-        stack[top] = x
-        top += 1
-        if 2 * n > keys.size:
-            keys, mags = _rehash(keys, mags)
+        keys, mags, stack, top, n = _push(keys, mags, stack, top, n, h, x, need)
     while top > 0:
         top -= 1
         g = stack[top]
@@ -215,19 +206,9 @@ def raise_bricks(ta, tb, offset, slot, block, shape):
                 continue
             x = a * s1 + c * s2 + f
             h = _find(keys, x)
-            held = keys[h] == x
-            if need <= (mags[h] if held else abs(np.float64(offset[s, la, lc, lf]))):
+            if need <= (mags[h] if keys[h] == x else abs(np.float64(offset[s, la, lc, lf]))):
                 continue
-            if not held:
-                keys[h] = x
-                n += 1
-            mags[h] = need
-            if top == stack.size:
-                stack = _grown(stack, top)
-            stack[top] = x
-            top += 1
-            if 2 * n > keys.size:
-                keys, mags = _rehash(keys, mags)
+            keys, mags, stack, top, n = _push(keys, mags, stack, top, n, h, x, need)
     for h in range(keys.size):
         g = keys[h]
         if g == -1:
@@ -237,6 +218,23 @@ def raise_bricks(ta, tb, offset, slot, block, shape):
         neg = _sample_at(offset, slot, block, i, j, k) < 0
         _write_sample(offset, slot, block, i, j, k, -m if neg else m)
     return n
+
+
+@njit(**INLINE)
+def _push(keys, mags, stack, top, n, h, x, need):
+    """Raise sample ``x`` (slot ``h`` of the table) to ``need`` and put it on the worklist;
+    returns the table (grown when half full), the worklist, its top and the raised count."""
+    if keys[h] != x:
+        keys[h] = x
+        n += 1
+    mags[h] = need
+    if top == stack.size:
+        stack = _grown(stack, top)
+    stack[top] = x
+    top += 1
+    if 2 * n > keys.size:
+        keys, mags = _rehash(keys, mags)
+    return keys, mags, stack, top, n
 
 
 @njit(**INLINE)

@@ -136,8 +136,7 @@ def make_shape(
     equation = draw.equation.with_d(d or 0.0)
     tree = equation.to_tree()
     watch.lap("eval")
-    verdict, metrics, mesh, later = _judge(tree, spec, d, config, watch, draw)
-    mesh_checks, fine_checks = later
+    verdict, metrics, mesh, (mesh_checks, fine_checks) = _judge(tree, spec, d, config, watch, draw)
 
     def row_for(verdict: Verdict) -> dict[str, Any]:
         return {
@@ -257,6 +256,10 @@ def _judge(
         return stop(verdict)
     # Without its walls a capped solid is open on purpose: do not ask it to be watertight.
     capped = run.cap and run.walls != "remove"
+
+    def judged() -> Verdict:  # the verdict on the metrics measured so far
+        return judge(metrics, fcfg, capped=capped, one_body=one_body)
+
     try:
         mesh, edges = extract_with_edges(field_, spec.level, cap=capped)
         extracted = mesh  # before the walls: the resolution check compares like with like
@@ -275,7 +278,7 @@ def _judge(
     # Cheap checks first (most draws fail them)...
     quick = quick_metrics(mesh, spec.box, areas)
     metrics.update(quick)
-    verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
+    verdict = judged()
     watch.lap("filters")
 
     def mesh_checks() -> Verdict:
@@ -287,13 +290,13 @@ def _judge(
             )
             metrics["wall_fraction"] = crossings.wall_fraction
             watch.lap("walls")
-            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
+            verdict = judged()
         if verdict.accepted:  # ...then pymeshlab's topology and the curvature (quick reused)
             metrics.update(shape_metrics(mesh, spec.box, quick=quick))
-            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
+            verdict = judged()
         if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
             metrics["solidity"] = solidity(mesh, metrics.get("volume"))
-            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
+            verdict = judged()
         watch.lap("filters")
         return verdict
 
@@ -307,7 +310,7 @@ def _judge(
             )
             metrics.update(resolution.to_metrics())
             watch.lap("resolution")
-            verdict = judge(metrics, fcfg, capped=capped, one_body=one_body)
+            verdict = judged()
         if verdict.accepted:
             metrics.update(quality_metrics(mesh, metrics))
         watch.lap("filters")

@@ -392,7 +392,7 @@ def _orbit(arrangement: str, spacing: float, size: float) -> list[tuple[float, .
 
 
 def _rings_apart(
-    arrangement: str, spacing: float, axis, tilt: float, tube: float, size: float = 0.5
+    arrangement: str, spacing: float, axis, tilt: float, tube: float, size: float = SIZE
 ) -> float | None:
     """The tube (share of the ring radius ``size``) at most ``tube`` with which the rings of
     ``arrangement`` stay apart: under :data:`APART` of the closest approach of any two rings

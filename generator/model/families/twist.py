@@ -260,9 +260,10 @@ def _column(
         absolute=True,
     )
     # the lobes' profile along the axis: T(z) (1 + γ z/H)
-    grow = Polynomial.linear((0.0, 0.0, round_significant(tau / height, 4)), 1.0).power(2)
-    profile = grow * Polynomial.linear((0.0, 0.0, round_significant(gamma / height, 4)), 1.0)
-    profile = profile if tau or gamma else None
+    profile = None
+    if tau or gamma:
+        grow = Polynomial.linear((0.0, 0.0, round_significant(tau / height, 4)), 1.0).power(2)
+        profile = grow * Polynomial.linear((0.0, 0.0, round_significant(gamma / height, 4)), 1.0)
     lobes = lobe_terms(m, eps, rate, profile)
     braid = braid and 2 * math.pi * valley / (2 * m) >= cfg.period_cells * cell
     if braid:
