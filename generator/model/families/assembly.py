@@ -105,7 +105,7 @@ class AssemblySettings:
     arrangements: tuple[str, ...] = ARRANGEMENTS
     arrangement_weights: tuple[float, ...] = (0.175, 0.175, 0.225, 0.225, 0.1, 0.1)
     bodies: tuple[str, ...] = BODIES
-    body_weights: tuple[float, ...] = (0.2, 0.2, 0.6)
+    body_weights: tuple[float, ...] = (0.25, 0.3, 0.45)
     joins: tuple[str, ...] = JOINS
     join_weights: tuple[float, ...] = (0.25, 0.45, 0.3)
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius

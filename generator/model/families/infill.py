@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import Expr, add_all, mul_all
 from surfgen.generator.model.draw import (
@@ -67,18 +67,20 @@ class InfillSettings:
     """The ``[sampler.infill]`` table (``surfgen config show``)."""
 
     envelopes: tuple[str, ...] = INFILL_ENVELOPES
-    envelope_weights: tuple[float, ...] = (0.55, 0.2, 0.25)
+    envelope_weights: tuple[float, ...] = (0.4, 0.3, 0.3)
     exponent: tuple[float, float] = (1.8, 4.0)  # superellipsoid |x|^p+|y|^p+|z|^p
     stretch_prob: float = 0.6  # the envelope stretched along one or two axes by 0.55-1.6
     patterns: tuple[str, ...] = INFILL_PATTERNS
     pattern_weights: tuple[float, ...] = (0.3, 0.25, 0.15, 0.15, 0.15)
-    periods: tuple[float, float] = (1.2, 4.5)  # periods across the envelope's width
+    periods: tuple[float, float] = (1.2, 3.5)  # periods across the envelope's width
     strut_cells: float = 3.0  # the thinner of struts and pores spans at least this many cells
     level: tuple[float, float] = (0.25, 0.65)  # t at this quantile of L: the solid's share
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
     phase_prob: float = 0.6  # the lattice shifted by one drawn share of a period along x, y, z
     grade_prob: float = 0.4  # graded: the level goes from the centre's to a rim's (both in level)
     cut_prob: float = 0.6  # cut again: a half-space, a slab, a cube or an octahedron
+    hollow_prob: float = 0.35  # a perforated shell: the envelope's inside hollowed out ...
+    shell: tuple[float, float] = (0.25, 0.45)  # ... but a shell this share of its inradius thick
 
     def __post_init__(self) -> None:
         require_names(self, "envelopes", INFILL_ENVELOPES, TABLE)
@@ -87,9 +89,10 @@ class InfillSettings:
         require_weighted_pairs(
             self, (("envelopes", "envelope_weights"), ("patterns", "pattern_weights")), TABLE
         )
-        probabilities = ("stretch_prob", "phase_prob", "grade_prob", "cut_prob")
+        probabilities = ("stretch_prob", "phase_prob", "grade_prob", "cut_prob", "hollow_prob")
         require_fractions(self, probabilities, TABLE, "a probability")
-        require_low_high(self, ("exponent", "periods", "level", "margin"), TABLE)
+        require_low_high(self, ("exponent", "periods", "level", "margin", "shell"), TABLE)
+        require_range(self, "shell", 0.05, 0.9, TABLE)
         require_range(self, "exponent", 1.0, 10.0, TABLE)
         require_range(self, "periods", 0.5, 50.0, TABLE)
         require_range(self, "level", 0.05, 0.95, TABLE)
@@ -174,6 +177,9 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     pattern = str(choose(rng, s.patterns, s.pattern_weights))
     periods = float(rng.uniform(*s.periods))
     q = float(rng.uniform(*s.level))
+    hollow = bool(rng.random() < s.hollow_prob) and len(envelope) == 1
+    if hollow:  # a shell is pierced by the pores, not made of a lace of struts
+        q = max(q, 1.0 - q)
     margin = float(rng.uniform(*s.margin))
     phase = round(float(rng.uniform(0.1, 0.9)), 2) if rng.random() < s.phase_prob else 0.0
     env_tree = mul_all([f.to_tree() for f in envelope])
@@ -183,6 +189,8 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     period = 2 * extent / periods
     graded = bool(rng.random() < s.grade_prob)
     q_rim = float(rng.uniform(*s.level)) if graded else q
+    if hollow:
+        q_rim = max(q_rim, 1.0 - q_rim)
     unit = lattice_terms(rng, pattern, *_transforms(pattern), [1.0, 1.0, 1.0])  # period 1
     slope, reach = _surface_slope(env_tree, half, extent)
     t_unit, t_rim, share = strut_share(unit, q, q_rim, reach)
@@ -206,8 +214,11 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     if graded:  # the level from t_c at the centre to t_r at r = extent: - (t_r - t_c) r^2/extent^2
         k = round_significant(-(t_rim - t_unit) / extent**2, 4)
         grade = [(only_a(PowerFunction(tuple(PowerTerm(k, *_axis(j, 2.0)) for j in range(3)))),)]
-    cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell)
-    terms = [*lattice, *grade, *positive_part(envelope, c), *cut]
+    cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell, hollow)
+    hollow_terms, shell = [], None
+    if hollow:
+        hollow_terms, shell = _hollow(rng, s, envelope, env_info, env_tree, c, s.strut_cells * cell)
+    terms = [*lattice, *grade, *positive_part(envelope, c), *cut, *hollow_terms]
     structure = {
         "envelope": env_info,
         "pattern": pattern,
@@ -219,7 +230,8 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
         "strut_cells": round(share * period / cell, 2),
         "clip": c,
         "cut": cut_info,
-        "clips": 1 + len(cut) // 2,
+        "clips": 1 + len(cut) // 2 + len(hollow_terms) // 2,
+        "shell": shell,
         "extent": round(extent, 4),
         "group": "cyclic" if env_info.get("radii") == [1.0, 1.0, 1.0] else "none",
     }
@@ -242,16 +254,22 @@ def _transforms(pattern: str) -> tuple[tuple[Transform, float], tuple[Transform,
 
 
 def _cut(
-    rng: np.random.Generator, s: InfillSettings, extent: float, steepness: float
+    rng: np.random.Generator,
+    s: InfillSettings,
+    extent: float,
+    steepness: float,
+    hollow: bool = False,
 ) -> tuple[list[tuple[Factor, ...]], dict[str, Any] | None]:
     """With ``cut_prob``, more clips (each another ``c max(P, 0)``; a sum of them clips to the
     intersection of their bodies): a half-space ``x_k > -h`` (a dome, a bowl) or a slab
     ``x_k^2 < w^2`` (a disc) along a drawn axis, or — keeping the permutations — a cube (a slab
     along each axis) or an octahedron ``|x| + |y| + |z| < w``: faceted silhouettes.
-    ``steepness`` is the lattice's range per cell (c clears it within half a cell)."""
+    ``steepness`` is the lattice's range per cell (c clears it within half a cell). A
+    ``hollow`` shell is cut by a half-space or a slab only (a bowl, a band): a cube or an
+    octahedron around the centre would keep little but the hollow."""
     if not rng.random() < s.cut_prob:
         return [], None
-    kind = str(rng.choice(("half", "slab", "cube", "octahedron")))
+    kind = str(rng.choice(("half", "slab") if hollow else ("half", "slab", "cube", "octahedron")))
     axis = int(rng.integers(0, 3))
     parts: list[tuple[PowerFunction, float]] = []  # (P, |grad P| on its surface)
     if kind == "half":
@@ -274,6 +292,48 @@ def _cut(
     for p, slope in parts:
         out += positive_part((only_a(p),), round_significant(2.0 * steepness / slope, 3))
     return out, info
+
+
+def _hollow(
+    rng: np.random.Generator,
+    s: InfillSettings,
+    envelope: tuple[Factor, ...],
+    info: dict[str, Any],
+    env_tree: Expr,
+    c: float,
+    thinnest: float,
+) -> tuple[list[tuple[Factor, ...]], dict[str, Any] | None]:
+    """A **perforated shell** (drawn with ``hollow_prob``, its solid share the larger of the
+    level's quantile and its complement): the envelope's inside deeper than a drawn
+    thickness clipped away as its outside is (``c max(-E - e, 0)``, one more pair of sum terms),
+    so the lattice is left in a shell — a wiffle ball, a radiolarian's test, a pierced lamp. The
+    thickness is a drawn share (``shell``) of the envelope's inradius (the smallest radius of a
+    superellipsoid, the tube of a torus), at least ``thinnest`` (the struts' bound, in cells);
+    ``e`` is ``-E`` that deep below the surface along that radius (exact for a superellipsoid,
+    whose level sets are scaled copies; at the torus's outer equator). Only for envelopes that
+    are one power function (not the product of two). ``([], None)`` when the shell would be
+    nearly as thick as the envelope."""
+    share = float(rng.uniform(*s.shell))
+    if info["kind"] == "torus":
+        inradius = info["tube"]
+        radial = next(k for k in range(3) if info["axis"][k] == 0.0)
+        point = [0.0, 0.0, 0.0]
+        point[radial] = info["ring"] + inradius
+    else:
+        inradius = min(info["radii"])
+        point = [0.0, 0.0, 0.0]
+        point[info["radii"].index(inradius)] = inradius
+    thickness = max(share * inradius, thinnest)
+    if thickness >= 0.8 * inradius:  # nothing left to hollow at this grid
+        return [], None
+    k = next(j for j in range(3) if point[j] != 0.0)
+    point[k] -= thickness
+    depth = -float(points_evaluator(env_tree)(*(np.array([v]) for v in point))[0])
+    e = round_significant(depth, 4)
+    p = envelope[0].powers[0]
+    terms = (*(PowerTerm(-t.a, t.b, t.c, t.d) for t in p.terms), PowerTerm(-e))
+    inner = only_a(PowerFunction(terms, p.absolute))
+    return positive_part((inner,), c), {"thickness": round(thickness, 4), "level": e}
 
 
 def _shifted(f: Factor, shift: float) -> Factor:

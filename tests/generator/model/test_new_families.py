@@ -15,9 +15,10 @@ import pytest
 from surfgen.filters.meshlab import face_components
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.formula.expr import to_string
+from surfgen.generator.formula.expr import add_all, mul_all, to_string
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.model.families import twist
 from surfgen.generator.model.families.assembly import APART, MIN_TUBE, _ring_gap, _rings_apart
 from surfgen.generator.model.families.twist import harmonic, lobe_terms
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
@@ -65,7 +66,8 @@ def test_formulas_print_and_parse_back_and_cross_their_box(name: str) -> None:
         assert d is not None and math.isfinite(d)
         tree = draw.equation.with_d(d).to_tree()
         assert parse(to_string(tree)) == tree
-        v = evaluate(tree, Grid(draw.box, (24,) * 3), threads=1).values
+        # 48 points: a hollow infill's shell is a few cells of the run's 64 thick
+        v = evaluate(tree, Grid(draw.box, (48,) * 3), threads=1).values
         inside = v < 0
         assert 0.001 < inside.mean() < 0.8
         faces = np.concatenate([inside[[0, -1]].ravel(), inside[:, [0, -1]].ravel()])
@@ -236,3 +238,100 @@ def test_chain_rings_link_their_neighbours_and_clear_the_others() -> None:
             pieces = np.bincount(face_components(extract_mesh(field, 0.0, cap=True)))
             assert len(pieces) == n, (i, st)
     assert counts == {2, 3, 4} and 0 < alternated < 24 and meshed == 3
+
+
+def _column_field(m: int, shape: twist.Shape, cfg: SamplerConfig):
+    """The points evaluator of a column's terms (cell 0.02: no lobe is thinned away)."""
+    terms = twist._column(m, 0.45, 0.75, 1.6, 3.3, 0.14, False, 0.0, 2, shape, 0.02, cfg)[0]
+    return points_evaluator(add_all([mul_all([f.to_tree() for f in t]) for t in terms]), {})
+
+
+@pytest.mark.parametrize("m", [2, 3, 4, 5, 6])
+def test_a_bent_column_is_the_straight_one_sheared(m: int) -> None:
+    """``bend``: the column's field is the straight column's at ``(x - b z^2, y, z)`` (b = bend /
+    H), near its bent axis too, where the expanded lobes cancel (6 significant digits left
+    errors of 10^4 there: beads of inside along the axis)."""
+    cfg = family("twist")
+    rng = np.random.default_rng(m)
+    for bend, axis, tau in ((0.45, 0, 0.0), (-0.3, 1, 0.4)):
+        bent = _column_field(m, twist.Shape(0.8, tau, 0.6, bend, axis), cfg)
+        straight = _column_field(m, twist.Shape(0.8, tau, 0.6), cfg)
+        b = round(bend / 1.6, 4)
+        x, y, z = rng.uniform(-3.5, 3.5, (3, 20000))
+        near = slice(0, 10000)  # on and around the bent axis
+        lean = b * z[near] ** 2
+        if axis == 0:
+            x[near], y[near] = lean + rng.normal(0, 0.03, 10000), rng.normal(0, 0.03, 10000)
+        else:
+            x[near], y[near] = rng.normal(0, 0.03, 10000), lean + rng.normal(0, 0.03, 10000)
+        sx, sy = (x - b * z**2, y) if axis == 0 else (x, y - b * z**2)
+        want = straight(sx, sy, z)
+        err = np.abs(bent(x, y, z) - want) / (1.0 + np.abs(want))
+        assert err.max() < 1e-3, (bend, err.max())
+
+
+def test_a_bent_column_stands_free_in_one_piece_and_is_not_braided() -> None:
+    cfg = family("twist").with_settings("twist", bend_prob=1.0, braid_prob=1.0, bend=[0.45, 0.5])
+    for i in range(4):
+        draw = draw_equation(3, i, cfg)
+        st = draw.structure
+        assert 0.45 <= abs(st["bend"]) <= 0.5 and not st["braid"]
+        assert st["bend_toward"] != st["axis"]
+        assert json.loads(json.dumps(draw.model_dict()))["structure"]["bend"] == st["bend"]
+        field = evaluate(draw.equation.with_d(draw.d).to_tree(), Grid(draw.box, (48,) * 3))
+        inside = field.values < 0
+        faces = np.concatenate([inside[[0, -1]].ravel(), inside[:, [0, -1]].ravel()])
+        assert inside.any() and faces.mean() < 0.02, (i, st)
+        assert np.bincount(face_components(extract_mesh(field, 0.0, cap=True))).size == 1, st
+    straight = family("twist").with_settings("twist", bend_prob=0.0)
+    assert all(draw_equation(3, i, straight).structure["bend"] == 0.0 for i in range(4))
+
+
+def test_a_hollow_infill_is_a_pierced_shell_of_the_drawn_thickness() -> None:
+    """``hollow_prob``: the envelope's inside deeper than the shell is clipped away like its
+    outside (so its centre is empty), the shell's inner surface lies the drawn thickness below
+    the outer one along the inradius, the pores pierce it (the solid share is at least half),
+    and the product envelope (two factors) is never hollowed."""
+    cfg = family("infill").with_settings("infill", hollow_prob=1.0, cut_prob=0.0)
+    seen = set()
+    for i in range(12):
+        draw = draw_equation(4, i, cfg)
+        st = draw.structure
+        env = st["envelope"]
+        if env["kind"] == "product":
+            assert st["shell"] is None
+            continue
+        shell = st["shell"]
+        assert shell is not None and st["level_quantile"] >= 0.5, st
+        seen.add(env["kind"])
+        tree = draw.equation.with_d(draw.d).to_tree()
+        f = points_evaluator(tree, {})
+        clips = 2 * st["clips"]
+        inner = type(draw.equation)(draw.equation.terms[-2:], 0.0).to_tree()  # c max(-E - e, 0)
+        outer = type(draw.equation)(draw.equation.terms[-clips:-2], 0.0).to_tree()
+        g_in, g_out = points_evaluator(inner, {}), points_evaluator(outer, {})
+        if env["kind"] == "torus":
+            radial = env["axis"].index(0.0)
+            centre, surface = env["ring"], env["ring"] + env["tube"]
+        else:
+            radial = env["radii"].index(min(env["radii"]))
+            centre, surface = 0.0, min(env["radii"])
+        # along the inradius: outside the envelope, the shell, then the hollow
+        r = np.linspace(centre, surface * 1.1, 2001)
+        pts = np.zeros((3, r.size))
+        pts[radial] = r
+        clipped_in = g_in(*pts) > 0
+        clipped_out = g_out(*pts) > 0
+        shell_pts = ~clipped_in & ~clipped_out
+        assert clipped_in[0] and clipped_out[-1] and shell_pts.any(), (i, st)
+        # the hollow's edge: the drawn thickness below the envelope's surface
+        edge = r[np.argmax(shell_pts)]
+        assert abs((surface - edge) - shell["thickness"]) < 0.02 * surface, (i, edge, st)
+        if env["kind"] == "superellipsoid":
+            assert f(np.zeros(1), np.zeros(1), np.zeros(1))[0] > 0  # the centre is empty
+    assert seen == {"superellipsoid", "torus"}
+    # cut, a shell is a bowl or a band: a cube or an octahedron would keep little but the hollow
+    cut = cfg.with_settings("infill", cut_prob=1.0)
+    kinds = [draw_equation(4, i, cut).structure for i in range(16)]
+    assert {st["cut"]["kind"] for st in kinds if st["shell"]} == {"half", "slab"}
+    assert {st["cut"]["kind"] for st in kinds if not st["shell"]} >= {"cube", "octahedron"}

@@ -38,16 +38,18 @@ ROOT = Path(__file__).resolve().parents[3]
 # changes every hash: a catalogue of version 5 is not resumed by version 6, as it should not be;
 # and for version 7 (keys chain_links, chain_weights, alternate_prob in [sampler.assembly],
 # taper_prob, taper, swell_prob, swell in [sampler.twist], min_inside_fraction 0.003, the
-# assembly's arrangement and join weights, [filters] min_body_fraction).
-DEFAULT_HASH = "da4a39db76e6"
-FAMILY_HASHES = {"sculpture": "025baeb1193e", "lattice": "5c332cbd2eab", "free": "be95332bf478"}
+# assembly's arrangement and join weights, [filters] min_body_fraction); and for version 8
+# (bend_prob, bend in [sampler.twist]; hollow_prob, shell in [sampler.infill], the infill's
+# envelope weights and periods, the assembly's body weights).
+DEFAULT_HASH = "3770e98128ca"
+FAMILY_HASHES = {"sculpture": "b919425e47dc", "lattice": "1ad13e6a4f81", "free": "f9bcc2c6a5ad"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("806127b2c59a", "74389ab1fb36")
+OLD_STYLE_HASHES = ("7bd0adecc5ee", "41293a1cba1a")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4
