@@ -40,7 +40,6 @@ from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
-from scipy.ndimage import binary_dilation
 
 from surfgen.filters.geometry import bucket_points, cell_of
 from surfgen.generator.errors import EmptySurface, SpecError
@@ -146,7 +145,7 @@ def fine_field(
     else:
         cells = _crossed_cells(values, level)
         if band:
-            cells = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
+            cells = _dilate(cells, band)
         fine = np.empty(grid.shape)
         todo, evaluated = _band_points(cells, grid.shape)
         if via_grid is None:
@@ -177,6 +176,36 @@ def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
                 lo &= corner
                 hi |= corner
     return hi & ~lo
+
+
+@numba.njit(**KERNEL)
+def _dilate(cells, band):
+    """The cells within ``band`` cells of a marked one, diagonals included (a cube of side
+    ``2 band + 1`` about each, clipped to the array): scipy's ``binary_dilation`` by the 3x3x3
+    cube ``band`` times over, as three passes of a window, one per axis (the cube is their
+    product; ten times faster on the sampler's 63^3 cells)."""
+    n0, n1, n2 = cells.shape
+    a = np.zeros_like(cells)
+    for i in range(n0):
+        for q in range(max(i - band, 0), min(i + band, n0 - 1) + 1):
+            for j in range(n1):
+                for k in range(n2):
+                    a[i, j, k] |= cells[q, j, k]
+    b = np.zeros_like(cells)
+    for i in range(n0):
+        for j in range(n1):
+            for q in range(max(j - band, 0), min(j + band, n1 - 1) + 1):
+                for k in range(n2):
+                    b[i, j, k] |= a[i, q, k]
+    out = np.zeros_like(cells)
+    for i in range(n0):
+        for j in range(n1):
+            for k in range(n2):
+                hit = False
+                for q in range(max(k - band, 0), min(k + band, n2 - 1) + 1):
+                    hit |= b[i, j, q]
+                out[i, j, k] = hit
+    return out
 
 
 @numba.njit(**KERNEL)
@@ -478,7 +507,7 @@ def warm_kernels(coarse: Field, mesh: Mesh) -> None:
     it, and none), the singular samples and the distances."""
     values = np.ascontiguousarray(coarse.values, dtype=np.float64)
     grid = fine_grid(coarse.grid)
-    todo, _ = _band_points(_crossed_cells(values, 0.0), grid.shape)
+    todo, _ = _band_points(_dilate(_crossed_cells(values, 0.0), 1), grid.shape)
     fine = np.empty(grid.shape)
     _upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
     dense = fine.copy()

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.ndimage import binary_dilation
 
 from surfgen.filters import resolution as res
 from surfgen.filters.resolution import (
@@ -218,3 +219,15 @@ def test_poles_only_the_fine_grid_samples_are_patched_and_counted() -> None:
     assert not unresolved(metrics, FilterConfig(max_resolution_singular=1e9))
     with pytest.raises(SpecError, match="max_resolution_singular"):
         FilterConfig(max_resolution_singular=-1)
+
+
+@pytest.mark.parametrize("band", [1, 2, 3])
+def test_the_band_is_scipy_s_dilation_by_the_cube(band: int) -> None:
+    """``_dilate`` marks what ``binary_dilation`` by the 3x3x3 cube, ``band`` times over, marks
+    (the band the fine field evaluates: the same points, so the same fine field)."""
+    rng = np.random.default_rng(band)
+    for shape in [(63, 63, 63), (5, 9, 2), (1, 4, 7), (30, 20, 41)]:
+        for share in (0.001, 0.05, 0.5):
+            cells = rng.random(shape) < share
+            want = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
+            assert np.array_equal(res._dilate(cells, band), want), (shape, share)
