@@ -163,19 +163,28 @@ def fine_field(
     return Field(grid, fine), evaluated, singular
 
 
-def _crossed_cells(values: np.ndarray, level: float) -> np.ndarray:
+@numba.njit(**KERNEL)
+def _crossed_cells(values, level):
     """``(N-1, N-1, N-1)`` bool: the cells with corners on both sides of the level (inside is
     ``F < level`` and finite, as marching cubes has it)."""
-    inside = np.isfinite(values) & (values < level)
-    lo = np.ones(tuple(n - 1 for n in values.shape), dtype=bool)
-    hi = np.zeros_like(lo)
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                corner = inside[dx : dx + lo.shape[0], dy : dy + lo.shape[1], dz : dz + lo.shape[2]]
-                lo &= corner
-                hi |= corner
-    return hi & ~lo
+    n0, n1, n2 = values.shape
+    inside = np.empty(values.shape, dtype=np.bool_)
+    for i in range(n0):
+        for j in range(n1):
+            for k in range(n2):
+                v = values[i, j, k]
+                inside[i, j, k] = math.isfinite(v) and v < level
+    out = np.empty((max(n0 - 1, 0), max(n1 - 1, 0), max(n2 - 1, 0)), dtype=np.bool_)
+    for i in range(n0 - 1):
+        for j in range(n1 - 1):
+            for k in range(n2 - 1):
+                count = 0
+                for dx in range(2):
+                    for dy in range(2):
+                        for dz in range(2):
+                            count += inside[i + dx, j + dy, k + dz]
+                out[i, j, k] = 0 < count < 8
+    return out
 
 
 @numba.njit(**KERNEL)

@@ -231,3 +231,27 @@ def test_the_band_is_scipy_s_dilation_by_the_cube(band: int) -> None:
             cells = rng.random(shape) < share
             want = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
             assert np.array_equal(res._dilate(cells, band), want), (shape, share)
+
+
+def test_crossed_cells_are_those_with_corners_on_both_sides() -> None:
+    """``_crossed_cells``: a cell is crossed when some of its 8 corners are inside (finite and
+    below the level) and some are not — NaN and ±inf count as outside, as in marching cubes."""
+    rng = np.random.default_rng(3)
+    for shape in [(64, 64, 64), (5, 3, 9), (2, 2, 2), (1, 5, 5)]:
+        values = rng.normal(size=shape)
+        values[rng.random(shape) < 0.05] = np.nan
+        values[rng.random(shape) < 0.02] = np.inf
+        values[rng.random(shape) < 0.02] = -np.inf
+        values[rng.random(shape) < 0.02] = 0.0
+        values.flags.writeable = False  # as the sampler's fields are
+        for level in (0.0, 0.5):
+            inside = np.isfinite(values) & (values < level)
+            c = tuple(max(n - 1, 0) for n in shape)
+            corners = [
+                inside[dx : dx + c[0], dy : dy + c[1], dz : dz + c[2]]
+                for dx in (0, 1)
+                for dy in (0, 1)
+                for dz in (0, 1)
+            ]
+            want = np.any(corners, axis=0) & ~np.all(corners, axis=0)
+            assert np.array_equal(res._crossed_cells(values, level), want), (shape, level)
