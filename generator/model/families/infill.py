@@ -214,7 +214,10 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     if graded:  # the level from t_c at the centre to t_r at r = extent: - (t_r - t_c) r^2/extent^2
         k = round_significant(-(t_rim - t_unit) / extent**2, 4)
         grade = [(only_a(PowerFunction(tuple(PowerTerm(k, *_axis(j, 2.0)) for j in range(3)))),)]
-    cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell, hollow)
+    if hollow and env_info["kind"] == "torus":  # a hollow ring cut open is a torn strip
+        cut, cut_info = [], None
+    else:
+        cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell, hollow)
     hollow_terms, shell = [], None
     if hollow:
         hollow_terms, shell = _hollow(rng, s, envelope, env_info, env_tree, c, s.strut_cells * cell)
@@ -266,7 +269,8 @@ def _cut(
     along each axis) or an octahedron ``|x| + |y| + |z| < w``: faceted silhouettes.
     ``steepness`` is the lattice's range per cell (c clears it within half a cell). A
     ``hollow`` shell is cut by a half-space or a slab only (a bowl, a band): a cube or an
-    octahedron around the centre would keep little but the hollow."""
+    octahedron around the centre would keep little but the hollow (and a hollow torus is not
+    cut at all: :func:`draw_infill`)."""
     if not rng.random() < s.cut_prob:
         return [], None
     kind = str(rng.choice(("half", "slab") if hollow else ("half", "slab", "cube", "octahedron")))

@@ -332,6 +332,10 @@ def test_a_hollow_infill_is_a_pierced_shell_of_the_drawn_thickness() -> None:
     assert seen == {"superellipsoid", "torus"}
     # cut, a shell is a bowl or a band: a cube or an octahedron would keep little but the hollow
     cut = cfg.with_settings("infill", cut_prob=1.0)
-    kinds = [draw_equation(4, i, cut).structure for i in range(16)]
-    assert {st["cut"]["kind"] for st in kinds if st["shell"]} == {"half", "slab"}
+    kinds = [draw_equation(4, i, cut).structure for i in range(24)]
+    shells = [st for st in kinds if st["shell"]]
+    assert {st["cut"]["kind"] for st in shells if st["cut"]} == {"half", "slab"}
+    # ...and a hollow ring is left whole (cut open, it is a torn strip)
+    assert all(st["cut"] is None for st in shells if st["envelope"]["kind"] == "torus")
+    assert any(st["envelope"]["kind"] == "torus" for st in shells)
     assert {st["cut"]["kind"] for st in kinds if not st["shell"]} >= {"cube", "octahedron"}

@@ -40,16 +40,17 @@ ROOT = Path(__file__).resolve().parents[3]
 # taper_prob, taper, swell_prob, swell in [sampler.twist], min_inside_fraction 0.003, the
 # assembly's arrangement and join weights, [filters] min_body_fraction); and for version 8
 # (bend_prob, bend in [sampler.twist]; hollow_prob, shell in [sampler.infill], the infill's
-# envelope weights and periods, the assembly's body weights).
-DEFAULT_HASH = "3770e98128ca"
-FAMILY_HASHES = {"sculpture": "b919425e47dc", "lattice": "1ad13e6a4f81", "free": "f9bcc2c6a5ad"}
+# envelope weights and periods, the assembly's body weights); and for version 9 (a hollow
+# torus of infill left uncut: the version is hashed).
+DEFAULT_HASH = "e031d850df97"
+FAMILY_HASHES = {"sculpture": "b82e45dd7dfe", "lattice": "887a0f4230fc", "free": "7cddafa4d599"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("7bd0adecc5ee", "41293a1cba1a")
+OLD_STYLE_HASHES = ("20553ce46526", "cbe0ea4d771d")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4
