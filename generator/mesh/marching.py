@@ -358,24 +358,16 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     return target, any_merge
 
 
-def _merge_same(
-    vertices: np.ndarray, faces: np.ndarray, edges: np.ndarray, target: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@njit(**KERNEL)
+def _merge_same(vertices, faces, edges, target):
     """Give one index to the vertices of one grid edge, and to exactly coincident moved ones.
 
     Other vertices keep theirs even where they are close (merging distinct crossings could
     pinch the surface).  Faces that lose a corner are dropped, then unreferenced vertices (the
     others keep their order).  Shapes: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces,
     ``(V, 4)`` edges, ``(V,)`` targets (:func:`_same_targets`); returns the kept vertices,
-    the faces on them and the kept vertices' edges.
+    the faces on them (renumbered) and the kept vertices' edges.
     """
-    return _merge_kernel(vertices, faces, edges, target)
-
-
-@njit(**KERNEL)
-def _merge_kernel(vertices, faces, edges, target):
-    """Faces on the targets without the collapsed ones, renumbered onto the used vertices,
-    and the used vertices' rows of ``vertices`` and ``edges``, in order."""
     n_faces = faces.shape[0]
     out = np.empty((n_faces, 3), dtype=np.int64)
     used = np.zeros(target.size, dtype=np.bool_)

@@ -214,10 +214,7 @@ def draw_infill(seed: int, index: int, cfg: DrawSettings, s: InfillSettings) -> 
     if graded:  # the level from t_c at the centre to t_r at r = extent: - (t_r - t_c) r^2/extent^2
         k = round_significant(-(t_rim - t_unit) / extent**2, 4)
         grade = [(only_a(PowerFunction(tuple(PowerTerm(k, *_axis(j, 2.0)) for j in range(3)))),)]
-    if hollow and env_info["kind"] == "torus":  # a hollow ring cut open is a torn strip
-        cut, cut_info = [], None
-    else:
-        cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell, hollow)
+    cut, cut_info = _cut(rng, s, extent, (hi - lo) / cell, env_info["kind"] if hollow else None)
     hollow_terms, shell = [], None
     if hollow:
         hollow_terms, shell = _hollow(rng, s, envelope, env_info, env_tree, c, s.strut_cells * cell)
@@ -261,17 +258,17 @@ def _cut(
     s: InfillSettings,
     extent: float,
     steepness: float,
-    hollow: bool = False,
+    hollow: str | None = None,
 ) -> tuple[list[tuple[Factor, ...]], dict[str, Any] | None]:
     """With ``cut_prob``, more clips (each another ``c max(P, 0)``; a sum of them clips to the
     intersection of their bodies): a half-space ``x_k > -h`` (a dome, a bowl) or a slab
     ``x_k^2 < w^2`` (a disc) along a drawn axis, or — keeping the permutations — a cube (a slab
     along each axis) or an octahedron ``|x| + |y| + |z| < w``: faceted silhouettes.
-    ``steepness`` is the lattice's range per cell (c clears it within half a cell). A
-    ``hollow`` shell is cut by a half-space or a slab only (a bowl, a band): a cube or an
-    octahedron around the centre would keep little but the hollow (and a hollow torus is not
-    cut at all: :func:`draw_infill`)."""
-    if not rng.random() < s.cut_prob:
+    ``steepness`` is the lattice's range per cell (c clears it within half a cell). A hollow
+    shell (``hollow``: its envelope's kind) is cut by a half-space or a slab only (a bowl, a
+    band): a cube or an octahedron around the centre would keep little but the hollow; a
+    hollow torus is not cut at all (cut open, a ring's shell is a torn strip)."""
+    if hollow == "torus" or not rng.random() < s.cut_prob:
         return [], None
     kind = str(rng.choice(("half", "slab") if hollow else ("half", "slab", "cube", "octahedron")))
     axis = int(rng.integers(0, 3))
@@ -318,21 +315,18 @@ def _hollow(
     are one power function (not the product of two). ``([], None)`` when the shell would be
     nearly as thick as the envelope."""
     share = float(rng.uniform(*s.shell))
-    if info["kind"] == "torus":
+    if info["kind"] == "torus":  # along a radius of the ring's plane, from its outer equator
         inradius = info["tube"]
-        radial = next(k for k in range(3) if info["axis"][k] == 0.0)
-        point = [0.0, 0.0, 0.0]
-        point[radial] = info["ring"] + inradius
-    else:
+        k, surface = info["axis"].index(0.0), info["ring"] + inradius
+    else:  # along the smallest radius
         inradius = min(info["radii"])
-        point = [0.0, 0.0, 0.0]
-        point[info["radii"].index(inradius)] = inradius
+        k, surface = info["radii"].index(inradius), inradius
     thickness = max(share * inradius, thinnest)
     if thickness >= 0.8 * inradius:  # nothing left to hollow at this grid
         return [], None
-    k = next(j for j in range(3) if point[j] != 0.0)
-    point[k] -= thickness
-    depth = -float(points_evaluator(env_tree)(*(np.array([v]) for v in point))[0])
+    point = [np.zeros(1), np.zeros(1), np.zeros(1)]
+    point[k][0] = surface - thickness
+    depth = -float(points_evaluator(env_tree)(*point)[0])
     e = round_significant(depth, 4)
     p = envelope[0].powers[0]
     terms = (*(PowerTerm(-t.a, t.b, t.c, t.d) for t in p.terms), PowerTerm(-e))

@@ -70,6 +70,7 @@ from surfgen.generator.model.settings import (
 
 TABLE = "sampler.twist"
 DELTA = 0.01  # keeps r^(m-2) from 0/0 on the axis
+X, Y = Polynomial({(1, 0, 0): 1.0}), Polynomial({(0, 1, 0): 1.0})
 # Significant digits of a bent column's coefficients: its lobes' numerators are polynomials in
 # x - b z^2 expanded, whose terms cancel on the bent axis, where they are divided by DELTA^((m-2)/2);
 # 6 digits left errors of 1e4 there (beads of inside along the axis beyond the ends). With 12,
@@ -131,21 +132,13 @@ class TwistSettings:
         require_range(self, "bend", 0.0, 0.5, TABLE)
 
 
-def harmonic(m: int) -> tuple[Polynomial, Polynomial]:
-    """``Re`` and ``Im`` of ``(x + i y)^m`` as polynomials."""
-    re, im = Polynomial(), Polynomial()
-    for j in range(m + 1):
-        mono = Polynomial({(m - j, j, 0): float(math.comb(m, j))})
-        if j % 2 == 0:
-            re = re + mono.scaled((-1.0) ** (j // 2))
-        else:
-            im = im + mono.scaled((-1.0) ** ((j - 1) // 2))
-    return re, im
-
-
-def harmonic_of(m: int, u: Polynomial, v: Polynomial) -> tuple[Polynomial, Polynomial]:
-    """``Re`` and ``Im`` of ``(u + i v)^m`` for polynomials ``u``, ``v`` (a bent column's section
-    coordinates)."""
+def harmonic(
+    m: int, u: Polynomial | None = None, v: Polynomial | None = None
+) -> tuple[Polynomial, Polynomial]:
+    """``Re`` and ``Im`` of ``(u + i v)^m`` as polynomials: of ``(x + i y)^m`` by default, of a
+    bent column's section coordinates when given."""
+    u = X if u is None else u
+    v = Y if v is None else v
     re, im = Polynomial.constant(1.0), Polynomial()
     for _ in range(m):
         re, im = re * u - im * v, re * v + im * u
@@ -168,7 +161,7 @@ def lobe_terms(
         divisor = PowerFunction((PowerTerm(1.0, 2.0), PowerTerm(1.0, 0.0, 2.0), PowerTerm(DELTA)))
     else:
         u, v = section
-        re, im = harmonic_of(m, u, v)
+        re, im = harmonic(m, u, v)
         divisor = (u * u + v * v + Polynomial.constant(DELTA)).to_power_function(BENT_DIGITS)
     if profile is not None:
         re, im = re * profile, im * profile
@@ -218,11 +211,11 @@ def draw_twist(seed: int, index: int, cfg: DrawSettings, s: TwistSettings) -> Dr
     shape = Shape(flat, tau, gamma, bend, bend_axis)
     # the column has radius 1 and half-height H: a first box for the cell, grown (and the
     # column built again for its cell) until it holds the column's measured extent
-    reach = max(height, 1.0 / (math.sqrt(1.0 - eps) * (1 - abs(tau))))
-    if bend:  # its ends lean aside: the box holds the section there, lobes at their deepest
-        deepest = eps * (1 + abs(gamma))
-        reach = max(height, abs(bend) * height + 1.0 / (math.sqrt(1.0 - deepest) * (1 - abs(tau))))
-    half = round(reach * (1 + margin), 2)
+    # a bent column's ends lean aside: the box holds the section there, its lobes at their
+    # deepest (a straight one's first box keeps the unswollen depth, as before the bend)
+    deepest = eps * (1 + abs(gamma)) if bend else eps
+    section = 1.0 / (math.sqrt(1.0 - deepest) * (1 - abs(tau)))
+    half = round(max(height, abs(bend) * height + section) * (1 + margin), 2)
     for _ in range(4):
         cell = cfg.cell(half)
         column = _column(m, eps, turns, height, q, beta, braid, braid_eps, axis, shape, cell, cfg)
@@ -356,8 +349,7 @@ def _bent_body(
     polynomial (whole powers, no ``|·|``); the ends' ``|z/H|^q - 1`` the ``|·|`` term after it."""
     flat, tau = shape.flat, shape.tau
     lean = Polynomial({(0, 0, 2): -round_significant(shape.bend / height, 4)})
-    u, v = Polynomial.linear((1.0, 0.0, 0.0)), Polynomial.linear((0.0, 1.0, 0.0))
-    u, v = (u + lean, v) if shape.bend_axis == 0 else (u, v + lean)
+    u, v = (X + lean, Y) if shape.bend_axis == 0 else (X, Y + lean)
     k = round_significant((beta + tau**2) / height**2, 4)
     along = Polynomial(
         {(0, 0, 0): 1.0, (0, 0, 2): k, (0, 0, 1): round_significant(2 * tau / height, 4)}
