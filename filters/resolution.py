@@ -340,12 +340,19 @@ def compare_meshes(
     coarse: Mesh, fine: Mesh, grid: Grid, fine_points: int = 0, cap: float = DISTANCE_CAP
 ) -> Resolution:
     """:class:`Resolution` of ``coarse`` against ``fine``, distances in cells of ``grid`` (the
-    coarse grid: its mean spacing), each at most ``cap`` cells."""
-    cell = float(np.mean(grid.spacing))
+    coarse grid), each at most ``cap`` cells; the area ratio in world units.
+
+    The meshes are compared in the grid's index space (each axis divided by its spacing): on a
+    box stretched along an axis (:mod:`surfgen.generator.model.stretch`) a cell is longer along
+    it, and a cell is what the grid resolves."""
     lo = np.array(grid.box.lo, dtype=np.float64)
+    spacing = np.array(grid.spacing, dtype=np.float64)
     dims = np.array([max(n - 1, 1) for n in grid.shape], dtype=np.int64)
-    to_fine = surface_distances(sample_points(coarse), fine, lo, cell, dims, cap)
-    to_coarse = surface_distances(sample_points(fine), coarse, lo, cell, dims, cap)
+    coarse_cells = Mesh((coarse.vertices - lo) / spacing, coarse.faces)
+    fine_cells = Mesh((fine.vertices - lo) / spacing, fine.faces)
+    origin = np.zeros(3)
+    to_fine = surface_distances(sample_points(coarse_cells), fine_cells, origin, 1.0, dims, cap)
+    to_coarse = surface_distances(sample_points(fine_cells), coarse_cells, origin, 1.0, dims, cap)
     area = float(face_areas(fine).sum()) / float(face_areas(coarse).sum())
     return Resolution(
         float(np.percentile(to_fine, PERCENTILE)),

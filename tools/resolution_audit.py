@@ -10,7 +10,8 @@ sampler's band evaluation), and compared with the catalogue's stored mesh file:
 
 - ``p95 to fine`` / ``p95 to coarse``: the 95th percentile of the distance from points drawn on
   one mesh (area-uniform) to the nearest vertex or face centre of the other, in coarse cells
-  (a k-d tree; a resolved surface gives 0.15-0.5 here, the nearest-point error included);
+  (a k-d tree; a resolved surface gives 0.15-0.5 here, the nearest-point error included; on a
+  stretched box, whose cells are longer along an axis, in cells of each axis);
 - ``area``: fine area / stored area.
 
 A shape *moved* when either percentile exceeds ``--max-shift`` cells (default 1.0) or its area
@@ -69,9 +70,12 @@ def _tree(mesh: Mesh) -> cKDTree:
     return cKDTree(np.concatenate([v, v[f].mean(axis=1)]))
 
 
-def _compare(stored: Mesh, fine: Mesh, cell: float) -> tuple[float, float, float]:
-    to_fine = float(np.percentile(_tree(fine).query(_points(stored))[0], 95)) / cell
-    to_coarse = float(np.percentile(_tree(stored).query(_points(fine))[0], 95)) / cell
+def _compare(stored: Mesh, fine: Mesh, cell: np.ndarray) -> tuple[float, float, float]:
+    """Distances in cells of each axis (``cell``: the coarse spacing per axis; a stretched
+    shape's box has longer cells along its stretched axis), the area ratio in world units."""
+    a, b = Mesh(stored.vertices / cell, stored.faces), Mesh(fine.vertices / cell, fine.faces)
+    to_fine = float(np.percentile(_tree(b).query(_points(a))[0], 95))
+    to_coarse = float(np.percentile(_tree(a).query(_points(b))[0], 95))
     return to_fine, to_coarse, float(face_areas(fine).sum() / face_areas(stored).sum())
 
 
@@ -82,7 +86,7 @@ def audit_shape(root: Path, row: dict, cap: bool) -> dict:
     coarse = spec.to_grid()
     fine_grid = Grid(coarse.box, tuple(2 * n - 1 for n in coarse.shape))
     realised = realise(spec, grid=fine_grid, cap=cap, threads=1)
-    cell = float(np.mean(coarse.spacing))
+    cell = np.array(coarse.spacing, dtype=np.float64)
     to_fine, to_coarse, area = _compare(stored, realised.mesh, cell)
     # The same with the fine field's new non-finite samples between finite coarse ones given
     # their mean, as the sampler's check does: poles on the planes x, y, z = 0, which only an

@@ -262,6 +262,21 @@ def substitute_params(tree: Expr, values: Mapping[str, float]) -> Expr:
     return memo[id(tree)]
 
 
+def scale_variables(tree: Expr, factors: Mapping[str, float]) -> Expr:
+    """Replace every variable named in ``factors`` by itself times its factor
+    (``{"x": 2.0}``: ``x`` becomes ``x*2``)."""
+    memo: dict[int, Expr] = {}
+    for node in postorder(tree):  # children first: no recursion
+        if node.op == "var" and node.value in factors:
+            out = node * num(float(factors[node.value]))  # type: ignore[index]
+        elif node.args:
+            out = Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
+        else:
+            out = node
+        memo[id(node)] = out
+    return memo[id(tree)]
+
+
 # ----------------------------------------------------------------------------- printing
 
 

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from surfgen.generator.errors import SpecError
-from surfgen.generator.eval.grid import Box
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.model.equation13 import (
     CONSTITUENT_TRANSFORMS,
@@ -90,6 +91,10 @@ class DrawSettings:
     # many cells of the run's grid where the shape is; 0 turns the bound off.
     period_cells: float = 6.0
     resolve_tries: int = 8  # free draws redrawn (from the same stream) until one is resolved
+    # Proportions (surfgen.generator.model.stretch): a share of the shapes of every family
+    # stretched along the axes by factors log-uniform in aspect, their axis swaps kept.
+    aspect_prob: float = 0.8
+    aspect: tuple[float, float] = (0.45, 2.2)
     # The run's grid ([run] grid or --grid; not a [sampler] key): the Config copies it here so
     # the draw, a pure function of (seed, index, config), sees the cell size it must resolve.
     grid: int = field(default=64, metadata={"config_key": False})
@@ -120,10 +125,23 @@ class DrawSettings:
             "omit_element_prob",
             "constituent_prob",
             "abs_prob",
+            "aspect_prob",
         )
         require_fractions(self, probabilities, table, "a probability")
-        ranges = ("exponent_real", "constituent_r", "box_half", "d_quantile", "constituent_p")
+        ranges = (
+            "exponent_real",
+            "constituent_r",
+            "box_half",
+            "d_quantile",
+            "constituent_p",
+            "aspect",
+        )
         require_low_high(self, ranges, table)
+        if not 0.1 <= self.aspect[0] <= self.aspect[1] <= 10:
+            raise SpecError(
+                "config [sampler]: aspect must lie within [0.1, 10], got "
+                f"[{self.aspect[0]}, {self.aspect[1]}]"
+            )
         if not self.box_half[0] > 0:
             raise SpecError("config [sampler]: box_half must be > 0")
         if not 0 <= self.d_quantile[0] <= self.d_quantile[1] <= 1:
@@ -236,6 +254,23 @@ def _cdf(weights: tuple[float, ...]) -> np.ndarray:
     cdf = (w / w.sum()).cumsum()
     cdf /= cdf[-1]
     return cdf
+
+
+def coarse_values(
+    draw: Draw, cfg: DrawSettings, evaluator: str = "fast", threads: int | None = None
+) -> tuple[np.ndarray, float | None]:
+    """The body's values on the coarse grid of ``d_grid`` points per axis over the draw's box,
+    and ``d``: at the draw's quantile of the finite values, rounded to 6 significant digits
+    (None when they hold fewer than two distinct values: no d makes a surface), or the d the
+    family chose (``d_quantile`` None)."""
+    grid = Grid(draw.box, (cfg.d_grid,) * 3)
+    values = evaluate(draw.equation.body(), grid, evaluator=evaluator, threads=threads).values
+    if draw.d_quantile is None:
+        return values, draw.d
+    finite = values[np.isfinite(values)]
+    if finite.size < 8 or finite.min() == finite.max():
+        return values, None
+    return values, round_significant(float(np.quantile(finite, draw.d_quantile)), 6)
 
 
 def round_to(v: float, digits: int = 2) -> float:

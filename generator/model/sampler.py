@@ -25,14 +25,12 @@ from typing import Any
 import numpy as np
 
 from surfgen.generator.errors import SpecError
-from surfgen.generator.eval.evaluate import evaluate
-from surfgen.generator.eval.grid import Grid
 from surfgen.generator.model.draw import (
     NOT_SAMPLER_KEYS,
     Draw,
     DrawSettings,
     choose,
-    round_significant,
+    coarse_values,
 )
 from surfgen.generator.model.families import (
     MIX,
@@ -51,8 +49,9 @@ from surfgen.generator.model.settings import (
     settings_to_dict,
 )
 from surfgen.generator.model.spec import SurfaceSpec
+from surfgen.generator.model.stretch import stretch_draw
 
-SAMPLER_VERSION = 9  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40); 7: spires and swelling lobes in twist, chains of 2-4 rings (every other one smaller) clear of each other and never ornamented, fewer blends, the near-duplicate check after the mesh checks, plain rings (genus 1 by curvature), fragmented bodies (min_body_fraction), min_inside_fraction 0.003; 8: bent twisted columns (horns: [sampler.twist] bend_prob, bend), perforated infill shells ([sampler.infill] hollow_prob, shell), infill periods and envelope weights, assembly body weights; 9: a hollow torus of infill left uncut (cut open it was a torn strip)
+SAMPLER_VERSION = 10  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40); 7: spires and swelling lobes in twist, chains of 2-4 rings (every other one smaller) clear of each other and never ornamented, fewer blends, the near-duplicate check after the mesh checks, plain rings (genus 1 by curvature), fragmented bodies (min_body_fraction), min_inside_fraction 0.003; 8: bent twisted columns (horns: [sampler.twist] bend_prob, bend), perforated infill shells ([sampler.infill] hollow_prob, shell), infill periods and envelope weights, assembly body weights; 9: a hollow torus of infill left uncut (cut open it was a torn strip); 10: proportions: shapes of every family stretched along the axes, their axis swaps kept ([sampler] aspect_prob, aspect), the resolution check in cells of each axis
 
 
 @dataclass(frozen=True)
@@ -214,9 +213,11 @@ def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
 
     ``cfg.family`` picks the distribution; ``mix`` picks one family per index from a stream of
     its own, so a ``free`` shape of the mix is the very shape ``family = "free"`` draws there.
+    The family's shape is then stretched along the axes (:mod:`.stretch`, a stream of its own).
     """
     name = pick_family(seed, index, cfg)
-    return get_family(name).draw(seed, index, cfg, cfg.settings(name))
+    draw = get_family(name).draw(seed, index, cfg, cfg.settings(name))
+    return stretch_draw(seed, index, cfg, draw)
 
 
 def draw_spec(
@@ -256,10 +257,4 @@ def choose_d(
     """
     if draw.d_quantile is None:
         return draw.d
-    grid = Grid(draw.box, (cfg.d_grid,) * 3)
-    values = evaluate(draw.equation.body(), grid, evaluator=evaluator, threads=threads).values
-    finite = values[np.isfinite(values)]
-    if finite.size < 8 or finite.min() == finite.max():
-        return None
-    d = float(np.quantile(finite, draw.d_quantile))
-    return round_significant(d, 6)
+    return coarse_values(draw, cfg, evaluator, threads)[1]

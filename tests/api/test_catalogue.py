@@ -91,7 +91,7 @@ def test_a_record_s_surface_mesh_and_thumbnail(api_catalogue: surfgen.Catalogue)
     np.testing.assert_array_equal(mesh.faces, stored.faces)
     surface = record.surface
     assert surface.key == record.key and surface.cap  # the run's [run] cap
-    assert surface.config is not None and surface.config.run.dedupe_threshold == 3.0
+    assert surface.config is not None and surface.config.run.dedupe_threshold == 3.5
     np.testing.assert_allclose(surface.mesh().vertices, mesh.vertices, rtol=0, atol=1e-6)
     metrics = surface.metrics()
     for name, value in record.metrics.items():  # the catalogue keeps 10 digits

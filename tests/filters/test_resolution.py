@@ -179,6 +179,30 @@ def test_distances_are_in_coarse_cells_and_capped() -> None:
     assert compare_meshes(a, far, grid, cap=3.0).to_fine == 3.0
 
 
+def test_distances_are_in_cells_of_each_axis() -> None:
+    """On a box stretched along z (longer cells there) a shape stretched alike measures as the
+    unstretched one does, and a shift of one z cell is one cell, not a mean spacing."""
+    tree, stretched = parse("x^2+y^2+z^2-1"), parse("x^2+y^2+(z/2.5)^2-1")
+    cube, tall = (
+        Grid(Box.cube(1.5), (24,) * 3),
+        Grid(Box((-1.5, -1.5, -3.75), (1.5, 1.5, 3.75)), (24,) * 3),
+    )
+    for t, grid in ((tree, cube), (stretched, tall)):
+        coarse = evaluate(t, grid, threads=1)
+        mesh = extract_mesh(coarse, 0.0, cap=True)
+        got = measure_resolution(t, coarse, mesh, 0.0, cap=True)
+        if grid is cube:
+            want = got
+        else:
+            assert got.to_fine == pytest.approx(want.to_fine, abs=0.02)
+            assert got.to_coarse == pytest.approx(want.to_coarse, abs=0.02)
+            assert got.area == pytest.approx(want.area, abs=0.01)
+    a = extract_mesh(evaluate(stretched, tall, threads=1), 0.0, cap=True)
+    dz = tall.spacing[2]
+    moved = type(a)(a.vertices + np.array([0.0, 0.0, dz]), a.faces)  # one z cell
+    assert 0.8 < compare_meshes(a, moved, tall).to_fine < 1.1
+
+
 def test_bad_options_are_refused() -> None:
     tree = parse("x^2+y^2+z^2-1")
     coarse = evaluate(tree, Grid(Box.cube(1.5), (8,) * 3), threads=1)

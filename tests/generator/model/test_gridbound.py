@@ -27,7 +27,9 @@ GRIDS = (32, 64, 128)
 
 
 def config(family: str, grid: int) -> SamplerConfig:
-    return replace(SamplerConfig(), family=family).with_grid(grid)
+    """The family's own draws (not stretched: the bound is the family's; a stretch keeps the
+    samples of every period, tests/generator/model/test_stretch.py)."""
+    return replace(SamplerConfig(), family=family, aspect_prob=0.0).with_grid(grid)
 
 
 def linear_cells(draw, cfg: SamplerConfig) -> float:

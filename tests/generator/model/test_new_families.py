@@ -27,7 +27,8 @@ NEW = ("infill", "assembly", "twist")
 
 
 def family(name: str, **changes) -> SamplerConfig:
-    return replace(SamplerConfig(), family=name, **changes)
+    """The family's own draws, in its own proportions (not stretched)."""
+    return replace(SamplerConfig(), family=name, **({"aspect_prob": 0.0} | changes))
 
 
 @pytest.mark.parametrize("name", NEW)

@@ -41,16 +41,17 @@ ROOT = Path(__file__).resolve().parents[3]
 # assembly's arrangement and join weights, [filters] min_body_fraction); and for version 8
 # (bend_prob, bend in [sampler.twist]; hollow_prob, shell in [sampler.infill], the infill's
 # envelope weights and periods, the assembly's body weights); and for version 9 (a hollow
-# torus of infill left uncut: the version is hashed).
-DEFAULT_HASH = "e031d850df97"
-FAMILY_HASHES = {"sculpture": "b82e45dd7dfe", "lattice": "887a0f4230fc", "free": "7cddafa4d599"}
+# torus of infill left uncut: the version is hashed); and for version 10 (aspect_prob, aspect
+# in [sampler]: proportions).
+DEFAULT_HASH = "1613015f7ff9"
+FAMILY_HASHES = {"sculpture": "efed6ff550e8", "lattice": "0e96ebc3092e", "free": "4b2d4e0188df"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("20553ce46526", "cbe0ea4d771d")
+OLD_STYLE_HASHES = ("67833311442b", "a8060797fd40")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4
@@ -138,7 +139,10 @@ def test_a_family_is_one_module_and_one_entry(toy) -> None:
 
 def test_a_new_family_reads_its_own_config_table(toy, tmp_path: Path) -> None:
     cfg = load_config(
-        config_file(tmp_path, '[sampler]\nfamily = "toy"\n\n[sampler.toy]\nradius = [1.2, 1.2]\n')
+        config_file(
+            tmp_path,
+            '[sampler]\nfamily = "toy"\naspect_prob = 0.0\n\n[sampler.toy]\nradius = [1.2, 1.2]\n',
+        )
     )
     assert cfg.sampler.settings("toy") == toy_family.ToySettings(radius=(1.2, 1.2))
     draw = draw_equation(7, 0, cfg.sampler)
