@@ -328,17 +328,18 @@ def run_code_iv(code, c0, c1, consts, L, H, N, T, n):
 
 
 @njit(**KERNEL)
-def run_boxes(prog, tile, levels, counts, offsets, item_map, SL, SH, out_lo, out_hi, out_nan):
+def run_boxes(prog, tile, levels, counts, offsets, item_map, SL, SH, SN, out_lo, out_hi, out_nan):
     """Bounds of a program (``points_program`` form) over the items of each level.
 
     Level ``lv`` has ``counts[lv]`` items (distinct x ranges for level x, distinct pairs of
     ranges for xy, the boxes for xyz), stored from column ``offsets[lv]`` of the stores
-    ``SL``, ``SH`` (rows: the level's store rows; row 0 of levels x, y, z holds the ranges of
-    the axis, filled by the caller); ``item_map[s, offsets[lv] + i]`` is the column of the
-    item of level ``s`` that item i of level lv reads. The output is one value per box."""
+    ``SL``, ``SH`` and the may-be-NaN flags ``SN`` (rows: the level's store rows; row 0 of
+    levels x, y, z holds the ranges of the axis, filled by the caller; ``SN`` zeros);
+    ``item_map[s, offsets[lv] + i]`` is the column of the item of level ``s`` that item i of
+    level lv reads. Only the levels in ``levels`` run (the stores of the others are the
+    caller's). The output is one value per box."""
     code, blocks, loads, stores, consts = prog[0], prog[1], prog[2], prog[3], prog[4]
     n_rows = prog[6]
-    SN = np.zeros(SL.shape, dtype=np.uint8)
     L = np.empty((n_rows, tile))
     H = np.empty((n_rows, tile))
     N = np.zeros((n_rows, tile), dtype=np.uint8)

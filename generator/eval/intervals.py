@@ -19,7 +19,7 @@ docs/reference/intervals.md explains how the rules are built.
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from surfgen.generator.errors import GridError
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.interval_kernels import run_boxes
+from surfgen.generator.eval.interval_rules import EMPTY_HI, EMPTY_LO
 from surfgen.generator.eval.opcodes import LEVEL_ORDER
 from surfgen.generator.eval.point_driver import dedupe
 from surfgen.generator.eval.tape import COMPILED_CACHE, points_program
@@ -37,6 +38,8 @@ BOXES_TILE = 256  # boxes per register row
 # (about 40 MB for 16384 boxes of a program with 20 store rows and nothing shared)
 BOXES_CHUNK = 16384
 _LEVELS = np.array(LEVEL_ORDER, dtype=np.int64)
+_AXIS_LEVELS = np.array([lv for lv in LEVEL_ORDER if lv in (1, 2, 4)], dtype=np.int64)
+_MIXED_LEVELS = np.array([lv for lv in LEVEL_ORDER if lv not in (1, 2, 4)], dtype=np.int64)
 
 
 def plan_levels(
@@ -107,7 +110,11 @@ def _boxes_program(program: Program) -> tuple:
 
 
 def program_bounds(
-    program: Program, lo: np.ndarray, hi: np.ndarray, share: bool = True
+    program: Program,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    share: bool = True,
+    samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of F over K closed boxes ``[lo[k], hi[k]]`` (float64 ``(K, 3)``, world coordinates).
 
@@ -121,6 +128,13 @@ def program_bounds(
     A value of some axes is bounded once per distinct combination of the boxes' ranges on
     those axes (:func:`plan_levels`); ``share=False`` bounds every level once per box (the
     same bounds, slower: the check of the sharing).
+
+    ``samples``, the grid's coordinates along x, y and z (sorted), bounds F over the **grid
+    points** of each box instead (:func:`grid_point_bounds`): a value of one axis (``tan(m x)``,
+    ``|y|^0.3``) is bounded by its values at that axis's coordinates in the box's range, each
+    bounded over the point itself (a box of zero width), so a pole between two samples costs
+    nothing; the other values are bounded from those as before. Every grid point's F is then
+    NaN or within the bounds; points between the samples are not covered.
     """
     if not isinstance(program, Program):
         raise TypeError(f"expected a Program, got {type(program).__name__}")
@@ -133,24 +147,135 @@ def program_bounds(
         interpreter.load_interpreter()  # the elementary rows the rules call
         prog = _boxes_program(program)
         depth = max(1, int(np.max(program.rows)))
+        points = None if samples is None else _axis_points(prog, depth, samples)
         for k0 in range(0, K, BOXES_CHUNK):
             k1 = min(K, k0 + BOXES_CHUNK)
             _run_chunk(
-                prog, depth, blo[k0:k1], bhi[k0:k1], share, flo[k0:k1], fhi[k0:k1], nan[k0:k1]
+                prog,
+                depth,
+                blo[k0:k1],
+                bhi[k0:k1],
+                share,
+                flo[k0:k1],
+                fhi[k0:k1],
+                nan[k0:k1],
+                points,
             )
     return finish(flo, fhi, nan)
 
 
-def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan) -> None:
-    """Bounds of the boxes of one chunk into the views ``flo``, ``fhi``, ``nan``."""
+def grid_point_bounds(
+    samples: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> Callable[[Program, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``program_bounds`` over the grid points of boxes of a grid with these coordinates along
+    x, y and z (sorted): what a sparse evaluator of that grid needs (:func:`program_bounds`)."""
+    axes = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in samples)
+
+    def bounds(program: Program, lo: np.ndarray, hi: np.ndarray):
+        return program_bounds(program, lo, hi, samples=axes)  # type: ignore[arg-type]
+
+    return bounds
+
+
+def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan, points=None) -> None:
+    """Bounds of the boxes of one chunk into the views ``flo``, ``fhi``, ``nan``; with
+    ``points`` (:func:`_axis_points`), the one-axis levels over the samples in the ranges."""
     counts, offsets, item_map, firsts = plan_levels(blo, bhi, share)
     SL = np.empty((depth, item_map.shape[1]))
     SH = np.empty((depth, item_map.shape[1]))
+    SN = np.zeros((depth, item_map.shape[1]), dtype=np.uint8)
     for a, lv in enumerate((1, 2, 4)):  # row 0 of the x, y, z levels: the axis ranges
         cols = slice(offsets[lv], offsets[lv] + counts[lv])
         SL[0, cols] = blo[firsts[lv], a]
         SH[0, cols] = bhi[firsts[lv], a]
-    run_boxes(prog, BOXES_TILE, _LEVELS, counts, offsets, item_map, SL, SH, flo, fhi, nan)
+    levels = _LEVELS
+    if points is not None:
+        for a, lv in enumerate((1, 2, 4)):
+            axis, lows, highs, nans = points[a]
+            first = np.searchsorted(axis, blo[firsts[lv], a], side="left")
+            last = np.searchsorted(axis, bhi[firsts[lv], a], side="right")
+            cols = slice(offsets[lv], offsets[lv] + counts[lv])
+            SL[:, cols] = _range_reduce(lows, first, last, np.minimum, EMPTY_LO)
+            SH[:, cols] = _range_reduce(highs, first, last, np.maximum, EMPTY_HI)
+            SN[:, cols] = _range_reduce(nans, first, last, np.maximum, 0)
+        levels = _MIXED_LEVELS
+    run_boxes(prog, BOXES_TILE, levels, counts, offsets, item_map, SL, SH, SN, flo, fhi, nan)
+
+
+def _axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
+    """Per axis: its coordinates and the one-axis level's stores at each of them, bounded over
+    the point (a box of zero width): ``(axis, L, H, N)``, stores ``(depth, n)``."""
+    n = [len(a) for a in samples]
+    counts = np.array([0, n[0], n[1], 0, n[2], 0, 0, 0], dtype=np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    total = int(counts.sum())
+    item_map = np.zeros((8, total), dtype=np.int64)
+    SL = np.empty((depth, total))
+    SH = np.empty((depth, total))
+    SN = np.zeros((depth, total), dtype=np.uint8)
+    for a, lv in enumerate((1, 2, 4)):
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        item_map[lv, cols] = np.arange(offsets[lv], offsets[lv] + counts[lv])
+        SL[0, cols] = samples[a]
+        SH[0, cols] = samples[a]
+    out_lo, out_hi = np.empty(total), np.empty(total)  # unused: the output is level xyz's
+    out_nan = np.zeros(total, dtype=np.uint8)
+    run_boxes(
+        prog,
+        BOXES_TILE,
+        _AXIS_LEVELS,
+        counts,
+        offsets,
+        item_map,
+        SL,
+        SH,
+        SN,
+        out_lo,
+        out_hi,
+        out_nan,
+    )
+    out = []
+    for a, lv in enumerate((1, 2, 4)):
+        cols = slice(offsets[lv], offsets[lv] + counts[lv])
+        out.append(
+            (
+                samples[a],
+                _range_tables(SL[:, cols], np.minimum),
+                _range_tables(SH[:, cols], np.maximum),
+                _range_tables(SN[:, cols], np.maximum),
+            )
+        )
+    return out
+
+
+def _range_tables(rows: np.ndarray, op) -> list[np.ndarray]:
+    """A sparse table of ``rows`` ``(depth, n)``: entry j holds ``op`` over the windows of
+    ``2**j`` samples starting at each column (so any range is ``op`` of two windows)."""
+    tables = [np.ascontiguousarray(rows)]
+    width = 1
+    while 2 * width <= rows.shape[1]:
+        prev = tables[-1]
+        tables.append(op(prev[:, : prev.shape[1] - width], prev[:, width:]))
+        width *= 2
+    return tables
+
+
+def _range_reduce(tables: list[np.ndarray], first, last, op, empty) -> np.ndarray:
+    """``op`` over columns ``first[i]:last[i]`` of the table's rows, per range ``i``
+    (``empty`` for a range without a column)."""
+    length = np.maximum(last - first, 1)
+    j = np.floor(np.log2(length)).astype(np.int64)
+    j = np.where((1 << (j + 1)) <= length, j + 1, j)  # log2 rounding at powers of two
+    j = np.where((1 << j) > length, j - 1, j)
+    out = np.empty((tables[0].shape[0], len(first)), dtype=tables[0].dtype)
+    for level in np.unique(j):
+        pick = np.flatnonzero(j == level)
+        table = tables[level]
+        a = first[pick]
+        b = np.minimum(last[pick] - (1 << level), table.shape[1] - 1)
+        out[:, pick] = op(table[:, np.minimum(a, table.shape[1] - 1)], table[:, b])
+    out[:, last <= first] = empty
+    return out
 
 
 @functools.lru_cache(maxsize=COMPILED_CACHE)
@@ -167,4 +292,4 @@ def tree_bounds(
     return program_bounds(_compiled(tree, tuple(sorted((params or {}).items()))), lo, hi)
 
 
-__all__ = ["BOXES_TILE", "plan_levels", "program_bounds", "tree_bounds"]
+__all__ = ["BOXES_TILE", "plan_levels", "program_bounds", "grid_point_bounds", "tree_bounds"]

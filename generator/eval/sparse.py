@@ -1,9 +1,10 @@
 """Sparse evaluation: sample a formula only in the blocks of the grid the surface may cross.
 
 The grid's cells are split into cubic *leaf blocks* of :data:`BLOCK` cells a side.  Coarse to
-fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic
-(:func:`~surfgen.generator.eval.intervals.program_bounds` over the closed box of the block's grid
-points): a block whose bounds lie above the level is *outside* (every sample is above the level
+fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic over the block's grid
+points (:func:`~surfgen.generator.eval.intervals.grid_point_bounds`: a value of one axis, such as
+``tan(m x)``, by its values at the block's coordinates on that axis, so a pole between two
+samples does not make the block's bounds infinite): a block whose bounds lie above the level is *outside* (every sample is above the level
 or non-finite, which meshing counts as outside), one whose bounds are finite and below the level
 is *inside*; the others are split in eight and bounded again, down to the leaves.  Only the
 leaves left uncertain are *sampled*: their ``(BLOCK + 1)**3`` grid points (the points of the
@@ -35,7 +36,7 @@ from numba import njit
 
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
-from surfgen.generator.eval.intervals import program_bounds
+from surfgen.generator.eval.intervals import grid_point_bounds
 from surfgen.generator.eval.tape import evaluate_axes, evaluate_points
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.jit.options import INLINE, KERNEL
@@ -172,14 +173,15 @@ def evaluate_sparse(
     level: float = 0.0,
     faces: bool = False,
     block: int = BLOCK,
-    bounds: Bounds = program_bounds,
+    bounds: Bounds | None = None,
     max_share: float | None = None,
 ) -> SparseField | None:
     """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
 
     ``faces``: also sample the inside leaves on the box's faces (for capped meshes);
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
-    bounds (:func:`~surfgen.generator.eval.intervals.program_bounds`); ``max_share``: return
+    bounds (None: over the grid's points, :func:`~surfgen.generator.eval.intervals.grid_point_bounds`;
+    :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``max_share``: return
     None, having only bounded the blocks, when the leaves left to sample hold more than this
     share of the grid's points (the dense grid is then cheaper).
     Raises ``FormulaError`` as compiling the formula does.
@@ -203,7 +205,7 @@ def evaluate_sparse_program(
     level: float = 0.0,
     faces: bool = False,
     block: int = BLOCK,
-    bounds: Bounds = program_bounds,
+    bounds: Bounds | None = None,
     max_share: float | None = None,
 ) -> SparseField | None:
     """:func:`evaluate_sparse` of a compiled program."""
@@ -211,6 +213,8 @@ def evaluate_sparse_program(
         raise ValueError(f"block must be a whole number >= 1, got {block!r}")
     t0 = time.perf_counter()
     axes = grid.axes()
+    if bounds is None:
+        bounds = grid_point_bounds(axes)
     state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
     if faces:
         _sample_face_leaves(state)

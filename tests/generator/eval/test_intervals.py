@@ -17,11 +17,14 @@ from hypothesis import strategies as st
 from surfgen.generator.errors import GridError
 from surfgen.generator.eval import intervals
 from surfgen.generator.eval.compiler import compile_tree
-from surfgen.generator.eval.intervals import program_bounds, tree_bounds
+from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds, tree_bounds
 from surfgen.generator.eval.intervals_reference import reference_bounds
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.families import family_choices
+from surfgen.generator.model.presets import PRESETS
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 
 FORMULAS = Path(__file__).parents[2] / "support" / "data" / "eq13_formulas.jsonl"
@@ -338,3 +341,108 @@ def test_bad_boxes_and_programs_are_refused() -> None:
         program_bounds(program, np.ones((1, 3)), np.zeros((1, 3)))
     with pytest.raises(TypeError, match="Program"):
         program_bounds("x", np.zeros((1, 3)), np.ones((1, 3)))  # type: ignore[arg-type]
+
+
+# ----------------------------------------------------------------------------- grid points
+
+
+def assert_grid_points_bounded(tree, params, grid: Grid, blocks: int, rng) -> None:
+    """The grid-point bounds of boxes of grid points (blocks of the grid, and random ones)
+    hold every sample's value (dense grid evaluator) or it is NaN; finite means finite."""
+    axes = grid.axes()
+    values = evaluate(tree, grid, params).values
+    n = grid.shape[0]
+    cuts = np.linspace(0, n - 1, blocks + 1).round().astype(int)
+    spans = [(cuts[i], cuts[i + 1]) for i in range(blocks)]
+    spans += [tuple(sorted(rng.integers(0, n, 2))) for _ in range(6)]
+    boxes = [(a, b, c) for a in spans for b in spans[:4] for c in spans[-4:]]
+    blo = np.array([[axes[k][s[0]] for k, s in enumerate(box)] for box in boxes])
+    bhi = np.array([[axes[k][s[1]] for k, s in enumerate(box)] for box in boxes])
+    program = compile_tree(tree, dict(params))
+    flo, fhi, finite = grid_point_bounds(axes)(program, blo, bhi)
+    for k, box in enumerate(boxes):
+        part = values[tuple(slice(s[0], s[1] + 1) for s in box)]
+        real = part[~np.isnan(part)]
+        assert np.all(real >= flo[k]) and np.all(real <= fhi[k]), f"box {k} {box}"
+        if finite[k]:
+            assert np.isfinite(part).all(), f"box {k} {box}"
+
+
+def test_a_pole_between_samples_leaves_grid_point_bounds_finite() -> None:
+    """tan(m x) has poles on planes x = const: over a block's box its bounds are infinite,
+    over the block's grid points they are the values there (and hold them all)."""
+    tree = parse("abs(tan(0.861*x))^0.9 + y^2 + z^2 - 30")
+    grid = Grid(Box.cube(20.0), (64,) * 3)
+    axes = grid.axes()
+    program = compile_tree(tree)
+    blo, bhi = grid_boxes([-20.0] * 3, [20.0] * 3, 1)  # the whole box, then blocks of 9 cells
+    for lo, hi in (
+        (blo, bhi),
+        *[
+            (
+                np.array([[axes[0][i], axes[1][0], axes[2][0]]]),
+                np.array([[axes[0][i + 9], axes[1][9], axes[2][9]]]),
+            )
+            for i in range(0, 54, 9)
+        ],
+    ):
+        whole = program_bounds(program, lo, hi)
+        points = grid_point_bounds(axes)(program, lo, hi)
+        assert not whole[2][0] and whole[1][0] == np.inf  # a pole in every such block
+        assert points[2][0] and points[1][0] < 1e6
+    assert_grid_points_bounded(tree, {}, grid, 7, np.random.default_rng(0))
+
+
+@PROPERTY
+@given(formulas(), st.integers(0, 2**32 - 1), st.sampled_from([0.2, 2.0, 20.0]))
+def test_random_formulas_are_bounded_at_grid_points(text: str, seed: int, half: float) -> None:
+    """Property: every grid point's value lies in its box's grid-point bounds."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 19))
+    lo = -half * rng.uniform(0.2, 1.0, 3)
+    grid = Grid(Box(tuple(lo), tuple(lo + 2 * half * rng.uniform(0.3, 1.0, 3))), (n,) * 3)
+    assert_grid_points_bounded(parse(text), {}, grid, 3, rng)
+
+
+@pytest.mark.parametrize("name", ["eqA", "eqB", "eqC"])
+def test_the_paper_s_equations_are_bounded_at_grid_points(name: str) -> None:
+    spec = PRESETS[name].spec()
+    grid = Grid(Box.from_bounds(spec.box), (33,) * 3)
+    assert_grid_points_bounded(spec.tree(), spec.params, grid, 4, np.random.default_rng(1))
+
+
+def test_grid_point_bounds_fail_when_a_sample_is_left_out(monkeypatch) -> None:
+    """The check above can fail: ranges that drop their last coordinate miss samples."""
+    searchsorted = np.searchsorted
+
+    def short(a, v, side="left"):
+        out = searchsorted(a, v, side=side)
+        return out - 1 if side == "right" else out
+
+    monkeypatch.setattr(intervals.np, "searchsorted", short)
+    with pytest.raises(AssertionError, match="box"):
+        assert_grid_points_bounded(
+            parse("x + 2*y^3 + sin(3*z)"),
+            {},
+            Grid(Box.cube(2.0), (17,) * 3),
+            4,
+            np.random.default_rng(3),
+        )
+
+
+def test_range_reductions_are_the_minimum_and_maximum_over_the_range() -> None:
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 5, 16, 17, 100):
+        rows = rng.normal(size=(3, n))
+        first = rng.integers(0, n + 1, 200)
+        last = rng.integers(0, n + 1, 200)
+        low = intervals._range_reduce(
+            intervals._range_tables(rows, np.minimum), first, last, np.minimum, np.inf
+        )
+        high = intervals._range_reduce(
+            intervals._range_tables(rows, np.maximum), first, last, np.maximum, -np.inf
+        )
+        for i, (a, b) in enumerate(zip(first, last, strict=True)):
+            want_lo = rows[:, a:b].min(axis=1) if b > a else np.full(3, np.inf)
+            want_hi = rows[:, a:b].max(axis=1) if b > a else np.full(3, -np.inf)
+            assert np.array_equal(low[:, i], want_lo) and np.array_equal(high[:, i], want_hi)

@@ -137,10 +137,14 @@ def test_auto_picks_sparse_on_large_grids_and_falls_back():
     assert resolve_evaluator("reference", large) == "reference"
     sphere = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (192,) * 3)
     assert realise(sphere, evaluator="auto", cap=True).sparse
-    # equation A is -inf on planes through every block: no block can be skipped
+    # poles on planes x + y + z = k pi / 9, through every block (a value of all three axes:
+    # infinite bounds wherever a plane passes): no block can be skipped, the dense grid is used
+    poles = SurfaceSpec("1/sin(9*(x+y+z))-0.5", (-1.5, 1.5) * 3, (192,) * 3)
+    assert not realise(poles, evaluator="auto", allow_empty=True).sparse
+    # equation A's poles are on planes x, y or z = const (tan(m x) and the like): a value of
+    # one axis is bounded at the grid's coordinates, so its blocks are skipped and auto is sparse
     eq_a = PRESETS["eqA"].spec().replace(grid=(192, 192, 192))
-    made = realise(eq_a, evaluator="auto", allow_empty=True)
-    assert not made.sparse
+    assert realise(eq_a, evaluator="auto", allow_empty=True).sparse
 
 
 def test_bad_block_and_evaluator():
