@@ -40,7 +40,7 @@ REASONS = (
     "nonmanifold",  # non-manifold edges or vertices after repair
     "not_watertight",  # open, although capped
     "speckle",  # too many components, or no dominant one
-    "fragmented",  # drawn as one body (sculpture, infill, twist), broken into pieces
+    "fragmented",  # drawn as one body, broken into pieces; or bodies with flying debris
     "box_dominated",  # mostly the caps on the box faces
     "blob",  # only convex lumps (plates, slabs, smooth blobs)
     "plain",  # its envelope with barely a mark on it (sculptures)
@@ -66,6 +66,7 @@ class FilterConfig:
     max_components: int = 60
     min_largest_component_fraction: float = 0.2
     min_body_fraction: float = 0.8
+    max_pieces: int = 8
     max_box_fraction: float = 0.35
     max_genus: int = 500
     blob_max_curvature: float = 1.25
@@ -111,6 +112,8 @@ class FilterConfig:
         for name in ("min_faces", "max_components", "max_genus"):
             if getattr(self, name) < 0:
                 raise SpecError(f"config [filters]: {name} must be >= 0")
+        if self.max_pieces < 1:
+            raise SpecError(f"config [filters]: max_pieces must be >= 1, got {self.max_pieces}")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> FilterConfig:
@@ -309,12 +312,19 @@ def unresolved(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
 
 
 def judge(
-    metrics: Mapping[str, Any], cfg: FilterConfig, capped: bool, one_body: bool = False
+    metrics: Mapping[str, Any],
+    cfg: FilterConfig,
+    capped: bool,
+    one_body: bool = False,
+    porous: bool = True,
 ) -> Verdict:
     """The verdict on :func:`shape_metrics` (or only :func:`quick_metrics`: the checks whose
     metrics are missing are skipped). Every failing reason is listed. ``one_body``: the shape
     was drawn as one connected body (a family with ``one_body``: sculpture, infill, twist),
-    so a largest piece under ``min_body_fraction`` of the area is ``fragmented``."""
+    so a largest piece under ``min_body_fraction`` of the area is ``fragmented``. ``porous``
+    False: the shape was drawn as bodies that do not fall apart (every family but lattice and
+    infill), so more than ``max_pieces`` pieces is ``fragmented`` too: a body with flying
+    debris (a shape of no family, such as a formula given, is not judged this way)."""
     m = metrics
     reasons: list[str] = []
     if m["faces"] < cfg.min_faces:
@@ -328,7 +338,9 @@ def judge(
         or m["largest_component_fraction"] < cfg.min_largest_component_fraction
     ):
         reasons.append("speckle")
-    if one_body and m["largest_component_fraction"] < cfg.min_body_fraction:
+    if (one_body and m["largest_component_fraction"] < cfg.min_body_fraction) or (
+        not porous and m["components"] > cfg.max_pieces
+    ):
         reasons.append("fragmented")
     if m["box_fraction"] > cfg.max_box_fraction:
         reasons.append("box_dominated")

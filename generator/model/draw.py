@@ -220,7 +220,9 @@ class Family:
     family has no keys of its own); ``mix_weight`` its weight in the default ``mix`` (0: not in
     it); ``description`` one line for ``--help`` and the docs; ``one_body``: its shapes are
     drawn as one connected body, so the filters reject one broken into pieces (``fragmented``:
-    ``[filters] min_body_fraction``).
+    ``[filters] min_body_fraction``); ``porous``: its shapes may fall into many pieces (struts
+    cut by the box or an envelope), so the filters allow it more than ``[filters] max_pieces``
+    (a body, or a few, in more pieces has flying debris: ``fragmented``).
     """
 
     name: str
@@ -229,6 +231,7 @@ class Family:
     settings: type | None = None
     mix_weight: float = 0.0
     one_body: bool = False
+    porous: bool = False
 
     @property
     def table(self) -> str | None:

@@ -231,6 +231,7 @@ def _judge(
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
     one_body = draw is not None and get_family(draw.family).one_body
+    porous = draw is None or get_family(draw.family).porous
 
     def stop(verdict: Verdict, mesh: Mesh | None = None):
         return verdict, metrics, mesh, (lambda: verdict, lambda: verdict)
@@ -258,7 +259,7 @@ def _judge(
     capped = run.cap and run.walls != "remove"
 
     def judged() -> Verdict:  # the verdict on the metrics measured so far
-        return judge(metrics, fcfg, capped=capped, one_body=one_body)
+        return judge(metrics, fcfg, capped=capped, one_body=one_body, porous=porous)
 
     try:
         mesh, edges = extract_with_edges(field_, spec.level, cap=capped)

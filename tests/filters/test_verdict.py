@@ -216,3 +216,28 @@ def test_a_body_broken_into_pieces_is_fragmented_only_where_drawn_as_one() -> No
     assert "fragmented" not in judge(one, CFG, capped=True, one_body=True).reasons
     bodies = {name for name in family_names() if get_family(name).one_body}
     assert bodies == {"sculpture", "infill", "twist"}
+
+
+def test_bodies_with_flying_debris_are_fragmented_unless_porous() -> None:
+    """A body with specks around it (nine balls: one large, eight small satellites) is
+    fragmented in the families of bodies (more than ``max_pieces`` pieces), not in the porous
+    ones (lattice, infill: struts cut by the box or an envelope), nor when no family is known."""
+    body = "(x^2+y^2+z^2-0.64)"
+    satellites = "*".join(
+        f"((x-{1.2 * a})^2+(y-{1.2 * b})^2+(z-{1.2 * c})^2-0.01)"
+        for a in (-1, 1)
+        for b in (-1, 1)
+        for c in (-1, 1)
+    )
+    nine = _closed_metrics(f"{body}*{satellites}", 1.6, 48)
+    assert nine["components"] == 9 and nine["largest_component_fraction"] > 0.9, nine
+    assert "fragmented" in judge(nine, CFG, capped=True, porous=False).reasons
+    assert "fragmented" not in judge(nine, CFG, capped=True, porous=True).reasons
+    assert "fragmented" not in judge(nine, CFG, capped=True).reasons  # no family: not judged
+    assert "fragmented" not in judge(nine, FilterConfig(max_pieces=9), True, porous=False).reasons
+    eight = {**nine, "components": 8}
+    assert "fragmented" not in judge(eight, CFG, capped=True, porous=False).reasons
+    porous = {name for name in family_names() if get_family(name).porous}
+    assert porous == {"lattice", "infill"}
+    with pytest.raises(SpecError, match="max_pieces must be >= 1"):
+        FilterConfig(max_pieces=0)

@@ -380,4 +380,5 @@ FAMILY = Family(
     InfillSettings,
     mix_weight=0.14,
     one_body=True,
+    porous=True,
 )

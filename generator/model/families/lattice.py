@@ -179,4 +179,5 @@ FAMILY = Family(
     "triply periodic patterns (Schwarz, gyroid, diamond, Neovius, I-WP ...) cut by the box",
     LatticeSettings,
     mix_weight=0.06,
+    porous=True,
 )
