@@ -1,15 +1,15 @@
 """Sparse evaluation: sample a formula only in the blocks of the grid the surface may cross.
 
 The grid's cells are split into cubic *leaf blocks* of :data:`BLOCK` cells a side.  Coarse to
-fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic over the block's grid
-points (:func:`~surfgen.generator.eval.intervals.grid_point_bounds`: a value of one axis, such as
-``tan(m x)``, by its values at the block's coordinates on that axis, so a pole between two
-samples does not make the block's bounds infinite): a block whose bounds lie above the level is *outside* (every sample is above the level
-or non-finite, which meshing counts as outside), one whose bounds are finite and below the level
-is *inside*; the others are split in eight and bounded again, down to the leaves.  Only the
-leaves left uncertain are *sampled*: their ``(BLOCK + 1)**3`` grid points (the points of the
-neighbouring blocks' shared faces included, so a leaf's cells have all their corners) are
-evaluated with the fast evaluator's grid kernel on those coordinates
+fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic over the block's
+grid points (:func:`~surfgen.generator.eval.intervals.grid_point_bounds`: a value of one axis,
+such as ``tan(m x)``, by its values at the block's coordinates on that axis, so a pole between
+two samples does not make the block's bounds infinite): a block whose bounds lie above the
+level is *outside* (every sample is above the level or non-finite, which meshing counts as
+outside), one whose bounds are finite and below the level is *inside*; the others are split
+in eight and bounded again, down to the leaves.  Only the leaves left uncertain are *sampled*:
+their ``(BLOCK + 1)**3`` grid points (the points of the neighbouring blocks' shared faces
+included, so a leaf's cells have all their corners) are evaluated with the fast evaluator's grid kernel on those coordinates
 (:func:`~surfgen.generator.eval.tape.evaluate_axes`), bit for bit the dense grid's values.
 
 A cell lies in exactly one leaf, and its corners in that leaf's closed box: a cell whose corners
@@ -180,8 +180,10 @@ def evaluate_sparse(
 
     ``faces``: also sample the inside leaves on the box's faces (for capped meshes);
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
-    bounds (None: over the grid's points, :func:`~surfgen.generator.eval.intervals.grid_point_bounds`;
-    :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``max_share``: return
+    bounds (None: over the grid's points,
+    :func:`~surfgen.generator.eval.intervals.grid_point_bounds`;
+    :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``max_share``:
+    return
     None, having only bounded the blocks, when the leaves left to sample hold more than this
     share of the grid's points (the dense grid is then cheaper).
     Raises ``FormulaError`` as compiling the formula does.

@@ -22,7 +22,7 @@ trigonometric ones).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 VARIABLES = ("x", "y", "z")
@@ -250,29 +250,34 @@ def params_of(tree: Expr) -> frozenset[str]:
 
 def substitute_params(tree: Expr, values: Mapping[str, float]) -> Expr:
     """Replace every ``param`` node named in ``values`` by its number."""
-    memo: dict[int, Expr] = {}
-    for node in postorder(tree):  # children first: no recursion
-        if node.op == "param" and node.value in values:
-            out = num(values[node.value])  # type: ignore[index]
-        elif node.args:
-            out = Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
-        else:
-            out = node
-        memo[id(node)] = out
-    return memo[id(tree)]
+
+    def number(node: Expr) -> Expr | None:
+        name = str(node.value)
+        return num(values[name]) if node.op == "param" and name in values else None
+
+    return _replace_leaves(tree, number)
 
 
 def scale_variables(tree: Expr, factors: Mapping[str, float]) -> Expr:
     """Replace every variable named in ``factors`` by itself times its factor
     (``{"x": 2.0}``: ``x`` becomes ``x*2``)."""
+
+    def scaled(node: Expr) -> Expr | None:
+        name = str(node.value)
+        return node * num(float(factors[name])) if node.op == "var" and name in factors else None
+
+    return _replace_leaves(tree, scaled)
+
+
+def _replace_leaves(tree: Expr, replace: Callable[[Expr], Expr | None]) -> Expr:
+    """``tree`` with each leaf for which ``replace`` gives a tree replaced by it, the nodes above
+    rebuilt (children first: no recursion; shared subtrees stay shared)."""
     memo: dict[int, Expr] = {}
-    for node in postorder(tree):  # children first: no recursion
-        if node.op == "var" and node.value in factors:
-            out = node * num(float(factors[node.value]))  # type: ignore[index]
-        elif node.args:
+    for node in postorder(tree):
+        if node.args:
             out = Expr(node.op, tuple(memo[id(a)] for a in node.args), node.value)
         else:
-            out = node
+            out = replace(node) or node
         memo[id(node)] = out
     return memo[id(tree)]
 
