@@ -400,3 +400,53 @@ def run_grid(prog, tile, sx, sy, sz, syz, out, prof, part, lo, hi):
         _yz_rows(j0, j1, prog, tile, sx, sy, sz, syz, out, prof)
     if whole or part == GRID_SLAB:
         _slab(i0, i1, prog, tile, sx, sy, sz, syz, out, prof)
+
+
+@njit(**INLINE)
+def tile_for(n, tile_max):
+    """:func:`surfgen.generator.eval.tape._tile` (the tile for runs of ``n`` points along z)."""
+    if 0 < n <= tile_max // 2:
+        return (tile_max // n) * n
+    pieces = -(-n // tile_max)
+    return max(1, -(-n // pieces))
+
+
+@njit(**KERNEL)
+def run_columns(prog, prog_rows, tile_max, ax, ay, az, cols, members, corner, extent, values):
+    """Evaluate bricks column by column, each column as a grid of its own: the bricks
+    ``members[cols[c, 0]:cols[c, 1]]`` share their x and y points (``corner``, ``extent``) and
+    are ordered by their first z index; the grid runs once on the union of their z points (with ``prog_rows``, the program for tiles of several rows, where
+    the tile holds two runs), and each brick's points are copied to ``values[brick]``. One
+    call for many columns: no Python between them (the sparse evaluator's bricks)."""
+    zs = np.empty(az.size, dtype=np.int64)
+    no_profile = np.empty(0)
+    for c in range(cols.shape[0]):
+        m0, m1 = cols[c, 0], cols[c, 1]
+        nz = 0
+        end = 0  # one past the last z index taken
+        for q in range(m0, m1):
+            b = members[q]
+            for k in range(max(corner[b, 2], end), corner[b, 2] + extent[b, 2]):
+                zs[nz] = k
+                nz += 1
+            end = max(end, corner[b, 2] + extent[b, 2])
+        first = members[m0]
+        i0, j0 = corner[first, 0], corner[first, 1]
+        ni, nj = extent[first, 0], extent[first, 1]
+        cz = np.empty(nz)
+        for q in range(nz):
+            cz[q] = az[zs[q]]
+        tile = tile_for(nz, tile_max)
+        prog_c = prog_rows if tile >= 2 * nz else prog
+        sx, sy, sz, syz = grid_stores(prog_c[5], ax[i0 : i0 + ni], ay[j0 : j0 + nj], cz)
+        out = np.empty((ni, nj, nz))
+        run_grid(prog_c, tile, sx, sy, sz, syz, out, no_profile, GRID_ALL, 0, 0)
+        w = 0
+        for q in range(m0, m1):
+            b = members[q]
+            while zs[w] < corner[b, 2]:
+                w += 1
+            for i in range(ni):
+                for j in range(nj):
+                    for k in range(extent[b, 2]):
+                        values[b, i, j, k] = out[i, j, w + k]

@@ -320,22 +320,45 @@ def rows_program(program: Program) -> tuple:
     )
 
 
-def evaluate_axes(program: Program, ax: np.ndarray, ay: np.ndarray, az: np.ndarray) -> np.ndarray:
-    """``program`` on the tensor product of the 1-D coordinates ``ax``, ``ay``, ``az`` (any
-    values, e.g. slices or selections of a grid's axes), one thread: shape
-    ``(ax.size, ay.size, az.size)``. Each point's value is the one :func:`evaluate_program`
-    gives on a grid whose axes hold the same coordinates, bit for bit (every operation is
-    elementwise): the sparse evaluator's way to evaluate pieces of a grid."""
+def evaluate_columns(
+    program: Program,
+    axes: tuple[np.ndarray, np.ndarray, np.ndarray],
+    cols: np.ndarray,
+    members: np.ndarray,
+    corner: np.ndarray,
+    extent: np.ndarray,
+    values: np.ndarray,
+    threads: int = 1,
+) -> None:
+    """Fill the bricks ``values[b, :nx, :ny, :nz]`` (``extent[b]`` points from grid index
+    ``corner[b]``) column by column: column ``c`` is the bricks ``members[cols[c, 0]:cols[c, 1]]``,
+    which share their x and y points and are ordered by z; each column is run as a grid of its
+    own (:func:`.grid_driver.run_columns`) on its x and y points and the union of its bricks'
+    z points: each point's value is the one a grid with the same coordinates gives, bit for bit
+    (every operation is elementwise). ``threads`` take contiguous runs of columns of about
+    equal points."""
     interpreter.load_interpreter()
-    axes = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (ax, ay, az)]
-    out = np.empty(tuple(a.size for a in axes), np.float64)
-    if out.size == 0:
-        return out
-    tile = _tile(out.shape[2])
-    prog = _prog(program, tile >= 2 * out.shape[2])
-    stores = kernels.grid_stores(prog[5], *axes)
-    kernels.run_grid(prog, tile, *stores, out, _NO_PROFILE, kernels.GRID_ALL, 0, 0)
-    return out
+    if len(cols) == 0:
+        return
+    ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in axes)
+    plain, rows = _prog(program, False), _prog(program, True)
+    cols = np.ascontiguousarray(cols, dtype=np.int64)
+
+    def run(c0: int, c1: int) -> None:
+        kernels.run_columns(
+            plain, rows, TILE_MAX, ax, ay, az, cols[c0:c1], members, corner, extent, values
+        )
+
+    n = max(1, min(int(threads), len(cols)))
+    if n == 1:
+        run(0, len(cols))
+        return
+    points = np.cumsum(np.add.reduceat(np.prod(extent[members], axis=1), cols[:, 0]))
+    bounds = [0, *np.searchsorted(points, points[-1] * np.arange(1, n) / n).tolist(), len(cols)]
+    helpers = [_pool(n).submit(run, a, b) for a, b in zip(bounds[1:-1], bounds[2:], strict=True)]
+    run(bounds[0], bounds[1])  # this thread takes the first run
+    for future in helpers:
+        future.result()
 
 
 def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:

@@ -639,3 +639,40 @@ def test_the_tile_length_follows_the_cpu():
         assert fast.tile_max(intel) == 512
     assert fast.tile_max(fast._host_cpu_name()) == fast.TILE_MAX
     assert fast._tile(128) == fast.TILE_MAX  # several z rows of 128 to a tile
+
+
+@pytest.mark.parametrize("tile_max", [8, 24, 1024])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
+    # The sparse evaluator's bricks, column by column in one kernel call per thread
+    # (tape.evaluate_columns): each brick holds the dense grid's values, bit for bit, whether
+    # its column's z run fits a tile twice (several rows to a tile) or not, with gaps in z.
+    from surfgen.generator.eval import tape as fast
+
+    monkeypatch.setattr(fast, "TILE_MAX", tile_max)
+    tree = parse("sin(x*y)*z+cos(y)*z^2+atan2(x*y,z)+tan(x*z+y*z)")
+    program = compile_tree(tree)
+    grid = Grid(Box((-2.0, -1.5, -2.5), (2.0, 1.0, 3.0)), (17, 13, 45))
+    want = evaluate_reference(tree, grid).values
+    block = 4
+    rng = np.random.default_rng(3)
+    leaves = np.argwhere(rng.random((4, 3, 11)) < 0.6).astype(np.int64)  # argwhere: in order
+    corner = leaves * block
+    extent = np.minimum(block + 1, np.asarray(grid.shape)[None, :] - corner)
+    members = np.arange(len(leaves), dtype=np.int64)
+    starts = np.flatnonzero(np.r_[True, np.any(leaves[1:, :2] != leaves[:-1, :2], axis=1)])
+    cols = np.stack([starts, np.r_[starts[1:], len(leaves)]], axis=1)
+    values = np.full((len(leaves), block + 1, block + 1, block + 1), np.nan)
+    fast.evaluate_columns(program, grid.axes(), cols, members, corner, extent, values, threads)
+    for b, (c, e) in enumerate(zip(corner, extent, strict=True)):
+        got = values[b, : e[0], : e[1], : e[2]]
+        assert_identical(got, want[c[0] : c[0] + e[0], c[1] : c[1] + e[1], c[2] : c[2] + e[2]])
+    assert np.isnan(values[extent[:, 2] < block + 1][..., block]).all()  # past the grid: untouched
+
+
+def test_the_columns_kernel_chooses_the_tile_as_the_grid_does():
+    from surfgen.generator.eval import grid_driver
+    from surfgen.generator.eval import tape as fast
+
+    for n in range(1, 3000, 7):
+        assert grid_driver.tile_for(n, fast.TILE_MAX) == fast._tile(n)
