@@ -326,9 +326,13 @@ def grid_stores(rows, ax, ay, az):
     sx = np.empty((rows[1], ax.size))
     sy = np.empty((rows[2], ay.size))
     sz = np.empty((rows[4], az.size))
-    sx[0] = ax
-    sy[0] = ay
-    sz[0] = az
+    # element by element: a row copy would compile numba's shape-mismatch error (1.5 s)
+    for i in range(ax.size):
+        sx[0, i] = ax[i]
+    for j in range(ay.size):
+        sy[0, j] = ay[j]
+    for k in range(az.size):
+        sz[0, k] = az[k]
     syz = np.empty((rows[6], ay.size, az.size))
     return sx, sy, sz, syz
 

@@ -191,25 +191,32 @@ def compiled_not_run(*others: tuple[object, str]) -> Iterator[None]:
     compile needs only the interpreter's calling convention
     (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
 
+    sites = ((kernels, "run_grid"), (kernels, "run_columns"), *others)
+    originals = {(module, name): getattr(module, name) for module, name in sites}
+
+    def put(stand_ins: bool) -> None:
+        for (module, name), dispatcher in originals.items():
+            setattr(module, name, compiling(dispatcher) if stand_ins else dispatcher)
+
     def compiling(dispatcher):
         def compile_for(*args):
-            dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            put(False)  # a kernel that calls another (run_columns: run_grid) compiles the real one
+            try:
+                dispatcher.compile(tuple(numba.typeof(a) for a in args))
+            finally:
+                put(True)
             return 0
 
         return compile_for
 
-    sites = ((kernels, "run_grid"), *others)
-    originals = {(module, name): getattr(module, name) for module, name in sites}
     load = interpreter.load_interpreter
     try:
-        for (module, name), dispatcher in originals.items():
-            setattr(module, name, compiling(dispatcher))
+        put(True)
         interpreter.load_interpreter = lambda: None
         yield
     finally:
         interpreter.load_interpreter = load
-        for (module, name), dispatcher in originals.items():
-            setattr(module, name, dispatcher)
+        put(False)
 
 
 def warm_interpreter() -> float:

@@ -122,7 +122,8 @@ def scan_bricks(offset, extent, corner, shape):
 @njit(**KERNEL)
 def _grown(a, n):
     out = np.empty(2 * a.size, dtype=a.dtype)
-    out[:n] = a[:n]
+    for i in range(n):  # not a slice copy: numba would compile its shape error (1-2 s)
+        out[i] = a[i]
     return out
 
 
@@ -322,7 +323,8 @@ def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
                                 continue
                             while q < n_pad and pad_keys[q] < row + k:
                                 keys[m] = pad_keys[q]
-                                corners[m] = pad_corners[q]
+                                for c in range(8):  # not a row copy: numba would compile
+                                    corners[m, c] = pad_corners[q, c]  # its shape error
                                 m += 1
                                 q += 1
                             keys[m] = row + k
@@ -337,6 +339,10 @@ def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
                             m += 1
                 c0 = c1
         s0 = s1
-    keys[m:] = pad_keys[q:]
-    corners[m:] = pad_corners[q:]
+    while q < n_pad:  # the pad's cells after the last brick cell
+        keys[m] = pad_keys[q]
+        for c in range(8):
+            corners[m, c] = pad_corners[q, c]
+        m += 1
+        q += 1
     return keys, corners

@@ -410,7 +410,11 @@ def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
 def _grown(a, n, more):
     """``a`` (rows ``:n`` used) moved to an array half as large again, room for ``more``."""
     out = np.empty((a.shape[0] + a.shape[0] // 2 + more,) + a.shape[1:], dtype=a.dtype)
-    out[:n] = a[:n]
+    # element by element: a slice copy would compile numba's shape error (1-2 s)
+    width = a.size // a.shape[0] if a.shape[0] else 0
+    flat_a, flat_out = a.reshape(-1), out.reshape(-1)
+    for i in range(n * width):
+        flat_out[i] = flat_a[i]
     return out
 
 

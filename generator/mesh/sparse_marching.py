@@ -224,7 +224,8 @@ def _pad_cells(offset, extent, corner, shape):
                                     continue
                                 if m == out.size:
                                     grown = np.empty(2 * m, dtype=np.int64)
-                                    grown[:m] = out
+                                    for q in range(m):  # not a slice copy (numba would
+                                        grown[q] = out[q]  # compile its shape error)
                                     out = grown
                                 out[m] = (a * p1 + c) * p2 + d
                                 m += 1

@@ -71,7 +71,7 @@ def warm_in_child() -> None:
     with compiled_not_run((walls, "_bisect_kernel")):
         _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
-        _warm_the_rest(field, box, _warm_mesh(field, tree))
+        _warm_the_rest(field, box, _warm_mesh(field, tree), tree, fine_mesh=False)
 
 
 def grid_kernel_cached() -> bool:
@@ -138,12 +138,14 @@ def shape_kernels_cached() -> bool:
 
 def _kernels_cached() -> bool:
     """:func:`shape_kernels_cached` but the interpreter."""
-    from surfgen.filters import geometry
-    from surfgen.generator.mesh import marching, walls
+    from surfgen.filters import fine_band, geometry
+    from surfgen.generator.eval import grid_driver
+    from surfgen.generator.mesh import marching, sparse_lewiner, walls
     from surfgen.pipelines.pictures import raster as pictures
 
     stages = (grid_kernel(), walls._bisect_kernel, marching._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
+    stages += (grid_driver.run_columns, fine_band._fill_bricks, sparse_lewiner.lewiner_cells)
     return all(kernel_cached(d) for d in stages)
 
 
@@ -201,11 +203,12 @@ def warm_shape_kernels(
         log.debug("interpreter ready in %.1f s", warm_interpreter())
         if meanwhile is not None:
             meanwhile()
+        _warm_sparse_marching()  # here, while the child (if any) compiles the rest
         if child is not None:
             _join_child(child)
             child = None
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
-        _warm_the_rest(field, box, _warm_mesh(field, tree))
+        _warm_the_rest(field, box, _warm_mesh(field, tree), tree)
     finally:
         if child is not None:  # interrupted: leave no compiler behind
             child.kill()
@@ -227,8 +230,36 @@ def _warm_mesh(field, tree, walls: bool = True):
     return mesh
 
 
-def _warm_the_rest(field, box, mesh) -> None:
-    """Every kernel after the mesh and the walls, on the tiny shape."""
+def _warm_sparse_marching() -> None:
+    """The resolution check's sparse marching (:mod:`surfgen.generator.mesh.sparse_marching`)
+    on the tiny shape's field as one brick per leaf, with a non-finite sample beside the
+    surface (mirrored) and one a hair outside it (a crossing raised off the sample), capped:
+    every kernel of it, without the fine band's (the child compiles those)."""
+    from surfgen.generator.eval.sparse import BLOCK, SAMPLED, SparseField, leaf_counts
+    from surfgen.generator.mesh.sparse_marching import extract_sparse
+
+    _, _, field = _tiny_shape("reference")
+    values = field.values.copy()
+    inside = values < 0
+    i, j, k = np.argwhere(inside[:, :, :-1] & ~inside[:, :, 1:])[0]
+    values[i, j, k + 1] = 1e-12  # a crossing a hair from its sample
+    i, j, k = np.argwhere(~inside[:, :, :-1] & inside[:, :, 1:])[-1]
+    values[i, j, k] = np.nan  # a non-finite sample beside the surface
+    state = np.full(leaf_counts(field.grid), SAMPLED, dtype=np.int8)
+    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
+    slot = np.arange(len(leaves), dtype=np.int32).reshape(state.shape)
+    corner = leaves * BLOCK
+    extent = np.minimum(BLOCK + 1, np.asarray(field.grid.shape)[None, :] - corner)
+    bricks = np.full((len(leaves),) + (BLOCK + 1,) * 3, np.nan)
+    for b, ((c0, c1, c2), (e0, e1, e2)) in enumerate(zip(corner, extent, strict=True)):
+        bricks[b, :e0, :e1, :e2] = values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2]
+    sf = SparseField(field.grid, 0.0, BLOCK, state, slot, corner, extent, bricks)
+    extract_sparse(sf, cap=True)
+
+
+def _warm_the_rest(field, box, mesh, tree, fine_mesh: bool = True) -> None:
+    """Every kernel after the mesh and the walls, on the tiny shape (``fine_mesh``: the
+    resolution check's sparse marching too)."""
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
@@ -241,7 +272,7 @@ def _warm_the_rest(field, box, mesh) -> None:
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)
-    warm_kernels(field, mesh)
+    warm_kernels(tree, field, mesh, fine_mesh)
     render_image(mesh, size=16)
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_dilation
 
+from surfgen.filters import fine_band as fb
 from surfgen.filters import resolution as res
 from surfgen.filters.resolution import (
     Resolution,
@@ -95,7 +96,7 @@ def test_the_band_evaluates_what_the_dense_reference_does(formula: str) -> None:
     via_grid, n_via, _ = fine_field(tree, coarse, 0.0, method="band", band=1, via_grid=True)
     assert n_via == n_band and np.array_equal(via_grid.values, band.values, equal_nan=True)
     # Same bits on every point of a crossed cell (and its neighbours)...
-    crossed = res._crossed_cells(coarse.values, 0.0)
+    crossed = fb._crossed_cells(coarse.values, 0.0)
     i, j, k = np.nonzero(crossed)
     for di in range(3):
         for dj in range(3):
@@ -121,9 +122,9 @@ def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
     values[2, 2, 2] = -1.0
     values[5, 5, 5] = np.nan  # non-finite: outside
     fine = np.empty((11, 11, 11))
-    cells = res._crossed_cells(values, 0.0)
+    cells = fb._crossed_cells(values, 0.0)
     assert cells.sum() == 8
-    todo, n = res._band_points(cells, fine.shape)
+    todo, n = fb._band_points(cells, fine.shape)
     res._upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
     assert todo.sum() == n == 5**3 - 3**3  # the crossed cells' fine points, less the coarse samples
     assert fine[4, 4, 4] == -1.0 and fine[10, 10, 10] != fine[10, 10, 10]
@@ -254,7 +255,7 @@ def test_the_band_is_scipy_s_dilation_by_the_cube(band: int) -> None:
         for share in (0.001, 0.05, 0.5):
             cells = rng.random(shape) < share
             want = binary_dilation(cells, np.ones((3, 3, 3), dtype=bool), iterations=band)
-            assert np.array_equal(res._dilate(cells, band), want), (shape, share)
+            assert np.array_equal(fb._dilate(cells, band), want), (shape, share)
 
 
 def test_crossed_cells_are_those_with_corners_on_both_sides() -> None:
@@ -278,4 +279,4 @@ def test_crossed_cells_are_those_with_corners_on_both_sides() -> None:
                 for dz in (0, 1)
             ]
             want = np.any(corners, axis=0) & ~np.all(corners, axis=0)
-            assert np.array_equal(res._crossed_cells(values, level), want), (shape, level)
+            assert np.array_equal(fb._crossed_cells(values, level), want), (shape, level)
