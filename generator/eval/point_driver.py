@@ -246,7 +246,8 @@ def _place_parts(maps, n, pair_parts, pair_keys, has, map_at):
         lv, k = pair_keys[q]
         map_at[lv, k] = at
         part = pair_parts[q]
-        maps[at : at + part.size] = part
+        for e in range(part.size):  # not a slice copy: numba would compile its shape error
+            maps[at + e] = part[e]
         at += part.size
 
 
@@ -337,8 +338,10 @@ def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
     for k in (va, va | vb, va | vc):
         total += rows[k] * n
     store = np.empty(max(total, 1))
-    store[offsets[vb] : offsets[vb] + nb] = axes[b]
-    store[offsets[vc] : offsets[vc] + nc] = axes[c]
+    for q in range(nb):  # not slice copies: numba would compile their shape error (1.5 s)
+        store[offsets[vb] + q] = axes[b][q]
+    for q in range(nc):
+        store[offsets[vc] + q] = axes[c][q]
     m = pair_first.size
     maps = np.empty(max(2 * m, 1), dtype=np.int64)
     for q in range(m):
@@ -408,7 +411,8 @@ def eval_edges(prog, tile, active, rows, ctx, sel, u, out):
         total += rows[k] * sizes[k]
     if total > store.size:  # more points than edges: a larger store with the fixed levels
         grown = np.empty(total)
-        grown[:fixed_end] = store[:fixed_end]
+        for e in range(fixed_end):
+            grown[e] = store[e]
         store = grown
     for q in range(ufirst.size):
         store[unsigned(offsets[va] + q)] = u[unsigned(ufirst[q])]

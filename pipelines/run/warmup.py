@@ -66,8 +66,25 @@ def warm_in_child() -> None:
     are compiled for the tiny shape's argument types, not run
     (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
     kernels run on the field the reference evaluator samples (the same values)."""
+    from surfgen.generator.mesh import sparse_lewiner as lewiner
     from surfgen.generator.mesh import walls
 
+    # First, the sparse marching's largest kernel (Lewiner's cases on a list of cells), which
+    # the parent would otherwise compile after the interpreter (_warm_sparse_marching): it
+    # loads it from the cache instead, and the two processes end together.
+    corners = np.ones((1, 8), dtype=np.float32)
+    corners[0, 0] = -1.0
+    lewiner.lewiner_cells(
+        np.zeros(1, dtype=np.int64),
+        corners,
+        2,
+        2,
+        lewiner.LUT,
+        lewiner.LUT_META,
+        lewiner.EDGE_X,
+        lewiner.EDGE_Y,
+        lewiner.EDGE_Z,
+    )
     with compiled_not_run((walls, "_bisect_kernel")):
         _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
@@ -204,9 +221,11 @@ def warm_shape_kernels(
         if meanwhile is not None:
             meanwhile()
         _warm_sparse_marching()  # here, while the child (if any) compiles the rest
+        log.debug("sparse marching ready at %.1f s", time.perf_counter() - t0)
         if child is not None:
             _join_child(child)
             child = None
+            log.debug("the child's kernels ready at %.1f s", time.perf_counter() - t0)
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
         _warm_the_rest(field, box, _warm_mesh(field, tree), tree)
     finally:
