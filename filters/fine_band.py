@@ -35,10 +35,9 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.errors import SpecError
-from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.sparse import BLOCK, INSIDE, OUTSIDE, SAMPLED, SparseField, locate
-from surfgen.generator.eval.tape import evaluate_columns
+from surfgen.generator.eval.tape import compile_cached, evaluate_columns
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.jit.options import KERNEL
 
@@ -83,7 +82,7 @@ def fine_band(
         columns = leaves[members, :2]
         starts = np.flatnonzero(np.r_[True, np.any(columns[1:] != columns[:-1], axis=1)])
         bounds = np.stack([starts, np.r_[starts[1:], len(members)]], axis=1)
-        program = compile_tree(tree, dict(params or {}))
+        program = compile_cached(tree, params)
         evaluate_columns(program, grid.axes(), bounds, members, corner, extent, raw, threads)
     bricks = np.full_like(raw, np.nan)  # past the grid's end: never read, but defined
     singular = _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, BLOCK)

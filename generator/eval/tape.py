@@ -78,6 +78,12 @@ def evaluate_fast(
     return evaluate_program(_compiled(tree, tuple(sorted((params or {}).items()))), grid, threads)
 
 
+def compile_cached(tree: Expr, params: Mapping[str, float] | None = None) -> Program:
+    """:func:`compile_tree` through the evaluator's cache of recent programs (the sampler's
+    resolution check evaluates the tree it has just evaluated on the coarse grid)."""
+    return _compiled(tree, tuple(sorted((params or {}).items())))
+
+
 @functools.lru_cache(maxsize=COMPILED_CACHE)
 def _compiled(tree: Expr, params: tuple[tuple[str, float], ...]) -> Program:
     """Programs of recent trees: the sampler evaluates one tree on a coarse, then a fine grid."""
