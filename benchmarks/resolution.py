@@ -1,13 +1,15 @@
-"""Benchmark: the resolution check's cost per shape, by stage, and the fine field's two paths.
+"""Benchmark: the resolution check's cost per shape, by stage, and the fine field's paths.
 
 For the shapes of a catalogue (``--catalogue DIR``: its first ``--n`` shapes that were
-measured) the check is timed stage by stage on the same coarse field: the fine field in the
-band evaluated at its points (``band points``) or through the whole fine grid (``band via
-grid``: the grid evaluator hoists what depends on x, y or z alone), the dense reference
-(``dense``), the fine mesh and the comparison. In turns, so load changes hit every path alike.
-Prints per stage the median and total, the ratio points / grid that sets ``POINT_COST`` in
-:mod:`surfgen.filters.resolution`, and the check's share of the shapes' other stages (the
-catalogue's stored timings).
+measured) the check is timed stage by stage on the same coarse field: the fine field filled on
+the whole fine grid with the band evaluated at its points (``band points``) or through the whole
+fine grid (``band via grid``: the grid evaluator hoists what depends on x, y or z alone), the
+dense reference (``dense``), its mesh (``fine mesh``); the sampler's sparse path, the band's
+leaves built and meshed (``sparse band+mesh``, :mod:`surfgen.filters.fine_band`); and the
+comparison. In turns, so load changes hit every path alike. Prints per stage the median and
+total, the ratio points / grid that sets ``POINT_COST`` in :mod:`surfgen.filters.resolution`,
+the ratio of the filled field and its mesh over the sparse path (the same mesh, checked), and
+the check's share of the shapes' other stages (the catalogue's stored timings).
 
     python -m benchmarks.resolution --catalogue out/catalogue [--n 40] [--repeats 2]
 """
@@ -22,8 +24,10 @@ import numpy as np
 
 from benchmarks import harness
 from surfgen.filters import resolution as res
+from surfgen.filters.fine_band import band_cells, fine_band
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.mesh.sparse_marching import extract_sparse
 from surfgen.generator.model.spec import SurfaceSpec
 
 
@@ -71,7 +75,21 @@ def main(argv: list[str] | None = None) -> None:
             ),
             args.repeats,
         )
-        for name, timing in (*turns.items(), ("fine mesh", mesh_t), ("compare", compare_t)):
+
+        def sparse(tree=tree, coarse=coarse, level=level):
+            sf = fine_band(tree, coarse, band_cells(coarse, level), level, faces=True)[0]
+            return extract_sparse(sf, cap=True)
+
+        sparse_t = harness.best_of(sparse, args.repeats)
+        want = mesh_t.result
+        got = sparse_t.result
+        if (got.vertices.tobytes(), got.faces.tobytes()) != (
+            want.vertices.tobytes(),
+            want.faces.tobytes(),
+        ):
+            raise SystemExit(f"{spec.key}: the sparse path's mesh differs from the dense one")
+        stages = (*turns.items(), ("fine mesh", mesh_t), ("sparse band+mesh", sparse_t))
+        for name, timing in (*stages, ("compare", compare_t)):
             times.setdefault(name, []).append(timing.best)
         stored = json.loads(timings or "{}")
         others.append(sum(v for k, v in stored.items() if k != "resolution"))
@@ -86,10 +104,15 @@ def main(argv: list[str] | None = None) -> None:
         f"band at its points / via the grid: median {np.median(ratios):.2f} "
         f"(quartiles {np.percentile(ratios, 25):.2f}-{np.percentile(ratios, 75):.2f})"
     )
-    check = np.minimum(times["band points"], times["band via grid"])
-    check = check + np.array(times["fine mesh"]) + np.array(times["compare"])
+    filled = np.minimum(times["band points"], times["band via grid"]) + np.array(times["fine mesh"])
+    ratio = filled / np.array(times["sparse band+mesh"])
     run.say(
-        f"the check (cheaper band path + mesh + compare): median {np.median(check):.3f} s; "
+        f"the filled fine field and its mesh / the sparse path: median {np.median(ratio):.2f}x "
+        f"(quartiles {np.percentile(ratio, 25):.2f}-{np.percentile(ratio, 75):.2f}), the same meshes"
+    )
+    check = np.array(times["sparse band+mesh"]) + np.array(times["compare"])
+    run.say(
+        f"the check (sparse band and mesh + compare): median {np.median(check):.3f} s; "
         f"the shapes' other stages (stored): median {np.median(others):.3f} s"
     )
     run.record(**{k.replace(" ", "_"): v for k, v in times.items()}, others=others)
