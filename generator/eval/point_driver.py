@@ -333,7 +333,7 @@ def edge_lattice(prog, tile, active, rows, axis, ijk, axes):
     for k in (vb, vc, vb | vc):
         offsets[k] = total
         total += rows[k] * sizes[k]
-    fixed_end = total
+    fixed_end = np.int64(total)  # never a literal: one type of ctx, one compile of eval_edges
     # room for the varying levels of a round of up to n points (one entry per point at most)
     for k in (va, va | vb, va | vc):
         total += rows[k] * n

@@ -89,7 +89,7 @@ def _split(now, e, s, f):
     now[4, e] = now[4, e] if lower else (1.0 if inside else 0.0)
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _bisect(prog, tile, active, rows, ctx, level, u0, h, now, sel):
     """One bisection of the brackets ``now[:, sel]`` in place (one batch of points)."""
     m = sel.size
@@ -142,7 +142,7 @@ def _secant_in(now, e):
     return k / SECANT_GRID
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb, t):
     """Kinds of the suspect edges along one axis (steps 2 to 4 of the module's docstring),
     ``u0``: their first samples' coordinate along it, ``h`` the spacing, ``t`` where the first
@@ -245,7 +245,7 @@ def _classify_axis(prog, tile, active, rows, ctx, level, u0, h, a_inside, fa, fb
     return out, points
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _decide_again(prog, tile, active, rows, ctx, level, u0, h, now, before, fa, fb, rest, kinds,
                   pick):  # fmt: skip
     """Bisect the brackets of the edges ``rest[r]`` with ``pick[r]`` ``BISECTIONS`` more times
