@@ -190,12 +190,12 @@ def warm_up(parallel: bool = True) -> float:
 
 @contextlib.contextmanager
 def compiled_not_run(*others: tuple[object, str]) -> Iterator[None]:
-    """Within the block the interpreter is not loaded, and the grid kernel and each
-    ``(module, name)`` numba dispatcher of ``others`` (kernels of other layers that call the
-    interpreter: the walls') is compiled (or loaded from numba's cache) for the types of the
-    arguments it is called with, not run: the call returns 0 and writes nothing. A kernel's
-    compile needs only the interpreter's calling convention
-    (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
+    """Within the block the interpreter is not loaded, and the grid kernels (the grid's and the
+    bricks', :func:`.grid_driver.run_columns`) and each ``(module, name)`` numba dispatcher of
+    ``others`` (kernels of other layers that call the interpreter: the walls') are compiled (or
+    loaded from numba's cache) for the types of the arguments they are called with, not run: a
+    call returns 0 and writes nothing. A kernel's compile needs only the interpreter's calling
+    convention (:func:`surfgen.generator.eval.interpreter.run_code_far`), not its code."""
 
     sites = ((kernels, "run_grid"), (kernels, "run_columns"), *others)
     originals = {(module, name): getattr(module, name) for module, name in sites}
