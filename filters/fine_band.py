@@ -36,10 +36,20 @@ from numba import njit
 
 from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.grid import Field, Grid
-from surfgen.generator.eval.sparse import BLOCK, INSIDE, OUTSIDE, SAMPLED, SparseField, locate
+from surfgen.generator.eval.sparse import (
+    BLOCK,
+    INSIDE,
+    OUTSIDE,
+    SAMPLED,
+    SparseField,
+    brick_layout,
+    leaf_counts,
+    locate,
+    sample_face_leaves,
+)
 from surfgen.generator.eval.tape import compile_cached, evaluate_columns
 from surfgen.generator.formula.expr import Expr
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import INLINE, KERNEL
 
 
 def fine_band(
@@ -58,36 +68,30 @@ def fine_band(
     mesh). Returns it, the number of fine points evaluated (the band's new points) and the
     number patched (non-finite between finite coarse samples), both as ``fine_field``
     counts them. Raises what compiling ``tree`` raises."""
-    grid = Grid(coarse.grid.box, tuple(2 * n - 1 for n in coarse.grid.shape))
+    grid = fine_grid(coarse.grid)
     values = np.ascontiguousarray(coarse.values, dtype=np.float64)
-    shape = np.asarray(grid.shape, dtype=np.int64)
-    counts = np.asarray([-(-(n - 1) // BLOCK) for n in grid.shape], dtype=np.int64)
+    counts = np.asarray(leaf_counts(grid, BLOCK), dtype=np.int64)
     state = _leaf_candidates(cells, counts, BLOCK // 2)
     _side_of_leaves(values, level, state, BLOCK // 2)
-    if faces:  # the inside leaves on the box's faces: a capped mesh needs their samples
-        for axis in range(3):
-            for end in (0, state.shape[axis] - 1):
-                face = state[(slice(None),) * axis + (end,)]
-                face[face == INSIDE] = SAMPLED
-    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
-    slot = np.full(state.shape, -1, dtype=np.int32)
-    slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
-    corner = leaves * BLOCK
-    extent = np.minimum(BLOCK + 1, shape[None, :] - corner)
-    raw = np.full((len(leaves), BLOCK + 1, BLOCK + 1, BLOCK + 1), np.nan)
+    if faces:
+        sample_face_leaves(state)
+    _, slot, corner, extent = brick_layout(state, grid, BLOCK)
+    raw = np.full((len(corner), BLOCK + 1, BLOCK + 1, BLOCK + 1), np.nan)
     todo, evaluated = _band_points(cells, tuple(grid.shape))
-    evaluate_band = _bricks_in_band(todo, corner, extent)
-    if evaluate_band.any():
-        members = np.flatnonzero(evaluate_band).astype(np.int64)
-        columns = leaves[members, :2]
-        starts = np.flatnonzero(np.r_[True, np.any(columns[1:] != columns[:-1], axis=1)])
-        bounds = np.stack([starts, np.r_[starts[1:], len(members)]], axis=1)
+    members = np.flatnonzero(_bricks_in_band(todo, corner, extent))  # in C order, as leaves
+    if len(members):
         program = compile_cached(tree, params)
-        evaluate_columns(program, grid.axes(), bounds, members, corner, extent, raw, threads)
+        evaluate_columns(program, grid.axes(), members, corner, extent, raw, threads)
     bricks = np.full_like(raw, np.nan)  # past the grid's end: never read, but defined
     singular = _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, BLOCK)
     sf = SparseField(grid, float(level), BLOCK, state, slot, corner, extent, bricks)
     return sf, int(evaluated), int(singular)
+
+
+def fine_grid(grid: Grid) -> Grid:
+    """The nested grid of ``2N - 1`` points per axis over the same box: its even points are
+    ``grid``'s, bit for bit (``lo + 2i * (h / 2) == lo + i * h`` exactly in floating point)."""
+    return Grid(grid.box, tuple(2 * n - 1 for n in grid.shape))
 
 
 def band_cells(coarse: Field, level: float, band: int = 1) -> np.ndarray:
@@ -233,54 +237,64 @@ def _bricks_in_band(todo, corner, extent):
     return out
 
 
+@njit(**INLINE)
+def corner_sum(values, a, b, c):
+    """The sum of the coarse samples around fine point ``(a, b, c)`` (its coarse cell's 8
+    corners, or a face's 4, an edge's 2, counted 8 / n times each in that order: the mean is
+    the same) and how many were summed."""
+    i0, j0, k0 = a // 2, b // 2, c // 2
+    s = 0.0
+    n = 0
+    for i in (i0, i0 + (a & 1)):
+        for j in (j0, j0 + (b & 1)):
+            for k in (k0, k0 + (c & 1)):
+                s += values[i, j, k]
+                n += 1
+    return s, n
+
+
+@njit(**INLINE)
+def mean_on_side(values, a, b, c, s, n, level, below):
+    """The mean ``s / n`` of the coarse samples around a fine point of a cell that is not
+    crossed, kept on the side of those samples (``below``: the float below ``level``);
+    non-finite means count as outside, as in marching cubes."""
+    v = s / n
+    corner = values[a // 2, b // 2, c // 2]
+    if math.isfinite(corner) and corner < level:
+        return min(v, below)
+    if math.isfinite(v) and v < level:  # cannot happen in exact arithmetic
+        return level
+    return v
+
+
 @njit(**KERNEL)
 def _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, block):
     """Each brick's points as :func:`surfgen.filters.resolution.fine_field` gives them: a
     coarse sample (even indices), an evaluated band point (``todo``: ``raw``), or the mean of
-    the coarse samples around it kept on their side
-    (:func:`surfgen.filters.resolution._upsample`); a non-finite new point between finite
-    coarse samples takes their mean (:func:`surfgen.filters.resolution._patch_singular`).
-    Returns how many points were patched, each counted once (in the first brick
-    :func:`locate` finds for it)."""
+    the coarse samples around it kept on their side (:func:`mean_on_side`); a non-finite new
+    point between finite coarse samples takes their mean (as
+    :func:`surfgen.filters.resolution._patch_singular`). Returns how many points were patched,
+    each counted once (in the first brick :func:`locate` finds for it)."""
     below = np.nextafter(level, -np.inf)
     patched = 0
     for s in range(corner.shape[0]):
         for i in range(extent[s, 0]):
             a = corner[s, 0] + i
-            i0 = a // 2
-            i1 = i0 + (a & 1)
             for j in range(extent[s, 1]):
                 b = corner[s, 1] + j
-                j0 = b // 2
-                j1 = j0 + (b & 1)
                 for k in range(extent[s, 2]):
                     c = corner[s, 2] + k
-                    k0 = c // 2
-                    k1 = k0 + (c & 1)
                     if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
-                        bricks[s, i, j, k] = values[i0, j0, k0]
+                        bricks[s, i, j, k] = values[a // 2, b // 2, c // 2]
                         continue
                     if todo[a, b, c]:
                         v = raw[s, i, j, k]
                         if math.isfinite(v):
                             bricks[s, i, j, k] = v
                             continue
-                    total = 0.0
-                    n = 0
-                    for ii in (i0, i1):
-                        for jj in (j0, j1):
-                            for kk in (k0, k1):
-                                total += values[ii, jj, kk]
-                                n += 1
+                    total, n = corner_sum(values, a, b, c)
                     if not todo[a, b, c]:
-                        mean = total / n
-                        corner_v = values[i0, j0, k0]
-                        if math.isfinite(corner_v) and corner_v < level:
-                            v = min(mean, below)
-                        elif math.isfinite(mean) and mean < level:
-                            v = level
-                        else:
-                            v = mean
+                        v = mean_on_side(values, a, b, c, total, n, level, below)
                     if not math.isfinite(v) and math.isfinite(total):
                         v = total / n
                         patched += locate(slot, block, a, b, c)[0] == s

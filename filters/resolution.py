@@ -41,7 +41,14 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
-from surfgen.filters.fine_band import _band_points, band_cells, fine_band
+from surfgen.filters.fine_band import (
+    _band_points,
+    band_cells,
+    corner_sum,
+    fine_band,
+    fine_grid,
+    mean_on_side,
+)
 from surfgen.filters.geometry import bucket_points, cell_of
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
@@ -100,12 +107,6 @@ METRIC_NAMES = (
     "resolution_points",
     "resolution_singular",
 )
-
-
-def fine_grid(grid: Grid) -> Grid:
-    """The nested grid of ``2N - 1`` points per axis over the same box: its even points are
-    ``grid``'s, bit for bit (``lo + 2i * (h / 2) == lo + i * h`` exactly in floating point)."""
-    return Grid(grid.box, tuple(2 * n - 1 for n in grid.shape))
 
 
 def fine_field(
@@ -170,44 +171,21 @@ def _upsample(values, todo, level, fine, dense):
     """Fill ``fine`` ``(2N-1,)*3`` from the coarse ``values``: even points copy them; the band's
     points (``todo``) take ``dense``'s values if it is given (else they are left for the
     caller); the others get the mean of the coarse samples around them, kept on their side of
-    the level (all of them are on one side: the cell is not crossed). Non-finite means count
-    as outside, as in marching cubes."""
+    the level (all of them are on one side: the cell is not crossed; :func:`mean_on_side`)."""
     m0, m1, m2 = fine.shape
     given = dense.size > 0
     below = np.nextafter(level, -np.inf)
     for a in range(m0):
-        i0 = a // 2
-        i1 = i0 + (a & 1)
         for b in range(m1):
-            j0 = b // 2
-            j1 = j0 + (b & 1)
             for c in range(m2):
-                k0 = c // 2
-                k1 = k0 + (c & 1)
                 if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
-                    fine[a, b, c] = values[i0, j0, k0]
-                    continue
-                if todo[a, b, c]:
+                    fine[a, b, c] = values[a // 2, b // 2, c // 2]
+                elif todo[a, b, c]:
                     if given:
                         fine[a, b, c] = dense[a, b, c]
-                    continue
-                s = 0.0
-                n = 0
-                for i in (i0, i1):
-                    for j in (j0, j1):
-                        for k in (k0, k1):
-                            s += values[i, j, k]
-                            n += 1
-                # distinct corners are counted 8 / n times each: the mean is unchanged
-                v = s / n
-                corner = values[i0, j0, k0]
-                inside = math.isfinite(corner) and corner < level
-                if inside:
-                    fine[a, b, c] = min(v, below)
-                elif math.isfinite(v) and v < level:  # cannot happen in exact arithmetic
-                    fine[a, b, c] = level
                 else:
-                    fine[a, b, c] = v
+                    s, n = corner_sum(values, a, b, c)
+                    fine[a, b, c] = mean_on_side(values, a, b, c, s, n, level, below)
 
 
 @numba.njit(**KERNEL)
@@ -219,25 +197,13 @@ def _patch_singular(values, fine):
     m0, m1, m2 = fine.shape
     patched = 0
     for a in range(m0):
-        i0 = a // 2
-        i1 = i0 + (a & 1)
         for b in range(m1):
-            j0 = b // 2
-            j1 = j0 + (b & 1)
             for c in range(m2):
                 if math.isfinite(fine[a, b, c]):
                     continue
                 if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
                     continue  # a coarse sample: as it was
-                k0 = c // 2
-                k1 = k0 + (c & 1)
-                s = 0.0
-                n = 0
-                for i in (i0, i1):
-                    for j in (j0, j1):
-                        for k in (k0, k1):
-                            s += values[i, j, k]
-                            n += 1
+                s, n = corner_sum(values, a, b, c)
                 if math.isfinite(s):
                     fine[a, b, c] = s / n
                     patched += 1

@@ -223,14 +223,9 @@ def evaluate_sparse_program(
         bounds = grid_point_bounds(axes)
     state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
     if faces:
-        _sample_face_leaves(state)
+        sample_face_leaves(state)
     t1 = time.perf_counter()
-    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
-    slot = np.full(state.shape, -1, dtype=np.int32)
-    slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
-    corner = leaves * block
-    shape = np.asarray(grid.shape, dtype=np.int64)
-    extent = np.minimum(block + 1, shape[None, :] - corner)
+    leaves, slot, corner, extent = brick_layout(state, grid, block)
     if max_share is not None and np.prod(extent, axis=1).sum() > max_share * grid.size:
         log.debug(
             "sparse: %d of %d leaves to sample, over the share asked", len(leaves), state.size
@@ -320,8 +315,23 @@ def classify_blocks(
     return state, boxes
 
 
-def _sample_face_leaves(state: np.ndarray) -> None:
-    """Sample the inside leaves on the box's faces (in place)."""
+def brick_layout(
+    state: np.ndarray, grid: Grid, block: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where the sampled leaves' bricks go: the leaves in C order ``(K, 3)``, each leaf's
+    brick number (``slot``, -1 where not sampled), the bricks' first grid indices
+    (``corner``) and their points per axis (``extent``), as :class:`SparseField` holds them."""
+    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
+    slot = np.full(state.shape, -1, dtype=np.int32)
+    slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
+    corner = leaves * block
+    extent = np.minimum(block + 1, np.asarray(grid.shape, dtype=np.int64)[None, :] - corner)
+    return leaves, slot, corner, extent
+
+
+def sample_face_leaves(state: np.ndarray) -> None:
+    """Sample the inside leaves on the box's faces (in place): a capped mesh closes the
+    surface there, with caps whose vertices need those samples."""
     for axis in range(3):
         for end in (0, state.shape[axis] - 1):
             face = state[(slice(None),) * axis + (end,)]  # a view of the face
@@ -345,13 +355,8 @@ def _evaluate_bricks(
     scattered to the bricks, all columns in one kernel call per thread
     (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call per column from Python, on
     a pool of threads, spent more time in Python than in the kernel: 4-6x slower)."""
-    if len(leaves) == 0:
-        return
     members = np.lexsort((leaves[:, 2], leaves[:, 1], leaves[:, 0])).astype(np.int64)
-    cols = leaves[members, :2]
-    starts = np.flatnonzero(np.r_[True, np.any(cols[1:] != cols[:-1], axis=1)])
-    bounds = np.stack([starts, np.r_[starts[1:], len(members)]], axis=1)
-    evaluate_columns(program, axes, bounds, members, corner, extent, values, threads)
+    evaluate_columns(program, axes, members, corner, extent, values, threads)
 
 
 @njit(**KERNEL)

@@ -336,26 +336,28 @@ def rows_program(program: Program) -> tuple:
 def evaluate_columns(
     program: Program,
     axes: tuple[np.ndarray, np.ndarray, np.ndarray],
-    cols: np.ndarray,
     members: np.ndarray,
     corner: np.ndarray,
     extent: np.ndarray,
     values: np.ndarray,
     threads: int = 1,
 ) -> None:
-    """Fill the bricks ``values[b, :nx, :ny, :nz]`` (``extent[b]`` points from grid index
-    ``corner[b]``) column by column: column ``c`` is the bricks ``members[cols[c, 0]:cols[c, 1]]``,
-    which share their x and y points and are ordered by z; each column is run as a grid of its
-    own (:func:`.grid_driver.run_columns`) on its x and y points and the union of its bricks'
-    z points: each point's value is the one a grid with the same coordinates gives, bit for bit
-    (every operation is elementwise). ``threads`` take contiguous runs of columns of about
-    equal points."""
+    """Fill the bricks ``members`` of ``values`` (``values[b, :nx, :ny, :nz]``: ``extent[b]``
+    points from grid index ``corner[b]``; ``members`` ordered by corner, x then y then z)
+    column by column: a column is a run of members with the same x and y corner; it is run as
+    a grid of its own (:func:`.grid_driver.run_columns`) on its x and y points and the union
+    of its bricks' z points: each point's value is the one a grid with the same coordinates
+    gives, bit for bit (every operation is elementwise). ``threads`` take contiguous runs of
+    columns of about equal points."""
     interpreter.load_interpreter()
-    if len(cols) == 0:
+    if len(members) == 0:
         return
+    members = np.ascontiguousarray(members, dtype=np.int64)
+    xy = corner[members, :2]
+    starts = np.flatnonzero(np.r_[True, np.any(xy[1:] != xy[:-1], axis=1)])
+    cols = np.stack([starts, np.r_[starts[1:], len(members)]], axis=1).astype(np.int64)
     ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in axes)
     plain, rows = _prog(program, False), _prog(program, True)
-    cols = np.ascontiguousarray(cols, dtype=np.int64)
 
     def run(c0: int, c1: int) -> None:
         kernels.run_columns(

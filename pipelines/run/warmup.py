@@ -254,7 +254,13 @@ def _warm_sparse_marching() -> None:
     on the tiny shape's field as one brick per leaf, with a non-finite sample beside the
     surface (mirrored) and one a hair outside it (a crossing raised off the sample), capped:
     every kernel of it, without the fine band's (the child compiles those)."""
-    from surfgen.generator.eval.sparse import BLOCK, SAMPLED, SparseField, leaf_counts
+    from surfgen.generator.eval.sparse import (
+        BLOCK,
+        SAMPLED,
+        SparseField,
+        brick_layout,
+        leaf_counts,
+    )
     from surfgen.generator.mesh.sparse_marching import extract_sparse
 
     _, _, field = _tiny_shape("reference")
@@ -265,11 +271,8 @@ def _warm_sparse_marching() -> None:
     i, j, k = np.argwhere(~inside[:, :, :-1] & inside[:, :, 1:])[-1]
     values[i, j, k] = np.nan  # a non-finite sample beside the surface
     state = np.full(leaf_counts(field.grid), SAMPLED, dtype=np.int8)
-    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
-    slot = np.arange(len(leaves), dtype=np.int32).reshape(state.shape)
-    corner = leaves * BLOCK
-    extent = np.minimum(BLOCK + 1, np.asarray(field.grid.shape)[None, :] - corner)
-    bricks = np.full((len(leaves),) + (BLOCK + 1,) * 3, np.nan)
+    _, slot, corner, extent = brick_layout(state, field.grid, BLOCK)
+    bricks = np.full((len(corner),) + (BLOCK + 1,) * 3, np.nan)
     for b, ((c0, c1, c2), (e0, e1, e2)) in enumerate(zip(corner, extent, strict=True)):
         bricks[b, :e0, :e1, :e2] = values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2]
     sf = SparseField(field.grid, 0.0, BLOCK, state, slot, corner, extent, bricks)

@@ -660,10 +660,8 @@ def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
     corner = leaves * block
     extent = np.minimum(block + 1, np.asarray(grid.shape)[None, :] - corner)
     members = np.arange(len(leaves), dtype=np.int64)
-    starts = np.flatnonzero(np.r_[True, np.any(leaves[1:, :2] != leaves[:-1, :2], axis=1)])
-    cols = np.stack([starts, np.r_[starts[1:], len(leaves)]], axis=1)
     values = np.full((len(leaves), block + 1, block + 1, block + 1), np.nan)
-    fast.evaluate_columns(program, grid.axes(), cols, members, corner, extent, values, threads)
+    fast.evaluate_columns(program, grid.axes(), members, corner, extent, values, threads)
     for b, (c, e) in enumerate(zip(corner, extent, strict=True)):
         got = values[b, : e[0], : e[1], : e[2]]
         assert_identical(got, want[c[0] : c[0] + e[0], c[1] : c[1] + e[1], c[2] : c[2] + e[2]])
