@@ -424,6 +424,9 @@ def run_columns(prog, prog_rows, tile_max, ax, ay, az, cols, members, corner, ex
     call for many columns: no Python between them (the sparse evaluator's bricks)."""
     zs = np.empty(az.size, dtype=np.int64)
     no_profile = np.empty(0)
+    # int64 values, not literal constants: run_grid is then the grid evaluator's own compile
+    # (literal arguments would make numba compile it a second time for them)
+    whole, unused = np.int64(GRID_ALL), np.int64(0)
     for c in range(cols.shape[0]):
         m0, m1 = cols[c, 0], cols[c, 1]
         nz = 0
@@ -444,7 +447,7 @@ def run_columns(prog, prog_rows, tile_max, ax, ay, az, cols, members, corner, ex
         prog_c = prog_rows if tile >= 2 * nz else prog
         sx, sy, sz, syz = grid_stores(prog_c[5], ax[i0 : i0 + ni], ay[j0 : j0 + nj], cz)
         out = np.empty((ni, nj, nz))
-        run_grid(prog_c, tile, sx, sy, sz, syz, out, no_profile, GRID_ALL, 0, 0)
+        run_grid(prog_c, tile, sx, sy, sz, syz, out, no_profile, whole, unused, unused)
         w = 0
         for q in range(m0, m1):
             b = members[q]

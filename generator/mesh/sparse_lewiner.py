@@ -421,7 +421,7 @@ def _grown(a, n, more):
 @njit(**KERNEL)
 def _big_switch(v, lut, meta, case, config):
     """skimage's ``the_big_switch``: ``(triangles, table, second index, 3-d table?)``."""
-    sub = 0
+    sub = np.int64(0)  # not a literal 0: _test_internal is compiled once, for an int64
     if case == 1:
         return 1, T1, 0, False
     if case == 2:

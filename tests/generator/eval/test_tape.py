@@ -668,6 +668,35 @@ def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
     assert np.isnan(values[extent[:, 2] < block + 1][..., block]).all()  # past the grid: untouched
 
 
+def test_the_columns_kernel_calls_the_grid_kernel_with_the_grids_own_types(monkeypatch):
+    # run_columns passes int64 values, not literal constants, for the grid kernel's part and
+    # rows: numba then compiles run_grid once (for the grid evaluator and the bricks alike)
+    # instead of a second time for Literal[int] arguments - seconds of a cold warm-up.
+    import numba
+    from numba import types
+
+    from surfgen.generator.eval import grid_driver
+    from surfgen.generator.eval import tape as fast
+    from surfgen.generator.jit.options import KERNEL
+
+    tree = parse("sin(x*y)*z + x^2")
+    program = compile_tree(tree)
+    grid = Grid(Box.cube(1.0), (9, 9, 9))
+    corner = np.zeros((1, 3), dtype=np.int64)
+    extent = np.full((1, 3), 5, dtype=np.int64)
+    values = np.full((1, 5, 5, 5), np.nan)
+    members = np.zeros(1, dtype=np.int64)
+    # a fresh (uncached) compile of run_columns: typing it asks run_grid for the signature of
+    # its call, which a copy loaded from numba's cache would not
+    fresh = numba.njit(**{**KERNEL, "cache": False})(grid_driver.run_columns.py_func)
+    monkeypatch.setattr(grid_driver, "run_columns", fresh)
+    fast.evaluate_columns(program, grid.axes(), members, corner, extent, values, 1)
+    assert fresh.signatures  # the fresh copy ran
+    signatures = grid_driver.run_grid.signatures
+    assert signatures
+    assert not [s for s in signatures if any(isinstance(t, types.Literal) for t in s)]
+
+
 def test_the_columns_kernel_chooses_the_tile_as_the_grid_does():
     from surfgen.generator.eval import grid_driver
     from surfgen.generator.eval import tape as fast

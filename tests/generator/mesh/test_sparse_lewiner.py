@@ -64,6 +64,27 @@ def test_port_is_skimage_bit_for_bit(kind):
     assert checked >= 8
 
 
+def test_the_case_tests_are_compiled_once():
+    # _big_switch passes an int64 sub-configuration, never a literal 0: numba compiles
+    # _test_internal for one signature, not a second one for Literal[int](0).
+    import numba
+    from numba import types
+
+    from surfgen.generator.jit.options import KERNEL
+
+    # a fresh (uncached) compile of the switch: typing it asks _test_internal for the
+    # signatures of its calls, which a copy loaded from numba's cache would not
+    v = np.zeros(8)  # the cell's corner values, as lewiner_cells hands them
+    case = config = np.int64(1)
+    args = (v, lw.LUT, lw.LUT_META, case, config)
+    numba.njit(**{**KERNEL, "cache": False})(lw._big_switch.py_func).compile(
+        tuple(numba.typeof(a) for a in args)
+    )
+    signatures = lw._test_internal.signatures
+    assert signatures
+    assert not [s for s in signatures if any(isinstance(t, types.Literal) for t in s)]
+
+
 def test_port_follows_skimage_layers_with_gaps():
     """Masks that skip whole planes and rows: skimage's face layers are cleared as it moves
     on, so the vertices it shares (and the duplicates where it does not) are reproduced."""
