@@ -234,7 +234,7 @@ def evaluate_sparse_program(
     values = np.empty((len(leaves), block + 1, block + 1, block + 1))
     partial = np.flatnonzero(np.any(extent <= block, axis=1))
     values[partial] = np.nan  # entries past the grid's end: never read, but defined
-    _evaluate_bricks(program, axes, leaves, corner, extent, values, _threads(threads))
+    _evaluate_bricks(program, axes, leaves, corner, extent, values, thread_count(threads))
     t2 = time.perf_counter()
     sf = SparseField(grid, float(level), int(block), state, slot, corner, extent, values)
     sf.stats.update(
@@ -254,7 +254,8 @@ def evaluate_sparse_program(
     return sf
 
 
-def _threads(threads: int | None) -> int:
+def thread_count(threads: int | None) -> int:
+    """Threads for ``threads`` (None: numba's count, which the evaluator uses too)."""
     if threads is None:
         return int(numba.config.NUMBA_NUM_THREADS)
     return max(1, int(threads))

@@ -21,8 +21,9 @@ import math
 import os
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
+from typing import TypeVar
 
 import numba
 import numpy as np
@@ -37,6 +38,8 @@ from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.opcodes import M_S, M_SV, M_V, M_VS, M_VV, OP
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.parser import parse
+
+T = TypeVar("T")
 
 log = logging.getLogger(__name__)
 
@@ -121,7 +124,6 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
     run = functools.partial(kernels.run_grid, prog, tile, *stores, out, _NO_PROFILE)
     run(kernels.GRID_XYZ_AXES, 0, 0)
     ny, nx = stores[1].shape[1], stores[0].shape[1]
-    pool = _pool(n_threads)
     for part, size in (
         (kernels.GRID_YZ_ROWS, ny if prog[5][6] > 0 else 0),
         (kernels.GRID_SLAB, nx),
@@ -136,13 +138,23 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
 
         # the calling thread works too: it starts at once, while a pool thread may take a
         # millisecond to wake (an idle vCPU of a virtual machine)
-        helpers = [pool.submit(work) for _ in range(min(n_threads, chunks) - 1)]
-        try:
-            work()
-        finally:  # no helper left writing into `out` once this returns or raises
-            wait(helpers)
-        for future in helpers:
-            future.result()
+        run_at_once([work] * min(n_threads, chunks))
+
+
+def run_at_once(tasks: Sequence[Callable[[], T]]) -> list[T]:
+    """Run ``tasks`` at once, the first in this thread, the others on the kept pool of threads
+    (for kernels that release the GIL); returns their results in order. Raises the first
+    failure once every task has stopped: none is left writing into shared arrays."""
+    # the calling thread works too: it starts at once, while a pool thread may take a
+    # millisecond to wake (an idle vCPU of a virtual machine)
+    if not tasks:
+        return []
+    helpers = [_pool(len(tasks)).submit(task) for task in tasks[1:]]
+    try:
+        first = tasks[0]()
+    finally:
+        wait(helpers)
+    return [first, *(future.result() for future in helpers)]
 
 
 _POOL: dict[int, ThreadPoolExecutor] = {}  # {helper threads: pool}, at most one, made on first use
@@ -370,10 +382,9 @@ def evaluate_columns(
         return
     points = np.cumsum(np.add.reduceat(np.prod(extent[members], axis=1), cols[:, 0]))
     bounds = [0, *np.searchsorted(points, points[-1] * np.arange(1, n) / n).tolist(), len(cols)]
-    helpers = [_pool(n).submit(run, a, b) for a, b in zip(bounds[1:-1], bounds[2:], strict=True)]
-    run(bounds[0], bounds[1])  # this thread takes the first run
-    for future in helpers:
-        future.result()
+    run_at_once(
+        [functools.partial(run, a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    )
 
 
 def profile_program(program: Program, grid: Grid) -> tuple[Field, np.ndarray]:

@@ -137,9 +137,11 @@ def realise(
     try:
         if isinstance(field, SparseField):
             if walls is None:
-                mesh = extract_sparse(field, cap=cap)
+                mesh = extract_sparse(field, cap=cap, threads=threads)
             else:
-                mesh, report = extract_sparse_labelled(field, tree, spec.params, cap, walls)
+                mesh, report = extract_sparse_labelled(
+                    field, tree, spec.params, cap, walls, threads
+                )
         elif walls is None:
             mesh = extract_mesh(field, spec.level, cap=cap)
         else:

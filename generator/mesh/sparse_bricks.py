@@ -26,19 +26,45 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.eval.sparse import locate
+from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, offset_of
 
 
-@njit(**KERNEL)
-def brick_offsets(values, extent, level):
+def brick_offsets(values, extent, level, threads: int = 1) -> tuple[np.ndarray, int]:
     """The bricks' float32 offsets (:func:`~.marching.offset_of`: non-finite samples are left
     NaN or clipped for the mirror) and the number of non-finite samples within the bricks'
-    extents (entries past the grid's end get offsets too, never read)."""
-    n_bricks, m0, m1, m2 = values.shape
+    extents (entries past the grid's end get offsets too, never read); ``threads`` take runs
+    of bricks."""
     offset = np.empty(values.shape, dtype=np.float32)
+    bad = run_at_once(
+        [
+            lambda a=a, b=b: _offsets_of(values, extent, level, offset, a, b)
+            for a, b in brick_runs(len(values), threads)
+        ]
+    )
+    return offset, sum(bad)
+
+
+def brick_runs(n_bricks: int, threads: int) -> list[tuple[int, int]]:
+    """``threads`` runs of about equal numbers of bricks (one with fewer than
+    :data:`RUN_BRICKS` per thread), as ``(first, end)``."""
+    n = max(1, min(int(threads), n_bricks // RUN_BRICKS))
+    bounds = [n_bricks * r // n for r in range(n + 1)]
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
+
+
+#: Bricks per thread at least (a brick's pass takes a microsecond or two).
+RUN_BRICKS = 2000
+
+
+@njit(**KERNEL)
+def _offsets_of(values, extent, level, offset, b0, b1):
+    """:func:`brick_offsets` of bricks ``b0:b1`` into ``offset``; returns their non-finite
+    samples."""
+    _, m0, m1, m2 = values.shape
     n_bad = 0
-    for b in range(n_bricks):
+    for b in range(b0, b1):
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
         for i in range(m0):
             for j in range(m1):
@@ -47,7 +73,7 @@ def brick_offsets(values, extent, level):
                     offset[b, i, j, k] = offset_of(x, level)[0]
                     if not np.isfinite(x) and i < e0 and j < e1 and k < e2:
                         n_bad += 1
-    return offset, n_bad
+    return n_bad
 
 
 @njit(**INLINE)
@@ -69,18 +95,36 @@ def _tight(ma, b):
     return _RATIO * mb > ma or _RATIO * ma > mb
 
 
-@njit(**KERNEL)
-def scan_bricks(offset, extent, corner, shape):
+def scan_bricks(offset, extent, corner, shape, threads: int = 1):
     """The number of mixed cells of the bricks, and the crossing edges of the bricks that need
     a raise (``|a| < _RATIO |b|`` or the reverse) as global flat sample numbers ``(a, b)``
-    (an edge on a face shared by two bricks twice)."""
+    (an edge on a face shared by two bricks twice), in brick order; ``threads`` take runs of
+    bricks."""
+    parts = run_at_once(
+        [
+            lambda a=a, b=b: _scan(offset, extent, corner, shape, a, b)
+            for a, b in brick_runs(len(offset), threads)
+        ]
+    )
+    if len(parts) == 1:
+        return parts[0]
+    return (
+        sum(p[0] for p in parts),
+        np.concatenate([p[1] for p in parts]),
+        np.concatenate([p[2] for p in parts]),
+    )
+
+
+@njit(**KERNEL)
+def _scan(offset, extent, corner, shape, b0, b1):
+    """:func:`scan_bricks` of bricks ``b0:b1``."""
     col = np.empty(offset.shape[3], dtype=np.int64)
     n_cells = 0
     ta = np.empty(64, dtype=np.int64)
     tb = np.empty(64, dtype=np.int64)
     m = 0
     s1, s2 = shape[1] * shape[2], shape[2]
-    for b in range(offset.shape[0]):
+    for b in range(b0, b1):
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
         for i in range(e0 - 1):
             for j in range(e1 - 1):

@@ -21,8 +21,10 @@ same order and with the same float32 bits:
 - skimage's Python wrapper is applied as the results are written: vertices in the volume's
   axis order, each triangle reversed ('descent'), the faces int64 as the mesh keeps them.
 
-:func:`lewiner_cells` is the kernel; ``tests/generator/mesh/test_sparse_lewiner.py`` compares it
-with skimage on random volumes full of ambiguous cells.  The axis names follow the Cython
+:func:`lewiner_range` is the kernel, over a run of the cells;
+:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells` runs it on all of them, on threads
+in runs of planes (the same result); ``tests/generator/mesh/test_sparse_lewiner.py`` compares
+it with skimage on random volumes full of ambiguous cells.  The axis names follow the Cython
 (``x`` is the volume's last axis, ``z`` its first).
 """
 
@@ -237,21 +239,26 @@ def _test_internal(v, lut, meta, case, config, subconfig, s):
 
 
 @njit(**KERNEL)
-def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
-    """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``keys`` (int64
-    flat numbers ``(z * ny + y) * nx + x`` in the volume, sorted: skimage's visiting order) with
-    corner values ``corners`` (C, 8) float32 in skimage's order v0..v7 (``im[z, y, x]``,
-    ``im[z, y, x+1]``, ``im[z, y+1, x+1]``, ``im[z, y+1, x]``, then the same at ``z+1``), the
-    level 0.
+def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
+    """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``keys[c0:c1]``
+    (int64 flat numbers ``(z * ny + y) * nx + x`` in the volume, sorted: skimage's visiting
+    order) with corner values ``corners`` (C, 8) float32 in skimage's order v0..v7
+    (``im[z, y, x]``, ``im[z, y, x+1]``, ``im[z, y+1, x+1]``, ``im[z, y+1, x]``, then the same
+    at ``z+1``), the level 0.
 
     ``nx``, ``ny``: the volume's sizes along x (last axis) and y.  Returns what skimage's
-    ``marching_cubes(..., gradient_direction="descent")`` returns: float32 vertices ``(V, 3)``
-    in the volume's axis order (z, y, x) and faces ``(F, 3)`` wound for 'descent' (each
-    triangle of the Cython kernel reversed), here int64 (the mesh's type).  Both are written
-    in place (no reversal or conversion afterwards); they are views of arrays sized for the
-    usual two triangles per cell, grown when a surface needs more.
+    ``marching_cubes(..., gradient_direction="descent")`` returns for those cells: float32
+    vertices ``(V, 3)`` in the volume's axis order (z, y, x) and faces ``(F, 3)`` wound for
+    'descent' (each triangle of the Cython kernel reversed), here int64 (the mesh's type).
+    Both are written in place (no reversal or conversion afterwards); they are views of arrays
+    sized for the usual two triangles per cell, grown when a surface needs more.
+
+    Then what joins a run of planes to the one before it
+    (:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells`): ``head`` (with ``track``;
+    else empty), per vertex the face-layer slot of an x or y edge of the run's first plane
+    that it was made for (-1 for the others), which the run before may hold already; the last
+    plane's second layer (slot -> vertex: the next plane's first layer) and that plane's z.
     """
-    n_cells = keys.size
     plane = nx * ny
     # skimage's two face layers, dense as skimage's own: slot 4 * (nx * y + x) + edge kind
     # (0, 1: the x and y edges of the layer's face, 2: the z edge, 3: the centre) -> vertex;
@@ -262,15 +269,18 @@ def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
     used2 = np.empty(64, dtype=np.int64)
     n1 = 0
     n2 = 0
+    n_cells = c1 - c0
     verts = np.empty((n_cells + n_cells // 4 + 64, 3), dtype=np.float32)
     faces = np.empty((2 * n_cells + n_cells // 4 + 64, 3), dtype=np.int64)
+    head = np.empty(verts.shape[0] if track else 0, dtype=np.int64)
+    first_z = keys[c0] // plane if n_cells > 0 else np.int64(-2)
     nv = 0
     nf = 0
     v = np.empty(8)  # v0..v7
     vv = np.empty(8)  # skimage's vv: the corners indexed by bits (x, y, z)
     tri = np.empty(36, dtype=np.int64)  # edge indices of the cell's triangles
     last_z = np.int64(-2)
-    for c in range(n_cells):
+    for c in range(c0, c1):
         key = keys[c]
         z = key // plane
         y = (key - z * plane) // nx
@@ -314,6 +324,8 @@ def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
         have12 = False
         if verts.shape[0] < nv + 13:
             verts = _grown(verts, nv, 13)
+            if track:
+                head = _grown(head, nv, 13)
         if faces.shape[0] < nf + nt:
             faces = _grown(faces, nf, nt)
         if used1.size < n1 + 13:
@@ -390,6 +402,8 @@ def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
                 verts[nv, 0] = np.float32(pz)
                 verts[nv, 1] = np.float32(py)
                 verts[nv, 2] = np.float32(px)
+                if track:  # an x or y edge of the first plane: the run before may hold it
+                    head[nv] = at_slot if (z == first_z and not second and j < 2) else -1
                 at = nv
                 nv += 1
                 if second:
@@ -403,7 +417,7 @@ def lewiner_cells(keys, corners, nx, ny, lut, meta, ex, ey, ez):
             # ... and reverses each triangle ('descent')
             faces[nf + q // 3, 2 - q % 3] = at
         nf += nt
-    return verts[:nv], faces[:nf]
+    return verts[:nv], faces[:nf], head[: nv if track else 0], layer2, last_z
 
 
 @njit(**KERNEL)

@@ -22,7 +22,7 @@ of the surface reads (the passes over the bricks are in
    (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`),
    the pad's cells written among the bricks' where their numbers fall;
 5. skimage's marching cubes on those cells in skimage's order
-   (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_cells`: the vertices and faces
+   (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the vertices and faces
    skimage's ``marching_cubes`` returns, same order, same bits), then the dense path's end
    (:func:`~surfgen.generator.mesh.mesh.finish_marching`).
 
@@ -39,9 +39,10 @@ from numba import njit
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import points_evaluator
-from surfgen.generator.eval.sparse import SparseField, locate
+from surfgen.generator.eval.sparse import SparseField, locate, thread_count
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 from surfgen.generator.mesh.marching import _TINY32
 from surfgen.generator.mesh.mesh import Mesh, finish_marching
 from surfgen.generator.mesh.sparse_bricks import (
@@ -50,29 +51,24 @@ from surfgen.generator.mesh.sparse_bricks import (
     raise_bricks,
     scan_bricks,
 )
-from surfgen.generator.mesh.sparse_lewiner import (
-    EDGE_X,
-    EDGE_Y,
-    EDGE_Z,
-    LUT,
-    LUT_META,
-    lewiner_cells,
-)
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, label_walls
 
 log = logging.getLogger(__name__)
 
 
-def extract_sparse(sf: SparseField, cap: bool = False) -> Mesh:
+def extract_sparse(sf: SparseField, cap: bool = False, threads: int | None = 1) -> Mesh:
     """:func:`~surfgen.generator.mesh.mesh.extract_mesh` of the dense field, from ``sf``."""
-    return extract_sparse_with_edges(sf, cap)[0]
+    return extract_sparse_with_edges(sf, cap, threads)[0]
 
 
-def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh, np.ndarray]:
+def extract_sparse_with_edges(
+    sf: SparseField, cap: bool = False, threads: int | None = 1
+) -> tuple[Mesh, np.ndarray]:
     """:func:`~surfgen.generator.mesh.mesh.extract_with_edges` of the dense field at
     ``sf.level``, from ``sf`` (the module's docstring).  ``cap`` needs ``sf`` sampled with
-    ``faces=True``.  Raises :class:`EmptySurface` when every sample is inside or every one is
-    outside."""
+    ``faces=True``.  ``threads`` (None: numba's count) run the marching of large surfaces in
+    runs of planes (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the same
+    mesh).  Raises :class:`EmptySurface` when every sample is inside or every one is outside."""
     level = sf.level
     if not sf.any_inside():
         raise EmptySurface(_empty_message("outside", sf))
@@ -81,10 +77,11 @@ def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh,
     slot, corner, values, block = sf.lookup()
     extent = sf.extent
     shape = np.asarray(sf.grid.shape, dtype=np.int64)
-    offset, n_bad = brick_offsets(values, extent, level)
+    threads = thread_count(threads)
+    offset, n_bad = brick_offsets(values, extent, level, threads)
     if n_bad and _mirror_bricks(values, extent, corner, offset, slot, block, shape):
         log.debug("sparse marching: non-finite samples mirrored")
-    n_cells, ta, tb = scan_bricks(offset, extent, corner, shape)
+    n_cells, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, offset, slot, block, shape)
     shift = 1 if cap else 0
@@ -97,9 +94,7 @@ def extract_sparse_with_edges(sf: SparseField, cap: bool = False) -> tuple[Mesh,
         offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
     )
     size = shape + 2 * shift
-    verts, faces = lewiner_cells(
-        keys, corners, int(size[2]), int(size[1]), LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z
-    )
+    verts, faces = lewiner_cells(keys, corners, int(size[2]), int(size[1]), threads)
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
     return finish_marching(verts, faces, sf.grid, level, cap)
@@ -111,12 +106,13 @@ def extract_sparse_labelled(
     params: Mapping[str, float] | None = None,
     cap: bool = False,
     walls: str = "mark",
+    threads: int | None = 1,
 ) -> tuple[Mesh, WallReport]:
     """:func:`~surfgen.generator.mesh.walls.extract_labelled` of the dense field, from ``sf``:
     the samples beside each crossing along its grid line that no brick holds are evaluated
     (:func:`sparse_edge_lines`)."""
     check_walls_mode(walls)
-    mesh, edges = extract_sparse_with_edges(sf, cap and walls != "remove")
+    mesh, edges = extract_sparse_with_edges(sf, cap and walls != "remove", threads)
     lines = sparse_edge_lines(sf, edges, tree, params)
     return label_walls(mesh, edges, sf, tree, params, sf.level, cap, walls, lines=lines)
 

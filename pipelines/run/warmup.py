@@ -66,25 +66,16 @@ def warm_in_child() -> None:
     are compiled for the tiny shape's argument types, not run
     (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
     kernels run on the field the reference evaluator samples (the same values)."""
-    from surfgen.generator.mesh import sparse_lewiner as lewiner
     from surfgen.generator.mesh import walls
+    from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 
     # First, the sparse marching's largest kernel (Lewiner's cases on a list of cells), which
     # the parent would otherwise compile after the interpreter (_warm_sparse_marching): it
-    # loads it from the cache instead, and the two processes end together.
-    corners = np.ones((1, 8), dtype=np.float32)
-    corners[0, 0] = -1.0
-    lewiner.lewiner_cells(
-        np.zeros(1, dtype=np.int64),
-        corners,
-        2,
-        2,
-        lewiner.LUT,
-        lewiner.LUT_META,
-        lewiner.EDGE_X,
-        lewiner.EDGE_Y,
-        lewiner.EDGE_Z,
-    )
+    # loads it from the cache instead, and the two processes end together. Two cells on two
+    # planes, on two threads: the kernels that join runs of planes too.
+    corners = np.ones((2, 8), dtype=np.float32)
+    corners[:, 0] = -1.0
+    lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
     with compiled_not_run((walls, "_bisect_kernel")):
         _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
@@ -162,7 +153,7 @@ def _kernels_cached() -> bool:
 
     stages = (grid_kernel(), walls._bisect_kernel, marching._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
-    stages += (grid_driver.run_columns, fine_band._fill_bricks, sparse_lewiner.lewiner_cells)
+    stages += (grid_driver.run_columns, fine_band._fill_bricks, sparse_lewiner.lewiner_range)
     return all(kernel_cached(d) for d in stages)
 
 

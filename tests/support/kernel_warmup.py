@@ -95,7 +95,7 @@ def sparse_kernels_cached() -> bool:
     from surfgen.generator.mesh import sparse_lewiner
     from surfgen.pipelines.run.warmup import kernel_cached
 
-    return kernel_cached(interval_kernels.run_boxes) and kernel_cached(sparse_lewiner.lewiner_cells)
+    return kernel_cached(interval_kernels.run_boxes) and kernel_cached(sparse_lewiner.lewiner_range)
 
 
 def start_sparse_child() -> subprocess.Popen | None:

@@ -9,10 +9,13 @@ import pytest
 from skimage.measure import marching_cubes
 
 from surfgen.generator.mesh import sparse_lewiner as lw
+from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 from surfgen.generator.mesh.marching import _mixed_cells
 
 
-def run_port(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def run_port(
+    work: np.ndarray, mask: np.ndarray, threads: int = 1, min_cells: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """The port on the cells ``mask`` lets through (skimage reads a cell's mask at its far
     corner): it returns what skimage's ``marching_cubes`` returns ('descent'), faces int64."""
     z, y, x = (a.astype(np.int64) for a in np.nonzero(mask[1:, 1:, 1:]))
@@ -25,10 +28,9 @@ def run_port(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray
         axis=1,
     ).astype(np.float32)  # fmt: skip
     keys = (z * work.shape[1] + y) * work.shape[2] + x
-    return lw.lewiner_cells(
-        keys, np.ascontiguousarray(corners), work.shape[2], work.shape[1],
-        lw.LUT, lw.LUT_META, lw.EDGE_X, lw.EDGE_Y, lw.EDGE_Z,
-    )  # fmt: skip
+    return lewiner_cells(
+        keys, np.ascontiguousarray(corners), work.shape[2], work.shape[1], threads, min_cells
+    )
 
 
 def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
@@ -45,8 +47,10 @@ def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.nd
     return w
 
 
+@pytest.mark.parametrize("threads", [1, 2, 5])
 @pytest.mark.parametrize("kind", [0, 1, 2])
-def test_port_is_skimage_bit_for_bit(kind):
+def test_port_is_skimage_bit_for_bit(kind, threads):
+    # threads > 1: runs of whole planes (down to one plane each here) joined into one numbering
     rng = np.random.default_rng(100 + kind)
     checked = 0
     for _ in range(12):
@@ -56,7 +60,7 @@ def test_port_is_skimage_bit_for_bit(kind):
             continue
         mask = _mixed_cells(w)
         ref_v, ref_f, _n, _v = marching_cubes(w, 0.0, gradient_direction="descent", mask=mask)
-        v, f = run_port(w, mask)
+        v, f = run_port(w, mask, threads)
         assert v.dtype == ref_v.dtype == np.float32
         assert np.array_equal(v, ref_v)
         assert np.array_equal(f, ref_f)
@@ -74,7 +78,7 @@ def test_the_case_tests_are_compiled_once():
 
     # a fresh (uncached) compile of the switch: typing it asks _test_internal for the
     # signatures of its calls, which a copy loaded from numba's cache would not
-    v = np.zeros(8)  # the cell's corner values, as lewiner_cells hands them
+    v = np.zeros(8)  # the cell's corner values, as lewiner_range hands them
     case = config = np.int64(1)
     args = (v, lw.LUT, lw.LUT_META, case, config)
     numba.njit(**{**KERNEL, "cache": False})(lw._big_switch.py_func).compile(
@@ -85,9 +89,11 @@ def test_the_case_tests_are_compiled_once():
     assert not [s for s in signatures if any(isinstance(t, types.Literal) for t in s)]
 
 
-def test_port_follows_skimage_layers_with_gaps():
+@pytest.mark.parametrize("threads", [1, 2, 4, 9])
+def test_port_follows_skimage_layers_with_gaps(threads):
     """Masks that skip whole planes and rows: skimage's face layers are cleared as it moves
-    on, so the vertices it shares (and the duplicates where it does not) are reproduced."""
+    on, so the vertices it shares (and the duplicates where it does not) are reproduced; in
+    runs of planes, a run after a skipped plane shares nothing with the one before."""
     rng = np.random.default_rng(7)
     w = volume(0, (9, 7, 8), rng)
     mask = _mixed_cells(w)
@@ -95,8 +101,37 @@ def test_port_follows_skimage_layers_with_gaps():
     mask[:, 2] = False
     mask[5, :, ::2] = False
     ref_v, ref_f, _n, _v = marching_cubes(w, 0.0, gradient_direction="descent", mask=mask)
-    v, f = run_port(w, mask)
+    v, f = run_port(w, mask, threads)
     assert np.array_equal(v, ref_v) and np.array_equal(f, ref_f)
+
+
+def test_runs_are_whole_planes_of_about_equal_counts():
+    from surfgen.generator.mesh.lewiner_chunks import _runs
+
+    plane = 100
+    keys = np.sort(np.r_[np.arange(0, 40), np.arange(100, 190), np.arange(300, 310)]).astype(
+        np.int64
+    )  # 40 cells in plane 0, 90 in plane 1, 10 in plane 3
+    assert _runs(keys, plane, 1) == [0, len(keys)]
+    assert _runs(keys, plane, 2) == [0, 40, len(keys)]  # the middle cell's plane starts at 40
+    assert _runs(keys, plane, 3) == [0, 40, len(keys)]  # plane 1 holds two shares: one run
+    assert _runs(keys, plane, 4) == [0, 40, len(keys)]
+    assert _runs(keys, plane, 14) == [0, 40, 130, len(keys)]  # a share ends in plane 3
+    for n in range(1, 20):
+        bounds = _runs(keys, plane, n)
+        assert bounds[0] == 0 and bounds[-1] == len(keys) and bounds == sorted(set(bounds))
+        assert all(keys[b] // plane != keys[b - 1] // plane for b in bounds[1:-1])
+
+
+def test_threads_need_enough_cells_for_a_run():
+    # below min_cells per run, one pass; the result is the same either way
+    rng = np.random.default_rng(11)
+    w = volume(2, (10, 9, 8), rng)
+    mask = _mixed_cells(w)
+    one = run_port(w, mask, threads=1)
+    for min_cells in (1, 50, 10**9):
+        v, f = run_port(w, mask, threads=3, min_cells=min_cells)
+        assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
 
 
 def test_every_case_is_met():

@@ -73,7 +73,7 @@ def no_bounds(_program, lo, _hi):
     return np.full(k, -np.inf), np.full(k, np.inf), np.zeros(k, dtype=bool)
 
 
-def both_paths(tree, grid, params, level, cap, bounds="tight", block=8):
+def both_paths(tree, grid, params, level, cap, bounds="tight", block=8, threads=1):
     field = evaluate(tree, grid, params)
     dense = extract_with_edges(field, level, cap)
     chosen = {"tight": sample_bounds(field), "loose": sample_bounds(field, 0.5)}
@@ -81,7 +81,7 @@ def both_paths(tree, grid, params, level, cap, bounds="tight", block=8):
         tree, grid, params, level=level, faces=cap, block=block,
         bounds=chosen.get(bounds, no_bounds),
     )  # fmt: skip
-    return dense, extract_sparse_with_edges(sf, cap), sf
+    return dense, extract_sparse_with_edges(sf, cap, threads), sf
 
 
 def assert_same(dense, sparse):
@@ -172,6 +172,32 @@ def test_special_fields(formula, bounds_, shape, bounds):
     grid = Grid(Box.from_bounds(bounds_), shape)
     for cap in (False, True):
         dense, sparse, _sf = both_paths(parse(formula), grid, {}, 0.0, cap, bounds)
+        assert_same(dense, sparse)
+
+
+@pytest.mark.parametrize(
+    "formula, bounds_",
+    [
+        ("x^2+y^2+z^2-1", (-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)),  # cut by the box: the pad
+        ("sqrt(1-x^2-y^2-z^2)-0.3", (-1.1, 1.2, -1.0, 1.0, -1.3, 0.9)),  # non-finite: mirrors
+        ("tan(3*x)+0.3*y-z", (-1.0, 1.0, -1.0, 1.0, -1.0, 1.0)),  # poles
+        ("0*x+y-0.25", (-1.0, 1.0, -1.0, 1.0, -1.0, 1.0)),  # on the level: raises
+        ("sin(3*x)*cos(2*y)+sin(2*z)-0.2", (-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)),
+    ],
+)
+@pytest.mark.parametrize("threads", [2, 3])
+def test_threads_give_the_same_mesh(monkeypatch, formula, bounds_, threads):
+    # runs of a brick or more for the offsets and the scan, of a plane or more for the marching
+    # (lewiner_chunks): the one-thread mesh, bit for bit
+    from surfgen.generator.mesh import lewiner_chunks, sparse_bricks
+
+    monkeypatch.setattr(sparse_bricks, "RUN_BRICKS", 1)
+    monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
+    grid = Grid(Box.from_bounds(bounds_), (31, 30, 29))
+    for cap in (False, True):
+        dense, sparse, _sf = both_paths(
+            parse(formula), grid, {}, 0.0, cap, block=4, threads=threads
+        )
         assert_same(dense, sparse)
 
 

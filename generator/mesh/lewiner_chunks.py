@@ -1,0 +1,139 @@
+"""skimage's marching cubes over a list of cells, on several threads, the same result.
+
+:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range` runs skimage's Lewiner algorithm
+over a run of the cells (sorted in skimage's visiting order: plane by plane along the volume's
+first axis).  Vertices are numbered as they are made and shared between neighbouring cells
+through two face layers, the current plane's and the next one's; so a run of whole planes
+depends on the run before it through one thing only: the vertices on the plane between them,
+which the run before made for its last plane's top faces (its second layer, handed back) and
+which skimage's single pass finds in its first layer instead of making them again.
+
+:func:`lewiner_cells` cuts the cells into runs of whole planes of about equal counts, runs them
+at once (one per thread, the GIL released), then joins them in order: a vertex a run made for
+an x or y edge of its first plane (its ``head``) is the run before's where that run's last
+layer holds the same slot and its last plane is the one just below; every other vertex gets
+the next number, in the order it was made.  That is skimage's numbering, so the vertices and
+faces are the single pass's, bit for bit (a vertex's coordinates are computed from the edge's
+two corner values and its cell's absolute index, the same in either run).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from surfgen.generator.eval.tape import run_at_once
+from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.mesh.sparse_lewiner import (
+    EDGE_X,
+    EDGE_Y,
+    EDGE_Z,
+    LUT,
+    LUT_META,
+    lewiner_range,
+)
+
+#: Cells per run at least: below this a second thread saves less than the join costs
+#: (about 2 ms for 100,000 cells here).
+CHUNK_CELLS = 100_000
+
+
+def lewiner_cells(
+    keys: np.ndarray, corners: np.ndarray, nx: int, ny: int, threads: int = 1,
+    min_cells: int | None = None,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells ``keys``
+    with corners ``corners`` (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`):
+    float32 vertices (V, 3) and int64 faces (F, 3).  With ``threads`` > 1, in runs of whole
+    planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per thread, joined
+    into the same arrays."""
+    n = len(keys)
+    least = CHUNK_CELLS if min_cells is None else max(1, int(min_cells))
+    runs = _runs(keys, nx * ny, max(1, min(int(threads), n // least)))
+    if len(runs) == 1:
+        verts, faces, _, _, _ = _run(keys, corners, 0, n, nx, ny, False)
+        return verts, faces
+    parts = run_at_once(
+        [
+            lambda a=a, b=b: _run(keys, corners, a, b, nx, ny, True)
+            for a, b in zip(runs[:-1], runs[1:], strict=True)
+        ]
+    )
+    return _join(parts, [keys[a] // (nx * ny) for a in runs[:-1]])
+
+
+def _run(keys, corners, c0, c1, nx, ny, track):
+    return lewiner_range(
+        keys, corners, c0, c1, nx, ny, LUT, LUT_META, EDGE_X, EDGE_Y, EDGE_Z, track
+    )
+
+
+def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
+    """Boundaries of ``n`` runs of whole planes of about equal cell counts (fewer where a plane
+    holds more than a run's share): ``[0, ..., len(keys)]``."""
+    size = len(keys)
+    bounds = [0]
+    for k in range(1, n):
+        target = size * k // n
+        start = int(np.searchsorted(keys, (keys[target] // plane) * plane))  # its plane's first
+        if start > bounds[-1]:
+            bounds.append(start)
+    return [*bounds, size] if size > bounds[-1] else bounds
+
+
+def _join(parts, first_planes) -> tuple[np.ndarray, np.ndarray]:
+    """The runs' vertices and faces numbered as one pass numbers them."""
+    numbers, starts = [], []
+    total = 0
+    for r, (verts, _, head, _, _) in enumerate(parts):
+        starts.append(total)
+        if r == 0:
+            numbers.append(np.arange(len(verts), dtype=np.int64))
+            total = len(verts)
+            continue
+        _, _, _, tail, last_plane = parts[r - 1]
+        linked = last_plane == first_planes[r] - 1
+        local, total = _numbers(head, tail, numbers[-1], linked, total)
+        numbers.append(local)
+    out_v = np.empty((total, 3), dtype=np.float32)
+    out_f = np.empty((sum(len(p[1]) for p in parts), 3), dtype=np.int64)
+    f0 = np.cumsum([0] + [len(p[1]) for p in parts])
+    run_at_once(  # each run writes rows of its own
+        [
+            lambda r=r: _place(out_v, out_f, parts[r][0], parts[r][1], numbers[r], starts[r], f0[r])
+            for r in range(len(parts))
+        ]
+    )
+    return out_v, out_f
+
+
+@njit(**KERNEL)
+def _numbers(head, tail, tail_numbers, linked, start):
+    """A run's vertex numbers: its head vertices the run before's where that run's last layer
+    (``tail``: slot -> its vertex, numbered ``tail_numbers``) holds the slot and ``linked`` (its
+    last plane is just below), the others ``start``, ``start + 1``, ... in order. Returns them
+    and the next free number."""
+    out = np.empty(head.size, dtype=np.int64)
+    following = start
+    for i in range(head.size):
+        h = head[i]
+        if linked and h >= 0 and tail[h] >= 0:
+            out[i] = tail_numbers[tail[h]]
+        else:
+            out[i] = following
+            following += 1
+    return out, following
+
+
+@njit(**KERNEL)
+def _place(out_v, out_f, verts, faces, numbers, start, f0):
+    """A run's new vertices (numbered from ``start``) and its faces renumbered, written into
+    the joined arrays (the faces from row ``f0``)."""
+    for i in range(numbers.size):
+        k = numbers[i]
+        if k >= start:
+            for a in range(3):
+                out_v[k, a] = verts[i, a]
+    for t in range(faces.shape[0]):
+        for a in range(3):
+            out_f[f0 + t, a] = numbers[faces[t, a]]
