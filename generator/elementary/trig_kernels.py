@@ -152,7 +152,7 @@ def _cos_k(yh, yl):
     return w + (((1.0 - w) - hz) + (z * z * p - yh * yl))
 
 
-@_dual(inline=True)
+@_dual
 def _sin_finish(q, yh, yl):
     """sin(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -162,7 +162,7 @@ def _sin_finish(q, yh, yl):
     return _where(q >= 2.0, -r, r)
 
 
-@_dual(inline=True)
+@_dual
 def _cos_finish(q, yh, yl):
     """cos(q*pi/2 + y) for q = n mod 4."""
     s = _sin_k(yh, yl)
@@ -173,7 +173,7 @@ def _cos_finish(q, yh, yl):
     return _where(neg, -r, r)
 
 
-@_dual(inline=True)
+@_dual
 def _tan_finish(q, yh, yl):
     """tan(q*pi/4 + y) for q = n mod 4, |y| <= ~pi/8, via (a + b*T)/(c + d*T).
 
@@ -212,7 +212,7 @@ def _tan_finish(q, yh, yl):
     return t + r * inv
 
 
-@_dual(inline=True)
+@_dual
 def _sin_fast(x):
     n, yh, yl = _reduce_cw2(x)
     r = _sin_finish(_mod4(n), yh, yl)
@@ -220,13 +220,13 @@ def _sin_fast(x):
     return _nan_fix(r)
 
 
-@_dual(inline=True)
+@_dual
 def _cos_fast(x):
     n, yh, yl = _reduce_cw2(x)
     return _nan_fix(_cos_finish(_mod4(n), yh, yl))
 
 
-@_dual(inline=True)
+@_dual
 def _tan_fast(x):
     n, yh, yl = _reduce_cw4(x)
     r = _tan_finish(_mod4(n), yh, yl)
@@ -277,7 +277,7 @@ def _asin_poly(z):
     )
 
 
-@_dual(inline=True)
+@_dual
 def _asin_parts(ax):
     """For a = |x|: (big, b, btail) with asin(a) = H - 2*b - 2*btail when big, a + btail else.
 
@@ -295,7 +295,7 @@ def _asin_parts(ax):
     return big, b, btail
 
 
-@_dual(inline=True)
+@_dual
 def _asin_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -308,7 +308,7 @@ def _asin_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual(inline=True)
+@_dual
 def _acos_fast(x):
     ax = abs(x)
     big, b, btail = _asin_parts(ax)
@@ -357,7 +357,7 @@ def _atan_poly_estrin(z):
     return (b0 + z4 * b1) + z8 * b2
 
 
-@_dual(inline=True)
+@_dual
 def _atan_core(ay, ax, u, exact):
     """atan(ay/ax) for 0 <= ay, 0 < ax (or ay > 0 = ax), u ~ ay/ax, as (h, tail).
 
@@ -395,7 +395,7 @@ def _atan_core(ay, ax, u, exact):
     return h, (e + al) + corr
 
 
-@_dual(inline=True)
+@_dual
 def _atan_fast(x):
     ay = abs(x)
     ay = _where(ay > _ATAN_CLAMP, _ATAN_CLAMP, ay)  # also inf; NaN stays NaN
@@ -404,7 +404,7 @@ def _atan_fast(x):
     return _nan_fix(_copysign(r, x))
 
 
-@_dual(inline=True)
+@_dual
 def _atan2_fast(y, x):
     """atan2 for operands that are 0, inf, NaN or of magnitude in [2**-500, 2**500]."""
     ay = abs(y)

@@ -67,15 +67,7 @@ def warm_in_child() -> None:
     (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
     kernels run on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
-    from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 
-    # First, the sparse marching's largest kernel (Lewiner's cases on a list of cells), which
-    # the parent would otherwise compile after the interpreter (_warm_sparse_marching): it
-    # loads it from the cache instead, and the two processes end together. Two cells on two
-    # planes, on two threads: the kernels that join runs of planes too.
-    corners = np.ones((2, 8), dtype=np.float32)
-    corners[:, 0] = -1.0
-    lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
     with compiled_not_run((walls, "_bisect_kernel")):
         _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
@@ -244,7 +236,8 @@ def _warm_sparse_marching() -> None:
     """The resolution check's sparse marching (:mod:`surfgen.generator.mesh.sparse_marching`)
     on the tiny shape's field as one brick per leaf, with a non-finite sample beside the
     surface (mirrored) and one a hair outside it (a crossing raised off the sample), capped:
-    every kernel of it, without the fine band's (the child compiles those)."""
+    every kernel of it, without the fine band's (the child compiles those); and Lewiner's pass
+    in runs of planes joined (render's, on threads)."""
     from surfgen.generator.eval.sparse import (
         BLOCK,
         SAMPLED,
@@ -252,6 +245,7 @@ def _warm_sparse_marching() -> None:
         brick_layout,
         leaf_counts,
     )
+    from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
     from surfgen.generator.mesh.sparse_marching import extract_sparse
 
     _, _, field = _tiny_shape("reference")
@@ -268,6 +262,10 @@ def _warm_sparse_marching() -> None:
         bricks[b, :e0, :e1, :e2] = values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2]
     sf = SparseField(field.grid, 0.0, BLOCK, state, slot, corner, extent, bricks)
     extract_sparse(sf, cap=True)
+    # and on threads (render's): two cells on two planes, a run each, joined
+    corners = np.ones((2, 8), dtype=np.float32)
+    corners[:, 0] = -1.0
+    lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
 
 
 def _warm_the_rest(field, box, mesh, tree, fine_mesh: bool = True) -> None:
