@@ -110,6 +110,46 @@ def test_meanwhile_runs_once_the_interpreter_is_ready_before_the_child_is_awaite
     assert order == ["meanwhile True", "child awaited"]
 
 
+class _Cycle:
+    def __init__(self) -> None:
+        self.me = self  # only the cycle collector frees it
+
+
+@pytest.mark.parametrize("collect", [True, False])
+def test_the_cycle_collector_is_paused_while_compiling(collect) -> None:
+    import gc
+    import weakref
+
+    from surfgen.pipelines.run.warmup import _collector_paused
+
+    assert gc.isenabled()
+    with _collector_paused(collect=collect):
+        assert not gc.isenabled()
+        gc.collect()  # what came before is not this block's garbage
+        garbage = weakref.ref(_Cycle())
+        assert garbage() is not None
+    assert gc.isenabled()
+    assert (garbage() is None) == collect  # one collection after, unless the process exits
+    gc.collect()
+    assert garbage() is None
+
+
+def test_the_cycle_collector_is_left_alone_with_a_warm_cache_or_off() -> None:
+    import gc
+
+    from surfgen.pipelines.run.warmup import _collector_paused
+
+    with _collector_paused(pause=False):
+        assert gc.isenabled()
+    gc.disable()
+    try:
+        with _collector_paused():
+            assert not gc.isenabled()
+        assert not gc.isenabled()  # the caller's choice kept
+    finally:
+        gc.enable()
+
+
 def test_sample_prints_the_compile_notice_once(monkeypatch, tmp_path, capsys) -> None:
     from surfgen.pipelines.cli.main import main
     from surfgen.pipelines.run import warmup
