@@ -50,7 +50,7 @@ def lewiner_cells(
     n = len(keys)
     least = CHUNK_CELLS if min_cells is None else max(1, int(min_cells))
     runs = _runs(keys, nx * ny, max(1, min(int(threads), n // least)))
-    if len(runs) == 1:
+    if len(runs) <= 2:  # one run (or no cell): skimage's single pass, nothing to join
         verts, faces, _, _, _ = _run(keys, corners, 0, n, nx, ny, False)
         return verts, faces
     parts = run_at_once(

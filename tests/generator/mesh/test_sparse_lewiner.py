@@ -123,15 +123,28 @@ def test_runs_are_whole_planes_of_about_equal_counts():
         assert all(keys[b] // plane != keys[b - 1] // plane for b in bounds[1:-1])
 
 
-def test_threads_need_enough_cells_for_a_run():
-    # below min_cells per run, one pass; the result is the same either way
+def test_threads_need_enough_cells_for_a_run(monkeypatch):
+    # below min_cells per run, one pass (no vertex tracked for a join); the same result
+    from surfgen.generator.mesh import lewiner_chunks
+
+    calls = []
+    kernel = lewiner_chunks.lewiner_range
+
+    def counted(*args):
+        calls.append(args[-1])  # track
+        return kernel(*args)
+
+    monkeypatch.setattr(lewiner_chunks, "lewiner_range", counted)
     rng = np.random.default_rng(11)
     w = volume(2, (10, 9, 8), rng)
     mask = _mixed_cells(w)
     one = run_port(w, mask, threads=1)
-    for min_cells in (1, 50, 10**9):
+    assert calls == [False]
+    for min_cells, runs in ((1, 3), (50, 3), (10**9, 1)):
+        calls.clear()
         v, f = run_port(w, mask, threads=3, min_cells=min_cells)
         assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
+        assert calls == ([True] * runs if runs > 1 else [False])
 
 
 def test_every_case_is_met():
