@@ -136,8 +136,6 @@ def _run_threads(prog: tuple, tile: int, stores: tuple, out: np.ndarray, n_threa
             for lo, hi in todo:
                 run(part, lo, hi)
 
-        # the calling thread works too: it starts at once, while a pool thread may take a
-        # millisecond to wake (an idle vCPU of a virtual machine)
         run_at_once([work] * min(n_threads, chunks))
 
 
