@@ -77,7 +77,7 @@ def fine_band(
         sample_face_leaves(state)
     _, slot, corner, extent = brick_layout(state, grid, BLOCK)
     raw = np.full((len(corner), BLOCK + 1, BLOCK + 1, BLOCK + 1), np.nan)
-    todo, evaluated = _band_points(cells, tuple(grid.shape))
+    todo, evaluated = band_points(cells, tuple(grid.shape))
     members = np.flatnonzero(_bricks_in_band(todo, corner, extent))  # in C order, as leaves
     if len(members):
         program = compile_cached(tree, params)
@@ -159,7 +159,7 @@ def _dilate(cells, band):
 
 
 @njit(**KERNEL)
-def _band_points(cells, shape):
+def band_points(cells, shape):
     """The fine points ``shape`` of the band ``cells`` (each coarse cell's 27), less the coarse
     samples (even indices on every axis): the points to evaluate, and how many."""
     todo = np.zeros(shape, dtype=np.bool_)

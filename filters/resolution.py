@@ -42,8 +42,8 @@ import numba
 import numpy as np
 
 from surfgen.filters.fine_band import (
-    _band_points,
     band_cells,
+    band_points,
     corner_sum,
     fine_band,
     fine_grid,
@@ -145,7 +145,7 @@ def fine_field(
     else:
         cells = band_cells(coarse, level, band)
         fine = np.empty(grid.shape)
-        todo, evaluated = _band_points(cells, grid.shape)
+        todo, evaluated = band_points(cells, grid.shape)
         if via_grid is None:
             via_grid = evaluated * POINT_COST > grid.size
         if via_grid:  # the same values (bit for bit), taken only where the band needs them

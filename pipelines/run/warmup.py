@@ -190,11 +190,13 @@ def warm_shape_kernels(
     seconds it took. When that means compiling (:func:`shape_kernels_cached` is false),
     ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
 
-    The first time on a machine this compiles every kernel, about two minutes on one CPU, most
-    of it the interpreter. With ``parallel`` and a second CPU it takes a little more than the
-    interpreter alone (``benchmarks/cold_start.py``): this process compiles the
-    interpreter while a child process (:func:`warm_in_child`) compiles every other kernel into
-    numba's on-disk cache; then this process loads the child's kernels from the cache.
+    The first time on a machine this compiles every kernel, about a minute on one CPU. With
+    ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): this process
+    compiles the interpreter, then the sparse marching (:func:`_warm_sparse_marching`), while a
+    child process (:func:`warm_in_child`) compiles every other kernel into numba's on-disk
+    cache (the two end within a second of each other, 35 s on a 2-core Zen 4); then this process
+    loads the child's kernels from the cache. Python's cycle collector is paused meanwhile
+    (:func:`_collector_paused`).
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
     process waits for the child: only the interpreter need be loaded for it."""
     t0 = time.perf_counter()

@@ -115,7 +115,7 @@ def test_band_and_dense_agree_on_a_resolved_shape() -> None:
     assert band.fine_points < dense.fine_points
 
 
-def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
+def test_out_ofband_points_keep_the_side_of_their_cell() -> None:
     # One sample inside, far from the level: only the cells around it are crossed; the fine
     # points of the other cells keep the coarse side even where their mean would not.
     values = np.full((6, 6, 6), 5.0)
@@ -124,7 +124,7 @@ def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
     fine = np.empty((11, 11, 11))
     cells = fb._crossed_cells(values, 0.0)
     assert cells.sum() == 8
-    todo, n = fb._band_points(cells, fine.shape)
+    todo, n = fb.band_points(cells, fine.shape)
     res._upsample(values, todo, 0.0, fine, np.empty((0, 0, 0)))
     assert todo.sum() == n == 5**3 - 3**3  # the crossed cells' fine points, less the coarse samples
     assert fine[4, 4, 4] == -1.0 and fine[10, 10, 10] != fine[10, 10, 10]
