@@ -233,10 +233,8 @@ def face_components(mesh: Mesh) -> np.ndarray:
     Components are numbered in the order of their lowest vertex index (as scipy's
     ``connected_components`` numbers them).
     """
-    root = _vertex_roots(np.ascontiguousarray(mesh.faces), mesh.n_vertices)
-    # Relabel 0..k-1 over faces only, so unreferenced vertices do not leave gaps.
-    _, labels = np.unique(root[mesh.faces[:, 0]], return_inverse=True)
-    return labels.reshape(-1)
+    faces = np.ascontiguousarray(mesh.faces)
+    return _face_labels(faces, _vertex_roots(faces, mesh.n_vertices))
 
 
 @numba.njit(**CHECKED)
@@ -263,6 +261,25 @@ def _vertex_roots(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     for i in range(n_vertices):  # parents are lower indices, so theirs are final already
         parent[i] = parent[parent[i]]
     return parent
+
+
+@numba.njit(**CHECKED)
+def _face_labels(faces: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """Each face's component ``0..k-1``, numbered in the order of the components' roots, over
+    faces only (unreferenced vertices leave no gaps): ``np.unique(root[faces[:, 0]],
+    return_inverse=True)[1]`` in linear time (the sort was a third of the cheap checks)."""
+    label = np.full(root.shape[0], -1)
+    for t in range(faces.shape[0]):
+        label[root[faces[t, 0]]] = 0
+    k = 0
+    for i in range(root.shape[0]):
+        if label[i] == 0:
+            label[i] = k
+            k += 1
+    out = np.empty(faces.shape[0], dtype=np.int64)
+    for t in range(faces.shape[0]):
+        out[t] = label[root[faces[t, 0]]]
+    return out
 
 
 # --- batched repairs and fast remeshing (used by surfgen.filters.cleanup) ----------------------

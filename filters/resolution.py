@@ -265,30 +265,46 @@ def surface_distances(
     outside it count in its border cells). Exact from ``floor`` up; below it, the distance to
     a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
-    centres, reach = _centres(v, f)
+    centres, radii = _centres(v, f)
+    reach = float(radii.max(initial=0.0))
     start, order = bucket_points(centres, lo, cell, dims)
     rings = int(math.ceil(cap + reach / cell)) + 2
     dist = _nearest_faces(
-        points, v, f, start, order, lo, cell, dims, rings, reach, cap * cell, floor * cell
+        points,
+        v,
+        f,
+        start,
+        order,
+        centres[order],
+        radii[order],
+        lo,
+        cell,
+        dims,
+        rings,
+        reach,
+        cap * cell,
+        floor * cell,
     )
     return np.minimum(dist / cell, cap)
 
 
 @numba.njit(**KERNEL)
 def _centres(v, f):
-    """The triangles' centroids ``(F, 3)`` and the largest distance from one to its corners."""
+    """The triangles' centroids ``(F, 3)`` and each one's largest distance to its corners."""
     out = np.empty((f.shape[0], 3))
-    reach = 0.0
+    radii = np.empty(f.shape[0])
     for t in range(f.shape[0]):
         for k in range(3):
             out[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+        reach = 0.0
         for c in range(3):
             d = 0.0
             for k in range(3):
                 e = v[f[t, c], k] - out[t, k]
                 d += e * e
             reach = max(reach, d)
-    return out, math.sqrt(reach)
+        radii[t] = math.sqrt(reach)
+    return out, radii
 
 
 @numba.njit(**KERNEL)
@@ -342,19 +358,28 @@ def _point_triangle(px, py, pz, v, f, t):
 
 
 @numba.njit(**KERNEL)
-def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap, floor):
+def _nearest_faces(
+    points, v, f, start, order, centres, radii, lo, cell, dims, rings, reach, cap, floor
+):
     """Distance from each point to the nearest triangle, searched in shells of lattice cells
     around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
     it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
     points at least ``r * cell - reach``. Stops there, as soon as a triangle within ``floor`` is
-    found, once beyond ``cap``, or after ``rings`` shells (then the best found, or inf)."""
+    found, once beyond ``cap``, or after ``rings`` shells (then the best found, or inf).
+
+    ``centres`` and ``radii`` (each triangle's centroid and farthest corner from it) are in the
+    buckets' order: a triangle whose centroid is farther than its radius plus the best distance
+    so far (and a margin far above rounding) cannot come nearer and is not measured — the same
+    minimum, bit for bit, at a third of the cost."""
     out = np.empty(points.shape[0])
+    margin = 1e-9 * cell
     for p in range(points.shape[0]):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
         cx = cell_of(x, lo, cell, dims, 0)
         cy = cell_of(y, lo, cell, dims, 1)
         cz = cell_of(z, lo, cell, dims, 2)
         best = np.inf
+        near = np.inf  # sqrt(best) + margin
         for r in range(rings):
             for i in range(max(cx - r, 0), min(cx + r, dims[0] - 1) + 1):
                 for j in range(max(cy - r, 0), min(cy + r, dims[1] - 1) + 1):
@@ -365,9 +390,16 @@ def _nearest_faces(points, v, f, start, order, lo, cell, dims, rings, reach, cap
                         if k >= 0:
                             base = (i * dims[1] + j) * dims[2] + k
                             for s in range(start[base], start[base + 1]):
+                                dx = x - centres[s, 0]
+                                dy = y - centres[s, 1]
+                                dz = z - centres[s, 2]
+                                far = radii[s] + near
+                                if dx * dx + dy * dy + dz * dz > far * far:
+                                    continue  # every point of it is farther than the best
                                 d = _point_triangle(x, y, z, v, f, order[s])
                                 if d < best:
                                     best = d
+                                    near = math.sqrt(best) + margin
                         k += step
             bound = r * cell - reach
             if math.sqrt(best) <= max(bound, floor) or bound > cap:

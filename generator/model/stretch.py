@@ -92,7 +92,7 @@ def axis_symmetries(
     the shape is symmetric when the image of its inside (``F < d``) is its inside, but for
     ``tolerance`` of the smaller of inside and outside (the surface of a shape symmetric to the
     eye passes between the samples a little differently)."""
-    values, level = coarse_values(draw, cfg)
+    values, level = coarse_values(draw, cfg, threads=1)  # 20^3 samples: threads never pay
     if level is None:
         return (), False
     inside = values < level  # NaN: outside

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from surfgen.generator.eval.evaluate import evaluate, points_evaluator
+from surfgen.generator.eval.evaluate import evaluate, evaluate_points
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import Expr, add_all, mul_all
 from surfgen.generator.model.draw import (
@@ -324,9 +324,11 @@ def _hollow(
     thickness = max(share * inradius, thinnest)
     if thickness >= 0.8 * inradius:  # nothing left to hollow at this grid
         return [], None
-    point = [np.zeros(1), np.zeros(1), np.zeros(1)]
-    point[k][0] = surface - thickness
-    depth = -float(points_evaluator(env_tree)(*point)[0])
+    point = [0.0, 0.0, 0.0]
+    point[k] = surface - thickness
+    # One point: the reference evaluator (numpy, the same bits as the fast one) — the fast
+    # one's points kernel would be compiled here, in every worker of a cold run, for one point.
+    depth = -float(evaluate_points(env_tree, *point, evaluator="reference"))
     e = round_significant(depth, 4)
     p = envelope[0].powers[0]
     terms = (*(PowerTerm(-t.a, t.b, t.c, t.d) for t in p.terms), PowerTerm(-e))

@@ -36,14 +36,18 @@ warm_shape_kernels()
 cached = shape_kernels_cached()
 before = compiled()
 config = load_config(None).with_grid(24)
-accepted = 0
+accepted, families = 0, set()
 with tempfile.TemporaryDirectory() as tmp:
-    for index in range(8):  # sculptures, lattices and free draws; accepted and rejected
-        accepted += make_shape(index, seed=7, config=config, staging=Path(tmp), pictures=True).verdict.accepted
+    # every family, accepted and rejected; 53: a perforated infill shell (its depth at a point)
+    for index in (*range(8), 53):
+        out = make_shape(index, seed=7, config=config, staging=Path(tmp), pictures=True)
+        accepted += out.verdict.accepted
+        model = json.loads(out.row["model"])
+        families.add(model["family"] + ("-shell" if model["structure"].get("shell") else ""))
 after = compiled()
 grew = {k: [before.get(k, 0), v] for k, v in after.items() if v != before.get(k, 0)}
 print(json.dumps({"kernels": sum(before.values()), "accepted": accepted, "grew": grew,
-                  "cached": cached}))
+                  "cached": cached, "families": sorted(families)}))
 """
 
 
@@ -53,6 +57,7 @@ def test_sampled_shapes_compile_nothing_after_the_warm_up() -> None:
     )
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["kernels"] >= 10 and result["accepted"] >= 1
+    assert {"sculpture", "infill-shell", "lattice"} <= set(result["families"]), result["families"]
     assert not result["grew"], f"compiled while sampling, not in the warm-up: {result['grew']}"
     # what tells a cold start (and its notice) checks kernels the warm-up does cache
     assert result["cached"] is True
