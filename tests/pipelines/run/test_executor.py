@@ -33,3 +33,17 @@ def test_one_worker_keeps_going_after_a_crash() -> None:
     with KillablePool(work, workers=1, timeout=5.0) as pool:
         statuses = [(r.task, r.status) for r in pool.run([5, 1, 2])]
     assert statuses == [(5, "crashed"), (1, "ok"), (2, "ok")]
+
+
+def frozen(task: int) -> int:
+    import gc
+
+    return gc.get_freeze_count()
+
+
+def test_a_forked_worker_leaves_what_it_inherited_out_of_its_collections() -> None:
+    """The parent's heap (after a cold warm-up, the compiler's objects) is frozen in each
+    worker: a full collection there would otherwise write to, and so copy, every page of it."""
+    with KillablePool(frozen, workers=1, timeout=30.0) as pool:
+        (result,) = list(pool.run([0]))
+    assert result.status == "ok" and result.value > 1000
