@@ -93,6 +93,11 @@ def _gather1(W, a, n, cnt):
     return idx, val
 
 
+# A scalar operand's row for _gather2. The gathers take int64 values, never literals: a literal
+# argument (-1, or a count numba types as 0) compiles them again for each (6 signatures, 1.5 s).
+_NO_ROW = np.int64(-1)
+
+
 @njit(**KERNEL)
 def _gather2(W, a, b, n, cnt, sa, sb):
     """Indices and operands (y, x) of the slow lanes of atan2: row a or scalar sa (a < 0)."""
@@ -145,7 +150,7 @@ def trig_row(W, d, a, n, kind, recip):
     for k in range(n):
         cnt += 1 if _trig_slow_lane(W[a, k]) else 0
     if cnt > 0:
-        idx, val = _gather1(W, a, n, cnt)
+        idx, val = _gather1(W, a, n, np.int64(cnt))
     for k in range(n):
         v = _trig_value(kind, W[a, k])
         W[d, k] = 1.0 / v if recip else v
@@ -201,7 +206,7 @@ def atan2_row_vv(W, d, a, b, n):
     for k in range(n):
         cnt += 1 if _atan2_slow_lane(W[a, k], W[b, k]) else 0
     if cnt > 0:
-        idx, vy, vx = _gather2(W, a, b, n, cnt, 0.0, 0.0)
+        idx, vy, vx = _gather2(W, a, b, n, np.int64(cnt), 0.0, 0.0)
     for k in range(n):
         W[d, k] = _atan2_fast(W[a, k], W[b, k])
     if cnt > 0:
@@ -216,7 +221,7 @@ def atan2_row_vs(W, d, a, s, n):
     for k in range(n):
         cnt += 1 if _atan2_slow_lane(W[a, k], s) else 0
     if cnt > 0:
-        idx, vy, vx = _gather2(W, a, -1, n, cnt, 0.0, s)
+        idx, vy, vx = _gather2(W, a, _NO_ROW, n, np.int64(cnt), 0.0, s)
     for k in range(n):
         W[d, k] = _atan2_fast(W[a, k], s)
     if cnt > 0:
@@ -231,7 +236,7 @@ def atan2_row_sv(W, d, s, b, n):
     for k in range(n):
         cnt += 1 if _atan2_slow_lane(s, W[b, k]) else 0
     if cnt > 0:
-        idx, vy, vx = _gather2(W, -1, b, n, cnt, s, 0.0)
+        idx, vy, vx = _gather2(W, _NO_ROW, b, n, np.int64(cnt), s, 0.0)
     for k in range(n):
         W[d, k] = _atan2_fast(s, W[b, k])
     if cnt > 0:

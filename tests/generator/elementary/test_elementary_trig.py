@@ -463,3 +463,35 @@ def test_tan_row_vectorises_without_fused_multiply_add() -> None:
     packed = re.search(r"\bv(mul|div)pd\s+[^\n]*[yz]mm", asm)
     assert bool(packed) != NO_VECTORIZE, "vectorised iff SURFGEN_NO_VECTORIZE is unset"
     assert not re.search(r"\bv?f(n)?m(add|sub)\d", asm), "FMA in tan_row"
+
+
+def test_the_rows_gather_their_slow_lanes_with_int64_values_not_literals(monkeypatch) -> None:
+    """The rows pass their gathers int64 values (a scalar operand's row too): a literal
+    argument compiled ``_gather2`` once per combination of literals (6 signatures, 1.5 s of a
+    cold warm-up). A fresh (uncached) caller types the calls, as the interpreter's rows do,
+    into fresh gathers (other tests' callers may have typed the module's with literals)."""
+    import numba
+    from numba import types
+
+    from surfgen.generator.elementary import trig
+    from surfgen.generator.jit.options import KERNEL
+
+    for name in ("_gather1", "_gather2"):
+        fresh = numba.njit(**{**KERNEL, "cache": False})(getattr(trig, name).py_func)
+        monkeypatch.setattr(trig, name, fresh)
+
+    @numba.njit(cache=False)
+    def rows(W, d, a, b, n, s):  # noqa: N803 - the rows' own names
+        trig.sin_row(W, d, a, n)
+        trig.atan2_row_vv(W, d, a, b, n)
+        trig.atan2_row_vs(W, d, a, s, n)
+        trig.atan2_row_sv(W, d, s, b, n)
+
+    W = np.zeros((3, 6))  # noqa: N806
+    W[0] = [1e300, -0.0, np.inf, np.nan, 1.0, 3.0]  # slow lanes in every row
+    W[1] = [0.0, -0.0, -np.inf, 2.0, np.nan, 1e-310]
+    rows(W, 2, 0, 1, 6, 0.0)
+    for gather in (trig._gather1, trig._gather2):
+        assert gather.signatures
+        literal = [s for s in gather.signatures if any(isinstance(t, types.Literal) for t in s)]
+        assert not literal, literal
