@@ -156,8 +156,8 @@ def _scan(offset, extent, corner, shape, b0, b1):
                         if (o < 0) == s or not _tight(ma, o):
                             continue
                         if m == ta.size:
-                            ta = _grown(ta, m)
-                            tb = _grown(tb, m)
+                            ta = _grown(ta, np.int64(m))  # int64, not a literal 0
+                            tb = _grown(tb, np.int64(m))
                         ta[m], tb[m] = g, g + step
                         m += 1
     return n_cells, ta[:m], tb[:m]
@@ -274,7 +274,7 @@ def _push(keys, mags, stack, top, n, h, x, need):
         n += 1
     mags[h] = need
     if top == stack.size:
-        stack = _grown(stack, top)
+        stack = _grown(stack, np.int64(top))
     stack[top] = x
     top += 1
     if 2 * n > keys.size:

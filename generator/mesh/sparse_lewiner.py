@@ -322,16 +322,17 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
         # the centre vertex (computed on first use, as skimage does)
         cx12 = cy12 = cz12 = 0.0
         have12 = False
+        # int64 values, not literals: numba compiles _grown once per array type then
         if verts.shape[0] < nv + 13:
-            verts = _grown(verts, nv, 13)
+            verts = _grown(verts, np.int64(nv), _ROOM)
             if track:
-                head = _grown(head, nv, 13)
+                head = _grown(head, np.int64(nv), _ROOM)
         if faces.shape[0] < nf + nt:
-            faces = _grown(faces, nf, nt)
+            faces = _grown(faces, np.int64(nf), np.int64(nt))
         if used1.size < n1 + 13:
-            used1 = _grown(used1, n1, 13)
+            used1 = _grown(used1, np.int64(n1), _ROOM)
         if used2.size < n2 + 13:
-            used2 = _grown(used2, n2, 13)
+            used2 = _grown(used2, np.int64(n2), _ROOM)
         for q in range(3 * nt):
             vi = tri[q]
             # skimage's get_index_in_facelayer
@@ -418,6 +419,9 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
             faces[nf + q // 3, 2 - q % 3] = at
         nf += nt
     return verts[:nv], faces[:nf], head[: nv if track else 0], layer2, last_z
+
+
+_ROOM = np.int64(13)  # room for what one cell adds (at most 12 edge vertices and its centre)
 
 
 @njit(**KERNEL)
