@@ -370,7 +370,7 @@ def _nearest_faces(
     ``centres`` and ``radii`` (each triangle's centroid and farthest corner from it) are in the
     buckets' order: a triangle whose centroid is farther than its radius plus the best distance
     so far (and a margin far above rounding) cannot come nearer and is not measured — the same
-    minimum, bit for bit, at a third of the cost."""
+    minimum, bit for bit, in about a fifth less time on the sampler's shapes."""
     out = np.empty(points.shape[0])
     margin = 1e-9 * cell
     for p in range(points.shape[0]):
