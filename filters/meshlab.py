@@ -234,7 +234,12 @@ def face_components(mesh: Mesh) -> np.ndarray:
     ``connected_components`` numbers them).
     """
     faces = np.ascontiguousarray(mesh.faces)
-    return _face_labels(faces, _vertex_roots(faces, mesh.n_vertices))
+    first = _vertex_roots(faces, mesh.n_vertices)[faces[:, 0]]
+    # Renumber the roots 0..k-1 in their order (np.unique's, without its sort), over faces
+    # only, so unreferenced vertices leave no gaps: as compact_mesh renumbers vertices.
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[first] = True
+    return (np.cumsum(used) - 1)[first]
 
 
 @numba.njit(**CHECKED)
@@ -261,25 +266,6 @@ def _vertex_roots(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     for i in range(n_vertices):  # parents are lower indices, so theirs are final already
         parent[i] = parent[parent[i]]
     return parent
-
-
-@numba.njit(**CHECKED)
-def _face_labels(faces: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """Each face's component ``0..k-1``, numbered in the order of the components' roots, over
-    faces only (unreferenced vertices leave no gaps): ``np.unique(root[faces[:, 0]],
-    return_inverse=True)[1]`` in linear time (1.4 -> 0.35 ms on a mesh of the main job)."""
-    label = np.full(root.shape[0], -1)
-    for t in range(faces.shape[0]):
-        label[root[faces[t, 0]]] = 0
-    k = 0
-    for i in range(root.shape[0]):
-        if label[i] == 0:
-            label[i] = k
-            k += 1
-    out = np.empty(faces.shape[0], dtype=np.int64)
-    for t in range(faces.shape[0]):
-        out[t] = label[root[faces[t, 0]]]
-    return out
 
 
 # --- batched repairs and fast remeshing (used by surfgen.filters.cleanup) ----------------------

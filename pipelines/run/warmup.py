@@ -217,7 +217,7 @@ def _collector_paused(pause: bool = True, collect: bool = True) -> Iterator[None
     (``collect``; a process about to exit skips it): numba's compiler makes millions of
     objects, many in cycles, and the collector walking them again and again took a tenth of a
     cold warm-up's compile (measured: the interpreter 21 -> 18.6 s, the sparse marching 19.5 ->
-    16.9 s; the one collection after, 1.6 s)."""
+    16.9 s; the one collection after, 0.2-1.6 s)."""
     if not pause or not gc.isenabled():
         yield
         return

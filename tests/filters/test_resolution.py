@@ -115,7 +115,7 @@ def test_band_and_dense_agree_on_a_resolved_shape() -> None:
     assert band.fine_points < dense.fine_points
 
 
-def test_out_ofband_points_keep_the_side_of_their_cell() -> None:
+def test_out_of_band_points_keep_the_side_of_their_cell() -> None:
     # One sample inside, far from the level: only the cells around it are crossed; the fine
     # points of the other cells keep the coarse side even where their mean would not.
     values = np.full((6, 6, 6), 5.0)
