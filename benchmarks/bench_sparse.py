@@ -76,8 +76,10 @@ def vm_rss() -> int:
 
 
 def child(job: dict[str, Any]) -> dict[str, Any]:
-    """One run in this (fresh) process: warm up on 24^3, then mesh on the job's grid."""
-    spec, cap = spec_of(job["shape"])
+    """One run in this (fresh) process: warm up on 24^3, then mesh on the job's grid.  The
+    spec comes as JSON (the parent drew it), as ``render --from`` reads a stored one: the
+    process loads what meshing needs, not the sampler's kernels too."""
+    spec, cap = SurfaceSpec.from_json(job["spec"]), job["cap"]
     box = Box.from_bounds(spec.box)
     realise(spec, grid=Grid(box, (24,) * 3), evaluator=job["evaluator"], cap=cap, allow_empty=True)
     rss0 = vm_rss()
@@ -127,7 +129,8 @@ def run_job(job: dict[str, Any]) -> dict[str, Any] | None:
     cmd = [sys.executable, "-m", "benchmarks.bench_sparse", "--child", json.dumps(job)]
     out = subprocess.run(cmd, capture_output=True, text=True, cwd=harness.ROOT, check=False)
     if out.returncode != 0:
-        print(f"  {job}: failed\n{out.stderr[-2000:]}", flush=True)
+        said = {k: v for k, v in job.items() if k != "spec"}
+        print(f"  {said}: failed\n{out.stderr[-2000:]}", flush=True)
         return None
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -157,11 +160,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     run.say("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for shape in shapes:
+        spec, cap = spec_of(shape)
+        job = {"shape": shape, "spec": spec.to_json(), "cap": cap}
         for n in grids:
-            sparse = run_job({"shape": shape, "grid": n, "evaluator": "sparse"})
+            sparse = run_job({**job, "grid": n, "evaluator": "sparse"})
             dense = None
             if dense_fits(n, args.dense_max):
-                dense = run_job({"shape": shape, "grid": n, "evaluator": "fast"})
+                dense = run_job({**job, "grid": n, "evaluator": "fast"})
             if sparse is None:
                 continue
             row = {"shape": shape, "grid": n, "sparse": sparse, "dense": dense}
@@ -191,6 +196,9 @@ def main(argv: list[str] | None = None) -> None:
             run.say(f"median sculpture speed-up at {n}^3: {statistics.median(ratios):.1f}x")
             added = [_added(r["dense"]) / _added(r["sparse"]) for r in sculptures
                      if r["grid"] == n]  # fmt: skip
+            peaks = [r["dense"]["peak"] / r["sparse"]["peak"] for r in sculptures
+                     if r["grid"] == n]  # fmt: skip
+            run.say(f"median sculpture peak-memory ratio at {n}^3: {statistics.median(peaks):.1f}x")
             run.say(
                 f"median sculpture added-memory ratio at {n}^3: {statistics.median(added):.1f}x"
             )

@@ -45,7 +45,7 @@ def lewiner_cells(
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells ``keys``
     with corners ``corners`` (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`):
-    float32 vertices (V, 3) and int64 faces (F, 3).  With ``threads`` > 1, in runs of whole
+    float32 vertices (V, 3) and int64 faces (F, 3) (the runs' own int32 numbers widened).  With ``threads`` > 1, in runs of whole
     planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per thread, joined
     into the same arrays."""
     n = len(keys)
@@ -53,7 +53,7 @@ def lewiner_cells(
     runs = _runs(keys, nx * ny, max(1, min(int(threads), n // least)))
     if len(runs) <= 2:  # one run (or no cell): skimage's single pass, nothing to join
         verts, faces, _, _, _ = _run(keys, corners, 0, n, nx, ny, False)
-        return verts, faces
+        return verts, faces.astype(np.int64)
     parts = run_at_once(
         [
             lambda a=a, b=b: _run(keys, corners, a, b, nx, ny, True)

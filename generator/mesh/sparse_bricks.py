@@ -282,26 +282,28 @@ def _push(keys, mags, stack, top, n, h, x, need):
     return keys, mags, stack, top, n
 
 
-@njit(**INLINE)
+# The raise's lookups (a worklist, nothing to vectorise) are functions of their own rather than
+# numba-inlined copies at each call: raise_bricks compiles in 3.1-3.6 s instead of 4.7 s.
+@njit(**KERNEL)
 def _sample_at(offset, slot, block, i, j, k):
     s, a, b, c = locate(slot, block, i, j, k)
     return offset[s, a, b, c]
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _sample(g, offset, slot, block, s1, s2):
     """``|offset|`` in float64 of global sample ``g`` (a brick holds it)."""
     return abs(np.float64(_sample_at(offset, slot, block, g // s1, (g % s1) // s2, g % s2)))
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _magnitude(keys, mags, g, offset, slot, block, s1, s2):
     """The current magnitude of global sample ``g``: raised, or its own."""
     h = _find(keys, g)
     return mags[h] if keys[h] == g else _sample(g, offset, slot, block, s1, s2)
 
 
-@njit(**INLINE)
+@njit(**KERNEL)
 def _write_sample(offset, slot, block, i, j, k, value):
     """Write ``value`` at grid sample ``(i, j, k)`` of every brick holding it."""
     n0, n1, n2 = slot.shape

@@ -93,8 +93,12 @@ def extract_sparse_with_edges(
     keys, corners = brick_cells(
         offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
     )
+    # each step's inputs freed as soon as the next has what it needs: the offsets before the
+    # marching, the cells before the mesh's end (a third of the memory a 512^3 surface adds)
+    del offset, pad_keys, pad_corners
     size = shape + 2 * shift
     verts, faces = lewiner_cells(keys, corners, int(size[2]), int(size[1]), threads)
+    del keys, corners
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
     return finish_marching(verts, faces, sf.grid, level, cap)

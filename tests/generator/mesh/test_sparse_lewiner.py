@@ -144,6 +144,8 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
         calls.clear()
         v, f = run_port(w, mask, threads=3, min_cells=min_cells)
         assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
+        # the runs number in int32; the joined (or single) pass hands the mesh's int64
+        assert f.dtype == one[1].dtype == np.int64 and v.dtype == np.float32
         assert calls == ([True] * runs if runs > 1 else [False])
 
 
@@ -183,5 +185,5 @@ def test_the_pass_grows_its_arrays_with_one_compile_per_array_type(monkeypatch):
     numba.njit(**{**KERNEL, "cache": False})(lw.lewiner_range.py_func).compile(
         tuple(numba.typeof(a) for a in args)
     )
-    assert len(fresh.signatures) == 3  # float32 vertices, int64 faces and heads, int64 slots
+    assert len(fresh.signatures) == 3  # float32 vertices, int32 faces, int32 heads and slots
     assert not [s for s in fresh.signatures if any(isinstance(t, types.Literal) for t in s)]
