@@ -78,9 +78,10 @@ def main(argv: list[str] | None = None) -> None:
             for label, path in versions.items():
                 res = _run(path, args)
                 top = sorted(res["reasons"].items(), key=lambda kv: -kv[1])[:4]
+                mode = "cold " if args.cold else ""
                 run.say(
-                    f"round {r + 1} {label:<8} {'cold ' if args.cold else ''}wall {res['wall']:7.1f} s  cpu {res['cpu']:7.1f} s"
-                    f"  {res['accepted']}/{res['drawn']} accepted  "
+                    f"round {r + 1} {label:<8} {mode}wall {res['wall']:7.1f} s"
+                    f"  cpu {res['cpu']:7.1f} s  {res['accepted']}/{res['drawn']} accepted  "
                     + ", ".join(f"{k} {v}" for k, v in top)
                 )
                 b = best.setdefault(label, {"wall": float("inf"), "cpu": float("inf")})

@@ -45,9 +45,9 @@ def lewiner_cells(
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells ``keys``
     with corners ``corners`` (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`):
-    float32 vertices (V, 3) and int64 faces (F, 3) (the runs' own int32 numbers widened).  With ``threads`` > 1, in runs of whole
-    planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per thread, joined
-    into the same arrays."""
+    float32 vertices (V, 3) and int64 faces (F, 3) (the runs' own int32 numbers widened).
+    With ``threads`` > 1, in runs of whole planes of at least ``min_cells`` cells (None:
+    :data:`CHUNK_CELLS`), one per thread, joined into the same arrays."""
     n = len(keys)
     least = CHUNK_CELLS if min_cells is None else max(1, int(min_cells))
     runs = _runs(keys, nx * ny, max(1, min(int(threads), n // least)))

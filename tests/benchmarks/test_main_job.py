@@ -28,7 +28,24 @@ def test_cold_runs_each_get_an_empty_cache_of_their_own(monkeypatch):
     assert seen == [("warm", None, False)]  # the code's own cache, warmed untimed by the child
 
 
-def test_a_cold_child_times_from_its_start_and_skips_the_untimed_warm_up():
-    code = main_job._CHILD
-    assert code.index("start = time.perf_counter()") < code.index("import surfgen")
-    assert "if n > 1 and not cold:" in code and "(0.0, start) if cold" in code
+def test_a_cold_child_skips_the_untimed_warm_up(monkeypatch, capsys):
+    # the child's own code, with the sampler's run replaced: a warm child first samples one
+    # shape untimed (loading every kernel), a cold one times the job alone from its start
+    import json
+    import sys
+
+    import surfgen.pipelines.run.sampling as sampling
+
+    calls = []
+
+    def run_sample(n, seed, config, catalogue, workers):
+        calls.append(n)
+        return SimpleNamespace(accepted=n, drawn=n, counts={})
+
+    monkeypatch.setattr(sampling, "run_sample", run_sample)
+    for mode, expected in (("warm", [1, 3]), ("cold", [3])):
+        calls.clear()
+        monkeypatch.setattr(sys, "argv", ["-c", "3", "7", "2", mode])
+        exec(compile(main_job._CHILD, "<child>", "exec"), {})
+        out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert calls == expected and out["accepted"] == 3 and out["wall"] >= 0
