@@ -29,10 +29,12 @@ from surfgen.generator.eval.sparse import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, offset_of
+from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
 #: sculpture-1 at 512^3 in 11 ms).
 RUN_BRICKS = 2000
+_ONE = np.int64(1)  # room a growing list needs for its next entry (an int64, not a literal)
 
 
 def brick_offsets(values, extent, level, threads: int = 1) -> tuple[np.ndarray, int]:
@@ -156,19 +158,11 @@ def _scan(offset, extent, corner, shape, b0, b1):
                         if (o < 0) == s or not _tight(ma, o):
                             continue
                         if m == ta.size:
-                            ta = _grown(ta, np.int64(m))  # int64, not a literal 0
-                            tb = _grown(tb, np.int64(m))
+                            ta = grown(ta, np.int64(m), _ONE)
+                            tb = grown(tb, np.int64(m), _ONE)
                         ta[m], tb[m] = g, g + step
                         m += 1
     return n_cells, ta[:m], tb[:m]
-
-
-@njit(**KERNEL)
-def _grown(a, n):
-    out = np.empty(2 * a.size, dtype=a.dtype)
-    for i in range(n):  # not a slice copy: numba would compile its shape error (1-2 s)
-        out[i] = a[i]
-    return out
 
 
 # ----------------------------------------------------------------------------- raises
@@ -274,7 +268,7 @@ def _push(keys, mags, stack, top, n, h, x, need):
         n += 1
     mags[h] = need
     if top == stack.size:
-        stack = _grown(stack, np.int64(top))
+        stack = grown(stack, np.int64(top), _ONE)
     stack[top] = x
     top += 1
     if 2 * n > keys.size:

@@ -327,17 +327,17 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
         # the centre vertex (computed on first use, as skimage does)
         cx12 = cy12 = cz12 = 0.0
         have12 = False
-        # int64 values, not literals: numba compiles _grown once per array type then
+        # int64 values, not literals: numba compiles grown once per array type then
         if verts.shape[0] < nv + 13:
-            verts = _grown(verts, np.int64(nv), _ROOM)
+            verts = grown(verts, np.int64(nv), _ROOM)
             if track:
-                head = _grown(head, np.int64(nv), _ROOM)
+                head = grown(head, np.int64(nv), _ROOM)
         if faces.shape[0] < nf + nt:
-            faces = _grown(faces, np.int64(nf), np.int64(nt))
+            faces = grown(faces, np.int64(nf), np.int64(nt))
         if used1.size < n1 + 13:
-            used1 = _grown(used1, np.int64(n1), _ROOM)
+            used1 = grown(used1, np.int64(n1), _ROOM)
         if used2.size < n2 + 13:
-            used2 = _grown(used2, np.int64(n2), _ROOM)
+            used2 = grown(used2, np.int64(n2), _ROOM)
         for q in range(3 * nt):
             vi = tri[q]
             # skimage's get_index_in_facelayer
@@ -430,8 +430,10 @@ _ROOM = np.int64(13)  # room for what one cell adds (at most 12 edge vertices an
 
 
 @njit(**KERNEL)
-def _grown(a, n, more):
-    """``a`` (rows ``:n`` used) moved to an array half as large again, room for ``more``."""
+def grown(a, n, more):
+    """``a`` (rows ``:n`` used) moved to an array half as large again, room for ``more`` (the
+    sparse passes' growing arrays, here and in :mod:`~.sparse_bricks`).  Pass ``n`` and
+    ``more`` as int64 values, never literals: numba would compile it again per literal."""
     out = np.empty((a.shape[0] + a.shape[0] // 2 + more,) + a.shape[1:], dtype=a.dtype)
     # element by element: a slice copy would compile numba's shape error (1-2 s)
     width = a.size // a.shape[0] if a.shape[0] else 0

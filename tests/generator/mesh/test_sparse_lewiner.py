@@ -168,16 +168,16 @@ def test_every_case_is_met():
 
 
 def test_the_pass_grows_its_arrays_with_one_compile_per_array_type(monkeypatch):
-    # lewiner_range passes _grown int64 values, never literals (a count numba types as 0, the
-    # room 13): _grown is compiled once per array type, not again per literal (1.3 -> 0.8 s
-    # of a cold warm-up). A fresh caller types its calls into a fresh _grown.
+    # lewiner_range passes grown int64 values, never literals (a count numba types as 0, the
+    # room 13): grown is compiled once per array type, not again per literal (1.3 -> 0.8 s
+    # of a cold warm-up). A fresh caller types its calls into a fresh grown.
     import numba
     from numba import types
 
     from surfgen.generator.jit.options import KERNEL
 
-    fresh = numba.njit(**{**KERNEL, "cache": False})(lw._grown.py_func)
-    monkeypatch.setattr(lw, "_grown", fresh)
+    fresh = numba.njit(**{**KERNEL, "cache": False})(lw.grown.py_func)
+    monkeypatch.setattr(lw, "grown", fresh)
     keys = np.zeros(1, dtype=np.int64)
     corners = np.ones((1, 8), dtype=np.float32)
     edges = (lw.EDGE_X, lw.EDGE_Y, lw.EDGE_Z)
