@@ -128,13 +128,45 @@ def corner_angle_sums(v: np.ndarray, f: np.ndarray, n_vertices: int) -> np.ndarr
 
 
 @numba.njit(**CHECKED)
-def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool]:
-    """Distinct undirected edges, edges with one face, edges with more than two, and whether
-    every two-face edge is walked once in each direction — by half-edges bucketed on their lower
-    vertex (a vertex has a handful: a short sort each), no global sort."""
-    m = faces.shape[0] * 3
+def _find(parent: np.ndarray, a: int) -> int:
+    """The root of ``a`` in the union-find forest ``parent``, halving the path on the way."""
+    while parent[a] != a:
+        parent[a] = parent[parent[a]]
+        a = parent[a]
+    return a
+
+
+@numba.njit(**CHECKED)
+def _join(parent: np.ndarray, a: int, b: int) -> None:
+    """Union of the sets of ``a`` and ``b`` (the lower root stays a root)."""
+    a = _find(parent, a)
+    b = _find(parent, b)
+    if a < b:
+        parent[b] = a
+    elif b < a:
+        parent[a] = b
+
+
+@numba.njit(**CHECKED)
+def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool, bool, int, int]:
+    """The edges of a mesh and what they join, from its ``3F`` half-edges bucketed on their
+    lower vertex (a vertex has a handful: a short sort each), no global sort:
+
+    - distinct undirected edges, edges with one face, edges with more than two, and whether
+      every two-face edge is walked once in each direction;
+    - whether a face repeats a vertex;
+    - the components of faces joined through shared edges, and the vertices whose faces make
+      more than one fan (faces around a vertex joined through the edges at it): pymeshlab's
+      ``connected_components_number`` and ``non_two_manifold_vertices``, which are these
+      numbers wherever no edge has more than two faces and no face repeats a vertex (vcg walks
+      each vertex's fan through face-face adjacency and compares its size with the vertex's
+      face count; a face's orientation does not enter). Elsewhere they are not those numbers:
+      :func:`surfgen.filters.metrics.measure_mesh` asks pymeshlab there.
+    """
+    n_faces = faces.shape[0]
+    m = n_faces * 3
     start = np.zeros(n_vertices + 1, dtype=np.int64)
-    for t in range(faces.shape[0]):
+    for t in range(n_faces):
         for k in range(3):
             a = faces[t, k]
             b = faces[t, (k + 1) % 3]
@@ -143,49 +175,81 @@ def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool
         start[i + 1] += start[i]
     fill = start[:-1].copy()
     other = np.empty(m, dtype=np.int64)
-    forward = np.empty(m, dtype=np.bool_)
-    for t in range(faces.shape[0]):
+    half = np.empty(m, dtype=np.int64)  # 3t + k: face t's edge from corner k to k + 1
+    for t in range(n_faces):
         for k in range(3):
             a = faces[t, k]
             b = faces[t, (k + 1) % 3]
             lo = min(a, b)
             other[fill[lo]] = max(a, b)
-            forward[fill[lo]] = a < b
+            half[fill[lo]] = 3 * t + k
             fill[lo] += 1
+    face_root = np.arange(n_faces)
+    corner_root = np.arange(m)  # corner 3t + k: vertex faces[t, k] in face t
     count = 0
     boundary = 0
     nonmanifold = 0
     oriented = True
+    degenerate = False
     for i in range(n_vertices):
         s, e = start[i], start[i + 1]
         # insertion sort of this vertex's few half-edges by their other end
         for p in range(s + 1, e):
             key = other[p]
-            fw = forward[p]
+            h = half[p]
             q = p - 1
             while q >= s and other[q] > key:
                 other[q + 1] = other[q]
-                forward[q + 1] = forward[q]
+                half[q + 1] = half[q]
                 q -= 1
             other[q + 1] = key
-            forward[q + 1] = fw
+            half[q + 1] = h
         p = s
         while p < e:
             q = p
             fw = 0
             while q < e and other[q] == other[p]:
-                fw += forward[q]
+                h = half[q]
+                fw += faces[h // 3, h % 3] < other[q]  # walked from the lower vertex
                 q += 1
             c = q - p
             count += 1
+            if other[p] == i:
+                degenerate = True
             if c == 1:
                 boundary += 1
             elif c > 2:
                 nonmanifold += 1
-            elif fw != 1:
-                oriented = False
+            else:
+                if fw != 1:
+                    oriented = False
+                t1, k1 = divmod(half[p], 3)
+                t2, k2 = divmod(half[p + 1], 3)
+                _join(face_root, t1, t2)
+                # each end's corners in the two faces: one fan
+                a1, b1 = 3 * t1 + k1, 3 * t1 + (k1 + 1) % 3
+                a2, b2 = 3 * t2 + k2, 3 * t2 + (k2 + 1) % 3
+                if faces[t1, k1] == faces[t2, k2]:  # both faces walk it the same way
+                    _join(corner_root, a1, a2)
+                    _join(corner_root, b1, b2)
+                else:
+                    _join(corner_root, a1, b2)
+                    _join(corner_root, b1, a2)
             p = q
-    return count, boundary, nonmanifold, oriented
+    components = 0
+    for t in range(n_faces):
+        components += _find(face_root, t) == t
+    fan = np.full(n_vertices, -1, dtype=np.int64)  # a vertex's first fan, -2 once counted
+    pinched = 0
+    for c in range(m):
+        v = faces[c // 3, c % 3]
+        r = _find(corner_root, c)
+        if fan[v] == -1:
+            fan[v] = r
+        elif fan[v] >= 0 and fan[v] != r:
+            fan[v] = -2
+            pinched += 1
+    return count, boundary, nonmanifold, oriented, degenerate, components, pinched
 
 
 @numba.njit(**CHECKED)

@@ -105,6 +105,8 @@ def test_edge_counts_match_the_sort(meshes: list[Mesh]) -> None:
         assert (e.count, e.boundary, e.nonmanifold, e.oriented) == _edges_numpy(
             m.faces, m.n_vertices
         )
+    # only the small mesh repeats a vertex in a face ([3, 3, 4])
+    assert [_edge_counts(m.faces, m.n_vertices).degenerate for m in meshes] == [False, False, True]
     faces = meshes[0].faces.copy()
     faces[0] = faces[0, ::-1]
     flipped = Mesh(meshes[0].vertices, faces)

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from surfgen.filters.metrics import Metrics, measure_mesh
+from surfgen.filters import meshlab
+from surfgen.filters.metrics import Metrics, _edge_counts, measure_mesh
 from surfgen.generator.errors import MeshError
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
@@ -113,3 +114,92 @@ def test_to_dict_is_plain_json(torus_mesh):
 def test_empty_mesh_raises():
     with pytest.raises(MeshError, match="empty"):
         measure_mesh(Mesh(np.zeros((0, 3)), np.zeros((0, 3))))
+
+
+# --- components and non-manifold vertices: the edge pass against pymeshlab ---------------------
+
+
+def _moebius(n: int = 12) -> Mesh:
+    """A Möbius strip of 2n triangles: one piece, no consistent orientation."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    v = []
+    for s in (-0.3, 0.3):
+        v.append(
+            np.c_[
+                (1 + s * np.cos(t / 2)) * np.cos(t),
+                (1 + s * np.cos(t / 2)) * np.sin(t),
+                s * np.sin(t / 2),
+            ]
+        )
+    v = np.vstack(v)
+    f = []
+    for i in range(n):
+        j = (i + 1) % n
+        a, b = i, i + n
+        c, d = (j, j + n) if j else (j + n, j)  # the half twist swaps the rows once round
+        f += [[a, c, b], [b, c, d]]
+    return Mesh(v, np.array(f))
+
+
+def _pymeshlab(mesh: Mesh) -> tuple[int, int]:
+    topo = meshlab.topology(mesh)
+    return int(topo["components"]), int(topo["nonmanifold_vertices"])
+
+
+def _edge_pass(mesh: Mesh) -> tuple[int, int]:
+    e = _edge_counts(mesh.faces, mesh.n_vertices)
+    assert e.nonmanifold == 0 and not e.degenerate  # where the pass's numbers are pymeshlab's
+    return e.components, e.pinched
+
+
+def _holed(mesh: Mesh, seed: int, share: float) -> Mesh:
+    """``mesh`` with a random ``share`` of its faces dropped: pinched vertices, pieces, flips."""
+    rng = np.random.default_rng(seed)
+    faces = mesh.faces[rng.random(mesh.n_faces) >= share].copy()
+    flip = rng.random(len(faces)) < 0.1
+    faces[flip] = faces[flip, ::-1]
+    return Mesh(mesh.vertices, faces)
+
+
+@pytest.mark.parametrize("name", ["sphere", "torus", "genus2", "two_spheres"])
+def test_edge_pass_gives_pymeshlabs_numbers_on_shapes(name, shapes, shape_mesh):
+    mesh = shape_mesh(name)
+    assert _edge_pass(mesh) == _pymeshlab(mesh)
+    for seed in range(4):  # holes and flipped faces: pinched vertices, many pieces
+        holed = _holed(mesh, seed, 0.35)
+        assert _edge_pass(holed) == _pymeshlab(holed)
+
+
+def test_edge_pass_counts_fans_and_pieces():
+    # two tetrahedra on one vertex: two pieces (joined through edges, as vcg joins faces) and
+    # one vertex with two fans
+    assert _edge_pass(bowtie()) == _pymeshlab(bowtie()) == (2, 1)
+    assert _edge_pass(tetrahedron()) == (1, 0)
+    strip = _moebius()
+    assert _edge_pass(strip) == _pymeshlab(strip) == (1, 0)
+    assert not _edge_counts(strip.faces, strip.n_vertices).oriented
+    # two triangles touching at one vertex, each a fan with a border: the same
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]], float)
+    touching = Mesh(v, np.array([[0, 1, 2], [0, 3, 4]]))
+    assert _edge_pass(touching) == _pymeshlab(touching) == (2, 1)
+
+
+def test_pymeshlab_answers_where_the_edge_pass_cannot():
+    v = np.vstack([TET_V, [[1, 1, 1]]])
+    fin = Mesh(v, np.vstack([TET_F, [[1, 2, 4]]]))  # three faces on edge 1-2
+    repeated = Mesh(v, np.vstack([TET_F, [[4, 4, 1]]]))  # a face repeating a vertex
+    for mesh in (fin, repeated):
+        e = _edge_counts(mesh.faces, mesh.n_vertices)
+        assert e.nonmanifold or e.degenerate
+        m = measure_mesh(mesh)
+        assert (m.components, m.nonmanifold_vertices) == _pymeshlab(mesh)
+
+
+def test_measure_mesh_does_not_ask_pymeshlab_on_a_manifold_mesh(monkeypatch, sphere_mesh):
+    def refuse(mesh):
+        raise AssertionError("pymeshlab asked")
+
+    monkeypatch.setattr(meshlab, "topology", refuse)
+    m = measure_mesh(sphere_mesh)
+    assert m.components == 1 and m.nonmanifold_vertices == 0 and m.genus == 0
+    assert measure_mesh(bowtie()).nonmanifold_vertices == 1
