@@ -44,8 +44,9 @@ log = logging.getLogger(__name__)
 WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
 WARM_HALF, WARM_POINTS = 1.1, 14
 
-# The child that compiles the grid kernel, and what follows a mesh but the walls, while this
-# process compiles the walls' kernels.
+# The two children of a parallel warm-up on a cold cache: one compiles the interpreter and the
+# sparse marching, the other every other kernel; this process then loads them all.
+_FIRST_CHILD = "from surfgen.pipelines.run.warmup import warm_first_in_child; warm_first_in_child()"
 _CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child()"
 
 
@@ -62,12 +63,21 @@ def warm_grid_kernel() -> None:
     _tiny_shape("fast")
 
 
+def warm_first_in_child() -> None:
+    """The first child's part of a parallel warm-up: the interpreter, then the sparse marching
+    (:func:`_warm_sparse_marching`), while the other child (:func:`warm_in_child`) compiles the
+    rest."""
+    with _collector_paused(collect=False):
+        warm_interpreter()
+        _warm_sparse_marching()
+
+
 def warm_in_child() -> None:
-    """The child's part of a parallel warm-up: every kernel of a shape but the interpreter, which
-    the parent compiles meanwhile. The kernels that call the interpreter (the grid's, the walls')
-    are compiled for the tiny shape's argument types, not run
-    (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
-    kernels run on the field the reference evaluator samples (the same values)."""
+    """The other child's part of a parallel warm-up: every kernel of a shape but the interpreter
+    and the sparse marching, which the first child compiles meanwhile. The kernels that call
+    the interpreter (the grid's, the walls') are compiled for the tiny shape's argument types,
+    not run (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and
+    picture kernels run on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
 
     with _collector_paused(collect=False), compiled_not_run((walls, "_bisect_kernel")):
@@ -158,27 +168,32 @@ def _cpus() -> int:
     return os.cpu_count() or 1
 
 
-def _start_child() -> subprocess.Popen | None:
-    """On a cold cache with a second CPU: start the child (:func:`warm_in_child`), which compiles
-    every kernel but the interpreter while this process compiles that."""
+def _start_children() -> tuple[subprocess.Popen | None, subprocess.Popen | None]:
+    """On a cold cache with a second CPU: start the two children of a parallel warm-up
+    (:func:`warm_first_in_child`, :func:`warm_in_child`); ``None`` for a child not started
+    (one CPU, the kernels cached, or no process to be had: this process compiles its part)."""
     if _cpus() < 2 or _kernels_cached():
-        return None
+        return None, None
+    return _start(_FIRST_CHILD), _start(_CHILD)
+
+
+def _start(code: str) -> subprocess.Popen | None:
     try:
         return subprocess.Popen(
-            [sys.executable, "-c", _CHILD],
+            [sys.executable, "-c", code],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
         )
-    except OSError as exc:  # no second process: compile it all here, as before
-        log.debug("cannot start the warm-up's child process: %s", exc)
+    except OSError as exc:  # compiled here instead, by what follows
+        log.debug("cannot start a warm-up's child process: %s", exc)
         return None
 
 
 def _join_child(child: subprocess.Popen) -> None:
     _, err = child.communicate()
     if child.returncode != 0:  # compiled here instead, by what follows
-        log.debug("the warm-up's child process failed: %s", err.decode(errors="replace"))
+        log.debug("a warm-up's child process failed: %s", err.decode(errors="replace"))
 
 
 def warm_shape_kernels(
@@ -191,21 +206,24 @@ def warm_shape_kernels(
     ``notice`` is called first with :data:`COMPILE_NOTICE`, which is also logged.
 
     The first time on a machine this compiles every kernel, about a minute on one CPU. With
-    ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): this process
-    compiles the interpreter, then the sparse marching (:func:`_warm_sparse_marching`), while a
-    child process (:func:`warm_in_child`) compiles every other kernel into numba's on-disk
-    cache (the two end within a second of each other, 35 s on a 2-core Zen 4); then this process
-    loads the child's kernels from the cache. Python's cycle collector is paused meanwhile
-    (:func:`_collector_paused`).
+    ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): two child
+    processes compile into numba's on-disk cache, one the interpreter and then the sparse
+    marching (:func:`warm_first_in_child`), the other every other kernel
+    (:func:`warm_in_child`; the two end within a few seconds of each other, 37 s on a 2-core
+    Zen 4), and this process then loads them all from the cache, as a warm start does. A
+    process that compiled is slower afterwards: the main job's shapes took 6-10 % longer in a
+    process (and in workers forked from one) that had compiled the interpreter than in one
+    that loaded it (numba's compiler leaves the Python heap scattered). Python's cycle
+    collector is paused while this process compiles (:func:`_collector_paused`).
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
-    process waits for the child: only the interpreter need be loaded for it."""
+    process waits for the second child: only the interpreter need be loaded for it."""
     t0 = time.perf_counter()
     compiling = not shape_kernels_cached()
     if compiling:
         _announce(COMPILE_NOTICE, notice)
-    child = _start_child() if parallel else None
+    first, rest = _start_children() if parallel else (None, None)
     with _collector_paused(compiling):
-        _warm_here(t0, child, meanwhile)
+        _warm_here(t0, first, rest, meanwhile)
     seconds = time.perf_counter() - t0
     log.debug("shape kernels ready in %.2f s", seconds)
     return seconds
@@ -230,25 +248,31 @@ def _collector_paused(pause: bool = True, collect: bool = True) -> Iterator[None
             gc.collect()
 
 
-def _warm_here(t0: float, child: subprocess.Popen | None, meanwhile) -> None:
-    """This process's part of :func:`warm_shape_kernels` (``child``: the child compiling the
-    rest meanwhile, or None)."""
+def _warm_here(
+    t0: float, first: subprocess.Popen | None, rest: subprocess.Popen | None, meanwhile
+) -> None:
+    """This process's part of :func:`warm_shape_kernels`: with children (``first`` compiling
+    the interpreter and the sparse marching, ``rest`` the other kernels), load what they
+    compiled as each ends; without one, compile its part here."""
     try:
+        if first is not None:
+            _join_child(first)
+            log.debug("the first child's kernels ready at %.1f s", time.perf_counter() - t0)
         log.debug("interpreter ready in %.1f s", warm_interpreter())
         if meanwhile is not None:
             meanwhile()
-        _warm_sparse_marching()  # here, while the child (if any) compiles the rest
+        _warm_sparse_marching()
         log.debug("sparse marching ready at %.1f s", time.perf_counter() - t0)
-        if child is not None:
-            _join_child(child)
-            child = None
-            log.debug("the child's kernels ready at %.1f s", time.perf_counter() - t0)
+        if rest is not None:
+            _join_child(rest)
+            log.debug("the other child's kernels ready at %.1f s", time.perf_counter() - t0)
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
         _warm_the_rest(field, box, _warm_mesh(field, tree), tree)
     finally:
-        if child is not None:  # interrupted: leave no compiler behind
-            child.kill()
-            child.wait()
+        for child in (first, rest):
+            if child is not None and child.poll() is None:  # interrupted: no compiler left
+                child.kill()
+                child.wait()
 
 
 def _warm_mesh(field, tree, walls: bool = True):

@@ -107,7 +107,10 @@ def test_meanwhile_runs_once_the_interpreter_is_ready_before_the_child_is_awaite
             order.append("child awaited")
             return b"", b""
 
-    monkeypatch.setattr(warmup, "_start_child", lambda: Child())
+        def poll(self):
+            return self.returncode
+
+    monkeypatch.setattr(warmup, "_start_children", lambda: (None, Child()))
     warmup.warm_shape_kernels(
         parallel=True,
         meanwhile=lambda: order.append(f"meanwhile {interpreter.interpreter_loaded()}"),
@@ -307,6 +310,29 @@ def test_the_child_warms_every_kernel_but_the_interpreter() -> None:
     assert result["interpreter"] is False
 
 
+FIRST_ONLY = """
+import json
+from surfgen.generator.eval import interpreter, grid_driver as kernels
+from surfgen.generator.mesh import marching, sparse_lewiner
+from surfgen.pipelines.run.warmup import warm_first_in_child
+
+warm_first_in_child()
+print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
+                  "lewiner": len(sparse_lewiner.lewiner_range.signatures),
+                  "grid": len(kernels.run_grid.signatures),
+                  "dense": len(marching._offsets_kernel.signatures)}))
+"""
+
+
+def test_the_first_child_warms_the_interpreter_and_the_sparse_marching_only() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", FIRST_ONLY], capture_output=True, text=True, timeout=600, check=True
+    )
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result == {"interpreter": True, "lewiner": result["lewiner"], "grid": 0, "dense": 0}
+    assert result["lewiner"] >= 1
+
+
 def test_compiled_not_run_compiles_for_the_arguments_and_runs_nothing() -> None:
     from numba import njit
 
@@ -363,20 +389,31 @@ class _Spy:
         monkeypatch.setattr(warmup, "_cpus", lambda: 2)
 
 
-def test_a_cold_cache_compiles_the_kernels_in_a_child_meanwhile(monkeypatch) -> None:
-    from surfgen.pipelines.run.warmup import warm_shape_kernels
+def test_a_cold_cache_compiles_in_two_children_and_loads_here(monkeypatch) -> None:
+    from surfgen.generator.eval import tape
+    from surfgen.pipelines.run import warmup
 
     spy = _Spy(monkeypatch)
-    warm_shape_kernels()
-    assert len(spy.children) == 1 and spy.children[0].returncode == 0
-    assert spy.grid_runs_beside_child == 0  # this process compiled the interpreter meanwhile
-    assert spy.loaded_after_child[:1] == [0]  # loaded here once the child was done
+    interpreter_beside = []
+    warm = tape.warm_interpreter
+
+    def interpreter():  # loaded here once the first child has compiled it, never meanwhile
+        interpreter_beside.append(spy.children[0].poll() is None)
+        return warm()
+
+    monkeypatch.setattr(tape, "warm_interpreter", interpreter)
+    warmup.warm_shape_kernels()
+    assert [c.args[-1] for c in spy.children] == [warmup._FIRST_CHILD, warmup._CHILD]
+    assert [c.returncode for c in spy.children] == [0, 0]
+    assert interpreter_beside == [False]
+    assert spy.grid_runs_beside_child == 0  # the second child compiled the grid kernel
+    assert spy.loaded_after_child[:1] == [0]  # loaded here once the children were done
     # one CPU, or parallel=False: no child, everything here as before
     runs = len(spy.loaded_after_child)
-    warm_shape_kernels(parallel=False)
+    warmup.warm_shape_kernels(parallel=False)
     monkeypatch.setattr("surfgen.pipelines.run.warmup._cpus", lambda: 1)
-    warm_shape_kernels()
-    assert len(spy.children) == 1 and len(spy.loaded_after_child) > runs
+    warmup.warm_shape_kernels()
+    assert len(spy.children) == 2 and len(spy.loaded_after_child) > runs
 
 
 def test_a_failing_child_leaves_the_work_to_this_process(monkeypatch, caplog) -> None:
@@ -386,7 +423,8 @@ def test_a_failing_child_leaves_the_work_to_this_process(monkeypatch, caplog) ->
     monkeypatch.setattr(warmup, "_CHILD", "import sys; sys.exit('no compiler here')")
     with caplog.at_level("DEBUG", logger="surfgen.pipelines.run.warmup"):
         warmup.warm_shape_kernels()
-    assert spy.children[0].returncode == 1 and spy.loaded_after_child[:1] == [1]
+    assert [c.returncode for c in spy.children] == [0, 1]
+    assert spy.loaded_after_child[:1] == [1]
     assert "no compiler here" in caplog.text
 
 
@@ -403,7 +441,8 @@ def test_an_interrupted_warm_up_leaves_no_child_behind(monkeypatch) -> None:
     t0 = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
         warmup.warm_shape_kernels()
-    assert spy.children[0].returncode is not None and time.perf_counter() - t0 < 30
+    assert all(c.returncode is not None for c in spy.children)  # the sleeper killed
+    assert len(spy.children) == 2 and time.perf_counter() - t0 < 30
 
 
 def test_cpus_counted_where_the_os_has_no_affinity(monkeypatch) -> None:
