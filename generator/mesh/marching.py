@@ -220,27 +220,52 @@ def _pad_kernel(work, padded):
                 padded[i, j, k] = w
 
 
+@njit(**INLINE)
+def _mixed(work, i, j, k):
+    """Whether cell ``(i, j, k)``'s corners are not all on one side."""
+    neg = work[i, j, k] < 0
+    return (
+        (work[i, j, k + 1] < 0) != neg
+        or (work[i, j + 1, k] < 0) != neg
+        or (work[i, j + 1, k + 1] < 0) != neg
+        or (work[i + 1, j, k] < 0) != neg
+        or (work[i + 1, j, k + 1] < 0) != neg
+        or (work[i + 1, j + 1, k] < 0) != neg
+        or (work[i + 1, j + 1, k + 1] < 0) != neg
+    )
+
+
 @njit(**KERNEL)
-def _mixed_cells(work):
-    """Marching cubes' mask: True at the far corner ``(i+1, j+1, k+1)`` of every cell ``(i, j,
-    k)`` whose corners are not all on one side (skimage reads a cell's mask there)."""
-    nx, ny, nz = work.shape
-    mask = np.zeros(work.shape, dtype=np.bool_)
-    for i in range(nx - 1):
-        for j in range(ny - 1):
-            for k in range(nz - 1):
-                neg = work[i, j, k] < 0
-                if (
-                    (work[i, j, k + 1] < 0) != neg
-                    or (work[i, j + 1, k] < 0) != neg
-                    or (work[i, j + 1, k + 1] < 0) != neg
-                    or (work[i + 1, j, k] < 0) != neg
-                    or (work[i + 1, j, k + 1] < 0) != neg
-                    or (work[i + 1, j + 1, k] < 0) != neg
-                    or (work[i + 1, j + 1, k + 1] < 0) != neg
-                ):
-                    mask[i + 1, j + 1, k + 1] = True
-    return mask
+def mixed_cells(work):
+    """The cells of ``work`` whose corners are not all on one side, as the Lewiner pass
+    (:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells`) takes them: their flat
+    numbers ``(i * n1 + j) * n2 + k`` in order (skimage's visiting order, ``work`` read as
+    ``im[z, y, x]``) and their corners (C, 8) float32 in skimage's order v0..v7. The other
+    cells make no triangle."""
+    n0, n1, n2 = work.shape
+    count = 0
+    for i in range(n0 - 1):
+        for j in range(n1 - 1):
+            for k in range(n2 - 1):
+                count += _mixed(work, i, j, k)
+    keys = np.empty(count, dtype=np.int64)
+    corners = np.empty((count, 8), dtype=np.float32)
+    q = 0
+    for i in range(n0 - 1):
+        for j in range(n1 - 1):
+            for k in range(n2 - 1):
+                if _mixed(work, i, j, k):
+                    keys[q] = (i * n1 + j) * n2 + k
+                    corners[q, 0] = work[i, j, k]
+                    corners[q, 1] = work[i, j, k + 1]
+                    corners[q, 2] = work[i, j + 1, k + 1]
+                    corners[q, 3] = work[i, j + 1, k]
+                    corners[q, 4] = work[i + 1, j, k]
+                    corners[q, 5] = work[i + 1, j, k + 1]
+                    corners[q, 6] = work[i + 1, j + 1, k + 1]
+                    corners[q, 7] = work[i + 1, j + 1, k]
+                    q += 1
+    return keys, corners
 
 
 @njit(**KERNEL)

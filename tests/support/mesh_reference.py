@@ -17,6 +17,19 @@ from surfgen.generator.mesh.marching import _CLIP, _MAX_ROUNDS, _RATIO, _TINY, S
 from surfgen.generator.mesh.mesh import Mesh, _empty_message
 
 
+def skimage_mask(work: np.ndarray) -> np.ndarray:
+    """skimage's ``mask`` for the cells with both signs: True at each such cell's far corner
+    (where skimage reads a cell's mask)."""
+    neg = work < 0
+    n0, n1, n2 = (n - 1 for n in neg.shape)
+    cells = [
+        neg[a : a + n0, b : b + n1, c : c + n2] for a in (0, 1) for b in (0, 1) for c in (0, 1)
+    ]
+    mask = np.zeros(work.shape, dtype=bool)
+    mask[1:, 1:, 1:] = np.any(cells, axis=0) & ~np.all(cells, axis=0)
+    return mask
+
+
 def reference_extract_with_edges(
     field: Field, level: float = 0.0, cap: bool = False
 ) -> tuple[Mesh, np.ndarray]:

@@ -10,14 +10,13 @@ from skimage.measure import marching_cubes
 
 from surfgen.generator.mesh import sparse_lewiner as lw
 from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
-from surfgen.generator.mesh.marching import _mixed_cells
+from surfgen.generator.mesh.marching import mixed_cells
+from tests.support.mesh_reference import skimage_mask
 
 
-def run_port(
-    work: np.ndarray, mask: np.ndarray, threads: int = 1, min_cells: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """The port on the cells ``mask`` lets through (skimage reads a cell's mask at its far
-    corner): it returns what skimage's ``marching_cubes`` returns ('descent'), faces int64."""
+def cells_of(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cells ``mask`` lets through (skimage reads a cell's mask at its far corner): their
+    flat numbers and corners, as :func:`lewiner_cells` takes them."""
     z, y, x = (a.astype(np.int64) for a in np.nonzero(mask[1:, 1:, 1:]))
     w = work
     corners = np.stack(
@@ -27,10 +26,16 @@ def run_port(
         ],
         axis=1,
     ).astype(np.float32)  # fmt: skip
-    keys = (z * work.shape[1] + y) * work.shape[2] + x
-    return lewiner_cells(
-        keys, np.ascontiguousarray(corners), work.shape[2], work.shape[1], threads, min_cells
-    )
+    return (z * work.shape[1] + y) * work.shape[2] + x, np.ascontiguousarray(corners)
+
+
+def run_port(
+    work: np.ndarray, mask: np.ndarray, threads: int = 1, min_cells: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """The port on the cells ``mask`` lets through: it returns what skimage's
+    ``marching_cubes`` returns ('descent'), faces int64."""
+    keys, corners = cells_of(work, mask)
+    return lewiner_cells(keys, corners, work.shape[2], work.shape[1], threads, min_cells)
 
 
 def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
@@ -47,6 +52,20 @@ def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.nd
     return w
 
 
+@pytest.mark.parametrize("kind", [0, 1, 2])
+def test_mixed_cells_lists_the_cells_skimage_would_visit(kind):
+    # the dense path's list of cells for the port: skimage's mask, in its visiting order
+    rng = np.random.default_rng(40 + kind)
+    for _ in range(6):
+        w = volume(kind, tuple(int(n) for n in rng.integers(2, 12, 3)), rng)
+        keys, corners = mixed_cells(w)
+        want_keys, want_corners = cells_of(w, skimage_mask(w))
+        assert keys.dtype == np.int64 and corners.dtype == np.float32
+        assert np.array_equal(keys, want_keys) and np.array_equal(corners, want_corners)
+    keys, corners = mixed_cells(np.ones((4, 5, 6), dtype=np.float32))
+    assert keys.shape == (0,) and corners.shape == (0, 8)
+
+
 @pytest.mark.parametrize("threads", [1, 2, 5])
 @pytest.mark.parametrize("kind", [0, 1, 2])
 def test_port_is_skimage_bit_for_bit(kind, threads):
@@ -58,7 +77,7 @@ def test_port_is_skimage_bit_for_bit(kind, threads):
         w = volume(kind, shape, rng)
         if not ((w < 0).any() and (w > 0).any()):
             continue
-        mask = _mixed_cells(w)
+        mask = skimage_mask(w)
         ref_v, ref_f, _n, _v = marching_cubes(w, 0.0, gradient_direction="descent", mask=mask)
         v, f = run_port(w, mask, threads)
         assert v.dtype == ref_v.dtype == np.float32
@@ -96,7 +115,7 @@ def test_port_follows_skimage_layers_with_gaps(threads):
     runs of planes, a run after a skipped plane shares nothing with the one before."""
     rng = np.random.default_rng(7)
     w = volume(0, (9, 7, 8), rng)
-    mask = _mixed_cells(w)
+    mask = skimage_mask(w)
     mask[3] = False
     mask[:, 2] = False
     mask[5, :, ::2] = False
@@ -137,7 +156,7 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
     monkeypatch.setattr(lewiner_chunks, "lewiner_range", counted)
     rng = np.random.default_rng(11)
     w = volume(2, (10, 9, 8), rng)
-    mask = _mixed_cells(w)
+    mask = skimage_mask(w)
     one = run_port(w, mask, threads=1)
     assert calls == [False]
     for min_cells, runs in ((1, 3), (50, 3), (10**9, 1)):
