@@ -101,6 +101,21 @@ def describe_os_error(exc: OSError) -> str:
     return f"{where}: {exc.strerror or exc}"
 
 
+def from_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a Ctrl-C that Python wrapped on its way up: a ``KeyboardInterrupt``
+    landing in a class body's ``__set_name__`` (a lazy import of numba's, say) comes out as a
+    ``RuntimeError`` caused by it (Python 3.11), and a command must still end on its one-line
+    message rather than a traceback."""
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
+
+
 def quiet_after_interrupt() -> None:
     """After a Ctrl-C, what is torn down may be half-built: the interrupt can land inside any
     constructor (one of llvmlite's, say, while numba loads a kernel), and that object's

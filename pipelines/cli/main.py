@@ -33,7 +33,12 @@ from surfgen.pipelines.cli import (
     studies,
     web,
 )
-from surfgen.pipelines.cli.common import describe_os_error, one_line, quiet_after_interrupt
+from surfgen.pipelines.cli.common import (
+    describe_os_error,
+    from_interrupt,
+    one_line,
+    quiet_after_interrupt,
+)
 
 app = typer.Typer(
     add_completion=False,
@@ -126,6 +131,12 @@ def main(argv: list[str] | None = None) -> int:
     except RecursionError:
         typer.echo("error: the input is nested too deeply", err=True)
         return 1
+    except RuntimeError as exc:  # a Ctrl-C that Python wrapped (see from_interrupt)
+        if not from_interrupt(exc):
+            raise
+        quiet_after_interrupt()
+        typer.echo("interrupted", err=True)
+        return 130
     except TyperException as exc:  # usage errors: bad option, missing argument, ...
         if type(exc).__name__ == "NoArgsIsHelpError":  # `surfgen` or a group alone: its help
             typer.echo(exc.format_message())

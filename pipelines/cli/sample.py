@@ -20,7 +20,12 @@ from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.grid import MAX_POINTS, MIN_POINTS
 from surfgen.generator.formula.limits import MAX_COUNT, check_count, check_seed, parse_size
 from surfgen.generator.model.families import family_help
-from surfgen.pipelines.cli.common import MaxMemoryOption, echo_err, quiet_after_interrupt
+from surfgen.pipelines.cli.common import (
+    MaxMemoryOption,
+    echo_err,
+    from_interrupt,
+    quiet_after_interrupt,
+)
 from surfgen.settings import run_config
 
 SHOWN_SETUP = 5.0  # seconds: a sampling run's setup is mentioned from this long on
@@ -137,7 +142,9 @@ def sample(
                 max_memory=limit,
                 notice=echo_err,  # above the live bar (rich redirects stderr)
             ).summary
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, RuntimeError) as exc:
+            if not from_interrupt(exc):
+                raise
             quiet_after_interrupt()
             bar.stop()
             typer.echo(

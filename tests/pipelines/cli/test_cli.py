@@ -303,6 +303,70 @@ def test_an_interrupted_sample_ends_on_its_one_line_message(tmp_path: Path) -> N
     assert "Exception ignored" not in done.stderr and "_as_parameter_" not in done.stderr
 
 
+_WRAPPED_INTERRUPT = """
+import surfgen.pipelines.run.sampling as sampling
+from surfgen.pipelines.cli.main import main
+
+def run_sample(**kwargs):
+    class Lazy:  # a Ctrl-C inside a class body's __set_name__, as in a lazy import of numba's
+        class Name:
+            def __set_name__(self, owner, name):
+                raise KeyboardInterrupt
+        attr = Name()
+
+sampling.run_sample = run_sample
+raise SystemExit(main(["sample", "--n", "1", "--out", {out!r}]))
+"""
+
+
+def test_a_ctrl_c_python_wrapped_still_ends_on_the_one_line_message(tmp_path: Path) -> None:
+    code = _WRAPPED_INTERRUPT.format(out=str(tmp_path / "cat"))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr.strip().splitlines()[-1].startswith("interrupted: what was catalogued")
+    assert "Traceback" not in done.stderr
+
+
+def test_from_interrupt_follows_the_chain_only_to_a_ctrl_c() -> None:
+    from surfgen.pipelines.cli.common import from_interrupt
+
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as cause:
+            raise RuntimeError("Error calling __set_name__") from cause
+    except RuntimeError as exc:
+        wrapped = exc
+    assert from_interrupt(wrapped) and from_interrupt(KeyboardInterrupt())
+    assert not from_interrupt(RuntimeError("a bug")) and not from_interrupt(ValueError())
+    looped = RuntimeError("loop")
+    looped.__context__ = RuntimeError("other")
+    looped.__context__.__context__ = looped  # a cycle ends the walk
+    assert not from_interrupt(looped)
+
+
+def test_main_turns_a_wrapped_ctrl_c_into_interrupted(monkeypatch, capsys) -> None:
+    from surfgen.pipelines.cli import main as cli
+
+    def app(**kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as cause:
+            raise RuntimeError("Error calling __set_name__") from cause
+
+    monkeypatch.setattr(sys, "unraisablehook", sys.unraisablehook)  # restored afterwards
+    monkeypatch.setattr(cli, "app", app)
+    assert cli.main(["presets"]) == 130
+    assert capsys.readouterr().err.strip() == "interrupted"
+
+    def bug(**kwargs):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(cli, "app", bug)
+    with pytest.raises(RuntimeError, match="a bug"):
+        cli.main(["presets"])
+
+
 def test_after_an_interrupt_a_failing_destructor_is_logged_not_printed(
     monkeypatch, capsys, caplog
 ) -> None:
