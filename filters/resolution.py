@@ -443,13 +443,19 @@ def measure_resolution(
     return replace(compare_meshes(mesh, fine, coarse.grid, evaluated), singular=singular)
 
 
-def warm_kernels(tree: Expr, coarse: Field, mesh: Mesh, fine_mesh: bool = True) -> None:
+def warm_kernels(tree: Expr, coarse: Field, mesh: Mesh) -> None:
     """Compile (or load) the resolution check's kernels on a small shape (``tree``, its
-    ``coarse`` field, its capped ``mesh``), as :func:`measure_resolution` runs them. Without
-    ``fine_mesh`` the sparse marching is left out (the warm-up's child: the parent compiles
-    it meanwhile) and the distances are measured between ``mesh`` and itself."""
-    if fine_mesh:
-        measure_resolution(tree, coarse, mesh, 0.0, cap=True)
-        return
+    ``coarse`` field, its capped ``mesh``), as :func:`measure_resolution` runs them."""
+    measure_resolution(tree, coarse, mesh, 0.0, cap=True)
+
+
+def warm_band(tree: Expr, coarse: Field) -> None:
+    """The part of :func:`warm_kernels` that evaluates the fine band (the interpreter loaded:
+    the warm-up's first child)."""
     fine_band(tree, coarse, band_cells(coarse, 0.0, 1), 0.0, faces=True)
-    compare_meshes(mesh, mesh, coarse.grid)
+
+
+def warm_distances(mesh: Mesh, grid: Grid) -> None:
+    """The part of :func:`warm_kernels` that measures the distances (between ``mesh`` and
+    itself: the warm-up's other child)."""
+    compare_meshes(mesh, mesh, grid)

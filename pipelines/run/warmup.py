@@ -64,26 +64,33 @@ def warm_grid_kernel() -> None:
 
 
 def warm_first_in_child() -> None:
-    """The first child's part of a parallel warm-up: the interpreter, then the sparse marching
-    (:func:`_warm_sparse_marching`), while the other child (:func:`warm_in_child`) compiles the
-    rest."""
+    """The first child's part of a parallel warm-up: the interpreter, the sparse marching
+    (:func:`_warm_sparse_marching`) and the grid kernel, while the other child
+    (:func:`warm_in_child`) compiles the rest (the two end within a few seconds of each other:
+    without the grid kernel, 31 s against 45 s on a 2-core Zen 4)."""
+    from surfgen.filters.resolution import warm_band
+
     with _collector_paused(collect=False):
         warm_interpreter()
         _warm_sparse_marching()
+        tree, _, field = _tiny_shape("fast")  # the grid kernel
+        warm_band(tree, field)  # the fine band's columns
 
 
 def warm_in_child() -> None:
-    """The other child's part of a parallel warm-up: every kernel of a shape but the interpreter
-    and the sparse marching, which the first child compiles meanwhile. The kernels that call
-    the interpreter (the grid's, the walls') are compiled for the tiny shape's argument types,
-    not run (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and
-    picture kernels run on the field the reference evaluator samples (the same values)."""
+    """The other child's part of a parallel warm-up: every kernel of a shape but the
+    interpreter, the sparse marching and the grid kernel, which the first child compiles
+    meanwhile. The kernels that call the interpreter (the walls', the fine band's) are
+    compiled for the tiny shape's argument types, not run
+    (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
+    kernels run on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
 
     with _collector_paused(collect=False), compiled_not_run((walls, "_bisect_kernel")):
-        _tiny_shape("fast")
         tree, box, field = _tiny_shape("reference")
-        _warm_the_rest(field, box, _warm_mesh(field, tree), tree, fine_mesh=False)
+        # "mark": the faces labelled, as the sampler's "keep" labels them where it finds walls
+        # (here the classification is compiled, not run: it finds none)
+        _warm_the_rest(field, box, _warm_mesh(field, tree, "mark"), tree, resolution=False)
 
 
 def grid_kernel_cached() -> bool:
@@ -207,10 +214,10 @@ def warm_shape_kernels(
 
     The first time on a machine this compiles every kernel, about a minute on one CPU. With
     ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): two child
-    processes compile into numba's on-disk cache, one the interpreter and then the sparse
-    marching (:func:`warm_first_in_child`), the other every other kernel
-    (:func:`warm_in_child`; the two end within a few seconds of each other, 37 s on a 2-core
-    Zen 4), and this process then loads them all from the cache, as a warm start does. A
+    processes compile into numba's on-disk cache, one the interpreter, the sparse marching and
+    the grid kernel (:func:`warm_first_in_child`), the other every other kernel
+    (:func:`warm_in_child`), and this process then loads them all from the cache, as a warm
+    start does. A
     process that compiled is slower afterwards: the main job's shapes took 6-10 % longer in a
     process (and in workers forked from one) that had compiled the interpreter than in one
     that loaded it (numba's compiler leaves the Python heap scattered). Python's cycle
@@ -275,15 +282,14 @@ def _warm_here(
                 child.wait()
 
 
-def _warm_mesh(field, tree, walls: bool = True):
-    """The mesh kernels and (``walls``) the walls' classification on the tiny shape's field;
-    returns the mesh."""
+def _warm_mesh(field, tree, walls: str = "keep"):
+    """The mesh kernels and the walls' classification and labels (``walls``: the mode) on the
+    tiny shape's field; returns the mesh."""
     from surfgen.generator.mesh.mesh import extract_with_edges
     from surfgen.generator.mesh.walls import label_walls
 
     mesh, edges = extract_with_edges(field, 0.0, cap=True)
-    if walls:
-        label_walls(mesh, edges, field, tree, {}, 0.0, True, "keep")
+    label_walls(mesh, edges, field, tree, {}, 0.0, True, walls)
     return mesh
 
 
@@ -323,11 +329,12 @@ def _warm_sparse_marching() -> None:
     lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
 
 
-def _warm_the_rest(field, box, mesh, tree, fine_mesh: bool = True) -> None:
-    """Every kernel after the mesh and the walls, on the tiny shape (``fine_mesh``: the
-    resolution check's sparse marching too)."""
+def _warm_the_rest(field, box, mesh, tree, resolution: bool = True) -> None:
+    """Every kernel after the mesh and the walls, on the tiny shape; without ``resolution``,
+    of the resolution check only the distances (the warm-up's other child: the first one
+    compiles the fine band and the sparse marching)."""
     from surfgen.filters.descriptor import descriptor
-    from surfgen.filters.resolution import warm_kernels
+    from surfgen.filters.resolution import warm_distances, warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
     from surfgen.generator.mesh.marching import _merge_same
@@ -338,7 +345,10 @@ def _warm_the_rest(field, box, mesh, tree, fine_mesh: bool = True) -> None:
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
     descriptor(mesh)
-    warm_kernels(tree, field, mesh, fine_mesh)
+    if resolution:
+        warm_kernels(tree, field, mesh)
+    else:
+        warm_distances(mesh, field.grid)
     render_image(mesh, size=16)
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)
