@@ -149,9 +149,10 @@ def check_count(value: int, option: str, low: int = 1, high: int = MAX_COUNT) ->
 
 # Bytes per grid point, measured on this project's machine (tracemalloc peaks of `render` on
 # 128^3 and 192^3 grids): the float64 field is 8; marching cubes' working arrays (float32
-# offsets, masks, the capped copy, scikit-image's own) about 20; the mesh about 120 bytes per
-# face, with a typical surface giving 0.1-0.25 faces per point (noise up to 1.2: the estimate is
-# for a typical shape, and an out-of-memory error is still reported in one line).
+# offsets, the capped copy, the mixed cells' list: 40 bytes a cell, about 20 a face) about 20;
+# the mesh about 120 bytes per face, with a typical surface giving 0.1-0.25 faces per point
+# (noise up to 1.2: the estimate is for a typical shape, and an out-of-memory error is still
+# reported in one line).
 FIELD_BYTES_PER_POINT = 8
 MARCHING_BYTES_PER_POINT = 20
 MESH_BYTES_PER_POINT = 30

@@ -221,18 +221,15 @@ def _pad_kernel(work, padded):
 
 
 @njit(**INLINE)
-def _mixed(work, i, j, k):
-    """Whether cell ``(i, j, k)``'s corners are not all on one side."""
-    neg = work[i, j, k] < 0
-    return (
-        (work[i, j, k + 1] < 0) != neg
-        or (work[i, j + 1, k] < 0) != neg
-        or (work[i, j + 1, k + 1] < 0) != neg
-        or (work[i + 1, j, k] < 0) != neg
-        or (work[i + 1, j, k + 1] < 0) != neg
-        or (work[i + 1, j + 1, k] < 0) != neg
-        or (work[i + 1, j + 1, k + 1] < 0) != neg
-    )
+def _column_signs(work, i, j, col):
+    """Into ``col[k]``: how many of the four samples ``(i..i+1, j..j+1, k)`` are inside."""
+    for k in range(work.shape[2]):
+        col[k] = (
+            np.int64(work[i, j, k] < 0)
+            + np.int64(work[i, j + 1, k] < 0)
+            + np.int64(work[i + 1, j, k] < 0)
+            + np.int64(work[i + 1, j + 1, k] < 0)
+        )
 
 
 @njit(**KERNEL)
@@ -241,20 +238,27 @@ def mixed_cells(work):
     (:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells`) takes them: their flat
     numbers ``(i * n1 + j) * n2 + k`` in order (skimage's visiting order, ``work`` read as
     ``im[z, y, x]``) and their corners (C, 8) float32 in skimage's order v0..v7. The other
-    cells make no triangle."""
+    cells make no triangle. A cell is mixed when the inside counts of its two corner columns
+    (:func:`_column_signs`) add up to neither 0 nor 8: one pass without branches counts them,
+    a second lists them."""
     n0, n1, n2 = work.shape
+    col = np.empty(n2, dtype=np.int64)
     count = 0
     for i in range(n0 - 1):
         for j in range(n1 - 1):
+            _column_signs(work, i, j, col)
             for k in range(n2 - 1):
-                count += _mixed(work, i, j, k)
+                t = col[k] + col[k + 1]
+                count += (t != 0) & (t != 8)
     keys = np.empty(count, dtype=np.int64)
     corners = np.empty((count, 8), dtype=np.float32)
     q = 0
     for i in range(n0 - 1):
         for j in range(n1 - 1):
+            _column_signs(work, i, j, col)
             for k in range(n2 - 1):
-                if _mixed(work, i, j, k):
+                t = col[k] + col[k + 1]
+                if t != 0 and t != 8:
                     keys[q] = (i * n1 + j) * n2 + k
                     corners[q, 0] = work[i, j, k]
                     corners[q, 1] = work[i, j, k + 1]
