@@ -128,7 +128,7 @@ def corner_angle_sums(v: np.ndarray, f: np.ndarray, n_vertices: int) -> np.ndarr
 
 
 @numba.njit(**CHECKED)
-def _find(parent: np.ndarray, a: int) -> int:
+def find_root(parent: np.ndarray, a: int) -> int:
     """The root of ``a`` in the union-find forest ``parent``, halving the path on the way."""
     while parent[a] != a:
         parent[a] = parent[parent[a]]
@@ -137,10 +137,10 @@ def _find(parent: np.ndarray, a: int) -> int:
 
 
 @numba.njit(**CHECKED)
-def _join(parent: np.ndarray, a: int, b: int) -> None:
+def join_sets(parent: np.ndarray, a: int, b: int) -> None:
     """Union of the sets of ``a`` and ``b`` (the lower root stays a root)."""
-    a = _find(parent, a)
-    b = _find(parent, b)
+    a = find_root(parent, a)
+    b = find_root(parent, b)
     if a < b:
         parent[b] = a
     elif b < a:
@@ -225,25 +225,25 @@ def edge_counts(faces: np.ndarray, n_vertices: int) -> tuple[int, int, int, bool
                     oriented = False
                 t1, k1 = divmod(half[p], 3)
                 t2, k2 = divmod(half[p + 1], 3)
-                _join(face_root, t1, t2)
+                join_sets(face_root, t1, t2)
                 # each end's corners in the two faces: one fan
                 a1, b1 = 3 * t1 + k1, 3 * t1 + (k1 + 1) % 3
                 a2, b2 = 3 * t2 + k2, 3 * t2 + (k2 + 1) % 3
                 if faces[t1, k1] == faces[t2, k2]:  # both faces walk it the same way
-                    _join(corner_root, a1, a2)
-                    _join(corner_root, b1, b2)
+                    join_sets(corner_root, a1, a2)
+                    join_sets(corner_root, b1, b2)
                 else:
-                    _join(corner_root, a1, b2)
-                    _join(corner_root, b1, a2)
+                    join_sets(corner_root, a1, b2)
+                    join_sets(corner_root, b1, a2)
             p = q
     components = 0
     for t in range(n_faces):
-        components += _find(face_root, t) == t
+        components += find_root(face_root, t) == t
     fan = np.full(n_vertices, -1, dtype=np.int64)  # a vertex's first fan, -2 once counted
     pinched = 0
     for c in range(m):
         v = faces[c // 3, c % 3]
-        r = _find(corner_root, c)
+        r = find_root(corner_root, c)
         if fan[v] == -1:
             fan[v] = r
         elif fan[v] >= 0 and fan[v] != r:

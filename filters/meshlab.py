@@ -19,6 +19,7 @@ import numba
 import numpy as np
 import pymeshlab
 
+from surfgen.filters.geometry import join_sets
 from surfgen.generator.errors import MeshError
 from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, bbox_diagonal, compact_mesh, face_areas
@@ -251,18 +252,7 @@ def _vertex_roots(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     parent = np.arange(n_vertices)
     for t in range(faces.shape[0]):
         for k in range(2):
-            a = faces[t, k]
-            b = faces[t, k + 1]
-            while parent[a] != a:  # find with path halving
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            while parent[b] != b:
-                parent[b] = parent[parent[b]]
-                b = parent[b]
-            if a < b:  # the lower index stays the root: roots are component minima
-                parent[b] = a
-            elif b < a:
-                parent[a] = b
+            join_sets(parent, faces[t, k], faces[t, k + 1])  # roots are component minima
     for i in range(n_vertices):  # parents are lower indices, so theirs are final already
         parent[i] = parent[parent[i]]
     return parent

@@ -44,8 +44,9 @@ log = logging.getLogger(__name__)
 WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
 WARM_HALF, WARM_POINTS = 1.1, 14
 
-# The two children of a parallel warm-up on a cold cache: one compiles the interpreter and the
-# sparse marching, the other every other kernel; this process then loads them all.
+# The two children of a parallel warm-up on a cold cache: one compiles the interpreter, the
+# sparse marching, the grid kernel and the fine band's, the other every other kernel; this
+# process then loads them all.
 _FIRST_CHILD = "from surfgen.pipelines.run.warmup import warm_first_in_child; warm_first_in_child()"
 _CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child()"
 
@@ -65,9 +66,10 @@ def warm_grid_kernel() -> None:
 
 def warm_first_in_child() -> None:
     """The first child's part of a parallel warm-up: the interpreter, the sparse marching
-    (:func:`_warm_sparse_marching`) and the grid kernel, while the other child
-    (:func:`warm_in_child`) compiles the rest (the two end within a few seconds of each other:
-    without the grid kernel, 31 s against 45 s on a 2-core Zen 4)."""
+    (:func:`_warm_sparse_marching`), the grid kernel and the fine band's evaluation (which
+    calls it), while the other child (:func:`warm_in_child`) compiles the rest: the two end
+    within a second of each other, 38-39 s on a 2-core Zen 4 (31 s against 45 s with the grid
+    and the fine band in the other)."""
     from surfgen.filters.resolution import warm_band
 
     with _collector_paused(collect=False):
@@ -79,9 +81,9 @@ def warm_first_in_child() -> None:
 
 def warm_in_child() -> None:
     """The other child's part of a parallel warm-up: every kernel of a shape but the
-    interpreter, the sparse marching and the grid kernel, which the first child compiles
-    meanwhile. The kernels that call the interpreter (the walls', the fine band's) are
-    compiled for the tiny shape's argument types, not run
+    interpreter, the sparse marching, the grid kernel and the fine band's, which the first
+    child compiles meanwhile. The walls' kernel, which calls the interpreter, is compiled for
+    the tiny shape's argument types, not run
     (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
     kernels run on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
@@ -217,10 +219,9 @@ def warm_shape_kernels(
     processes compile into numba's on-disk cache, one the interpreter, the sparse marching and
     the grid kernel (:func:`warm_first_in_child`), the other every other kernel
     (:func:`warm_in_child`), and this process then loads them all from the cache, as a warm
-    start does. A
-    process that compiled is slower afterwards: the main job's shapes took 6-10 % longer in a
-    process (and in workers forked from one) that had compiled the interpreter than in one
-    that loaded it (numba's compiler leaves the Python heap scattered). Python's cycle
+    start does. A process that compiled is slower afterwards: the main job's shapes took 6-10 %
+    longer in a process (and in workers forked from one) that had compiled the kernels than in
+    one that loaded them (numba's compiler leaves the Python heap scattered). Python's cycle
     collector is paused while this process compiles (:func:`_collector_paused`).
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
     process waits for the second child: only the interpreter need be loaded for it."""
@@ -259,8 +260,8 @@ def _warm_here(
     t0: float, first: subprocess.Popen | None, rest: subprocess.Popen | None, meanwhile
 ) -> None:
     """This process's part of :func:`warm_shape_kernels`: with children (``first`` compiling
-    the interpreter and the sparse marching, ``rest`` the other kernels), load what they
-    compiled as each ends; without one, compile its part here."""
+    the interpreter, the sparse marching, the grid and the fine band, ``rest`` the other
+    kernels), load what they compiled as each ends; without one, compile its part here."""
     try:
         if first is not None:
             _join_child(first)
