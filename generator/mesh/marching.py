@@ -221,14 +221,16 @@ def _pad_kernel(work, padded):
 
 
 @njit(**INLINE)
-def _column_signs(work, i, j, col):
-    """Into ``col[k]``: how many of the four samples ``(i..i+1, j..j+1, k)`` are inside."""
-    for k in range(work.shape[2]):
+def column_counts(w, b, i, j, n, col):
+    """``col[k]`` for ``k < n``: how many of the samples ``(i..i+1, j..j+1, k)`` of brick ``b``
+    of the offsets ``w`` are inside (the dense path's volume is one brick). A cell is mixed
+    when two neighbouring counts add up to neither 0 nor 8."""
+    for k in range(n):
         col[k] = (
-            np.int64(work[i, j, k] < 0)
-            + np.int64(work[i, j + 1, k] < 0)
-            + np.int64(work[i + 1, j, k] < 0)
-            + np.int64(work[i + 1, j + 1, k] < 0)
+            np.int64(w[b, i, j, k] < 0)
+            + np.int64(w[b, i, j + 1, k] < 0)
+            + np.int64(w[b, i + 1, j, k] < 0)
+            + np.int64(w[b, i + 1, j + 1, k] < 0)
         )
 
 
@@ -238,27 +240,32 @@ def mixed_cells(work):
     (:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells`) takes them: their flat
     numbers ``(i * n1 + j) * n2 + k`` in order (skimage's visiting order, ``work`` read as
     ``im[z, y, x]``) and their corners (C, 8) float32 in skimage's order v0..v7. The other
-    cells make no triangle. A cell is mixed when the inside counts of its two corner columns
-    (:func:`_column_signs`) add up to neither 0 nor 8: one pass without branches counts them,
-    a second lists them."""
-    n0, n1, n2 = work.shape
-    col = np.empty(n2, dtype=np.int64)
-    count = 0
-    for i in range(n0 - 1):
-        for j in range(n1 - 1):
-            _column_signs(work, i, j, col)
-            for k in range(n2 - 1):
-                t = col[k] + col[k + 1]
-                count += (t != 0) & (t != 8)
+    cells make no triangle. One pass counts them, a second lists them into arrays of that
+    size (:func:`_list_mixed`)."""
+    count = _list_mixed(work, np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32))
     keys = np.empty(count, dtype=np.int64)
     corners = np.empty((count, 8), dtype=np.float32)
+    _list_mixed(work, keys, corners)
+    return keys, corners
+
+
+@njit(**INLINE)
+def _list_mixed(work, keys, corners):
+    """The number of mixed cells of ``work``, listed into ``keys`` and ``corners`` unless they
+    are empty (the counting pass); the inside counts of a cell's corner columns by
+    :func:`column_counts`, as the sparse path's scan counts them in a brick."""
+    n0, n1, n2 = work.shape
+    one = work.reshape((1, n0, n1, n2))
+    write = keys.size > 0
+    col = np.empty(n2, dtype=np.int64)
     q = 0
     for i in range(n0 - 1):
         for j in range(n1 - 1):
-            _column_signs(work, i, j, col)
+            column_counts(one, 0, i, j, n2, col)
             for k in range(n2 - 1):
                 t = col[k] + col[k + 1]
-                if t != 0 and t != 8:
+                mixed = (t != 0) & (t != 8)
+                if write and mixed:
                     keys[q] = (i * n1 + j) * n2 + k
                     corners[q, 0] = work[i, j, k]
                     corners[q, 1] = work[i, j, k + 1]
@@ -268,8 +275,8 @@ def mixed_cells(work):
                     corners[q, 5] = work[i + 1, j, k + 1]
                     corners[q, 6] = work[i + 1, j + 1, k + 1]
                     corners[q, 7] = work[i + 1, j + 1, k]
-                    q += 1
-    return keys, corners
+                q += mixed
+    return q
 
 
 @njit(**KERNEL)

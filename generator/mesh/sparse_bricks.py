@@ -28,7 +28,7 @@ from numba import njit
 from surfgen.generator.eval.sparse import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.marching import _RATIO, offset_of
+from surfgen.generator.mesh.marching import _RATIO, column_counts, offset_of
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
@@ -79,18 +79,6 @@ def _offsets_of(values, extent, level, offset, b0, b1):
 
 
 @njit(**INLINE)
-def _columns(w, b, i, j, e2, col):
-    """``col[k]``: how many of the samples ``(i..i+1, j..j+1, k)`` of brick ``b`` are inside."""
-    for k in range(e2):
-        col[k] = (
-            np.int64(w[b, i, j, k] < 0)
-            + np.int64(w[b, i, j + 1, k] < 0)
-            + np.int64(w[b, i + 1, j, k] < 0)
-            + np.int64(w[b, i + 1, j + 1, k] < 0)
-        )
-
-
-@njit(**INLINE)
 def _tight(ma, b):
     """Whether an edge with magnitudes ``ma`` and ``|b|`` needs a raise."""
     mb = abs(np.float64(b))
@@ -130,7 +118,7 @@ def _scan(offset, extent, corner, shape, b0, b1):
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
         for i in range(e0 - 1):
             for j in range(e1 - 1):
-                _columns(offset, b, i, j, e2, col)
+                column_counts(offset, b, i, j, e2, col)
                 for k in range(e2 - 1):
                     t = col[k] + col[k + 1]
                     n_cells += t != 0 and t != 8
@@ -354,7 +342,7 @@ def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
                 for j in range(extent[c0, 1] - 1):
                     for b in range(c0, c1):
                         e2 = extent[b, 2]
-                        _columns(offset, b, i, j, e2, col)
+                        column_counts(offset, b, i, j, e2, col)
                         gi = corner[b, 0] + i + shift
                         gj = corner[b, 1] + j + shift
                         row = (gi * p1 + gj) * p2 + corner[b, 2] + shift
