@@ -294,10 +294,17 @@ raise SystemExit(main(["sample", "--n", "1", "--out", {out!r}]))
 """
 
 
-def test_an_interrupted_sample_ends_on_its_one_line_message(tmp_path: Path) -> None:
-    code = _INTERRUPTED_SAMPLE.format(out=str(tmp_path / "cat"))
+def _interrupted(script: str, tmp_path: Path) -> subprocess.CompletedProcess:
+    """``script`` (a ``sample`` whose run is replaced) in a fresh process; it must end with an
+    interrupt's exit code."""
+    code = script.format(out=str(tmp_path / "cat"))
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 130, done.stderr
+    return done
+
+
+def test_an_interrupted_sample_ends_on_its_one_line_message(tmp_path: Path) -> None:
+    done = _interrupted(_INTERRUPTED_SAMPLE, tmp_path)
     lines = done.stderr.strip().splitlines()
     assert lines[-1].startswith("interrupted: what was catalogued is kept"), done.stderr
     assert "Exception ignored" not in done.stderr and "_as_parameter_" not in done.stderr
@@ -320,9 +327,7 @@ raise SystemExit(main(["sample", "--n", "1", "--out", {out!r}]))
 
 
 def test_a_ctrl_c_python_wrapped_still_ends_on_the_one_line_message(tmp_path: Path) -> None:
-    code = _WRAPPED_INTERRUPT.format(out=str(tmp_path / "cat"))
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert done.returncode == 130, done.stderr
+    done = _interrupted(_WRAPPED_INTERRUPT, tmp_path)
     assert done.stderr.strip().splitlines()[-1].startswith("interrupted: what was catalogued")
     assert "Traceback" not in done.stderr
 
