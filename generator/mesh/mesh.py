@@ -213,9 +213,10 @@ def finish_marching(
     verts: np.ndarray, faces: np.ndarray, grid: Grid, level: float, cap: bool
 ) -> tuple[Mesh, np.ndarray]:
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
-    skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when ``cap``): vertices placed on the
-    box, interior vertices kept off their cell's faces, one vertex per grid edge.  The sparse
-    path (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
+    skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
+    ``cap``): vertices placed on the box, interior vertices kept off their cell's faces, one
+    vertex per grid edge. The sparse path (:mod:`~surfgen.generator.mesh.sparse_marching`)
+    ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
     spacing = np.asarray(grid.spacing, dtype=np.float64)

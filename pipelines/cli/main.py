@@ -131,12 +131,6 @@ def main(argv: list[str] | None = None) -> int:
     except RecursionError:
         typer.echo("error: the input is nested too deeply", err=True)
         return 1
-    except RuntimeError as exc:  # a Ctrl-C that Python wrapped (see from_interrupt)
-        if not from_interrupt(exc):
-            raise
-        quiet_after_interrupt()
-        typer.echo("interrupted", err=True)
-        return 130
     except TyperException as exc:  # usage errors: bad option, missing argument, ...
         if type(exc).__name__ == "NoArgsIsHelpError":  # `surfgen` or a group alone: its help
             typer.echo(exc.format_message())
@@ -155,7 +149,9 @@ def main(argv: list[str] | None = None) -> int:
         quiet_after_interrupt()
         typer.echo("aborted", err=True)
         return 130
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, RuntimeError) as exc:  # RuntimeError: a Ctrl-C Python wrapped
+        if not from_interrupt(exc):
+            raise
         quiet_after_interrupt()
         typer.echo("interrupted", err=True)
         return 130
