@@ -11,6 +11,9 @@ in eight and bounded again, down to the leaves.  Only the leaves left uncertain 
 their ``(BLOCK + 1)**3`` grid points (the points of the neighbouring blocks' shared faces
 included, so a leaf's cells have all their corners) are evaluated with the fast evaluator's grid kernel on those coordinates
 (:func:`~surfgen.generator.eval.tape.evaluate_columns`), bit for bit the dense grid's values.
+A sampled leaf whose samples then all lie on one side is decided as the bounds would have
+decided it, and its brick dropped (:func:`_sample_and_decide`): the bricks kept are the leaves
+the surface crosses (and, for caps, the inside ones on the box's faces).
 
 A cell lies in exactly one leaf, and its corners in that leaf's closed box: a cell whose corners
 are not all on one side lies in a sampled leaf.  So the sampled leaves hold every crossing, and
@@ -48,8 +51,13 @@ log = logging.getLogger(__name__)
 BLOCK = 8
 #: Blocks per side at the coarsest level (at most): the first bounding pass.
 TOP_BLOCKS = 8
+#: Bricks sampled at a time (23 MiB of samples at ``BLOCK`` 8) before the one-sided ones are
+#: dropped: a bound that leaves many leaves to sample costs their time, not their memory.
+CHUNK_BRICKS = 4096
 
 OUTSIDE, INSIDE, SAMPLED = np.int8(0), np.int8(1), np.int8(2)
+# A brick's samples (:func:`_sides`): all outside, all inside, or both sides.
+_ALL_OUTSIDE, _ALL_INSIDE, _MIXED = 0, 1, 2
 
 __all__ = [
     "SparseField",
@@ -94,7 +102,10 @@ class SparseField:
 
     @property
     def points_evaluated(self) -> int:
-        """Grid points evaluated (shared faces of neighbouring bricks once per brick)."""
+        """Grid points evaluated (shared faces of neighbouring bricks once per brick): those of
+        the bricks dropped after sampling too (:func:`_sample_and_decide`)."""
+        if "points" in self.stats:
+            return int(self.stats["points"])
         return int(np.prod(self.extent, axis=1).sum()) if self.n_bricks else 0
 
     @property
@@ -109,7 +120,10 @@ class SparseField:
     @property
     def nonfinite(self) -> int:
         """How many of the sampled points are NaN or infinite (each grid point once; the
-        skipped blocks' samples are not known)."""
+        skipped blocks' samples are not known; those of bricks dropped after sampling are
+        counted, :func:`_sample_and_decide`)."""
+        if "nonfinite" in self.stats:
+            return int(self.stats["nonfinite"])
         return int(_count_nonfinite(self.values, self.extent, self.corner, self.slot, self.block))
 
     def sign_proxy(self) -> Field:
@@ -231,27 +245,44 @@ def evaluate_sparse_program(
             "sparse: %d of %d leaves to sample, over the share asked", len(leaves), state.size
         )
         return None
-    values = np.empty((len(leaves), block + 1, block + 1, block + 1))
-    partial = np.flatnonzero(np.any(extent <= block, axis=1))
-    values[partial] = np.nan  # entries past the grid's end: never read, but defined
-    _evaluate_bricks(program, axes, leaves, corner, extent, values, thread_count(threads))
+    sampled, points = len(leaves), int(np.prod(extent, axis=1).sum())
+    values, sides, keep, nonfinite = _sample_and_decide(
+        program, axes, state.shape, slot, corner, extent, block, float(level), faces, threads
+    )
     t2 = time.perf_counter()
+    if not keep.all():  # the one-sided leaves decided, the layout of the bricks kept
+        decided = np.where(sides == _ALL_INSIDE, INSIDE, OUTSIDE).astype(np.int8)
+        state[tuple(leaves.T)] = np.where(keep, SAMPLED, decided)
+        leaves, slot, corner, extent = brick_layout(state, grid, block)
     sf = SparseField(grid, float(level), int(block), state, slot, corner, extent, values)
     sf.stats.update(
         boxes=boxes,
-        points=sf.points_evaluated,
-        share=sf.share,
+        points=points,
+        share=points / grid.size,
+        nonfinite=nonfinite,
+        sampled_leaves=sampled,
         bound_seconds=t1 - t0,
         sample_seconds=t2 - t1,
     )
     log.debug(
-        "sparse: %d boxes bounded, %d of %d leaves sampled, %.3g of the grid's points",
+        "sparse: %d boxes bounded, %d of %d leaves sampled (%d kept), %.3g of the grid's points",
         boxes,
-        len(leaves),
+        sampled,
         state.size,
+        sf.n_bricks,
         sf.share,
     )
     return sf
+
+
+def _shrunk(values: np.ndarray, n: int) -> np.ndarray:
+    """The first ``n`` bricks of ``values``: the array itself, resized in place where nothing
+    else holds it (the allocator gives the rest back), else a copy."""
+    try:
+        values.resize((n,) + values.shape[1:])
+        return values
+    except (ValueError, SystemError):  # referenced elsewhere or not its own memory
+        return values[:n].copy()
 
 
 def thread_count(threads: int | None) -> int:
@@ -342,22 +373,89 @@ def sample_face_leaves(state: np.ndarray) -> None:
 # ----------------------------------------------------------------------------- the bricks
 
 
-def _evaluate_bricks(
+def _sample_and_decide(
     program: Program,
     axes: tuple[np.ndarray, np.ndarray, np.ndarray],
-    leaves: np.ndarray,
+    leaf_shape: tuple[int, ...],
+    slot: np.ndarray,
     corner: np.ndarray,
     extent: np.ndarray,
-    values: np.ndarray,
-    threads: int,
-) -> None:
-    """Fill ``values`` with F at each brick's points: per column of leaves (one x and y block)
-    the grid kernel runs once on the union of the column's z points, and the values are
-    scattered to the bricks, all columns in one kernel call per thread
-    (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call per column from Python, on
-    a pool of threads, spent more time in Python than in the kernel: 4-6x slower)."""
-    members = np.lexsort((leaves[:, 2], leaves[:, 1], leaves[:, 0])).astype(np.int64)
-    evaluate_columns(program, axes, members, corner, extent, values, threads)
+    block: int,
+    level: float,
+    faces: bool,
+    threads: int | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """F at the sampled leaves' bricks, :data:`CHUNK_BRICKS` at a time, each run's one-sided
+    bricks dropped before the next is sampled (:func:`evaluate_sparse_program`): returns the
+    samples of the bricks kept (in order), each brick's side (:func:`_sides`), which were kept
+    and the non-finite samples of them all, each grid point once (``slot``: the layout before
+    any is dropped). A run is evaluated in place after the bricks kept so far, so the array's
+    pages are touched only as far as they hold the bricks kept and one run; it is then shrunk.
+
+    Per column of leaves (one x and y block) the grid kernel runs once on the union of the
+    column's z points, and the values are scattered to the bricks, all of a run's columns in
+    one kernel call per thread (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call
+    per column from Python, on a pool of threads, spent more time in Python than in the
+    kernel: 4-6x slower)."""
+    n = len(corner)
+    values = np.empty((n, block + 1, block + 1, block + 1))
+    sides = np.empty(n, dtype=np.int8)
+    keep = np.empty(n, dtype=np.bool_)
+    leaves = corner // block
+    top = np.asarray(leaf_shape, dtype=np.int64) - 1
+    on_face = np.any((leaves == 0) | (leaves == top[None, :]), axis=1)
+    workers = thread_count(threads)
+    rows = nonfinite = 0
+    run = None
+    for c0 in range(0, n, CHUNK_BRICKS):
+        c1 = min(n, c0 + CHUNK_BRICKS)
+        run, ext, at = values[rows : rows + c1 - c0], extent[c0:c1], corner[c0:c1]
+        run[np.flatnonzero(np.any(ext <= block, axis=1))] = np.nan  # past the grid: defined
+        evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers)
+        nonfinite += _sides(run, ext, at, slot, block, c0, level, sides[c0:c1])
+        kept = sides[c0:c1] == _MIXED
+        if faces:  # a cap's vertices need the inside samples on the box's faces
+            kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
+        keep[c0:c1] = kept
+        rows += _move_down(run, np.flatnonzero(kept))
+    del run  # the last run's view: the array can then be resized in place
+    return _shrunk(values, rows), sides, keep, int(nonfinite)
+
+
+@njit(**KERNEL)
+def _sides(values, extent, corner, slot, block, first, level, out):
+    """Each brick's side into ``out``: all its samples outside the level (above it or
+    non-finite), all inside (finite, below it) or both; returns its non-finite samples, each
+    counted in the brick :func:`locate` finds for it (``first``: the number of brick 0)."""
+    n_bad = 0
+    for b in range(values.shape[0]):
+        inside = outside = False
+        for i in range(extent[b, 0]):
+            for j in range(extent[b, 1]):
+                for k in range(extent[b, 2]):
+                    x = values[b, i, j, k]
+                    if np.isfinite(x):
+                        if x < level:
+                            inside = True
+                        else:
+                            outside = True
+                    else:
+                        outside = True
+                        gi, gj, gk = corner[b, 0] + i, corner[b, 1] + j, corner[b, 2] + k
+                        n_bad += locate(slot, block, gi, gj, gk)[0] == first + b
+        out[b] = _MIXED if inside and outside else (_ALL_INSIDE if inside else _ALL_OUTSIDE)
+    return n_bad
+
+
+@njit(**KERNEL)
+def _move_down(values, kept):
+    """Bricks ``kept`` (ascending) to rows ``0, 1, ...`` of ``values``, in place; returns how
+    many."""
+    for r in range(kept.size):
+        b = kept[r]
+        if b != r:
+            values[r] = values[b]
+    return kept.size
 
 
 @njit(**KERNEL)

@@ -84,6 +84,44 @@ def test_presets_with_real_bounds(name):
     assert dense[1].tobytes() == sparse[1].tobytes()
 
 
+def _no_bounds(program, lo, hi):
+    """Bounds that decide nothing: every leaf is sampled."""
+    return np.full(len(lo), -np.inf), np.full(len(lo), np.inf), np.zeros(len(lo), bool)
+
+
+@pytest.mark.parametrize("cap", [False, True])
+def test_one_sided_bricks_are_decided_after_sampling(cap):
+    # a ball cut by the box: leaves all outside, all inside (some on the box's faces) and mixed
+    grid = Grid(Box((-1.0, -1.1, -0.9), (1.0, 1.2, 0.9)), (41, 42, 39))
+    tree = parse("x^2+y^2+z^2-1.1")
+    field = evaluate(tree, grid)
+    sf = evaluate_sparse(tree, grid, faces=cap, bounds=_no_bounds)
+    n_leaves = int(np.prod(leaf_counts(grid)))
+    assert sf.stats["sampled_leaves"] == n_leaves
+    # every leaf's brick was evaluated (shared faces once per brick), dropped ones too
+    per_axis = [
+        [min(sf.block + 1, n - sf.block * c) for c in range(m)]
+        for n, m in zip(grid.shape, leaf_counts(grid), strict=True)
+    ]
+    assert sf.points_evaluated == sum(per_axis[0]) * sum(per_axis[1]) * sum(per_axis[2])
+    assert sf.share == sf.points_evaluated / grid.size > 1.0
+    top = np.asarray(sf.state.shape) - 1
+    for leaf in np.argwhere(np.ones(sf.state.shape, bool)):
+        v = field.values[leaf_slices(sf, leaf)]
+        inside = np.isfinite(v) & (v < 0)
+        face = bool(np.any((leaf == 0) | (leaf == top)))
+        kept = inside.any() and not inside.all() or (cap and face and inside.all())
+        want = SAMPLED if kept else (INSIDE if inside.all() else OUTSIDE)
+        assert sf.state[tuple(leaf)] == want, leaf
+    assert sf.values.shape[0] == sf.n_bricks == np.count_nonzero(sf.state == SAMPLED)
+    assert np.any(sf.state == INSIDE) and np.any(sf.state == OUTSIDE)
+    dense = extract_with_edges(field, 0.0, cap)
+    sparse = extract_sparse_with_edges(sf, cap)
+    assert dense[0].vertices.tobytes() == sparse[0].vertices.tobytes()
+    assert dense[0].faces.tobytes() == sparse[0].faces.tobytes()
+    assert dense[1].tobytes() == sparse[1].tobytes()
+
+
 def test_values_at_and_sampled_at():
     grid = Grid(Box.cube(1.5), (40, 40, 40))
     sf = evaluate_sparse(SPHERE, grid)
