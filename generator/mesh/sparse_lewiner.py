@@ -158,6 +158,27 @@ def _test_face(v, face):
     return np.float64(face) * A * ac_bd >= 0
 
 
+# skimage's test_internal, per edge of the cell: the edge's two corners, then the corner pairs of
+# the three other interpolations (Bt, Ct, Dt)
+_EDGE_T = np.array(
+    [
+        [0, 1, 3, 2, 7, 6, 4, 5],
+        [1, 2, 0, 3, 4, 7, 5, 6],
+        [2, 3, 1, 0, 5, 4, 6, 7],
+        [3, 0, 2, 1, 6, 5, 7, 4],
+        [4, 5, 7, 6, 3, 2, 0, 1],
+        [5, 6, 4, 7, 0, 3, 1, 2],
+        [6, 7, 5, 4, 1, 0, 2, 3],
+        [7, 4, 6, 5, 2, 1, 3, 0],
+        [0, 4, 3, 7, 2, 6, 1, 5],
+        [1, 5, 0, 4, 3, 7, 2, 6],
+        [2, 6, 1, 5, 0, 4, 3, 7],
+        [3, 7, 2, 6, 1, 5, 0, 4],
+    ],
+    dtype=np.int64,
+)
+
+
 @njit(**INLINE)
 def _edge_t(v, p, q, b0, b1, c0, c1, d0, d1):
     """``t`` on the edge from corner p to q and the three other interpolations of
@@ -195,30 +216,9 @@ def _test_internal(v, lut, meta, case, config, subconfig, s):
         else:
             edge = _get3(lut, meta, T13_5_1, config, subconfig, 0)
         At = 0.0
-        if edge == 0:
-            _t, Bt, Ct, Dt = _edge_t(v, 0, 1, 3, 2, 7, 6, 4, 5)
-        elif edge == 1:
-            _t, Bt, Ct, Dt = _edge_t(v, 1, 2, 0, 3, 4, 7, 5, 6)
-        elif edge == 2:
-            _t, Bt, Ct, Dt = _edge_t(v, 2, 3, 1, 0, 5, 4, 6, 7)
-        elif edge == 3:
-            _t, Bt, Ct, Dt = _edge_t(v, 3, 0, 2, 1, 6, 5, 7, 4)
-        elif edge == 4:
-            _t, Bt, Ct, Dt = _edge_t(v, 4, 5, 7, 6, 3, 2, 0, 1)
-        elif edge == 5:
-            _t, Bt, Ct, Dt = _edge_t(v, 5, 6, 4, 7, 0, 3, 1, 2)
-        elif edge == 6:
-            _t, Bt, Ct, Dt = _edge_t(v, 6, 7, 5, 4, 1, 0, 2, 3)
-        elif edge == 7:
-            _t, Bt, Ct, Dt = _edge_t(v, 7, 4, 6, 5, 2, 1, 3, 0)
-        elif edge == 8:
-            _t, Bt, Ct, Dt = _edge_t(v, 0, 4, 3, 7, 2, 6, 1, 5)
-        elif edge == 9:
-            _t, Bt, Ct, Dt = _edge_t(v, 1, 5, 0, 4, 3, 7, 2, 6)
-        elif edge == 10:
-            _t, Bt, Ct, Dt = _edge_t(v, 2, 6, 1, 5, 0, 4, 3, 7)
-        elif edge == 11:
-            _t, Bt, Ct, Dt = _edge_t(v, 3, 7, 2, 6, 1, 5, 0, 4)
+        if 0 <= edge < 12:  # one call on the edge's row of corners (not 12 inlined copies)
+            e = _EDGE_T[edge]
+            _t, Bt, Ct, Dt = _edge_t(v, e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7])
     test = 0
     if At >= 0:
         test += 1
