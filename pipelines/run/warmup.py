@@ -45,8 +45,8 @@ WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
 WARM_HALF, WARM_POINTS = 1.1, 14
 
 # The two children of a parallel warm-up on a cold cache: one compiles the interpreter, the
-# sparse marching, the grid kernel and the fine band's, the other every other kernel; this
-# process then loads them all.
+# grid kernel, the fine band's and the pictures', the other every other kernel; this process
+# then loads them all.
 _FIRST_CHILD = "from surfgen.pipelines.run.warmup import warm_first_in_child; warm_first_in_child()"
 _CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child()"
 
@@ -65,34 +65,36 @@ def warm_grid_kernel() -> None:
 
 
 def warm_first_in_child() -> None:
-    """The first child's part of a parallel warm-up: the interpreter, the sparse marching
-    (:func:`_warm_sparse_marching`), the grid kernel and the fine band's evaluation (which
-    calls it), while the other child (:func:`warm_in_child`) compiles the rest: the two end
-    within a second of each other, 38-39 s on a 2-core Zen 4 (31 s against 45 s with the grid
-    and the fine band in the other)."""
+    """The first child's part of a parallel warm-up: the interpreter, the grid kernel and the
+    fine band's evaluation (which calls it), then the pictures' and the carving's kernels
+    (:func:`_warm_extras`; the tiny shape's mesh loaded from what the other child compiled),
+    while the other child (:func:`warm_in_child`) compiles the rest. Balanced by the children's
+    compile logs on a 2-core Zen 4: they end at about 32 s each, where the sparse marching
+    here and the pictures there had them end at 36 and 29 s."""
     from surfgen.filters.resolution import warm_band
+    from surfgen.generator.mesh.mesh import extract_with_edges
 
     with _collector_paused(collect=False):
         warm_interpreter()
-        _warm_sparse_marching()
         tree, _, field = _tiny_shape("fast")  # the grid kernel
         warm_band(tree, field)  # the fine band's columns
+        _warm_extras(field, extract_with_edges(field, 0.0, cap=True)[0])
 
 
 def warm_in_child() -> None:
-    """The other child's part of a parallel warm-up: every kernel of a shape but the
-    interpreter, the sparse marching, the grid kernel and the fine band's, which the first
-    child compiles meanwhile. The walls' kernel, which calls the interpreter, is compiled for
-    the tiny shape's argument types, not run
-    (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh, filter and picture
-    kernels run on the field the reference evaluator samples (the same values)."""
+    """The other child's part of a parallel warm-up: every kernel of a shape but those of the
+    first child (:func:`warm_first_in_child`), the sparse marching first. The walls' kernel,
+    which calls the interpreter, is compiled for the tiny shape's argument types, not run
+    (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh and filter kernels run
+    on the field the reference evaluator samples (the same values)."""
     from surfgen.generator.mesh import walls
 
     with _collector_paused(collect=False), compiled_not_run((walls, "_bisect_kernel")):
+        _warm_sparse_marching()
         tree, box, field = _tiny_shape("reference")
         # "mark": the faces labelled, as the sampler's "keep" labels them where it finds walls
         # (here the classification is compiled, not run: it finds none)
-        _warm_the_rest(field, box, _warm_mesh(field, tree, "mark"), tree, resolution=False)
+        _warm_measures(field, box, _warm_mesh(field, tree, "mark"), tree, resolution=False)
 
 
 def grid_kernel_cached() -> bool:
@@ -216,8 +218,8 @@ def warm_shape_kernels(
 
     The first time on a machine this compiles every kernel, about a minute on one CPU. With
     ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): two child
-    processes compile into numba's on-disk cache, one the interpreter, the sparse marching and
-    the grid kernel (:func:`warm_first_in_child`), the other every other kernel
+    processes compile into numba's on-disk cache, one the interpreter, the grid kernel, the
+    fine band's and the pictures' (:func:`warm_first_in_child`), the other every other kernel
     (:func:`warm_in_child`), and this process then loads them all from the cache, as a warm
     start does. A process that compiled is slower afterwards: the main job's shapes took 6-10 %
     longer in a process (and in workers forked from one) that had compiled the kernels than in
@@ -260,8 +262,8 @@ def _warm_here(
     t0: float, first: subprocess.Popen | None, rest: subprocess.Popen | None, meanwhile
 ) -> None:
     """This process's part of :func:`warm_shape_kernels`: with children (``first`` compiling
-    the interpreter, the sparse marching, the grid and the fine band, ``rest`` the other
-    kernels), load what they compiled as each ends; without one, compile its part here."""
+    the interpreter, the grid, the fine band and the pictures, ``rest`` the other kernels),
+    load what they compiled as each ends; without one, compile its part here."""
     try:
         if first is not None:
             _join_child(first)
@@ -269,11 +271,10 @@ def _warm_here(
         log.debug("interpreter ready in %.1f s", warm_interpreter())
         if meanwhile is not None:
             meanwhile()
-        _warm_sparse_marching()
-        log.debug("sparse marching ready at %.1f s", time.perf_counter() - t0)
         if rest is not None:
             _join_child(rest)
             log.debug("the other child's kernels ready at %.1f s", time.perf_counter() - t0)
+        _warm_sparse_marching()
         tree, box, field = _tiny_shape("fast")  # loaded from the cache after a child
         _warm_the_rest(field, box, _warm_mesh(field, tree), tree)
     finally:
@@ -330,18 +331,20 @@ def _warm_sparse_marching() -> None:
     lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
 
 
-def _warm_the_rest(field, box, mesh, tree, resolution: bool = True) -> None:
-    """Every kernel after the mesh and the walls, on the tiny shape; without ``resolution``,
-    of the resolution check only the distances (the warm-up's other child: the first one
-    compiles the fine band and the sparse marching)."""
+def _warm_the_rest(field, box, mesh, tree) -> None:
+    """Every kernel after the mesh and the walls, on the tiny shape."""
+    _warm_measures(field, box, mesh, tree)
+    _warm_extras(field, mesh)
+
+
+def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
+    """The filters', the descriptor's and the resolution check's kernels on the tiny shape;
+    without ``resolution``, of the resolution check only the distances (the warm-up's other
+    child: the first one compiles the fine band, this one the sparse marching)."""
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.resolution import warm_distances, warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
-    from surfgen.generator.mesh.marching import _merge_same
-    from surfgen.generator.mesh.mesh import extract_with_edges
-    from surfgen.generator.model.families.carving import envelope_departure, pieces
-    from surfgen.pipelines.pictures.raster import render_image
 
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
@@ -350,6 +353,15 @@ def _warm_the_rest(field, box, mesh, tree, resolution: bool = True) -> None:
         warm_kernels(tree, field, mesh)
     else:
         warm_distances(mesh, field.grid)
+
+
+def _warm_extras(field, mesh) -> None:
+    """The pictures', the carving's and the rarer mesh kernels on the tiny shape."""
+    from surfgen.generator.mesh.marching import _merge_same
+    from surfgen.generator.mesh.mesh import extract_with_edges
+    from surfgen.generator.model.families.carving import envelope_departure, pieces
+    from surfgen.pipelines.pictures.raster import render_image
+
     render_image(mesh, size=16)
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)

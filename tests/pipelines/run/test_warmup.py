@@ -287,7 +287,8 @@ CHILD_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, mesh, walls
+from surfgen.generator.mesh import marching, mesh, sparse_bricks, walls
+from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_in_child
 
 warm_in_child()
@@ -297,7 +298,9 @@ print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
                   "columns": len(kernels.run_columns.signatures),
                   "walls": len(walls._bisect_kernel.signatures), "mesh": sum(ran.values()),
-                  "labels": len(walls._label_faces.signatures)}))
+                  "labels": len(walls._label_faces.signatures),
+                  "sparse": len(sparse_bricks.raise_bricks.signatures),
+                  "pictures": len(pictures._rasterise.signatures)}))
 """
 
 
@@ -308,37 +311,39 @@ def test_the_other_child_warms_every_kernel_but_the_first_childs() -> None:
         [sys.executable, "-c", CHILD_ONLY], capture_output=True, text=True, timeout=600, check=True
     )
     result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["mesh"] >= 3 and result["walls"] == 1
+    assert result["mesh"] >= 3 and result["walls"] == 1 and result["sparse"] >= 1
     assert result["labels"] == 1  # the faces labelled though the classification found no wall
     assert result["grid"] == 0 and result["columns"] == 0  # the first child's
+    assert result["pictures"] == 0  # likewise
     assert result["interpreter"] is False
 
 
 FIRST_ONLY = """
 import json
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, sparse_lewiner, walls
+from surfgen.generator.mesh import sparse_bricks, walls
+from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_first_in_child
 
 warm_first_in_child()
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
-                  "lewiner": len(sparse_lewiner.lewiner_range.signatures),
                   "grid": len(kernels.run_grid.signatures),
                   "columns": len(kernels.run_columns.signatures),
-                  "dense": len(marching._offsets_kernel.signatures),
+                  "pictures": len(pictures._rasterise.signatures),
+                  "sparse": len(sparse_bricks.raise_bricks.signatures),
                   "walls": len(walls._bisect_kernel.signatures)}))
 """
 
 
-def test_the_first_child_warms_the_interpreter_the_grid_and_the_fine_band() -> None:
-    # and the sparse marching; not the dense mesh or the walls (the other child's)
+def test_the_first_child_warms_the_interpreter_the_grid_the_fine_band_and_the_pictures() -> None:
+    # not the sparse marching or the walls (the other child's)
     out = subprocess.run(
         [sys.executable, "-c", FIRST_ONLY], capture_output=True, text=True, timeout=600, check=True
     )
     result = json.loads(out.stdout.strip().splitlines()[-1])
-    assert result["interpreter"] is True and result["lewiner"] >= 1
-    assert result["grid"] >= 1 and result["columns"] >= 1
-    assert result["dense"] == 0 and result["walls"] == 0
+    assert result["interpreter"] is True
+    assert result["grid"] >= 1 and result["columns"] >= 1 and result["pictures"] >= 1
+    assert result["sparse"] == 0 and result["walls"] == 0
 
 
 def test_compiled_not_run_compiles_for_the_arguments_and_runs_nothing() -> None:
