@@ -83,7 +83,24 @@ def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
 
 
 def _join(parts, first_planes) -> tuple[np.ndarray, np.ndarray]:
-    """The runs' vertices and faces numbered as one pass numbers them."""
+    """The runs' vertices and faces numbered as one pass numbers them; ``parts`` is emptied as
+    they are written."""
+    numbers, starts, total = _numbering(parts, first_planes)
+    out_v = np.empty((total, 3), dtype=np.float32)
+    out_f = np.empty((sum(len(p[1]) for p in parts), 3), dtype=np.int64)
+    f0 = np.cumsum([0] + [len(p[1]) for p in parts])
+    # one run after the other, each freed once written: the joined arrays' pages are touched as
+    # the runs' are given back, so the join holds about one run more than the mesh, not all of
+    # them (writing them on threads took 11 ms for sculpture-1's 1.6 million faces at 512^3)
+    for r in range(len(parts)):
+        _place(out_v, out_f, parts[r][0], parts[r][1], numbers[r], starts[r], f0[r])
+        parts[r] = numbers[r] = None
+    return out_v, out_f
+
+
+def _numbering(parts, first_planes) -> tuple[list[np.ndarray], list[int], int]:
+    """Each run's vertex numbers (:func:`_numbers`), the first number of its new vertices, and
+    the number of vertices in all."""
     numbers, starts = [], []
     total = 0
     for r, (verts, _, head, _, _) in enumerate(parts):
@@ -92,20 +109,11 @@ def _join(parts, first_planes) -> tuple[np.ndarray, np.ndarray]:
             numbers.append(np.arange(len(verts), dtype=np.int64))
             total = len(verts)
             continue
-        _, _, _, tail, last_plane = parts[r - 1]
+        tail, last_plane = parts[r - 1][3], parts[r - 1][4]
         linked = last_plane == first_planes[r] - 1
         local, total = _numbers(head, tail, numbers[-1], linked, total)
         numbers.append(local)
-    out_v = np.empty((total, 3), dtype=np.float32)
-    out_f = np.empty((sum(len(p[1]) for p in parts), 3), dtype=np.int64)
-    f0 = np.cumsum([0] + [len(p[1]) for p in parts])
-    run_at_once(  # each run writes rows of its own
-        [
-            lambda r=r: _place(out_v, out_f, parts[r][0], parts[r][1], numbers[r], starts[r], f0[r])
-            for r in range(len(parts))
-        ]
-    )
-    return out_v, out_f
+    return numbers, starts, total
 
 
 @njit(**KERNEL)
