@@ -275,9 +275,11 @@ def evaluate_sparse_program(
     return sf
 
 
-def _shrunk(values: np.ndarray, n: int) -> np.ndarray:
-    """The first ``n`` bricks of ``values``: the array itself, resized in place where nothing
-    else holds it (the allocator gives the rest back), else a copy."""
+def _shrunk(held: list[np.ndarray], n: int) -> np.ndarray:
+    """The first ``n`` bricks of the array in ``held`` (taken out of it): the array itself,
+    resized in place where nothing else holds it (the allocator gives the rest back), else a
+    copy."""
+    values = held.pop()
     try:
         values.resize((n,) + values.shape[1:])
         return values
@@ -418,8 +420,9 @@ def _sample_and_decide(
             kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
         keep[c0:c1] = kept
         rows += _move_down(run, np.flatnonzero(kept))
-    del run  # the last run's view: the array can then be resized in place
-    return _shrunk(values, rows), sides, keep, int(nonfinite)
+    held = [values]
+    del run, values  # no other reference: the array can then be resized in place
+    return _shrunk(held, rows), sides, keep, int(nonfinite)
 
 
 @njit(**KERNEL)

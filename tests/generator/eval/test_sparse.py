@@ -198,3 +198,19 @@ def test_memory_estimate_grows_with_the_surface():
     a = memory_estimate(Grid(Box.cube(1), (256,) * 3))
     b = memory_estimate(Grid(Box.cube(1), (512,) * 3))
     assert 0 < a < b < 9 * a
+
+
+def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():
+    from surfgen.generator.eval.sparse import _shrunk
+
+    values = np.arange(80, dtype=np.float64).reshape(10, 2, 2, 2).copy()  # owns its memory
+    want, identity = values[:4].copy(), id(values)
+    held = [values]
+    del values
+    out = _shrunk(held, 4)
+    assert id(out) == identity and held == []  # the same array, resized: no second copy
+    assert out.tobytes() == want.tobytes()
+    other = np.arange(80, dtype=np.float64).reshape(10, 2, 2, 2)
+    kept = _shrunk([other], 4)  # `other` still held here: a copy, the original untouched
+    assert kept is not other and other.shape == (10, 2, 2, 2)
+    assert kept.tobytes() == want.tobytes()
