@@ -214,3 +214,23 @@ def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():
     kept = _shrunk([other], 4)  # `other` still held here: a copy, the original untouched
     assert kept is not other and other.shape == (10, 2, 2, 2)
     assert kept.tobytes() == want.tobytes()
+
+
+def test_sampling_holds_no_second_copy_of_the_bricks_kept():
+    import tracemalloc
+
+    grid = Grid(Box.cube(1.5), (97, 97, 97))
+    n_leaves = int(np.prod(leaf_counts(grid)))
+    brick = 9**3 * 8
+    evaluate_sparse(SPHERE, grid, bounds=_no_bounds)  # compiled, warm
+    tracemalloc.start()
+    try:
+        sf = evaluate_sparse(SPHERE, grid, bounds=_no_bounds)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    kept = sf.n_bricks * brick
+    assert sf.n_bricks < n_leaves / 2
+    # every leaf's brick allocated (its pages touched only as far as the bricks kept and one
+    # run), then shrunk in place: a copy of the bricks kept would add `kept` to the peak
+    assert peak < n_leaves * brick + kept / 2
