@@ -33,6 +33,7 @@ from surfgen.generator.model.equation13 import (
     PowerTerm,
     Transform,
 )
+from surfgen.generator.model.order_stats import quantile
 from surfgen.generator.model.settings import (
     require_fractions,
     require_low_high,
@@ -273,7 +274,7 @@ def coarse_values(
     finite = values[np.isfinite(values)]
     if finite.size < 8 or finite.min() == finite.max():
         return values, None
-    return values, round_significant(float(np.quantile(finite, draw.d_quantile)), 6)
+    return values, round_significant(float(quantile(finite, draw.d_quantile)), 6)
 
 
 def round_to(v: float, digits: int = 2) -> float:

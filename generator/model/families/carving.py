@@ -20,6 +20,7 @@ from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor
 from surfgen.generator.model.families.symmetry import ornament_combos, permute_factor
+from surfgen.generator.model.order_stats import median, quantiles
 
 
 def _inverse(perm: tuple[int, ...]) -> tuple[int, ...]:
@@ -165,7 +166,7 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     if off.size < 8:
         return float("inf")
     radius = (3.0 * n_env / (4.0 * np.pi)) ** (1.0 / 3.0)  # in grid steps, like the offsets
-    lo, hi = np.quantile(off, (0.05, 0.95))
+    lo, hi = quantiles(off, (0.05, 0.95))
     return float((hi - lo) / radius)
 
 
@@ -251,8 +252,8 @@ def feature_size(e: np.ndarray, o: np.ndarray, box: Box, ge: np.ndarray | None =
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, ge, 0.0))
     if np.count_nonzero(band) < 16:
         return 0.0
-    lo, hi = np.quantile(o[band], (0.1, 0.9))
-    slope = float(np.median(go[band]))
+    lo, hi = quantiles(o[band], (0.1, 0.9))
+    slope = float(median(go[band]))
     if not (slope > 0 and math.isfinite(float(hi - lo))):
         return 0.0
     return float(hi - lo) / slope / float(box.hi[0])
@@ -271,11 +272,11 @@ def strength_on(
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
     if np.count_nonzero(band) < 16:
         return 1.0, None
-    lo, med, hi = np.quantile(o[band], (0.1, 0.5, 0.9))
+    lo, med, hi = quantiles(o[band], (0.1, 0.5, 0.9))
     spread = float(hi - lo)
     if not spread > 0 or not math.isfinite(spread):
         return 1.0, None
-    slope = float(np.median(grad[band]))
+    slope = float(median(grad[band]))
     s = round_significant(depth * slope / spread, 3)
     if s == 0:
         return 1.0, None

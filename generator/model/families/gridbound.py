@@ -29,6 +29,7 @@ from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor, PowerFunction, PowerTerm, Transform
+from surfgen.generator.model.order_stats import quantile
 
 _TWO_PI = 2.0 * math.pi
 _ARGUMENT_POWERS = (2, 3, 4, 6)  # P3, P4, P5, P7: the arguments of H (P6, P8 divide P5, P7)
@@ -81,7 +82,7 @@ def cells_per_period(
             ok &= where
         if not ok.any():
             return 0.0
-        fastest = float(np.quantile(slope[ok], 0.95))
+        fastest = float(quantile(slope[ok], 0.95))
         if fastest > 0:
             worst = min(worst, period / (fastest * cell))
     return worst

@@ -47,6 +47,7 @@ from surfgen.generator.model.families.bodies import positive_part, torus
 from surfgen.generator.model.families.gridbound import scale_arguments
 from surfgen.generator.model.families.lattice import lattice_terms
 from surfgen.generator.model.families.sculpture import envelope_extent, superellipsoid
+from surfgen.generator.model.order_stats import median, quantile
 from surfgen.generator.model.settings import (
     require_fractions,
     require_low_high,
@@ -149,8 +150,8 @@ def strut_share(
     n = 2 * m
     grid = Grid(Box((0.0,) * 3, ((n - 1) / m,) * 3), (n,) * 3)
     values = evaluate(_tree(pattern_terms), grid, threads=1).values
-    t_c = float(np.quantile(values, q))
-    t_r = t_c if q_rim is None else float(np.quantile(values, q_rim))
+    t_c = float(quantile(values, q))
+    t_r = t_c if q_rim is None else float(quantile(values, q_rim))
     middle = np.zeros(values.shape, dtype=bool)
     middle[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m] = True
     thinnest = math.inf
@@ -162,7 +163,7 @@ def strut_share(
             ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3)) & middle
             if not ridge.any():
                 return t_c, t_r, 0.0
-            thinnest = min(thinnest, 2.0 * float(np.quantile(dist[ridge], 0.1)) / m)
+            thinnest = min(thinnest, 2.0 * float(quantile(dist[ridge], 0.1)) / m)
     return t_c, t_r, thinnest
 
 
@@ -368,7 +369,7 @@ def _surface_slope(env_tree: Expr, half: float, extent: float) -> tuple[float, f
     x, y, z = np.meshgrid(*grid.axes(), indexing="ij")
     r2 = (x**2 + y**2 + z**2)[inside]
     reach = float(r2.max()) / extent**2 if r2.size else 1.0
-    return (float(np.median(g[band])) if band.any() else 1.0), reach
+    return (float(median(g[band])) if band.any() else 1.0), reach
 
 
 def _axis(j: int, e: float) -> tuple[float, float, float]:
