@@ -69,8 +69,8 @@ def warm_first_in_child() -> None:
     fine band's evaluation (which calls it), then the pictures' and the carving's kernels
     (:func:`_warm_extras`; the tiny shape's mesh loaded from what the other child compiled),
     while the other child (:func:`warm_in_child`) compiles the rest. Balanced by the children's
-    compile logs on a 2-core Zen 4: they end at about 32 s each, where the sparse marching
-    here and the pictures there had them end at 36 and 29 s."""
+    compile logs on a 2-core Zen 4: they end at 33.8 and 32.7 s, where the sparse marching
+    here and the pictures there had them end at 36.3 and 29.5 s."""
     from surfgen.filters.resolution import warm_band
     from surfgen.generator.mesh.mesh import extract_with_edges
 
