@@ -373,9 +373,23 @@ def _vertex_key(v, verts, shift, edges, moved, nx, ny, nz):
 
 
 @njit(**INLINE)
-def _find_or_add(table, key, v, h, mask):
-    """The first vertex of ``key`` in the open-addressing ``table`` of ``(key, vertex)`` slots
-    from slot ``h`` on; ``v`` where the key is new (then added)."""
+def _table_size(n):
+    """Slots of a vertex-group table for ``n`` keys (a power of two, at least ``2 n + 2`` and
+    two runs), and the shift that keeps a run number's top bits (:func:`_find_or_add`)."""
+    bits = _RUN + 1
+    while (1 << bits) < 2 * n + 2:
+        bits += 1
+    return 1 << bits, np.uint64(64 - (bits - _RUN))
+
+
+@njit(**INLINE)
+def _find_or_add(table, key, v, down, mask):
+    """The first vertex of ``key`` in the open-addressing ``table`` of ``(key, vertex)`` slots;
+    ``v`` where the key is new (then added). The probe starts at the key's run of ``2**_RUN``
+    slots, placed by Fibonacci hashing of the run's number (its top ``64 - down`` bits), at the
+    key's place in the run."""
+    run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
+    h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
     while True:
         if table[2 * h] == -1:
             table[2 * h] = key
@@ -405,12 +419,8 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
         key = _vertex_key(v, verts, shift, edges, moved, nx, ny, nz)
         if key >= 0:
             counts[key // plane] += 1
-    bits = _RUN + 1
-    while (1 << bits) < 2 * counts.max() + 2:
-        bits += 1
-    size = 1 << bits
+    size, down = _table_size(counts.max())
     mask = size - 1
-    down = np.uint64(64 - (bits - _RUN))  # Fibonacci hashing of the run: its top bits
     tables = np.full((3, 2 * size), -1, dtype=np.int64)
     tag = np.full(3, -1, dtype=np.int64)  # the plane each table holds
     target = np.empty(n, dtype=np.int64)
@@ -429,9 +439,7 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
         if tag[t] != q:
             tables[t, :] = -1
             tag[t] = q
-        run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
-        h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
-        first = _find_or_add(tables[t], key, v, h & mask, mask)
+        first = _find_or_add(tables[t], key, v, down, mask)
         if first != v:
             target[v] = first
             any_merge = True
@@ -451,12 +459,8 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     One table for the whole mesh: what :func:`_targets_by_plane` falls back to."""
     n = verts.shape[0]
     nx, ny, nz = shape[0], shape[1], shape[2]
-    bits = _RUN + 1
-    while (1 << bits) < 2 * n + 2:
-        bits += 1
-    size = 1 << bits
+    size, down = _table_size(n)
     mask = size - 1
-    down = np.uint64(64 - (bits - _RUN))  # Fibonacci hashing of the run: its top bits
     table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) per slot
     target = np.empty(n, dtype=np.int64)
     any_merge = False
@@ -465,9 +469,7 @@ def _targets_kernel(verts, shift, edges, moved, shape):
         key = _vertex_key(v, verts, shift, edges, moved, nx, ny, nz)
         if key < 0:
             continue
-        run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
-        h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
-        first = _find_or_add(table, key, v, h, mask)
+        first = _find_or_add(table, key, v, down, mask)
         if first != v:
             target[v] = first
             any_merge = True
