@@ -124,7 +124,9 @@ class SparseField:
         counted, :func:`_sample_and_decide`)."""
         if "nonfinite" in self.stats:
             return int(self.stats["nonfinite"])
-        return int(_count_nonfinite(self.values, self.extent, self.corner, self.slot, self.block))
+        sides = np.empty(self.n_bricks, dtype=np.int8)  # what _sides also tells; unused here
+        args = (self.values, self.extent, self.corner, self.slot, self.block, 0, self.level)
+        return int(_sides(*args, sides))
 
     def sign_proxy(self) -> Field:
         """A dense :class:`Field` with F where sampled, and in the skipped leaves a value of
@@ -247,8 +249,9 @@ def evaluate_sparse_program(
         return None
     sampled, points = len(leaves), int(np.prod(extent, axis=1).sum())
     values, sides, keep, nonfinite = _sample_and_decide(
-        program, axes, state.shape, slot, corner, extent, block, float(level), faces, threads
-    )
+        program, axes, state.shape, leaves, slot, corner, extent, block, float(level), faces,
+        threads,
+    )  # fmt: skip
     t2 = time.perf_counter()
     if not keep.all():  # the one-sided leaves decided, the layout of the bricks kept
         decided = np.where(sides == _ALL_INSIDE, INSIDE, OUTSIDE).astype(np.int8)
@@ -379,6 +382,7 @@ def _sample_and_decide(
     program: Program,
     axes: tuple[np.ndarray, np.ndarray, np.ndarray],
     leaf_shape: tuple[int, ...],
+    leaves: np.ndarray,
     slot: np.ndarray,
     corner: np.ndarray,
     extent: np.ndarray,
@@ -390,8 +394,8 @@ def _sample_and_decide(
     """F at the sampled leaves' bricks, :data:`CHUNK_BRICKS` at a time, each run's one-sided
     bricks dropped before the next is sampled (:func:`evaluate_sparse_program`): returns the
     samples of the bricks kept (in order), each brick's side (:func:`_sides`), which were kept
-    and the non-finite samples of them all, each grid point once (``slot``: the layout before
-    any is dropped). A run is evaluated in place after the bricks kept so far, so the array's
+    and the non-finite samples of them all, each grid point once (``leaves``, ``slot``: the
+    layout before any is dropped). A run is evaluated in place after the bricks kept so far, so the array's
     pages are touched only as far as they hold the bricks kept and one run; it is then shrunk.
 
     Per column of leaves (one x and y block) the grid kernel runs once on the union of the
@@ -403,7 +407,6 @@ def _sample_and_decide(
     values = np.empty((n, block + 1, block + 1, block + 1))
     sides = np.empty(n, dtype=np.int8)
     keep = np.empty(n, dtype=np.bool_)
-    leaves = corner // block
     top = np.asarray(leaf_shape, dtype=np.int64) - 1
     on_face = np.any((leaves == 0) | (leaves == top[None, :]), axis=1)
     workers = thread_count(threads)
@@ -472,22 +475,6 @@ def _bricks_count_inside(values, extent, level):
                     x = values[b, i, j, k]
                     if np.isfinite(x) and x < level:
                         n += 1
-    return n
-
-
-@njit(**KERNEL)
-def _count_nonfinite(values, extent, corner, slot, block):
-    """Non-finite samples of the bricks, a point shared by bricks counted in the first brick
-    :func:`locate` finds for it."""
-    n = 0
-    for b in range(values.shape[0]):
-        for i in range(extent[b, 0]):
-            for j in range(extent[b, 1]):
-                for k in range(extent[b, 2]):
-                    if np.isfinite(values[b, i, j, k]):
-                        continue
-                    gi, gj, gk = corner[b, 0] + i, corner[b, 1] + j, corner[b, 2] + k
-                    n += locate(slot, block, gi, gj, gk)[0] == b
     return n
 
 

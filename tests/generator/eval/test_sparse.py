@@ -6,6 +6,8 @@ skipping further)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -137,9 +139,14 @@ def test_values_at_and_sampled_at():
 def test_nonfinite_counts_each_sampled_point_once():
     tree = parse("sqrt(1-x^2-y^2-z^2)-0.3")
     grid = Grid(Box.cube(1.2), (33, 33, 33))
-    sf = evaluate_sparse(tree, grid, bounds=lambda p, lo, hi: (
-        np.full(len(lo), -np.inf), np.full(len(lo), np.inf), np.zeros(len(lo), bool)))  # fmt: skip
-    assert sf.nonfinite == evaluate(tree, grid).nonfinite > 0
+    sf = evaluate_sparse(tree, grid, bounds=_no_bounds)
+    dense = evaluate(tree, grid)
+    assert sf.nonfinite == dense.nonfinite > 0
+    # without the sampling's count (a field built from bricks): the bricks' own points
+    bare = replace(sf, stats={})
+    i, j, k = (a.ravel() for a in np.indices(grid.shape))
+    held = bare.sampled_at(i, j, k)
+    assert bare.nonfinite == np.count_nonzero(~np.isfinite(dense.values.ravel()[held])) > 0
 
 
 def test_registry_entry():
