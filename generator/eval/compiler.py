@@ -155,17 +155,27 @@ def compile_tree(tree: Expr, params: Mapping[str, float] | None = None) -> Progr
     or invalid constituent parameter (the same messages as the reference evaluator).
     """
     params = dict(params or {})
+    low = Lowerer(params)
+    try:
+        for node in postorder(tree, by_value=True):  # children first: lower() recurses once
+            low.lower(node)
+        root = low.lower(tree)
+    except Exception:  # an unbound parameter (every node is lowered) is the error to give
+        _check_params(tree, params)
+        raise
+    _fuse_reciprocals(low.dag, root)
+    return _schedule(low.dag, root, tree)
+
+
+def _check_params(tree: Expr, params: Mapping[str, float]) -> None:
+    """Raise :class:`FormulaError` for the first (by name) parameter of ``tree`` without a
+    value in ``params``: looked for only when lowering failed, where an unbound parameter fails
+    (one walk of the tree less for every program compiled)."""
     missing = sorted(params_of(tree) - params.keys())
     if missing:
         raise FormulaError(
             f"parameter '{missing[0]}' has no value (give it with --param {missing[0]}=...)"
         )
-    low = Lowerer(params)
-    for node in postorder(tree, by_value=True):  # children first: lower() recurses once
-        low.lower(node)
-    root = low.lower(tree)
-    _fuse_reciprocals(low.dag, root)
-    return _schedule(low.dag, root, tree)
 
 
 _FUSED_RECIPROCALS = {"cos": "sec", "sin": "csc", "tan": "cot"}

@@ -170,13 +170,19 @@ class Lowerer:
         # built as separate objects (a sampled ornament's copies, each product's factors) are
         # lowered once, as the DAG's hash-consing would merge them anyway.
         self.memo: dict[Expr, int] = {}
+        # The same by identity first (the node kept, so its id stays its own): a node met again
+        # is found without walking the equality of its sub-tree.
+        self.seen: dict[int, tuple[Expr, int]] = {}
 
     def lower(self, node: Expr) -> int:
-        hit = self.memo.get(node)
-        if hit is not None:
-            return hit
-        out = self._lower(node)
-        self.memo[node] = out
+        known = self.seen.get(id(node))
+        if known is not None and known[0] is node:
+            return known[1]
+        out = self.memo.get(node)
+        if out is None:
+            out = self._lower(node)
+            self.memo[node] = out
+        self.seen[id(node)] = (node, out)
         return out
 
     def _lower(self, node: Expr) -> int:

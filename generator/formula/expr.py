@@ -76,6 +76,13 @@ class Expr:
             return True
         if not isinstance(other, Expr):
             return NotImplemented
+        if not self.args or not other.args:  # a leaf (most comparisons): no walk to set up
+            return (
+                self._hash == other._hash
+                and self.op == other.op
+                and self.value == other.value
+                and self.args == other.args
+            )
         stack, seen = [(self, other)], set()
         while stack:  # iterative: deep trees compare without recursion
             a, b = stack.pop()
@@ -204,19 +211,27 @@ def postorder(tree: Expr, by_value: bool = False) -> list[Expr]:
     first, so their own recursion never goes deeper than one level.
     """
     out: list[Expr] = []
-    seen: set = set()
-    key = (lambda node: node) if by_value else id
     stack: list[tuple[Expr, bool]] = [(tree, False)]
+    if by_value:  # the nodes themselves in the set: equal sub-trees are one
+        seen: set = set()
+        while stack:
+            node, done = stack.pop()
+            if done:
+                out.append(node)
+            elif node not in seen:
+                seen.add(node)
+                stack.append((node, True))
+                stack.extend([(a, False) for a in reversed(node.args) if a not in seen])
+        return out
+    ids: set[int] = set()  # the same loop on identities (no equality walked)
     while stack:
         node, done = stack.pop()
         if done:
             out.append(node)
-            continue
-        if key(node) in seen:
-            continue
-        seen.add(key(node))
-        stack.append((node, True))
-        stack.extend((a, False) for a in reversed(node.args) if key(a) not in seen)
+        elif id(node) not in ids:
+            ids.add(id(node))
+            stack.append((node, True))
+            stack.extend([(a, False) for a in reversed(node.args) if id(a) not in ids])
     return out
 
 

@@ -162,6 +162,33 @@ def test_errors_match_the_reference(text, message):
         evaluate_points(tree, 0.0, 0.0, 0.0, {})
 
 
+def test_an_unbound_parameter_is_the_error_whatever_else_fails():
+    from surfgen.generator.formula.expr import Expr, X, call
+
+    m = Expr("param", (), "m")
+    for tree in (
+        Expr("+", (Expr("nope", (X,)), m)),  # an unknown function met first
+        Expr("+", (call("saw1", X, Expr("param", (), "a"), 2), m)),  # a variable saw1 period
+    ):
+        with pytest.raises(FormulaError, match="parameter 'a' has no value|'m' has no value"):
+            compile_tree(tree, {})
+    with pytest.raises(FormulaError, match="unknown function 'nope'"):
+        compile_tree(Expr("+", (Expr("nope", (X,)), m)), {"m": 1.0})
+
+
+def test_equal_subtrees_built_apart_compile_as_one_shared_tree():
+    shared = parse("sin(x*y) + cos(z)")
+    copies = parse("sin(x*y) + cos(z)"), parse("sin(x*y) + cos(z)")
+    from surfgen.generator.formula.expr import Expr
+
+    one = compile_tree(Expr("*", (shared, shared)))
+    two = compile_tree(Expr("*", copies))
+    assert copies[0] is not copies[1] and copies[0] == copies[1]
+    for name in ("code", "consts", "blocks", "loads", "stores", "rows"):
+        assert np.array_equal(getattr(one, name), getattr(two, name), equal_nan=True), name
+    assert [OPNAMES[int(r[0])] for r in one.code].count("sin") == 1  # and computed once
+
+
 def test_unknown_function_and_variable_parameter():
     from surfgen.generator.formula.expr import Expr, X, Y, call
 
