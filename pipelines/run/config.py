@@ -12,6 +12,7 @@ was drawn, and the same values give the same hash in either layout.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import tomllib
@@ -118,8 +119,10 @@ class Config:
         d["sampler_version"] = SAMPLER_VERSION
         return d
 
-    @property
+    @functools.cached_property
     def hash(self) -> str:
+        """The first 12 hex digits of the SHA-256 of :meth:`shape_dict` (canonical JSON). Kept
+        once computed (a config is frozen): every shape drawn stamps its spec with it."""
         text = json.dumps(self.shape_dict(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 

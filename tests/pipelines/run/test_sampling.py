@@ -294,6 +294,21 @@ def test_config_hash_changes_with_what_shapes_depend_on(tmp_path: Path) -> None:
     assert load_config(f).hash != base.hash
 
 
+def test_config_hash_is_kept_and_follows_a_changed_copy() -> None:
+    import hashlib
+    import json
+    import pickle
+
+    base = load_config()
+    text = json.dumps(base.shape_dict(), sort_keys=True, separators=(",", ":"))
+    assert base.hash == hashlib.sha256(text.encode()).hexdigest()[:12]
+    assert base.__dict__["hash"] == base.hash  # computed once, kept on the frozen config
+    copied = pickle.loads(pickle.dumps(base))  # as a worker receives it
+    assert copied == base and copied.hash == base.hash
+    other = base.with_grid(32)  # a new config: its own hash, not the kept one
+    assert "hash" not in other.__dict__ and other.hash != base.hash
+
+
 def test_sampler_config_validation() -> None:
     with pytest.raises(SpecError, match="probability"):
         SamplerConfig(abs_prob=1.5)
