@@ -82,9 +82,10 @@ def fine_band(
     if len(members):
         program = compile_cached(tree, params)
         evaluate_columns(program, grid.axes(), members, corner, extent, raw, threads)
-    bricks = np.full_like(raw, np.nan)  # past the grid's end: never read, but defined
-    singular = _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, BLOCK)
-    sf = SparseField(grid, float(level), BLOCK, state, slot, corner, extent, bricks)
+    # filled in place: each point's evaluated value is read just before the point is written
+    # (past the grid's end the bricks keep their NaN: never read, but defined)
+    singular = _fill_bricks(values, todo, level, corner, extent, slot, raw, raw, BLOCK)
+    sf = SparseField(grid, float(level), BLOCK, state, slot, corner, extent, raw)
     return sf, int(evaluated), int(singular)
 
 
@@ -274,7 +275,8 @@ def _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, block):
     the coarse samples around it kept on their side (:func:`mean_on_side`); a non-finite new
     point between finite coarse samples takes their mean (as
     :func:`surfgen.filters.resolution._patch_singular`). Returns how many points were patched,
-    each counted once (in the first brick :func:`locate` finds for it)."""
+    each counted once (in the first brick :func:`locate` finds for it). ``bricks`` may be
+    ``raw`` itself: a point of ``raw`` is read only just before that point is written."""
     below = np.nextafter(level, -np.inf)
     patched = 0
     for s in range(corner.shape[0]):
