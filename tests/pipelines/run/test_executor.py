@@ -47,3 +47,46 @@ def test_a_forked_worker_leaves_what_it_inherited_out_of_its_collections() -> No
     with KillablePool(frozen, workers=1, timeout=30.0) as pool:
         (result,) = list(pool.run([0]))
     assert result.status == "ok" and result.value > 1000
+
+
+def heap_use(task: int) -> tuple[int, int]:
+    """glibc's account (``mallinfo2``) of a 20 MiB array: the MiB mapped apart for it while it
+    lives, and the MiB the heap grew by and still holds once it is freed."""
+    import ctypes
+
+    import numpy as np
+
+    class Info(ctypes.Structure):
+        _fields_ = [
+            (name, ctypes.c_size_t)
+            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
+            + ("fsmblks", "uordblks", "fordblks", "keepcost")
+        ]
+
+    info = ctypes.CDLL(None).mallinfo2
+    info.restype = Info
+    start = info()
+    block = np.empty(20 << 17)  # 20 MiB of float64
+    block.fill(1.0)
+    mapped = (info().hblkhd - start.hblkhd) >> 20
+    del block
+    return mapped, (info().arena - start.arena) >> 20
+
+
+def test_a_worker_keeps_the_memory_it_frees() -> None:
+    """Each worker has glibc take blocks below 32 MiB from its heap and keep the heap it frees
+    (``keep_freed_memory``): a shape's arrays reuse the pages of the last one's instead of
+    mapping (and faulting in) fresh ones. A fresh process maps such a block apart and gives it
+    back when it is freed."""
+    import subprocess
+    import sys
+
+    probe = "from tests.pipelines.run.test_executor import heap_use; print(*heap_use(0))"
+    plain = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    mapped, kept = (int(v) for v in plain.stdout.split())
+    assert mapped >= 20 and kept < 20
+    with KillablePool(heap_use, workers=1, timeout=60.0) as pool:
+        (result,) = list(pool.run([0]))
+    assert result.status == "ok"
+    mapped, kept = result.value
+    assert mapped == 0 and kept >= 20
