@@ -92,7 +92,22 @@ class PowerFunction:
         return len(self.terms) == 1 and self.terms[0] == PowerTerm(1.0)
 
     def to_tree(self) -> Expr:
-        """The sum, written with ``-`` for negative coefficients after the first term."""
+        """The sum, written with ``-`` for negative coefficients after the first term. Built
+        once and kept (a factor reads its power functions again for every element and every
+        check of the families that draw it)."""
+        tree = self.__dict__.get("_tree")
+        if tree is None:
+            tree = self._build_tree()
+            object.__setattr__(self, "_tree", tree)
+        return tree
+
+    def __getstate__(self) -> dict[str, Any]:  # the cached tree is rebuilt, not shipped
+        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+    def _build_tree(self) -> Expr:
         out: Expr | None = None
         for t in self.terms:
             if out is None:  # a leading minus binds to the coefficient: "-1.5*x^2"
@@ -180,10 +195,16 @@ class Factor:
         object.__setattr__(self, "absolute", tuple(bool(v) for v in self.absolute))
 
     def _p(self, k: int) -> Expr:
-        """``P_k ^ lambda_k`` for k = 1..8 (``1`` when lambda_k is 0)."""
-        if self.lambdas[k - 1] == 0:
-            return num(1.0)
-        return _power(self.powers[k - 1].to_tree(), self.lambdas[k - 1])
+        """``P_k ^ lambda_k`` for k = 1..8 (``1`` when lambda_k is 0), built once and kept."""
+        kept = self.__dict__.setdefault("_powers", {})
+        tree = kept.get(k)
+        if tree is None:
+            if self.lambdas[k - 1] == 0:
+                tree = num(1.0)
+            else:
+                tree = _power(self.powers[k - 1].to_tree(), self.lambdas[k - 1])
+            kept[k] = tree
+        return tree
 
     def _trivial(self, k: int) -> bool:
         return self.powers[k - 1].is_one() or self.lambdas[k - 1] == 0
@@ -228,8 +249,8 @@ class Factor:
             object.__setattr__(self, "_tree", tree)
         return tree
 
-    def __getstate__(self) -> dict[str, Any]:  # the cached tree is rebuilt, not shipped
-        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+    def __getstate__(self) -> dict[str, Any]:  # the cached trees are rebuilt, not shipped
+        return {k: v for k, v in self.__dict__.items() if k not in ("_tree", "_powers")}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)

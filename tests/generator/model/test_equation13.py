@@ -125,3 +125,17 @@ def test_sampler_draws_are_reproducible_and_cut_the_box() -> None:
         ).values
         cut += bool((v < 0).any() and (v > 0).any())
     assert cut >= 10  # choosing d at a quantile makes the surface cross the box
+
+
+def test_trees_are_built_once_and_not_shipped() -> None:
+    import pickle
+
+    f = factor()
+    assert f.to_tree() is f.to_tree()
+    p3 = f.powers[2]
+    assert p3.to_tree() is p3.to_tree()
+    assert dict(f.h_arguments())["B"] is dict(f.h_arguments())["B"]  # P3^l3 kept
+    for kept in (f, p3):
+        copy = pickle.loads(pickle.dumps(kept))
+        assert copy == kept and not {"_tree", "_powers"} & set(copy.__dict__)
+        assert copy.to_tree() == kept.to_tree() and copy.to_tree() is not kept.to_tree()
