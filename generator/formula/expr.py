@@ -153,9 +153,12 @@ def as_expr(value: Expr | float | int) -> Expr:
 
 
 def var(name: str) -> Expr:
-    if name not in VARIABLES:
+    """The variable ``name``: one node per variable, shared by every tree (a tree's nodes are
+    immutable; walks and comparisons then find a variable met again by identity)."""
+    leaf = _VARIABLE_LEAVES.get(name)
+    if leaf is None:
         raise ValueError(f"unknown variable {name!r}")
-    return Expr("var", (), name)
+    return leaf
 
 
 def param(name: str) -> Expr:
@@ -187,6 +190,7 @@ def mul_all(factors: list[Expr]) -> Expr:
 
 
 PI = Expr("pi")
+_VARIABLE_LEAVES = {name: Expr("var", (), name) for name in VARIABLES}
 X, Y, Z = var("x"), var("y"), var("z")
 
 

@@ -89,7 +89,10 @@ class PowerFunction:
         return cls((PowerTerm(value),))
 
     def is_one(self) -> bool:
-        return len(self.terms) == 1 and self.terms[0] == PowerTerm(1.0)
+        if len(self.terms) != 1:
+            return False
+        t = self.terms[0]
+        return t.a == 1.0 and t.b == 0.0 and t.c == 0.0 and t.d == 0.0
 
     def to_tree(self) -> Expr:
         """The sum, written with ``-`` for negative coefficients after the first term. Built
@@ -108,35 +111,36 @@ class PowerFunction:
         self.__dict__.update(state)
 
     def _build_tree(self) -> Expr:
+        bases = _ABS_BASES if self.absolute else _BASES
         out: Expr | None = None
         for t in self.terms:
             if out is None:  # a leading minus binds to the coefficient: "-1.5*x^2"
-                out = PowerFunction((t,), self.absolute)._term_tree()
+                out = _term_tree(t.a, t, bases)
             else:
-                term = PowerFunction(
-                    (PowerTerm(abs(t.a), t.b, t.c, t.d),), self.absolute
-                )._term_tree()
+                term = _term_tree(abs(t.a), t, bases)
                 out = out - term if t.a < 0 else out + term
         return out  # type: ignore[return-value]
 
-    def _term_tree(self) -> Expr:
-        out = []
-        for t in self.terms:
-            factors: list[Expr] = []
-            for name, e in zip("xyz", (t.b, t.c, t.d), strict=True):
-                if e == 0:
-                    continue
-                base = var(name)
-                if self.absolute:
-                    base = call("abs", base)
-                factors.append(base if e == 1 else Expr("^", (base, num(e))))
-            if not factors:
-                out.append(num(t.a))
-            elif t.a == 1:
-                out.append(mul_all(factors))
-            else:
-                out.append(mul_all([num(t.a), *factors]))
-        return add_all(out)
+
+_BASES = {name: var(name) for name in "xyz"}
+_ABS_BASES = {name: call("abs", var(name)) for name in "xyz"}
+
+
+def _term_tree(a: float, t: PowerTerm, bases: dict[str, Expr]) -> Expr:
+    """``a x^b y^c z^d`` of the term ``t`` with the coefficient ``a`` (``bases``: the
+    variables, or their absolute values): factors with exponent 0 left out, exponents 1 and
+    coefficient 1 not written."""
+    factors: list[Expr] = []
+    for name, e in (("x", t.b), ("y", t.c), ("z", t.d)):
+        if e == 0:
+            continue
+        base = bases[name]
+        factors.append(base if e == 1 else Expr("^", (base, num(e))))
+    if not factors:
+        return num(a)
+    if a == 1:
+        return mul_all(factors)
+    return mul_all([num(a), *factors])
 
 
 @dataclass(frozen=True)

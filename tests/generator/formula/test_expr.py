@@ -6,7 +6,9 @@ from surfgen.generator.formula.expr import Expr, num, postorder, var
 
 
 def test_leaves_compare_by_op_and_value() -> None:
-    assert var("x") == var("x") and var("x") is not var("x")
+    assert var("x") is var("x")  # one node per variable, shared
+    apart = Expr("var", (), "x")  # a leaf built apart (a parser's, an unpickled tree's)
+    assert apart == var("x") and apart is not var("x") and hash(apart) == hash(var("x"))
     assert var("x") != var("y")
     assert num(2.0) == num(2.0) and num(2.0) != num(3.0)
     assert num(-0.0) == num(0.0)  # folded at construction
@@ -31,7 +33,7 @@ def test_trees_built_apart_are_equal_down_to_their_leaves() -> None:
 
 
 def test_postorder_by_identity_and_by_value() -> None:
-    x1, x2 = var("x"), var("x")
+    x1, x2 = Expr("var", (), "x"), Expr("var", (), "x")
     left, right = Expr("sin", (x1,)), Expr("sin", (x2,))
     tree = Expr("+", (left, right))
     by_id = postorder(tree)

@@ -132,7 +132,8 @@ def test_trees_are_built_once_and_not_shipped() -> None:
 
     f = factor()
     assert f.to_tree() is f.to_tree()
-    p3 = f.powers[2]
+    p3 = PowerFunction((PowerTerm(2.0, 2.0, 1.0), PowerTerm(-0.5, 0.0, 0.0, 3.0)), True)
+    assert to_string(p3.to_tree()) == "2*abs(x)^2*abs(y)-0.5*abs(z)^3"
     assert p3.to_tree() is p3.to_tree()
     assert dict(f.h_arguments())["B"] is dict(f.h_arguments())["B"]  # P3^l3 kept
     for kept in (f, p3):
