@@ -21,6 +21,7 @@ from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor
 from surfgen.generator.model.families.symmetry import ornament_combos, permute_factor
 from surfgen.generator.model.order_stats import median, quantiles
+from surfgen.generator.model.slope import gradient_norm
 
 
 def _inverse(perm: tuple[int, ...]) -> tuple[int, ...]:
@@ -235,8 +236,7 @@ def _crossing_offsets(v: np.ndarray, level: float, e: np.ndarray) -> tuple[int, 
 
 def slope_field(a: np.ndarray, step: float) -> np.ndarray:
     """``|grad a|`` by central differences (non-finite where ``a`` overflows)."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        return np.sqrt(sum(g**2 for g in np.gradient(a, step)))
+    return gradient_norm(a, step)
 
 
 def feature_size(e: np.ndarray, o: np.ndarray, box: Box, ge: np.ndarray | None = None) -> float:

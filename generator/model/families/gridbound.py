@@ -66,6 +66,9 @@ def cells_per_period(
     """How many cells of size ``cell`` the factor's finest period spans (``inf`` without an
     H; 0 where an argument is non-finite everywhere considered), its arguments sampled on an
     ``n``-per-axis grid of ``box``; ``where`` (an ``n^3`` mask) restricts the samples."""
+    # Deferred on purpose (as the carving's kernels): reading the registry loads no numba
+    from surfgen.generator.model.slope import gradient_norm
+
     base = period_of(factor.h)
     if not math.isfinite(base):
         return math.inf
@@ -74,9 +77,7 @@ def cells_per_period(
     worst = math.inf
     for element, arg in factor.h_arguments():
         period = base / 2 if _folded(factor, element) else base
-        values = evaluate(arg, grid, threads=1).values
-        with np.errstate(invalid="ignore", over="ignore"):
-            slope = np.sqrt(sum(g**2 for g in np.gradient(values, *steps)))
+        slope = gradient_norm(evaluate(arg, grid, threads=1).values, steps)
         ok = np.isfinite(slope)
         if where is not None:
             ok &= where

@@ -358,12 +358,15 @@ def _range(unit: list) -> tuple[float, float]:
 def _surface_slope(env_tree: Expr, half: float, extent: float) -> tuple[float, float]:
     """The median |grad E| near the envelope's surface, and the largest ``r^2 / extent^2``
     inside it, on a 24^3 grid of the box."""
+    # Deferred on purpose (as the carving's kernels): reading the registry loads no numba
+    from surfgen.generator.model.slope import gradient_norm
+
     n = 24
     grid = Grid(Box.cube(half), (n,) * 3)
     e = evaluate(env_tree, grid, threads=1).values
     step = 2 * half / (n - 1)
+    g = gradient_norm(e, step)
     with np.errstate(invalid="ignore", over="ignore"):
-        g = np.sqrt(sum(x**2 for x in np.gradient(e, step)))
         band = np.isfinite(e) & np.isfinite(g) & (np.abs(e) < 1.5 * step * g)
         inside = np.isfinite(e) & (e < 0)
     x, y, z = np.meshgrid(*grid.axes(), indexing="ij")
