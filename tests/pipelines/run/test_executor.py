@@ -49,12 +49,15 @@ def test_a_forked_worker_leaves_what_it_inherited_out_of_its_collections() -> No
     assert result.status == "ok" and result.value > 1000
 
 
-def heap_use(task: int) -> tuple[int, int]:
-    """glibc's account (``mallinfo2``) of a 20 MiB array: the MiB mapped apart for it while it
-    lives, and the MiB the heap grew by and still holds once it is freed."""
+def heap_probe(keep: bool) -> tuple[int, int]:
+    """In a fresh process (``keep``: after :func:`keep_freed_memory`), glibc's account
+    (``mallinfo2``) of a 20 MiB array, the MiB mapped apart for it; and of eight 16 MiB arrays
+    made then freed, the MiB of them the heap still holds as free memory."""
     import ctypes
 
     import numpy as np
+
+    from surfgen.pipelines.run.executor import keep_freed_memory
 
     class Info(ctypes.Structure):
         _fields_ = [
@@ -65,28 +68,53 @@ def heap_use(task: int) -> tuple[int, int]:
 
     info = ctypes.CDLL(None).mallinfo2
     info.restype = Info
+    if keep:
+        assert keep_freed_memory()
     start = info()
-    block = np.empty(20 << 17)  # 20 MiB of float64
-    block.fill(1.0)
+    block = np.ones(20 << 17)  # 20 MiB of float64
     mapped = (info().hblkhd - start.hblkhd) >> 20
     del block
-    return mapped, (info().arena - start.arena) >> 20
+    blocks = [np.ones(16 << 17) for _ in range(8)]
+    alive = info()
+    del blocks
+    return mapped, (info().fordblks - alive.fordblks) >> 20
 
 
-def test_a_worker_keeps_the_memory_it_frees() -> None:
-    """Each worker has glibc take blocks below 32 MiB from its heap and keep the heap it frees
-    (``keep_freed_memory``): a shape's arrays reuse the pages of the last one's instead of
-    mapping (and faulting in) fresh ones. A fresh process maps such a block apart and gives it
-    back when it is freed."""
+def test_keep_freed_memory_takes_blocks_from_the_heap_and_keeps_them() -> None:
+    """A process that called ``keep_freed_memory`` makes a 20 MiB array in its heap, and keeps
+    the 128 MiB it frees for the next arrays; a fresh process maps such a block apart, and
+    gives the freed heap back beyond glibc's (dynamic) trim threshold."""
     import subprocess
     import sys
 
-    probe = "from tests.pipelines.run.test_executor import heap_use; print(*heap_use(0))"
-    plain = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
-    mapped, kept = (int(v) for v in plain.stdout.split())
-    assert mapped >= 20 and kept < 20
-    with KillablePool(heap_use, workers=1, timeout=60.0) as pool:
-        (result,) = list(pool.run([0]))
-    assert result.status == "ok"
-    mapped, kept = result.value
-    assert mapped == 0 and kept >= 20
+    def probe(keep: bool) -> tuple[int, ...]:
+        code = f"from tests.pipelines.run.test_executor import heap_probe as p; print(*p({keep}))"
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        return tuple(int(v) for v in done.stdout.split())
+
+    mapped, retained = probe(True)
+    assert mapped == 0 and retained >= 120
+    mapped, retained = probe(False)
+    assert mapped >= 20 and retained < 120
+
+
+def marked(task: int) -> str:
+    return os.environ.get("SURFGEN_TEST_KEPT", "")
+
+
+def test_every_worker_keeps_the_memory_it_frees(monkeypatch) -> None:
+    """Each worker calls ``keep_freed_memory`` before its first task (seen through a stand-in
+    the forked worker inherits)."""
+    from surfgen.pipelines.run import executor
+
+    def stand_in() -> bool:
+        os.environ["SURFGEN_TEST_KEPT"] = f"kept in {os.getpid()}"
+        return True
+
+    monkeypatch.setattr(executor, "keep_freed_memory", stand_in)
+    with KillablePool(marked, workers=2, timeout=60.0) as pool:
+        results = list(pool.run([0, 1]))
+    assert all(r.status == "ok" and r.value.startswith("kept in ") for r in results)
+    assert all(r.value != f"kept in {os.getpid()}" for r in results)
+    assert "SURFGEN_TEST_KEPT" not in os.environ  # set in the workers only
