@@ -67,8 +67,15 @@ class PowerTerm:
     d: float = 0.0
 
     def __post_init__(self) -> None:
-        for k in "abcd":
-            object.__setattr__(self, k, _finite(f"power term {k}", getattr(self, k)))
+        a, b, c, d = float(self.a), float(self.b), float(self.c), float(self.d)
+        if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c) and math.isfinite(d)):
+            for k, v in zip("abcd", (a, b, c, d), strict=True):  # the first one named
+                _finite(f"power term {k}", v)
+        set_field = object.__setattr__  # frozen: the fields as floats (a draw makes hundreds)
+        set_field(self, "a", a)
+        set_field(self, "b", b)
+        set_field(self, "c", c)
+        set_field(self, "d", d)
 
 
 @dataclass(frozen=True)

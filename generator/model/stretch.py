@@ -97,18 +97,18 @@ def axis_symmetries(
         return (), False
     inside = values < level  # NaN: outside
     allowed = tolerance * max(1, min(int(inside.sum()), inside.size - int(inside.sum())))
-    lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
+    lo, hi = tuple(map(float, draw.box.lo)), tuple(map(float, draw.box.hi))
 
     def holds(perm: tuple[int, ...], signs: tuple[int, ...]) -> bool:
-        flip = np.array(signs) < 0
-        image_lo = np.where(flip, -hi[list(perm)], lo[list(perm)])
-        image_hi = np.where(flip, -lo[list(perm)], hi[list(perm)])
-        if not (np.array_equal(image_lo, lo) and np.array_equal(image_hi, hi)):
-            return False
+        # the box's image (the box's own floats, compared exactly): onto itself, or no symmetry
+        for k, (p, s) in enumerate(zip(perm, signs, strict=True)):
+            image = (-hi[p], -lo[p]) if s < 0 else (lo[p], hi[p])
+            if image != (lo[k], hi[k]):
+                return False
         # the image of sample (i, j, k) under x' = s x[perm]: the array's axes permuted, the
         # negated ones reversed
         image = np.transpose(inside, perm)
-        image = np.flip(image, axis=tuple(int(a) for a in np.flatnonzero(flip)))
+        image = np.flip(image, axis=tuple(k for k, s in enumerate(signs) if s < 0))
         return int(np.count_nonzero(image != inside)) <= allowed
 
     def any_signs(perm: tuple[int, ...]) -> bool:

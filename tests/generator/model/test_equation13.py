@@ -140,3 +140,13 @@ def test_trees_are_built_once_and_not_shipped() -> None:
         copy = pickle.loads(pickle.dumps(kept))
         assert copy == kept and not {"_tree", "_powers"} & set(copy.__dict__)
         assert copy.to_tree() == kept.to_tree() and copy.to_tree() is not kept.to_tree()
+
+
+def test_a_power_term_holds_floats_and_names_its_first_bad_number() -> None:
+    t = PowerTerm(2, 1, 0, 3)
+    assert (t.a, t.b, t.c, t.d) == (2.0, 1.0, 0.0, 3.0)
+    assert all(type(v) is float for v in (t.a, t.b, t.c, t.d))
+    with pytest.raises(SpecError, match="power term c must be a finite number, got inf"):
+        PowerTerm(1.0, 2.0, float("inf"), float("nan"))
+    with pytest.raises(SpecError, match="power term a must be a finite number, got nan"):
+        PowerTerm(float("nan"), 2.0, 0.0, float("inf"))

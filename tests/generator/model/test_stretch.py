@@ -190,3 +190,16 @@ def test_every_family_is_stretched_in_the_mix() -> None:
         if (draw.structure or {}).get("aspect"):
             seen.add(draw.family)
     assert {"sculpture", "infill", "assembly", "twist"} <= seen
+
+
+def test_a_symmetry_must_map_the_box_onto_itself() -> None:
+    """An ellipsoid as long as its box along z has samples that x <-> z maps onto one another
+    (index for index), but the box is no longer itself under that swap: only x <-> y stays.
+    Shifted along x, the same ball keeps y <-> z and loses the sign of x."""
+    cfg = replace(SamplerConfig(), aspect_prob=1.0)
+    ellipsoid = polynomial_draw((1, 2, 0, 0), (1, 0, 2, 0), (1 / 2.25, 0, 0, 2))
+    tall = replace(ellipsoid, box=Box((-1.5, -1.5, -2.25), (1.5, 1.5, 2.25)))
+    assert axis_symmetries(tall, cfg) == ((2,), False)
+    ball = polynomial_draw((1, 2, 0, 0), (1, 0, 2, 0), (1, 0, 0, 2))
+    shifted = replace(ball, box=Box((-1.5, -1.5, -1.5), (1.875, 1.5, 1.5)))
+    assert axis_symmetries(shifted, cfg) == ((0,), False)
