@@ -160,7 +160,7 @@ def keep_freed_memory() -> bool:
     musl's or macOS's, left as they are)."""
     try:
         mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):  # no C library by that name (Windows: None)
         return False
     mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
     heap = mallopt(_M_MMAP_THRESHOLD, HEAP_BELOW) == 1
