@@ -21,7 +21,7 @@ the value is unchanged.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,8 +78,26 @@ class PowerTerm:
         set_field(self, "d", d)
 
 
+class _KeptTrees:
+    """What a frozen equation object builds from its fields once and keeps in its
+    ``__dict__`` under names starting ``_kept_``: not fields (not compared, not printed), and
+    not pickled (a worker rebuilds them where it needs them)."""
+
+    def _kept(self, name: str, build: Callable[[], Any]) -> Any:
+        kept = self.__dict__.get(name)
+        if kept is None:
+            kept = self.__dict__[name] = build()
+        return kept
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_kept_")}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+
 @dataclass(frozen=True)
-class PowerFunction:
+class PowerFunction(_KeptTrees):
     """Eq. (8): ``sum a x^b y^c z^d``; with ``absolute`` the variables are ``|x|, |y|, |z|``
     (as in the paper's examples, which keeps real exponents of negative bases defined)."""
 
@@ -105,17 +123,7 @@ class PowerFunction:
         """The sum, written with ``-`` for negative coefficients after the first term. Built
         once and kept (a factor reads its power functions again for every element and every
         check of the families that draw it)."""
-        tree = self.__dict__.get("_tree")
-        if tree is None:
-            tree = self._build_tree()
-            object.__setattr__(self, "_tree", tree)
-        return tree
-
-    def __getstate__(self) -> dict[str, Any]:  # the cached tree is rebuilt, not shipped
-        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
+        return self._kept("_kept_tree", self._build_tree)
 
     def _build_tree(self) -> Expr:
         bases = _ABS_BASES if self.absolute else _BASES
@@ -181,7 +189,7 @@ def _power(base: Expr, exponent: float) -> Expr:
 
 
 @dataclass(frozen=True)
-class Factor:
+class Factor(_KeptTrees):
     """One factor (m, i) of eq. (13): ``A/D * B/E * C/F``."""
 
     powers: tuple[PowerFunction, ...]  # P1..P8
@@ -207,7 +215,7 @@ class Factor:
 
     def _p(self, k: int) -> Expr:
         """``P_k ^ lambda_k`` for k = 1..8 (``1`` when lambda_k is 0), built once and kept."""
-        kept = self.__dict__.setdefault("_powers", {})
+        kept = self._kept("_kept_powers", dict)
         tree = kept.get(k)
         if tree is None:
             if self.lambdas[k - 1] == 0:
@@ -254,17 +262,7 @@ class Factor:
 
         Built once per factor and kept: the copies of a factor in many products (a sampled
         ornament under a power) are then one tree, which the compiler lowers once."""
-        tree = self.__dict__.get("_tree")
-        if tree is None:
-            tree = self._build_tree()
-            object.__setattr__(self, "_tree", tree)
-        return tree
-
-    def __getstate__(self) -> dict[str, Any]:  # the cached trees are rebuilt, not shipped
-        return {k: v for k, v in self.__dict__.items() if k not in ("_tree", "_powers")}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
+        return self._kept("_kept_tree", self._build_tree)
 
     def _build_tree(self) -> Expr:
         e = self.elements()

@@ -95,7 +95,7 @@ def carved(
     :func:`strength_on` these samples)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
-    ge = slope_field(e, step) if ge is None else ge
+    ge = gradient_norm(e, step) if ge is None else ge
     s, d = strength_on(e, o, step, depth, ge) if strength_d is None else strength_d
     if d is None:
         return 1.0, 0.0, None
@@ -234,11 +234,6 @@ def _crossing_offsets(v: np.ndarray, level: float, e: np.ndarray) -> tuple[int, 
     return n_env, out[:m]
 
 
-def slope_field(a: np.ndarray, step: float) -> np.ndarray:
-    """``|grad a|`` by central differences (non-finite where ``a`` overflows)."""
-    return gradient_norm(a, step)
-
-
 def feature_size(e: np.ndarray, o: np.ndarray, box: Box, ge: np.ndarray | None = None) -> float:
     """How large the ornament ``o``'s features are where the envelope ``e`` has its surface:
     the 10-90 % spread of ``o`` over the median of ``|grad o|`` there, over the box's half-size
@@ -246,8 +241,8 @@ def feature_size(e: np.ndarray, o: np.ndarray, box: Box, ge: np.ndarray | None =
     cell). 0 when it cannot be measured (a constant, non-finite ornament)."""
     n = e.shape[0]
     step = (box.hi[0] - box.lo[0]) / (n - 1)
-    ge = slope_field(e, step) if ge is None else ge
-    go = slope_field(o, step)
+    ge = gradient_norm(e, step) if ge is None else ge
+    go = gradient_norm(o, step)
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(ge) & np.isfinite(go) & (ge > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, ge, 0.0))
     if np.count_nonzero(band) < 16:
@@ -265,9 +260,9 @@ def strength_on(
     """The ornament's strength s that moves the envelope's surface by about ``depth`` where
     the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
     there, from the sampled envelope ``e`` and ornament ``o`` (grid step ``step``; ``grad``:
-    ``e``'s :func:`slope_field` if already known). d is None when the ornament is constant or
+    ``e``'s :func:`~surfgen.generator.model.slope.gradient_norm` if already known). d is None when the ornament is constant or
     non-finite near the surface."""
-    grad = slope_field(e, step) if grad is None else grad
+    grad = gradient_norm(e, step) if grad is None else grad
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
     if np.count_nonzero(band) < 16:

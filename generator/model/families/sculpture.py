@@ -319,14 +319,15 @@ def coarse_ornament(
     # Deferred on purpose: numba kernels and scipy, loaded by the first sculpture drawn, so that
     # reading the registry (``--help``, ``config show``, ``catalogue list``) loads neither.
     import surfgen.generator.model.families.carving as carving
+    from surfgen.generator.model.slope import gradient_norm
 
     n = s.feature_grid
     e = None if envelope is None else _eval(envelope, box, n)
     # the envelope's samples and slope on both grids: the same for every ornament tried
-    ge = None if e is None else carving.slope_field(e, (box.hi[0] - box.lo[0]) / (n - 1))
+    ge = None if e is None else gradient_norm(e, (box.hi[0] - box.lo[0]) / (n - 1))
     step_d = (box.hi[0] - box.lo[0]) / (cfg.d_grid - 1)
     e_d = None if e is None else _eval(envelope, box, cfg.d_grid)
-    ge_d = None if e_d is None else carving.slope_field(e_d, step_d)
+    ge_d = None if e_d is None else gradient_norm(e_d, step_d)
     best, best_score = None, -math.inf
     band = None
     if e is not None and ge is not None:  # where the carved surface can be: the bound's samples
