@@ -313,6 +313,7 @@ class DescriptorSet:
         self.keys: list[str] = []
         self._hist = np.zeros((0, FORM_SIZE + RELIEF_BINS))
         self._codes = np.zeros((0, PLACE_SIZE), dtype=np.int16)
+        self._sums = np.zeros((0, _N_SUMS))  # per row: _block_sums (for within's bounds)
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -325,8 +326,10 @@ class DescriptorSet:
             self._codes = np.concatenate(
                 [self._codes, np.zeros((size - n, PLACE_SIZE), dtype=np.int16)]
             )
+            self._sums = np.concatenate([self._sums, np.zeros((size - n, _N_SUMS))])
         hist, codes = _split(np.asarray(values, dtype=np.float64)[None, :])
         self._hist[n], self._codes[n] = hist[0], codes[0]
+        self._sums[n] = _block_sums(hist, codes)[0]
         self.keys.append(key)
 
     def nearest(self, values: np.ndarray) -> tuple[str | None, float]:
@@ -340,6 +343,27 @@ class DescriptorSet:
         j = int(np.argmin(dist))
         return self.keys[j], float(dist[j])
 
+    def within(self, values: np.ndarray, threshold: float) -> tuple[str | None, float]:
+        """:meth:`nearest` when its distance is below ``threshold``, else ``(None, inf)``:
+        the same key and distance, bit for bit, with only the rows that may lie within
+        ``threshold`` measured. A channel's distance is a mean of ``|a - b|`` over a block of
+        bins, at least ``|sum a - sum b|`` over the block's size (the placement's in integer
+        codes, exactly), so a row whose bound reaches the threshold cannot be within it; the
+        sampler's duplicate check then measures about 2 % of the catalogue's rows."""
+        n = len(self.keys)
+        if n == 0:
+            return None, float("inf")
+        hist, codes = _split(np.asarray(values, dtype=np.float64)[None, :])
+        bound = _bounds(_block_sums(hist, codes)[0], self._sums[:n])
+        # kept: bounds below the threshold (a margin far above the sums' rounding), and NaN
+        # (a NaN distance wins nearest's argmin: it must be measured here too)
+        rows = np.flatnonzero(~(bound > threshold + 1e-9 * max(1.0, abs(threshold))))
+        if rows.size == 0:
+            return None, float("inf")
+        dist = _scaled(_channels(hist[0], codes[0], self._hist[rows], self._codes[rows]))
+        j = int(np.argmin(dist))
+        return (self.keys[rows[j]], float(dist[j])) if dist[j] < threshold else (None, np.inf)
+
 
 def _split(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows as (cumulative histograms: form blocks then relief; placement codes as int16)."""
@@ -348,6 +372,34 @@ def _split(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         hist[:, lo:hi] = np.cumsum(hist[:, lo:hi], axis=1)
     codes = np.rint(rows[:, FORM_SIZE : FORM_SIZE + PLACE_SIZE] * (255.0 / PLACE_CLIP))
     return hist, codes.astype(np.int16)
+
+
+# What DescriptorSet.within bounds a row's distance by: the sums of each form block, of the
+# relief and of the placement's codes.
+_N_SUMS = len(_BLOCKS) + 2
+
+
+def _block_sums(hist: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """Per row of :func:`_split`'s output, ``(N, _N_SUMS)``: each form block's sum, the
+    relief's, the placement codes' (an integer, exact in float64)."""
+    out = np.empty((hist.shape[0], _N_SUMS))
+    for b, (lo, hi, _) in enumerate(_BLOCKS):
+        out[:, b] = hist[:, lo:hi].sum(axis=1)
+    out[:, -2] = hist[:, FORM_SIZE:].sum(axis=1)
+    out[:, -1] = codes.sum(axis=1, dtype=np.int64)
+    return out
+
+
+def _bounds(sums_a: np.ndarray, sums: np.ndarray) -> np.ndarray:
+    """A lower bound of :func:`_scaled`'s distance from the row of ``sums_a`` to each row of
+    ``sums`` (:func:`_block_sums`): a mean of ``|a - b|`` is at least ``|mean a - mean b|``."""
+    gap = np.abs(sums - sums_a)
+    form = np.zeros(sums.shape[0])
+    for b, (lo, hi, weight) in enumerate(_BLOCKS):
+        form += weight * gap[:, b] / (hi - lo)
+    relief = gap[:, -2] / RELIEF_BINS
+    placement = gap[:, -1] * (PLACE_CLIP / 255.0 / PLACE_SIZE)
+    return _scaled({"form": form, "placement": placement, "relief": relief})
 
 
 def _channels(

@@ -24,8 +24,7 @@ ACCEPTED_FILE = "accepted-descriptors.tsv"  # in the staging folder: see Accepte
 
 def near_duplicate(row: dict[str, Any], known: DescriptorSet, threshold: float) -> str | None:
     """The key of the accepted shape nearest to ``row``'s if it is within ``threshold``."""
-    key, dist = known.nearest(descriptor_from_text(row["descriptor"]))
-    return key if dist < threshold else None
+    return known.within(descriptor_from_text(row["descriptor"]), threshold)[0]
 
 
 class AcceptedDescriptors:
@@ -56,7 +55,7 @@ class AcceptedDescriptors:
             self._refresh()
         except OSError as exc:  # no file yet, or gone: the parent decides alone
             log.debug("accepted descriptors not read (%s)", exc)
-        return len(self._known) > 0 and self._known.nearest(values)[1] < self.threshold
+        return self._known.within(values, self.threshold)[0] is not None
 
     def _refresh(self) -> None:
         with open(self.path, "rb") as f:

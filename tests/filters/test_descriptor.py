@@ -17,6 +17,7 @@ from surfgen.filters.descriptor import (
     PLACE_SIZE,
     RELIEF_BINS,
     SIZE,
+    DescriptorSet,
     channel_distances,
     descriptor,
     descriptor_distance,
@@ -177,3 +178,59 @@ def test_nearest_distances_are_the_one_by_one_distances_bit_for_bit() -> None:
     assert nearest_distances(rows[:1]).tolist() == [np.inf]
     with pytest.raises(ValueError, match=f"{SIZE} values"):
         nearest_distances(rows[:, :-1])
+
+
+def _set(rows: np.ndarray) -> DescriptorSet:
+    known = DescriptorSet()
+    for i, row in enumerate(rows):
+        known.add(f"k{i}", row)
+    return known
+
+
+def test_within_is_nearest_below_the_threshold_bit_for_bit() -> None:
+    rng = np.random.default_rng(11)
+    base = rng.random((30, SIZE))
+    # neighbours of the first rows at every scale, so that some fall on each side of a threshold
+    near = base[:10] + rng.normal(size=(10, SIZE)) * np.geomspace(1e-4, 3e-2, 10)[:, None]
+    rows = np.concatenate([base, near, base[4:5]])  # and an exact repeat of row 4
+    known = _set(rows[:-12])
+    seen = set()
+    for query in rows[-12:]:
+        for threshold in (0.3, DEFAULT_THRESHOLD, 4.0, np.inf):
+            key, dist = known.nearest(query)
+            expected = (key, dist) if dist < threshold else (None, np.inf)
+            got = known.within(query, threshold)
+            assert got == expected  # the same key and the same float
+            seen.add(got[0] is None)
+    assert seen == {True, False}
+    # a tie: the first of two equal rows, as nearest has it
+    assert _set(rows[[4, 4, 40]]).within(rows[40], np.inf)[0] == "k0"
+    assert DescriptorSet().within(rows[0], np.inf) == (None, np.inf)
+
+
+def test_within_measures_a_row_whose_bound_equals_its_distance() -> None:
+    """A row shifted by the same amount in every bin has every channel's bound equal to its
+    distance (``|sum a - sum b|`` is ``sum |a - b|``): a bound any tighter than the rule drops
+    it, a bound that is not a bound (too large) too."""
+    rng = np.random.default_rng(5)
+    row = rng.random(SIZE)
+    shifted = row.copy()
+    shifted[FORM_SIZE + PLACE_SIZE :] += 0.05  # the relief alone moves, 0.05 in every bin
+    known = _set(np.stack([rng.random(SIZE), shifted]))
+    key, dist = known.nearest(row)
+    # the cumulative relief moves by 0.05 k in bin k: a mean of 0.05 (bins + 1) / 2
+    expected = 0.05 * (RELIEF_BINS + 1) / 2 / CHANNEL_SCALES["relief"]
+    assert key == "k1" and dist == pytest.approx(expected)
+    assert known.within(row, dist * (1 + 1e-12)) == (key, dist)
+    assert known.within(row, dist) == (None, np.inf)
+
+
+def test_within_measures_rows_with_nan() -> None:
+    """A NaN distance wins nearest's argmin (then no duplicate): within measures the row too."""
+    rng = np.random.default_rng(2)
+    rows = rng.random((3, SIZE))
+    bad = rows[1].copy()
+    bad[0] = np.nan
+    known = _set(np.stack([rows[0], bad, rows[0]]))
+    assert known.nearest(rows[0])[0] == "k1"  # NaN first: no duplicate by nearest's rule
+    assert known.within(rows[0], np.inf) == (None, np.inf)
