@@ -49,7 +49,7 @@ from surfgen.filters.fine_band import (
     fine_grid,
     mean_on_side,
 )
-from surfgen.filters.geometry import bucket_points, cell_of
+from surfgen.filters.geometry import cell_of
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
@@ -265,18 +265,22 @@ def surface_distances(
     outside it count in its border cells). Exact from ``floor`` up; below it, the distance to
     a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
-    centres, radii = _centres(v, f)
+    start, order, centres, radii = _bucket_triangles(v, f, lo, cell, dims)
     reach = float(radii.max(initial=0.0))
-    start, order = bucket_points(centres, lo, cell, dims)
     rings = int(math.ceil(cap + reach / cell)) + 2
+    # the points visited cell by cell (each point's distance is its own: any order gives the
+    # same; neighbours in space then search the same triangles while they are in the cache)
+    cells = np.clip(np.floor((points - lo) / cell), 0, dims - 1).astype(np.int64)
+    visit = np.argsort((cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2])
     dist = _nearest_faces(
+        visit,
         points,
         v,
         f,
         start,
         order,
-        centres[order],
-        radii[order],
+        centres,
+        radii,
         lo,
         cell,
         dims,
@@ -289,22 +293,46 @@ def surface_distances(
 
 
 @numba.njit(**KERNEL)
-def _centres(v, f):
-    """The triangles' centroids ``(F, 3)`` and each one's largest distance to its corners."""
-    out = np.empty((f.shape[0], 3))
-    radii = np.empty(f.shape[0])
-    for t in range(f.shape[0]):
+def _bucket_triangles(v, f, lo, cell, dims):
+    """The triangles bucketed by centroid (:func:`~surfgen.filters.geometry.bucket_points`'
+    counting sort, the same order): ``start``, ``order``, and in that order each triangle's
+    centroid ``(F, 3)`` and its largest distance to its corners, in one pass over the faces."""
+    n = f.shape[0]
+    centres = np.empty((n, 3))
+    radii = np.empty(n)
+    ids = np.empty(n, dtype=np.int64)
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
+    for t in range(n):
         for k in range(3):
-            out[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+            centres[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
         reach = 0.0
         for c in range(3):
             d = 0.0
             for k in range(3):
-                e = v[f[t, c], k] - out[t, k]
+                e = v[f[t, c], k] - centres[t, k]
                 d += e * e
             reach = max(reach, d)
         radii[t] = math.sqrt(reach)
-    return out, radii
+        cx = cell_of(centres[t, 0], lo, cell, dims, 0)
+        cy = cell_of(centres[t, 1], lo, cell, dims, 1)
+        cz = cell_of(centres[t, 2], lo, cell, dims, 2)
+        ids[t] = (cx * dims[1] + cy) * dims[2] + cz
+        start[ids[t] + 1] += 1
+    for c in range(start.shape[0] - 1):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for t in range(n):
+        order[fill[ids[t]]] = t
+        fill[ids[t]] += 1
+    sorted_centres = np.empty((n, 3))
+    sorted_radii = np.empty(n)
+    for s in range(n):
+        t = order[s]
+        for k in range(3):
+            sorted_centres[s, k] = centres[t, k]
+        sorted_radii[s] = radii[t]
+    return start, order, sorted_centres, sorted_radii
 
 
 @numba.njit(**KERNEL)
@@ -359,9 +387,10 @@ def _point_triangle(px, py, pz, v, f, t):
 
 @numba.njit(**KERNEL)
 def _nearest_faces(
-    points, v, f, start, order, centres, radii, lo, cell, dims, rings, reach, cap, floor
+    visit, points, v, f, start, order, centres, radii, lo, cell, dims, rings, reach, cap, floor
 ):
-    """Distance from each point to the nearest triangle, searched in shells of lattice cells
+    """Distance from each point to the nearest triangle (the points taken in the order
+    ``visit``), searched in shells of lattice cells
     around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
     it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
     points at least ``r * cell - reach``. Stops there, as soon as a triangle within ``floor`` is
@@ -373,7 +402,7 @@ def _nearest_faces(
     minimum, bit for bit, in about a fifth less time on the sampler's shapes."""
     out = np.empty(points.shape[0])
     margin = 1e-9 * cell
-    for p in range(points.shape[0]):
+    for p in visit:
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
         cx = cell_of(x, lo, cell, dims, 0)
         cy = cell_of(y, lo, cell, dims, 1)

@@ -11,6 +11,7 @@ from scipy.ndimage import binary_dilation
 
 from surfgen.filters import fine_band as fb
 from surfgen.filters import resolution as res
+from surfgen.filters.geometry import bucket_points
 from surfgen.filters.resolution import (
     Resolution,
     compare_meshes,
@@ -148,6 +149,24 @@ def test_surface_distances_are_exact_point_to_triangle_distances() -> None:
     above = got >= 0.3
     np.testing.assert_allclose(floored[above], got[above], rtol=0, atol=1e-12)
     assert np.all((floored[~above] >= got[~above]) & (floored[~above] <= 0.3))
+
+
+def test_triangles_are_bucketed_as_their_centroids_are() -> None:
+    """The bucketing of the distances' triangles is geometry's counting sort of the centroids,
+    order included: below the floor the search stops at the first near triangle, so the order
+    is part of the measure (and of the catalogue's figures)."""
+    grid = Grid(Box.cube(1.5), (12,) * 3)
+    mesh = extract_mesh(evaluate(parse(GYROID), grid, threads=1), 0.0, cap=True)
+    v, f = mesh.vertices, mesh.faces
+    lo, cell, dims = np.array(grid.box.lo), grid.spacing[0] * 1.5, np.array([7, 8, 9])
+    start, order, centres, radii = res._bucket_triangles(v, f, lo, cell, dims)
+    tri = v[f]
+    mean = (tri[:, 0] + tri[:, 1] + tri[:, 2]) / 3.0
+    want_start, want_order = bucket_points(mean, lo, cell, dims)
+    assert np.array_equal(start, want_start) and np.array_equal(order, want_order)
+    assert np.array_equal(centres, mean[order])
+    reach = np.sqrt((((tri - mean[:, None, :]) ** 2).sum(-1)).max(axis=1))
+    np.testing.assert_allclose(radii, reach[order], rtol=1e-15, atol=0)
 
 
 def _brute_distances(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
