@@ -75,7 +75,7 @@ def fine_band(
     _side_of_leaves(values, level, state, BLOCK // 2)
     if faces:
         sample_face_leaves(state)
-    _, slot, corner, extent = brick_layout(state, grid, BLOCK)
+    leaves, slot, corner, extent = brick_layout(state, grid, BLOCK)
     raw = np.full((len(corner), BLOCK + 1, BLOCK + 1, BLOCK + 1), np.nan)
     todo, evaluated = band_points(cells, tuple(grid.shape))
     members = np.flatnonzero(_bricks_in_band(todo, corner, extent))  # in C order, as leaves
@@ -84,7 +84,18 @@ def fine_band(
         evaluate_columns(program, grid.axes(), members, corner, extent, raw, threads)
     # filled in place: each point's evaluated value is read just before the point is written
     # (past the grid's end the bricks keep their NaN: never read, but defined)
-    singular = _fill_bricks(values, todo, level, corner, extent, slot, raw, raw, BLOCK)
+    # a brick whose samples all lie on one side holds no crossing: its leaf is decided and the
+    # brick dropped, as the sparse evaluator drops them (the inside ones on the box's faces
+    # kept for a cap); the marching then passes over the bricks the surface crosses only
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    sides = np.empty(len(corner), dtype=np.int8)
+    singular, kept = _fill_bricks(
+        values, todo, level, corner, extent, slot, raw, raw, BLOCK, shape, faces, sides
+    )
+    if kept < len(corner):
+        state[tuple(leaves.T)] = sides
+        _, slot, corner, extent = brick_layout(state, grid, BLOCK)
+        raw = raw[:kept]
     sf = SparseField(grid, float(level), BLOCK, state, slot, corner, extent, raw)
     return sf, int(evaluated), int(singular)
 
@@ -269,17 +280,28 @@ def mean_on_side(values, a, b, c, s, n, level, below):
 
 
 @njit(**KERNEL)
-def _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, block):
+def _fill_bricks(
+    values, todo, level, corner, extent, slot, raw, bricks, block, shape, faces, sides
+):
     """Each brick's points as :func:`surfgen.filters.resolution.fine_field` gives them: a
     coarse sample (even indices), an evaluated band point (``todo``: ``raw``), or the mean of
     the coarse samples around it kept on their side (:func:`mean_on_side`); a non-finite new
     point between finite coarse samples takes their mean (as
     :func:`surfgen.filters.resolution._patch_singular`). Returns how many points were patched,
-    each counted once (in the first brick :func:`locate` finds for it). ``bricks`` may be
-    ``raw`` itself: a point of ``raw`` is read only just before that point is written."""
+    each counted once (in the first brick :func:`locate` finds for it).
+
+    Each brick's leaf state into ``sides``: :data:`OUTSIDE` (every point above the level or
+    non-finite), :data:`INSIDE` (every point finite and below it) or :data:`SAMPLED` (both;
+    and, with ``faces``, an inside leaf on the faces of the grid ``shape``). The bricks kept
+    (sampled) are written to ``bricks[0], bricks[1], ...`` in order; returns the points
+    patched and the bricks kept. ``bricks`` may be ``raw`` itself: a brick is written to a
+    place at or before its own, and a point of ``raw`` read just before its place is
+    written."""
     below = np.nextafter(level, -np.inf)
     patched = 0
+    q = 0  # where the brick goes
     for s in range(corner.shape[0]):
+        n_inside = 0
         for i in range(extent[s, 0]):
             a = corner[s, 0] + i
             for j in range(extent[s, 1]):
@@ -287,12 +309,15 @@ def _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, block):
                 for k in range(extent[s, 2]):
                     c = corner[s, 2] + k
                     if (a & 1) == 0 and (b & 1) == 0 and (c & 1) == 0:
-                        bricks[s, i, j, k] = values[a // 2, b // 2, c // 2]
+                        v = values[a // 2, b // 2, c // 2]
+                        bricks[q, i, j, k] = v
+                        n_inside += math.isfinite(v) and v < level
                         continue
                     if todo[a, b, c]:
                         v = raw[s, i, j, k]
                         if math.isfinite(v):
-                            bricks[s, i, j, k] = v
+                            bricks[q, i, j, k] = v
+                            n_inside += v < level
                             continue
                     total, n = corner_sum(values, a, b, c)
                     if not todo[a, b, c]:
@@ -300,5 +325,29 @@ def _fill_bricks(values, todo, level, corner, extent, slot, raw, bricks, block):
                     if not math.isfinite(v) and math.isfinite(total):
                         v = total / n
                         patched += locate(slot, block, a, b, c)[0] == s
-                    bricks[s, i, j, k] = v
-    return patched
+                    bricks[q, i, j, k] = v
+                    n_inside += math.isfinite(v) and v < level
+        points = extent[s, 0] * extent[s, 1] * extent[s, 2]
+        side = INSIDE if n_inside == points else (OUTSIDE if n_inside == 0 else SAMPLED)
+        if faces and side == INSIDE:
+            for a in range(3):
+                if corner[s, a] == 0 or corner[s, a] + extent[s, a] == shape[a]:
+                    side = SAMPLED  # a cap's vertices need it
+        sides[s] = side
+        if side == SAMPLED:
+            e0, e1, e2 = extent[s, 0], extent[s, 1], extent[s, 2]
+            if q < s and min(e0, e1, e2) <= block:  # past the grid's end: never read, but
+                _tail_nan(bricks, q, e0, e1, e2)  # defined (NaN), as in the raw brick
+            q += 1
+    return patched, q
+
+
+@njit(**INLINE)
+def _tail_nan(bricks, q, e0, e1, e2):
+    """NaN in brick ``q`` past extents ``(e0, e1, e2)``."""
+    m = bricks.shape[1]
+    for i in range(m):
+        for j in range(m):
+            for k in range(m):
+                if i >= e0 or j >= e1 or k >= e2:
+                    bricks[q, i, j, k] = np.nan
