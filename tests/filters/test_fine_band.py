@@ -56,6 +56,12 @@ def test_the_sparse_fine_field_is_the_dense_band_field(formula, box, n, cap, ban
         want = INSIDE if inside[box_of].all() else OUTSIDE
         assert not (want == OUTSIDE and inside[box_of].any()), leaf
         assert sf.state[tuple(leaf)] == want, leaf
+    # the leaves kept hold both sides (or, capped, are inside leaves on the box's faces)
+    top = np.array(sf.state.shape) - 1
+    for leaf in np.argwhere(sf.state == SAMPLED):
+        flags = inside[tuple(slice(x * block, x * block + block + 1) for x in leaf)]
+        on_face = bool(np.any((leaf == 0) | (leaf == top)))
+        assert flags.any() and (not flags.all() or (cap and on_face)), leaf
     if cap:  # a capped mesh needs the inside leaves on the box's faces sampled
         for axis in range(3):
             for end in (0, sf.state.shape[axis] - 1):
