@@ -47,7 +47,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from surfgen.filters.geometry import weighted_centres
+from surfgen.filters.geometry import pick_faces, weighted_centres
 from surfgen.generator.errors import MeshError
 from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_cross
@@ -244,9 +244,7 @@ def _surface_points(
     v: np.ndarray, f: np.ndarray, areas: np.ndarray, total: float, rng: np.random.Generator
 ) -> np.ndarray:
     """``POINTS`` points uniform by area on the faces ``f`` of ``v``: ``(POINTS, 3)``."""
-    cumulative = np.cumsum(areas)
-    faces = np.searchsorted(cumulative, rng.random(POINTS) * total, side="right")
-    faces = np.minimum(faces, len(areas) - 1)
+    faces = pick_faces(np.cumsum(areas), rng.random(POINTS) * total)
     r1, r2 = rng.random((2, POINTS))
     s = np.sqrt(r1)
     corners = f[faces]

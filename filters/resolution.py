@@ -49,7 +49,7 @@ from surfgen.filters.fine_band import (
     fine_grid,
     mean_on_side,
 )
-from surfgen.filters.geometry import cell_of
+from surfgen.filters.geometry import cell_of, pick_faces
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
@@ -215,8 +215,7 @@ def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.n
     areas = face_areas(mesh)
     total = float(areas.sum())
     rng = np.random.default_rng(seed)
-    faces = np.searchsorted(np.cumsum(areas), rng.random(n) * total, side="right")
-    faces = np.minimum(faces, mesh.n_faces - 1)
+    faces = pick_faces(np.cumsum(areas), rng.random(n) * total)
     r1, r2 = rng.random((2, n))
     s = np.sqrt(r1)
     v, corners = mesh.vertices, mesh.faces[faces]

@@ -28,6 +28,7 @@ from surfgen.filters.geometry import (
     bucket_points,
     column_bounds,
     first_edge_lengths,
+    pick_faces,
     used_mask,
     weighted_centres,
 )
@@ -59,9 +60,7 @@ def _surface_points(mesh: Mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
     total = float(areas.sum())
     centroid = weighted_centres(v, f, areas).sum(axis=0) / total
     rng = np.random.default_rng(SYMMETRY_SEED)
-    faces = np.minimum(
-        np.searchsorted(np.cumsum(areas), rng.random(n) * total, side="right"), len(areas) - 1
-    )
+    faces = pick_faces(np.cumsum(areas), rng.random(n) * total)
     r1, r2 = rng.random((2, n))
     s = np.sqrt(r1)
     corners = f[faces]

@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from surfgen.filters.geometry import pick_faces
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.eval.reference import evaluate_points
 from surfgen.generator.files import renaming, write_atomic
@@ -173,10 +174,7 @@ def surface_points(mesh: Mesh, n: int, key: str) -> np.ndarray:
     tri = mesh.vertices[mesh.faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     doubled = np.linalg.norm(cross, axis=1)
-    faces = np.minimum(
-        np.searchsorted(np.cumsum(doubled), rng.random(n) * doubled.sum(), side="right"),
-        len(doubled) - 1,
-    )
+    faces = pick_faces(np.cumsum(doubled), rng.random(n) * doubled.sum())
     r1, r2 = rng.random((2, n))
     s = np.sqrt(r1)
     a, b, c = tri[faces, 0], tri[faces, 1], tri[faces, 2]

@@ -249,3 +249,18 @@ def test_column_bounds_and_lattice_cells_match_numpy(meshes: list[Mesh]) -> None
     want = np.floor(centres / 0.2).astype(np.int64)
     want -= want.min(axis=0)
     assert np.array_equal(cells, want) and np.array_equal(dims, want.max(axis=0) + 1)
+
+
+def test_faces_picked_by_area_are_numpy_s_searchsorted_clamped() -> None:
+    rng = np.random.default_rng(8)
+    areas = rng.random(5000)
+    areas[[10, 11, 12]] = 0.0  # empty faces: a run of equal cumulative areas
+    cumulative = np.cumsum(areas)
+    keys = rng.random(3000) * areas.sum()
+    # keys on the cumulative areas themselves, repeated, past the end, NaN
+    keys[:20] = cumulative[[0, 9, 10, 11, 12, 13, 4999] * 2 + [0] * 6]
+    keys[20:23] = [cumulative[-1] * 1.5, np.inf, np.nan]
+    want = np.minimum(np.searchsorted(cumulative, keys, side="right"), len(areas) - 1)
+    got = geometry.pick_faces(cumulative, keys)
+    assert got.dtype == want.dtype and np.array_equal(got, want)
+    assert geometry.pick_faces(cumulative, keys[:0]).shape == (0,)
