@@ -356,11 +356,12 @@ def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
 
 
 def _warm_extras(field, mesh) -> None:
-    """The pictures', the carving's, the families' slopes' and the rarer mesh kernels on the
-    tiny shape."""
+    """The pictures', the carving's, the families' slopes' and struts' and the rarer mesh
+    kernels on the tiny shape."""
     from surfgen.generator.mesh.marching import _merge_same
     from surfgen.generator.mesh.mesh import extract_with_edges
     from surfgen.generator.model.families.carving import envelope_departure, pieces
+    from surfgen.generator.model.ridges import ridge_distances
     from surfgen.generator.model.slope import gradient_norm
     from surfgen.pipelines.pictures.raster import render_image
 
@@ -370,6 +371,7 @@ def _warm_extras(field, mesh) -> None:
     envelope_departure(field.values + 0.0, field.values)
     pieces(field.values)
     gradient_norm(field.values, 0.1)  # the families' slopes (of any samples: one signature)
+    ridge_distances(field.values < 0.0, 2, 8)  # the infill's struts
     # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
     # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
     # sample) given an offset from their neighbours; the warm ball has neither.

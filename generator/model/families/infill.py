@@ -143,8 +143,10 @@ def strut_share(
     :data:`CELL_SAMPLES` times per period, twice the 10th percentile of the distance
     transform's ridge (its local maxima) in the middle period. Returns ``(t_c, t_r, share)``."""
     # Deferred on purpose, as the sculpture's carving: reading the registry (``--help``,
-    # ``config show``) loads no scipy.
+    # ``config show``) loads no scipy or numba.
     from scipy import ndimage
+
+    from surfgen.generator.model.ridges import ridge_distances
 
     m = CELL_SAMPLES
     n = 2 * m
@@ -152,18 +154,22 @@ def strut_share(
     values = evaluate(_tree(pattern_terms), grid, threads=1).values
     t_c = float(quantile(values, q))
     t_r = t_c if q_rim is None else float(quantile(values, q_rim))
-    middle = np.zeros(values.shape, dtype=bool)
-    middle[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m] = True
     thinnest = math.inf
     for t in {t_c, t_c + (t_r - t_c) * reach}:
         for phase in (values < t, values >= t):
             if not phase.any():
                 return t_c, t_r, 0.0
-            dist = ndimage.distance_transform_edt(phase)
-            ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3)) & middle
-            if not ridge.any():
+            if phase.all():  # no sample outside it: scipy's numbers for that case
+                dist = ndimage.distance_transform_edt(phase)
+                ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3))
+                widths = dist[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m][
+                    ridge[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m]
+                ]
+            else:  # the ridge of the distance transform in the middle period
+                widths = ridge_distances(phase, m // 2, m // 2 + m)
+            if not widths.size:
                 return t_c, t_r, 0.0
-            thinnest = min(thinnest, 2.0 * float(quantile(dist[ridge], 0.1)) / m)
+            thinnest = min(thinnest, 2.0 * float(quantile(widths, 0.1)) / m)
     return t_c, t_r, thinnest
 
 

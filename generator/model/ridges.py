@@ -1,0 +1,122 @@
+"""The widths of a phase of a sampled lattice: scipy's Euclidean distance transform and the
+ridge of its local maxima, in one numba call.
+
+The infill family measures its struts and pores (:func:`~.families.infill.strut_share`) on
+two periods of its pattern sampled 32 times a side: the distance from each sample of a phase
+(``values < t`` or ``values >= t``) to the nearest sample outside it, then the samples of the
+middle period where that distance is a local maximum over the 27 around it. scipy's
+``distance_transform_edt`` with ``maximum_filter`` took 2.4 ms a phase, a tenth of the
+family's draw; :func:`ridge_distances` gives the same numbers in a fifth of that.
+
+The distance is computed exactly, as squared whole numbers of samples: the lower envelope of
+parabolas along each axis in turn (P. Felzenszwalb and D. Huttenlocher, *Distance transforms of
+sampled functions*, 2012), then one square root. scipy computes the root of the same sum of
+squared whole-number offsets (from its feature transform), so the values agree bit for bit
+(``tests/generator/model/test_ridges.py``). A phase without a sample outside it has no
+distance transform; scipy still returns numbers there, so the caller asks scipy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from surfgen.generator.jit.options import KERNEL
+
+
+def ridge_distances(phase: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """The distances (in samples) from the samples of ``phase`` (3-d bool) to the nearest
+    sample outside it, at the samples of the cube ``lo <= i, j, k < hi`` that are in the phase
+    and at least the distance of every sample around them (27, themselves included; past the
+    array's faces scipy's ``maximum_filter`` repeats the face): in C order, what
+    ``dist[phase & (dist >= maximum_filter(dist, size=3)) & cube]`` gives for scipy's
+    ``dist = distance_transform_edt(phase)``. ``phase`` must have a sample outside it."""
+    phase = np.ascontiguousarray(phase, dtype=np.bool_)
+    return _ridge_distances(phase, int(lo), int(hi))
+
+
+@njit(**KERNEL)
+def _lower_envelope(f, n, out, v, z):
+    """``out[q] = min over p of (q - p)^2 + f[p]`` for ``q < n`` (``f[p]`` inf: no parabola),
+    by the lower envelope of the parabolas (``v``, ``z``: scratch of ``n`` and ``n + 1``)."""
+    k = -1
+    for q in range(n):
+        if f[q] == np.inf:
+            continue
+        fq = f[q] + q * q
+        while k >= 0:
+            p = v[k]
+            s = (fq - (f[p] + p * p)) / (2.0 * (q - p))
+            if s > z[k]:
+                break
+            k -= 1
+        k += 1
+        v[k] = q
+        z[k] = (
+            -np.inf
+            if k == 0
+            else (fq - (f[v[k - 1]] + v[k - 1] * v[k - 1])) / (2.0 * (q - v[k - 1]))
+        )
+        z[k + 1] = np.inf
+    if k < 0:
+        for q in range(n):
+            out[q] = np.inf
+        return
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        p = v[k]
+        out[q] = (q - p) * (q - p) + f[p]
+
+
+@njit(**KERNEL)
+def _ridge_distances(phase, lo, hi):
+    n0, n1, n2 = phase.shape
+    big = max(n0, n1, n2)
+    sq = np.empty((n0, n1, n2))
+    line = np.empty(big)
+    res = np.empty(big)
+    v = np.empty(big, dtype=np.int64)
+    z = np.empty(big + 1)
+    for i in range(n0):  # squared distances along z, then y, then x (whole numbers)
+        for j in range(n1):
+            for k in range(n2):
+                line[k] = np.inf if phase[i, j, k] else 0.0
+            _lower_envelope(line, n2, res, v, z)
+            for k in range(n2):
+                sq[i, j, k] = res[k]
+    for i in range(n0):
+        for k in range(n2):
+            for j in range(n1):
+                line[j] = sq[i, j, k]
+            _lower_envelope(line, n1, res, v, z)
+            for j in range(n1):
+                sq[i, j, k] = res[j]
+    dist = np.empty((n0, n1, n2))
+    for j in range(n1):
+        for k in range(n2):
+            for i in range(n0):
+                line[i] = sq[i, j, k]
+            _lower_envelope(line, n0, res, v, z)
+            for i in range(n0):
+                dist[i, j, k] = math.sqrt(res[i])
+    out = np.empty(max(hi - lo, 0) ** 3)
+    m = 0
+    for i in range(max(lo, 0), min(hi, n0)):
+        for j in range(max(lo, 0), min(hi, n1)):
+            for k in range(max(lo, 0), min(hi, n2)):
+                if not phase[i, j, k]:
+                    continue
+                d = dist[i, j, k]
+                top = True
+                for a in range(max(i - 1, 0), min(i + 2, n0)):
+                    for b in range(max(j - 1, 0), min(j + 2, n1)):
+                        for c in range(max(k - 1, 0), min(k + 2, n2)):
+                            top &= d >= dist[a, b, c]
+                if top:
+                    out[m] = d
+                    m += 1
+    return out[:m]
