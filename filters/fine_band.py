@@ -82,11 +82,10 @@ def fine_band(
     if len(members):
         program = compile_cached(tree, params)
         evaluate_columns(program, grid.axes(), members, corner, extent, raw, threads)
-    # filled in place: each point's evaluated value is read just before the point is written
-    # (past the grid's end the bricks keep their NaN: never read, but defined)
-    # a brick whose samples all lie on one side holds no crossing: its leaf is decided and the
+    # filled in place (past the grid's end the bricks hold NaN: never read, but defined); a
+    # brick whose samples all lie on one side holds no crossing: its leaf is decided and the
     # brick dropped, as the sparse evaluator drops them (the inside ones on the box's faces
-    # kept for a cap); the marching then passes over the bricks the surface crosses only
+    # kept for a cap), so the marching passes over the bricks the surface crosses only
     shape = np.asarray(grid.shape, dtype=np.int64)
     sides = np.empty(len(corner), dtype=np.int8)
     singular, kept = _fill_bricks(

@@ -305,14 +305,23 @@ def bucket_points(
     ``order[start[c]:start[c + 1]]`` are cell ``c``'s, ``c = (cx * dims[1] + cy) * dims[2] + cz``."""
     n = pts.shape[0]
     ids = np.empty(n, dtype=np.int64)
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
     for i in range(n):
         cx = cell_of(pts[i, 0], lo, cell, dims, 0)
         cy = cell_of(pts[i, 1], lo, cell, dims, 1)
         cz = cell_of(pts[i, 2], lo, cell, dims, 2)
         ids[i] = (cx * dims[1] + cy) * dims[2] + cz
+    return counting_sort(ids, dims[0] * dims[1] * dims[2])
+
+
+@numba.njit(**CHECKED)
+def counting_sort(ids: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Items by their bucket ``ids`` (``0 <= id < size``), stable: ``order[start[c]:start[c +
+    1]]`` are bucket ``c``'s, in their own order."""
+    n = ids.shape[0]
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(n):
         start[ids[i] + 1] += 1
-    for c in range(start.shape[0] - 1):
+    for c in range(size):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
     order = np.empty(n, dtype=np.int64)

@@ -49,7 +49,7 @@ from surfgen.filters.fine_band import (
     fine_grid,
     mean_on_side,
 )
-from surfgen.filters.geometry import cell_of, pick_faces
+from surfgen.filters.geometry import cell_of, counting_sort, pick_faces
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
@@ -293,14 +293,13 @@ def surface_distances(
 
 @numba.njit(**KERNEL)
 def _bucket_triangles(v, f, lo, cell, dims):
-    """The triangles bucketed by centroid (:func:`~surfgen.filters.geometry.bucket_points`'
-    counting sort, the same order): ``start``, ``order``, and in that order each triangle's
-    centroid ``(F, 3)`` and its largest distance to its corners, in one pass over the faces."""
+    """The triangles bucketed by centroid (as :func:`~surfgen.filters.geometry.bucket_points`
+    buckets points: the same order): ``start``, ``order``, and in that order each triangle's
+    centroid ``(F, 3)`` and its largest distance to its corners, computed in one pass."""
     n = f.shape[0]
     centres = np.empty((n, 3))
     radii = np.empty(n)
     ids = np.empty(n, dtype=np.int64)
-    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
     for t in range(n):
         for k in range(3):
             centres[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
@@ -316,14 +315,7 @@ def _bucket_triangles(v, f, lo, cell, dims):
         cy = cell_of(centres[t, 1], lo, cell, dims, 1)
         cz = cell_of(centres[t, 2], lo, cell, dims, 2)
         ids[t] = (cx * dims[1] + cy) * dims[2] + cz
-        start[ids[t] + 1] += 1
-    for c in range(start.shape[0] - 1):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    for t in range(n):
-        order[fill[ids[t]]] = t
-        fill[ids[t]] += 1
+    start, order = counting_sort(ids, dims[0] * dims[1] * dims[2])
     sorted_centres = np.empty((n, 3))
     sorted_radii = np.empty(n)
     for s in range(n):
@@ -389,11 +381,11 @@ def _nearest_faces(
     visit, points, v, f, start, order, centres, radii, lo, cell, dims, rings, reach, cap, floor
 ):
     """Distance from each point to the nearest triangle (the points taken in the order
-    ``visit``), searched in shells of lattice cells
-    around the point's cell (triangles bucketed by centroid, every corner within ``reach`` of
-    it): after shell ``r`` an unseen triangle's centroid is at least ``r`` cells away, so all its
-    points at least ``r * cell - reach``. Stops there, as soon as a triangle within ``floor`` is
-    found, once beyond ``cap``, or after ``rings`` shells (then the best found, or inf).
+    ``visit``), searched in shells of lattice cells around the point's cell (triangles
+    bucketed by centroid, every corner within ``reach`` of it): after shell ``r`` an unseen
+    triangle's centroid is at least ``r`` cells away, so all its points at least ``r * cell -
+    reach``. Stops there, as soon as a triangle within ``floor`` is found, once beyond ``cap``,
+    or after ``rings`` shells (then the best found, or inf).
 
     ``centres`` and ``radii`` (each triangle's centroid and farthest corner from it) are in the
     buckets' order: a triangle whose centroid is farther than its radius plus the best distance
