@@ -41,24 +41,21 @@ def ridge_distances(phase: np.ndarray, lo: int, hi: int) -> np.ndarray:
 def _lower_envelope(f, n, out, v, z):
     """``out[q] = min over p of (q - p)^2 + f[p]`` for ``q < n`` (``f[p]`` inf: no parabola),
     by the lower envelope of the parabolas (``v``, ``z``: scratch of ``n`` and ``n + 1``)."""
-    k = -1
+    k = -1  # the envelope's last parabola (none yet)
     for q in range(n):
         if f[q] == np.inf:
             continue
         fq = f[q] + q * q
+        s = -np.inf  # where parabola q starts to be the lowest (the first one: everywhere)
         while k >= 0:
             p = v[k]
             s = (fq - (f[p] + p * p)) / (2.0 * (q - p))
             if s > z[k]:
                 break
-            k -= 1
+            k -= 1  # parabola p is nowhere the lowest (z[0] is -inf: never the first)
         k += 1
         v[k] = q
-        z[k] = (
-            -np.inf
-            if k == 0
-            else (fq - (f[v[k - 1]] + v[k - 1] * v[k - 1])) / (2.0 * (q - v[k - 1]))
-        )
+        z[k] = s
         z[k + 1] = np.inf
     if k < 0:
         for q in range(n):

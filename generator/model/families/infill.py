@@ -142,12 +142,6 @@ def strut_share(
     reach`` (the farthest a graded level goes inside the envelope): on two periods sampled
     :data:`CELL_SAMPLES` times per period, twice the 10th percentile of the distance
     transform's ridge (its local maxima) in the middle period. Returns ``(t_c, t_r, share)``."""
-    # Deferred on purpose, as the sculpture's carving: reading the registry (``--help``,
-    # ``config show``) loads no scipy or numba.
-    from scipy import ndimage
-
-    from surfgen.generator.model.ridges import ridge_distances
-
     m = CELL_SAMPLES
     n = 2 * m
     grid = Grid(Box((0.0,) * 3, ((n - 1) / m,) * 3), (n,) * 3)
@@ -159,18 +153,30 @@ def strut_share(
         for phase in (values < t, values >= t):
             if not phase.any():
                 return t_c, t_r, 0.0
-            if phase.all():  # no sample outside it: scipy's numbers for that case
-                dist = ndimage.distance_transform_edt(phase)
-                ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3))
-                widths = dist[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m][
-                    ridge[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m]
-                ]
-            else:  # the ridge of the distance transform in the middle period
-                widths = ridge_distances(phase, m // 2, m // 2 + m)
+            widths = phase_widths(phase, m)
             if not widths.size:
                 return t_c, t_r, 0.0
             thinnest = min(thinnest, 2.0 * float(quantile(widths, 0.1)) / m)
     return t_c, t_r, thinnest
+
+
+def phase_widths(phase: np.ndarray, m: int) -> np.ndarray:
+    """The distance transform of ``phase`` (two periods of ``m`` samples a side) on its ridge
+    in the middle period (:func:`~surfgen.generator.model.ridges.ridge_distances`); a phase
+    with no sample outside it (a rim level past every value) has no transform, and gets what
+    scipy's ``distance_transform_edt`` gives it, as it always did."""
+    # Deferred on purpose, as the sculpture's carving: reading the registry (``--help``,
+    # ``config show``) loads no scipy or numba.
+    from scipy import ndimage
+
+    from surfgen.generator.model.ridges import ridge_distances
+
+    if not phase.all():
+        return ridge_distances(phase, m // 2, m // 2 + m)
+    dist = ndimage.distance_transform_edt(phase)
+    ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3))
+    middle = (slice(m // 2, m // 2 + m),) * 3
+    return dist[middle][ridge[middle]]
 
 
 def _tree(terms: list[tuple[Factor, ...]]) -> Expr:

@@ -52,3 +52,52 @@ def test_random_phases_odd_shapes_and_a_cube_past_the_faces() -> None:
     phase = np.ones((40, 3, 2), dtype=bool)
     phase[0, 0, 0] = False
     assert ridge_distances(phase, 0, 40).tobytes() == _scipy(phase, 0, 40).tobytes()
+
+
+def _struts_by_scipy(unit, q: float, q_rim: float, reach: float) -> tuple[float, float, float]:
+    """The infill's strut share as scipy measured it (the code before the numba transform)."""
+    from surfgen.generator.model.families.infill import CELL_SAMPLES, _tree
+    from surfgen.generator.model.order_stats import quantile
+
+    m = CELL_SAMPLES
+    n = 2 * m
+    grid = Grid(Box((0.0,) * 3, ((n - 1) / m,) * 3), (n,) * 3)
+    values = evaluate(_tree(unit), grid, threads=1).values
+    t_c = float(quantile(values, q))
+    t_r = float(quantile(values, q_rim))
+    middle = np.zeros(values.shape, dtype=bool)
+    middle[m // 2 : m // 2 + m, m // 2 : m // 2 + m, m // 2 : m // 2 + m] = True
+    thinnest = np.inf
+    for t in {t_c, t_c + (t_r - t_c) * reach}:
+        for phase in (values < t, values >= t):
+            if not phase.any():
+                return t_c, t_r, 0.0
+            dist = ndimage.distance_transform_edt(phase)
+            ridge = phase & (dist >= ndimage.maximum_filter(dist, size=3)) & middle
+            if not ridge.any():
+                return t_c, t_r, 0.0
+            thinnest = min(thinnest, 2.0 * float(quantile(dist[ridge], 0.1)) / m)
+    return t_c, t_r, thinnest
+
+
+@pytest.mark.parametrize("pattern", ["gyroid", "schwarz", "iwp"])
+def test_the_infill_struts_are_scipy_s_even_past_the_values(pattern: str) -> None:
+    """strut_share gives scipy's numbers, including a rim level past every value (a reach far
+    beyond the rim: no sample outside the phase, where scipy's transform still gives numbers)."""
+    from surfgen.generator.model.families.infill import _transforms, strut_share
+    from surfgen.generator.model.families.lattice import lattice_terms
+
+    unit = lattice_terms(np.random.default_rng(3), pattern, *_transforms(pattern), [1.0] * 3)
+    for q, q_rim, reach in ((0.5, 0.5, 1.0), (0.3, 0.6, 1.4), (0.5, 0.95, 60.0)):
+        assert strut_share(unit, q, q_rim, reach) == _struts_by_scipy(unit, q, q_rim, reach)
+
+
+def test_a_phase_with_nothing_outside_it_keeps_scipy_s_numbers() -> None:
+    from surfgen.generator.model.families.infill import phase_widths
+
+    whole = np.ones((32, 32, 32), dtype=bool)
+    assert phase_widths(whole, 16).tobytes() == _scipy(whole, 8, 24).tobytes()
+    assert np.isfinite(phase_widths(whole, 16)).all()
+    holed = whole.copy()
+    holed[3, 30, 7] = False
+    assert phase_widths(holed, 16).tobytes() == _scipy(holed, 8, 24).tobytes()
