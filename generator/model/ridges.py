@@ -70,36 +70,35 @@ def _lower_envelope(f, n, out, v, z):
 
 
 @njit(**KERNEL)
+def _envelopes_along_last(a, line, res, v, z):
+    """:func:`_lower_envelope` along the last axis of every line of the 3-d ``a``, in place
+    (``line``, ``res``, ``v``, ``z``: scratch)."""
+    n0, n1, n = a.shape
+    for i in range(n0):
+        for j in range(n1):
+            for k in range(n):
+                line[k] = a[i, j, k]
+            _lower_envelope(line, n, res, v, z)
+            for k in range(n):
+                a[i, j, k] = res[k]
+
+
+@njit(**KERNEL)
 def _ridge_distances(phase, lo, hi):
     n0, n1, n2 = phase.shape
     big = max(n0, n1, n2)
-    sq = np.empty((n0, n1, n2))
-    line = np.empty(big)
-    res = np.empty(big)
-    v = np.empty(big, dtype=np.int64)
-    z = np.empty(big + 1)
-    for i in range(n0):  # squared distances along z, then y, then x (whole numbers)
+    line, res = np.empty(big), np.empty(big)
+    v, z = np.empty(big, dtype=np.int64), np.empty(big + 1)
+    sq = np.empty((n0, n1, n2))  # squared distances, in whole samples
+    for i in range(n0):
         for j in range(n1):
             for k in range(n2):
-                line[k] = np.inf if phase[i, j, k] else 0.0
-            _lower_envelope(line, n2, res, v, z)
-            for k in range(n2):
-                sq[i, j, k] = res[k]
-    for i in range(n0):
-        for k in range(n2):
-            for j in range(n1):
-                line[j] = sq[i, j, k]
-            _lower_envelope(line, n1, res, v, z)
-            for j in range(n1):
-                sq[i, j, k] = res[j]
-    dist = np.empty((n0, n1, n2))
-    for j in range(n1):
-        for k in range(n2):
-            for i in range(n0):
-                line[i] = sq[i, j, k]
-            _lower_envelope(line, n0, res, v, z)
-            for i in range(n0):
-                dist[i, j, k] = math.sqrt(res[i])
+                sq[i, j, k] = np.inf if phase[i, j, k] else 0.0
+    # along z, then y, then x: each axis brought last by a view
+    _envelopes_along_last(sq, line, res, v, z)
+    _envelopes_along_last(sq.transpose((0, 2, 1)), line, res, v, z)
+    _envelopes_along_last(sq.transpose((1, 2, 0)), line, res, v, z)
+    # the ridge compared on the squares (whole numbers: their roots order as they do)
     out = np.empty(max(hi - lo, 0) ** 3)
     m = 0
     for i in range(max(lo, 0), min(hi, n0)):
@@ -107,13 +106,13 @@ def _ridge_distances(phase, lo, hi):
             for k in range(max(lo, 0), min(hi, n2)):
                 if not phase[i, j, k]:
                     continue
-                d = dist[i, j, k]
+                d = sq[i, j, k]
                 top = True
                 for a in range(max(i - 1, 0), min(i + 2, n0)):
                     for b in range(max(j - 1, 0), min(j + 2, n1)):
                         for c in range(max(k - 1, 0), min(k + 2, n2)):
-                            top &= d >= dist[a, b, c]
+                            top &= d >= sq[a, b, c]
                 if top:
-                    out[m] = d
+                    out[m] = math.sqrt(d)
                     m += 1
     return out[:m]

@@ -260,8 +260,8 @@ def strength_on(
     """The ornament's strength s that moves the envelope's surface by about ``depth`` where
     the ornament is at its 10th or 90th percentile near that surface, and d = s * its median
     there, from the sampled envelope ``e`` and ornament ``o`` (grid step ``step``; ``grad``:
-    ``e``'s :func:`~surfgen.generator.model.slope.gradient_norm` if already known). d is None when the ornament is constant or
-    non-finite near the surface."""
+    ``e``'s :func:`~surfgen.generator.model.slope.gradient_norm` if already known). d is None
+    when the ornament is constant or non-finite near the surface."""
     grad = gradient_norm(e, step) if grad is None else grad
     ok = np.isfinite(e) & np.isfinite(o) & np.isfinite(grad) & (grad > 0)
     band = ok & (np.abs(e) < 1.5 * step * np.where(ok, grad, 0.0))
