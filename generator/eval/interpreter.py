@@ -64,6 +64,8 @@ from surfgen.generator.eval.opcodes import (
     OP_USIGN,
 )
 from surfgen.generator.eval.row_calls import (
+    EQUATION_13_ROWS,
+    ROWS,
     SLOT,
     c_arguments,
     far_row,
@@ -97,6 +99,25 @@ for _name, _slot in SLOT.items():
         _UNARY_SLOT[OP[_name]] = _slot
 SLOT_POW_VV, SLOT_POW_VS, SLOT_POW_SV = SLOT["pow_vv"], SLOT["pow_vs"], SLOT["pow_sv"]
 SLOT_ATAN2_VV, SLOT_ATAN2_VS, SLOT_ATAN2_SV = SLOT["atan2_vv"], SLOT["atan2_vs"], SLOT["atan2_sv"]
+_BINARY_SLOTS = {
+    OP_POW: ("pow_vv", "pow_vs", "pow_sv"),
+    OP_ATAN2: ("atan2_vv", "atan2_vs", "atan2_sv"),
+}
+
+
+def rows_called(code: np.ndarray) -> frozenset[str]:
+    """The rows of the table (:data:`~.row_calls.ROWS`) the interpreter calls to run ``code``
+    (a program's ``(op, mode, dst, a, b, imm)`` rows), as :func:`_unary` and the binary
+    dispatchers choose them."""
+    names = set()
+    for op, mode in np.asarray(code)[:, :2].tolist():
+        if _UNARY_SLOT[op] >= 0:
+            names.add(ROWS[_UNARY_SLOT[op]])
+        elif op == OP_POWI:
+            names.add("pow_vs")
+        elif op in _BINARY_SLOTS and mode in (M_VV, M_VS, M_SV):
+            names.add(_BINARY_SLOTS[op][(M_VV, M_VS, M_SV).index(mode)])
+    return frozenset(names)
 
 
 @intrinsic
@@ -351,13 +372,14 @@ _LOAD_LOCK = threading.Lock()
 
 
 def load_interpreter():
-    """Load the interpreter and its rows (:func:`surfgen.generator.eval.row_functions.load_rows`) from
-    numba's cache (or compile them, about a minute on one CPU the first time on a machine) and
-    point the kernels' cell at it; returns numba's ``CFunc``. Thread-safe."""
+    """Load the interpreter and the rows of equation (13) (:data:`~.row_calls.EQUATION_13_ROWS`,
+    by :func:`surfgen.generator.eval.row_functions.load_rows`; the others load when first
+    called) from numba's cache (or compile them, about 15 s on one CPU the first time on a
+    machine) and point the kernels' cell at it; returns numba's ``CFunc``. Thread-safe."""
     global INTERPRETER
     with _LOAD_LOCK:
         if INTERPRETER is None:
-            load_rows()  # first: the interpreter calls them
+            load_rows(EQUATION_13_ROWS)  # first: the interpreter calls them
             with evaluator_compile():  # numba's C functions send no compile event
                 compiled = cfunc(_C_SIGNATURE, **C_FUNCTION)(_run_code_c)
             _CELL.value = compiled.address
@@ -381,7 +403,7 @@ def interpreter_cached() -> bool:
     """Whether numba's on-disk cache holds the interpreter for this machine and this code (then
     loading it takes a fraction of a second). True when that cannot be told (numba's internals
     moved): the caller then does what it always did."""
-    return c_function_cached(_run_code_c, "the interpreter") and rows_cached()
+    return c_function_cached(_run_code_c, "the interpreter") and rows_cached(EQUATION_13_ROWS)
 
 
 def _first_call(*args, _load=load_interpreter) -> None:

@@ -9,9 +9,14 @@ the interpreter calls it through one slot of this table (:func:`far_row`): its o
 its dispatch and its cheap loops only, and the rows can compile in another process meanwhile.
 
 The table lives in this process, an external symbol of the interpreter's machine code, so the
-code numba caches holds no address. Until the rows are loaded, each slot points to a small
-Python function that loads them all (:func:`surfgen.generator.eval.row_functions.load_rows`, set
-by :func:`set_loader`), then forwards the call: the interpreter can never call an empty slot.
+code numba caches holds no address. Until its row is loaded, each slot points to a small
+Python function that loads it (:func:`surfgen.generator.eval.row_functions.load_rows`, set by
+:func:`set_loader`), then forwards the call: the interpreter can never call an empty slot. The
+interpreter loads the rows of equation (13) (:data:`EQUATION_13_ROWS`) with itself; the others
+(the hyperbolic functions, exp, log, cbrt, atan2, powers with a variable exponent and the
+segment sums, for typed and MathMod formulas) are compiled the first time a formula calls
+them, so that a first run's warm-up does not compile what the sampler never runs (6.5 s of a
+Xeon's CPU).
 
 Every slot has one C signature: the register file (data, rows, columns), the destination row
 ``d``, the operand rows ``a`` and ``b``, the scalar operand ``s``, the length ``n``, the
@@ -40,6 +45,12 @@ ROWS += ("atanh", "exp", "log", "log10", "cbrt", "atantan", "asinsin", "acoscos"
 ROWS += ("atan2_vv", "atan2_vs", "atan2_sv", "pow_vv", "pow_vs", "pow_sv", "series", "segsum")
 ROWS += ("sec", "csc", "cot")
 SLOT = {name: i for i, name in enumerate(ROWS)}
+# The rows equation (13)'s vocabulary lowers to (its direct and inverse trigonometric functions,
+# their round trips and reciprocals, powers with constant real exponents — in the points' and
+# the row tiles' programs too, where a constant exponent is a row — and the series of the
+# constituent functions): what the sampler runs, loaded with the interpreter.
+EQUATION_13_ROWS = ("sin", "cos", "tan", "asin", "acos", "atan", "sec", "csc", "cot")
+EQUATION_13_ROWS += ("atantan", "asinsin", "acoscos", "acotcot", "pow_vs", "pow_vv", "series")
 
 _TABLE_SYMBOL = "surfgen_row_table_v1"
 _I64 = types.int64
@@ -56,30 +67,31 @@ C_PROTOTYPE = ctypes.CFUNCTYPE(None, *_C_TYPES)
 _TABLE = (ctypes.c_void_p * len(ROWS))()
 
 
-_LOADER: list[Callable[[], object]] = []  # load_rows of row_functions.py, once it is imported
+# load_rows of row_functions.py, once it is imported
+_LOADER: list[Callable[[tuple[str, ...]], object]] = []
 
 
-def set_loader(load: Callable[[], object]) -> None:
-    """What a slot's first call runs to load every row:
+def set_loader(load: Callable[[tuple[str, ...]], object]) -> None:
+    """What a slot's first call runs to load its row (given a tuple of row names):
     :func:`surfgen.generator.eval.row_functions.load_rows`, which registers itself when its
     module is imported (the rows import this table; the table imports no row)."""
     _LOADER[:] = [load]
 
 
-def _load_rows():
+def _load_rows(names: tuple[str, ...]):
     if not _LOADER:
         raise RuntimeError("no rows to load: surfgen.generator.eval.row_functions is not imported")
-    return _LOADER[0]()
+    return _LOADER[0](names)
 
 
 def _first_call(slot: int):
-    """Slot ``slot``'s first target: load every row (filling the table), then run the call. An
+    """Slot ``slot``'s first target: load its row (filling the slot), then run the call. An
     error here cannot reach the caller (ctypes prints it): the row's values are then NaN, never
     stale memory."""
 
     def call(*args):
         try:
-            _load_rows()
+            _load_rows((ROWS[slot],))
         except BaseException:
             log.exception("cannot load surfgen's %s row: this evaluation gives NaN", ROWS[slot])
             w_p, w_rows, tile, d, *_ = args

@@ -6,14 +6,15 @@ function's row (:mod:`surfgen.generator.elementary`), a round trip, ``pow`` with
 convention, the series of eqs. (2)-(4) or a segment sum. Those are ``inline="always"`` numba
 functions, so each is optimised and emitted once, here, and not again in every caller.
 
-:func:`load_rows` loads them from numba's cache (or compiles them, about 45 s on one CPU the
-first time on a machine) and fills the table; :func:`surfgen.generator.eval.interpreter.load_interpreter`
-calls it first, and the warm-up can call it in a process of its own while another compiles the
-interpreter's dispatch.
+:func:`load_rows` loads them from numba's cache (or compiles them, about 16 s on one CPU the
+first time on a machine, 0.2 to 1.7 s each) and fills their slots;
+:func:`surfgen.generator.eval.interpreter.load_interpreter` loads those of equation (13) first
+(:data:`~.row_calls.EQUATION_13_ROWS`), and a slot called before its row is loaded loads it.
 """
 
 from __future__ import annotations
 
+import logging
 import threading
 
 import numpy as np
@@ -27,6 +28,8 @@ from surfgen.generator.eval import row_operations as ops
 from surfgen.generator.jit import interleave as vector_loops
 from surfgen.generator.jit.cache import c_function_cached
 from surfgen.generator.jit.options import C_FUNCTION, C_HELPER
+
+log = logging.getLogger(__name__)
 
 
 @njit(**C_HELPER)
@@ -80,12 +83,14 @@ COMPILED: dict[str, object] = {}  # numba's CFunc of each row once loaded
 _LOCK = threading.Lock()
 
 
-def load_rows() -> dict[str, object]:
-    """Load every row from numba's cache (or compile it) and point its slot at it; returns the
-    compiled C functions by name. Thread-safe; each row is loaded once per process."""
+def load_rows(names: tuple[str, ...] = far.ROWS) -> dict[str, object]:
+    """Load the rows ``names`` (every row by default) from numba's cache (or compile them) and
+    point their slots at them; returns the C functions loaded so far, by name. Thread-safe;
+    each row is loaded once per process."""
     with _LOCK:
-        missing = [name for name in far.ROWS if name not in COMPILED]
+        missing = [name for name in names if name not in COMPILED]
         if missing:
+            log.debug("loading the rows %s", ", ".join(missing))
             with vector_loops.evaluator_compile():  # numba's C functions send no compile event
                 for name in missing:
                     compiled = cfunc(far.C_SIGNATURE, **C_FUNCTION)(FUNCTIONS[name])
@@ -94,7 +99,7 @@ def load_rows() -> dict[str, object]:
     return COMPILED
 
 
-far.set_loader(load_rows)  # a slot called before the rows are loaded loads them
+far.set_loader(load_rows)  # a slot called before its row is loaded loads it
 
 
 def run(name: str, W: np.ndarray, d: int, a: int, n: int, b: int = 0, s: float = 0.0) -> None:
@@ -113,20 +118,20 @@ def run(name: str, W: np.ndarray, d: int, a: int, n: int, b: int = 0, s: float =
     if not all(0 <= int(i) < rows for i in (d, a, b)) or not 0 <= int(n) <= cols:
         raise ValueError(f"rows d, a, b must be in [0, {rows}) and n in [0, {cols}]")
     none = np.zeros(1)
-    load_rows()[name].ctypes(
+    load_rows((name,))[name].ctypes(
         W.ctypes.data, rows, cols, int(d), int(a), int(b), float(s), int(n), none.ctypes.data, 1, 0
     )
 
 
-def rows_loaded() -> bool:
-    """Whether this process has loaded (or compiled) every row."""
-    return len(COMPILED) == len(far.ROWS)
+def rows_loaded(names: tuple[str, ...] = far.ROWS) -> bool:
+    """Whether this process has loaded (or compiled) the rows ``names`` (every row by default)."""
+    return all(name in COMPILED for name in names)
 
 
-def rows_cached() -> bool:
-    """Whether numba's on-disk cache holds every row for this machine and this code. True when
-    that cannot be told (numba's internals moved)."""
-    return all(c_function_cached(f, f"the {name} row") for name, f in FUNCTIONS.items())
+def rows_cached(names: tuple[str, ...] = far.ROWS) -> bool:
+    """Whether numba's on-disk cache holds the rows ``names`` (every row by default) for this
+    machine and this code. True when that cannot be told (numba's internals moved)."""
+    return all(c_function_cached(FUNCTIONS[name], f"the {name} row") for name in names)
 
 
 def rows_asm() -> str:

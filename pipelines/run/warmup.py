@@ -66,19 +66,33 @@ def warm_grid_kernel() -> None:
 
 def warm_first_in_child() -> None:
     """The first child's part of a parallel warm-up: the interpreter, the grid kernel and the
-    fine band's evaluation (which calls it), then the pictures' and the carving's kernels
-    (:func:`_warm_extras`; the tiny shape's mesh loaded from what the other child compiled),
-    while the other child (:func:`warm_in_child`) compiles the rest. Balanced by the children's
-    compile logs on a 2-core Zen 4: they end at 33.8 and 32.7 s, where the sparse marching
-    here and the pictures there had them end at 36.3 and 29.5 s."""
-    from surfgen.filters.resolution import warm_band
-    from surfgen.generator.mesh.mesh import extract_with_edges
+    fine band's evaluation (which calls it), the resolution check's distances, then the
+    pictures' and the carving's kernels (:func:`_warm_extras`), while the other child
+    (:func:`warm_in_child`) compiles the rest. No mesh kernel is run here: the distances and
+    the pictures get the tiny shape's mesh from scikit-image's marching cubes, since the other
+    child may not have cached surfgen's yet (two processes compiling the same kernel do the
+    work twice). Balanced by the children's end times on a 2-core Xeon (32.1 s here, 33.4 s
+    there; 35.9 and 31.9 s before this one compiled the rows of equation (13) only)."""
+    from surfgen.filters.resolution import warm_band, warm_distances
 
     with _collector_paused(collect=False):
         warm_interpreter()
         tree, _, field = _tiny_shape("fast")  # the grid kernel
         warm_band(tree, field)  # the fine band's columns
-        _warm_extras(field, extract_with_edges(field, 0.0, cap=True)[0])
+        mesh = _skimage_mesh(field)
+        warm_distances(mesh, field.grid)  # the resolution check's distances
+        _warm_extras(field, mesh)
+
+
+def _skimage_mesh(field: Field):
+    """The tiny shape's surface by scikit-image's marching cubes (no numba kernel of surfgen's),
+    as a :class:`Mesh` with the types of surfgen's."""
+    from skimage.measure import marching_cubes
+
+    from surfgen.generator.mesh.mesh import Mesh
+
+    vertices, faces, _, _ = marching_cubes(field.values, 0.0)
+    return Mesh(vertices, faces)
 
 
 def warm_in_child() -> None:
@@ -95,6 +109,8 @@ def warm_in_child() -> None:
         # "mark": the faces labelled, as the sampler's "keep" labels them where it finds walls
         # (here the classification is compiled, not run: it finds none)
         _warm_measures(field, box, _warm_mesh(field, tree, "mark"), tree, resolution=False)
+        _warm_rare_mesh(field)
+        _warm_carving(field)
 
 
 def grid_kernel_cached() -> bool:
@@ -334,15 +350,17 @@ def _warm_sparse_marching() -> None:
 def _warm_the_rest(field, box, mesh, tree) -> None:
     """Every kernel after the mesh and the walls, on the tiny shape."""
     _warm_measures(field, box, mesh, tree)
+    _warm_rare_mesh(field)
+    _warm_carving(field)
     _warm_extras(field, mesh)
 
 
 def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
-    """The filters', the descriptor's and the resolution check's kernels on the tiny shape;
-    without ``resolution``, of the resolution check only the distances (the warm-up's other
-    child: the first one compiles the fine band, this one the sparse marching)."""
+    """The filters', the descriptor's and (with ``resolution``) the resolution check's kernels
+    on the tiny shape; the warm-up's other child leaves the resolution check out (the first one
+    compiles its fine band and its distances, this one the sparse marching)."""
     from surfgen.filters.descriptor import descriptor
-    from surfgen.filters.resolution import warm_distances, warm_kernels
+    from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
 
@@ -351,30 +369,37 @@ def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
     descriptor(mesh)
     if resolution:
         warm_kernels(tree, field, mesh)
-    else:
-        warm_distances(mesh, field.grid)
 
 
 def _warm_extras(field, mesh) -> None:
-    """The pictures', the carving's, the families' slopes' and struts' and the rarer mesh
-    kernels on the tiny shape."""
-    from surfgen.generator.mesh.marching import _merge_same
-    from surfgen.generator.mesh.mesh import extract_with_edges
-    from surfgen.generator.model.families.carving import envelope_departure, pieces
+    """The pictures' and the infill's struts' kernels on the tiny shape (``mesh``: its
+    surface)."""
     from surfgen.generator.model.ridges import ridge_distances
-    from surfgen.generator.model.slope import gradient_norm
     from surfgen.pipelines.pictures.raster import render_image
 
     render_image(mesh, size=16)
+    ridge_distances(field.values < 0.0, 2, 8)  # the infill's struts
+
+
+def _warm_carving(field) -> None:
+    """The carving's and the families' slopes' kernels on the tiny shape's samples."""
+    from surfgen.generator.model.families.carving import envelope_departure, pieces
+    from surfgen.generator.model.slope import gradient_norm
+
     # read-only fields (the sampler's) and a carved copy (the ornament checks'): two signatures
     envelope_departure(field.values, field.values)
     envelope_departure(field.values + 0.0, field.values)
     pieces(field.values)
     gradient_norm(field.values, 0.1)  # the families' slopes (of any samples: one signature)
-    ridge_distances(field.values < 0.0, 2, 8)  # the infill's struts
-    # Kernels only some shapes run: vertices of one grid edge given one index (a crossing on a
-    # box edge of a capped shape, an ambiguous cell), and non-finite samples (a pole on a
-    # sample) given an offset from their neighbours; the warm ball has neither.
+
+
+def _warm_rare_mesh(field) -> None:
+    """The mesh kernels only some shapes run: vertices of one grid edge given one index (a
+    crossing on a box edge of a capped shape, an ambiguous cell), and non-finite samples (a
+    pole on a sample) given an offset from their neighbours; the warm ball has neither."""
+    from surfgen.generator.mesh.marching import _merge_same
+    from surfgen.generator.mesh.mesh import extract_with_edges
+
     _merge_same(
         np.zeros((3, 3)),
         np.array([[0, 1, 2]], dtype=np.int64),

@@ -119,7 +119,7 @@ def test_the_binary_slots_give_the_numpy_twins_bits_in_every_operand_mode():
 def test_the_interpreter_is_ready_only_with_its_rows(monkeypatch):
     interpreter.load_interpreter()  # compiled and cached, if it was not yet
     assert interpreter.interpreter_cached()
-    monkeypatch.setattr(interpreter, "rows_cached", lambda: False)
+    monkeypatch.setattr(interpreter, "rows_cached", lambda names: False)
     assert not interpreter.interpreter_cached()
 
 

@@ -19,6 +19,7 @@ CHECK = """
 import json, sys, tempfile
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
+from surfgen.generator.eval import row_functions
 from surfgen.pipelines.run.config import load_config
 from surfgen.pipelines.run.shapes import make_shape
 from surfgen.pipelines.run.warmup import shape_kernels_cached, warm_shape_kernels
@@ -30,6 +31,7 @@ def compiled():
             for attr, value in vars(module).items():
                 if isinstance(value, CPUDispatcher):
                     out[name + "." + attr] = len(value.signatures)
+    out.update({"row " + name: 1 for name in row_functions.COMPILED})  # the interpreter's rows
     return out
 
 warm_shape_kernels()
@@ -320,30 +322,35 @@ def test_the_other_child_warms_every_kernel_but_the_first_childs() -> None:
 
 FIRST_ONLY = """
 import json
+from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import sparse_bricks, walls
+from surfgen.generator.mesh import marching, mesh, sparse_bricks, sparse_lewiner, walls
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_first_in_child
 
 warm_first_in_child()
+ran = {k: len(v.signatures) for m in (mesh, marching, sparse_lewiner) for k, v in vars(m).items()
+       if isinstance(v, CPUDispatcher)}
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
                   "columns": len(kernels.run_columns.signatures),
                   "pictures": len(pictures._rasterise.signatures),
+                  "mesh": sum(ran.values()),
                   "sparse": len(sparse_bricks.raise_bricks.signatures),
                   "walls": len(walls._bisect_kernel.signatures)}))
 """
 
 
 def test_the_first_child_warms_the_interpreter_the_grid_the_fine_band_and_the_pictures() -> None:
-    # not the sparse marching or the walls (the other child's)
+    # not the marching, sparse or dense, or the walls (the other child's): were the first
+    # child to mesh with them, both children might compile the same kernels
     out = subprocess.run(
         [sys.executable, "-c", FIRST_ONLY], capture_output=True, text=True, timeout=600, check=True
     )
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["interpreter"] is True
     assert result["grid"] >= 1 and result["columns"] >= 1 and result["pictures"] >= 1
-    assert result["sparse"] == 0 and result["walls"] == 0
+    assert result["sparse"] == 0 and result["walls"] == 0 and result["mesh"] == 0
 
 
 def test_compiled_not_run_compiles_for_the_arguments_and_runs_nothing() -> None:
