@@ -45,8 +45,8 @@ WARM_FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
 WARM_HALF, WARM_POINTS = 1.1, 14
 
 # The two children of a parallel warm-up on a cold cache: one compiles the interpreter, the
-# grid kernel, the fine band's and the pictures', the other every other kernel; this process
-# then loads them all.
+# grid kernel, the fine band's, the resolution check's distances and the pictures', the other
+# every other kernel; this process then loads them all.
 _FIRST_CHILD = "from surfgen.pipelines.run.warmup import warm_first_in_child; warm_first_in_child()"
 _CHILD = "from surfgen.pipelines.run.warmup import warm_in_child; warm_in_child()"
 
@@ -235,9 +235,9 @@ def warm_shape_kernels(
     The first time on a machine this compiles every kernel, about a minute on one CPU. With
     ``parallel`` and a second CPU, about half that (``benchmarks/cold_start.py``): two child
     processes compile into numba's on-disk cache, one the interpreter, the grid kernel, the
-    fine band's and the pictures' (:func:`warm_first_in_child`), the other every other kernel
-    (:func:`warm_in_child`), and this process then loads them all from the cache, as a warm
-    start does. A process that compiled is slower afterwards: the main job's shapes took 6-10 %
+    fine band's, the distances' and the pictures' (:func:`warm_first_in_child`), the other
+    every other kernel (:func:`warm_in_child`), and this process then loads them all from the
+    cache, as a warm start does. A process that compiled is slower afterwards: the main job's shapes took 6-10 %
     longer in a process (and in workers forked from one) that had compiled the kernels than in
     one that loaded them (numba's compiler leaves the Python heap scattered). Python's cycle
     collector is paused while this process compiles (:func:`_collector_paused`).
@@ -278,7 +278,8 @@ def _warm_here(
     t0: float, first: subprocess.Popen | None, rest: subprocess.Popen | None, meanwhile
 ) -> None:
     """This process's part of :func:`warm_shape_kernels`: with children (``first`` compiling
-    the interpreter, the grid, the fine band and the pictures, ``rest`` the other kernels),
+    the interpreter, the grid, the fine band, the distances and the pictures, ``rest`` the
+    other kernels),
     load what they compiled as each ends; without one, compile its part here."""
     try:
         if first is not None:
