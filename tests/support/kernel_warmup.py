@@ -35,12 +35,15 @@ _SPARSE_CHILD = "from tests.support.kernel_warmup import warm_sparse_kernels; wa
 
 
 def warm_points_kernels() -> None:
-    """The points kernels the tests call from Python, with the tests' argument types
-    (contiguous, writable float64 and int64 arrays)."""
+    """Every row of the interpreter (the sampler's warm-up loads those of equation (13) only;
+    the tests call them all), then the points kernels the tests call from Python, with the
+    tests' argument types (contiguous, writable float64 and int64 arrays)."""
     from surfgen.generator.eval import point_driver as points
+    from surfgen.generator.eval.row_functions import load_rows
     from surfgen.generator.eval.tape import points_evaluator
     from surfgen.generator.formula.parser import parse
 
+    load_rows()
     evaluator = points_evaluator(parse("sin(x*y) + z"))
     x = np.linspace(-1.0, 1.0, 5)
     evaluator(x, x, x)  # points.eval_points
@@ -56,10 +59,12 @@ def warm_points_kernels() -> None:
 def needed() -> bool:
     """Whether any of the kernels this warm-up compiles is missing from numba's cache."""
     from surfgen.generator.eval import point_driver as points
+    from surfgen.generator.eval.row_functions import rows_cached
     from surfgen.pipelines.run.warmup import kernel_cached, shape_kernels_cached
 
     return not (
         shape_kernels_cached()
+        and rows_cached()
         and all(kernel_cached(d) for d in (points.eval_points, points.eval_edges))
     )
 
