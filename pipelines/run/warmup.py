@@ -67,7 +67,7 @@ def warm_grid_kernel() -> None:
 def warm_first_in_child() -> None:
     """The first child's part of a parallel warm-up: the interpreter, the grid kernel and the
     fine band's evaluation (which calls it), the resolution check's distances, then the
-    pictures' and the carving's kernels (:func:`_warm_extras`), while the other child
+    pictures' and the infill's struts' kernels (:func:`_warm_extras`), while the other child
     (:func:`warm_in_child`) compiles the rest. No mesh kernel is run here: the distances and
     the pictures get the tiny shape's mesh from scikit-image's marching cubes, since the other
     child may not have cached surfgen's yet (two processes compiling the same kernel do the

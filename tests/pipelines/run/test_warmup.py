@@ -324,12 +324,12 @@ FIRST_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, mesh, sparse_bricks, sparse_lewiner, walls
+from surfgen.generator.mesh import marching, sparse_bricks, sparse_lewiner, walls
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_first_in_child
 
 warm_first_in_child()
-ran = {k: len(v.signatures) for m in (mesh, marching, sparse_lewiner) for k, v in vars(m).items()
+ran = {k: len(v.signatures) for m in (marching, sparse_lewiner) for k, v in vars(m).items()
        if isinstance(v, CPUDispatcher)}
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
@@ -342,8 +342,8 @@ print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
 
 
 def test_the_first_child_warms_the_interpreter_the_grid_the_fine_band_and_the_pictures() -> None:
-    # not the marching, sparse or dense, or the walls (the other child's): were the first
-    # child to mesh with them, both children might compile the same kernels
+    # not the marching cubes, sparse or dense, or the walls (the other child's): were the
+    # first child to mesh with them, both children might compile the same kernels
     out = subprocess.run(
         [sys.executable, "-c", FIRST_ONLY], capture_output=True, text=True, timeout=600, check=True
     )
