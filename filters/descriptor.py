@@ -47,7 +47,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from surfgen.filters.geometry import pick_faces, weighted_centres
+from surfgen.filters.geometry import surface_samples, weighted_centres
 from surfgen.generator.errors import MeshError
 from surfgen.generator.jit.options import CHECKED
 from surfgen.generator.mesh.mesh import Mesh, face_cross
@@ -99,7 +99,7 @@ def descriptor(mesh: Mesh) -> np.ndarray:
     if mesh.n_faces == 0 or not np.isfinite(total) or total <= 0.0:
         raise MeshError("cannot describe a mesh without area")
     rng = np.random.default_rng(SEED)
-    points = _surface_points(v, f, areas, total, rng)
+    points = surface_samples(v, f, areas, total, rng, POINTS)[0]
     centroid = weighted_centres(v, f, areas).sum(axis=0) / total
     i, j = rng.integers(0, POINTS, size=(2, PAIRS))
     d2 = _pair_distances(points, i, j)
@@ -240,18 +240,6 @@ def _cell_sums(
     return total, summed
 
 
-def _surface_points(
-    v: np.ndarray, f: np.ndarray, areas: np.ndarray, total: float, rng: np.random.Generator
-) -> np.ndarray:
-    """``POINTS`` points uniform by area on the faces ``f`` of ``v``: ``(POINTS, 3)``."""
-    faces = pick_faces(np.cumsum(areas), rng.random(POINTS) * total)
-    r1, r2 = rng.random((2, POINTS))
-    s = np.sqrt(r1)
-    corners = f[faces]
-    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
-    return (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
-
-
 def _histogram(distances: np.ndarray, bins: int) -> np.ndarray:
     mean = float(distances.mean())
     scaled = distances / mean if mean > 0 else np.zeros_like(distances)
@@ -360,7 +348,9 @@ class DescriptorSet:
             return None, float("inf")
         dist = _scaled(_channels(hist[0], codes[0], self._hist[rows], self._codes[rows]))
         j = int(np.argmin(dist))
-        return (self.keys[rows[j]], float(dist[j])) if dist[j] < threshold else (None, np.inf)
+        if not dist[j] < threshold:
+            return None, float("inf")
+        return self.keys[rows[j]], float(dist[j])
 
 
 def _split(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

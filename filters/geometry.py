@@ -52,6 +52,26 @@ def pick_faces(cumulative: np.ndarray, keys: np.ndarray) -> np.ndarray:
     return np.minimum(faces, len(cumulative) - 1)
 
 
+def surface_samples(
+    v: np.ndarray,
+    f: np.ndarray,
+    weights: np.ndarray,
+    total: float,
+    rng: np.random.Generator,
+    n: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points uniform by area on the faces ``f`` of ``v`` (``weights``: each face's area,
+    or any one multiple of it; ``total`` their sum), and the face of each: ``((n, 3), (n,))``.
+    Draws ``rng.random(n)`` for the faces (:func:`pick_faces`), then ``rng.random((2, n))`` for
+    the points' barycentric coordinates (the square-root rule)."""
+    faces = pick_faces(np.cumsum(weights), rng.random(n) * total)
+    r1, r2 = rng.random((2, n))
+    s = np.sqrt(r1)
+    corners = f[faces]
+    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
+    return (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c, faces
+
+
 @numba.njit(**CHECKED)
 def weighted_centres(v: np.ndarray, f: np.ndarray, areas: np.ndarray) -> np.ndarray:
     """``areas[:, None] * v[f].mean(axis=1)`` ``(F, 3)``: summed over faces (by numpy) and

@@ -49,7 +49,7 @@ from surfgen.filters.fine_band import (
     fine_grid,
     mean_on_side,
 )
-from surfgen.filters.geometry import cell_of, counting_sort, pick_faces
+from surfgen.filters.geometry import cell_of, counting_sort, surface_samples
 from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
@@ -215,12 +215,7 @@ def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.n
     areas = face_areas(mesh)
     total = float(areas.sum())
     rng = np.random.default_rng(seed)
-    faces = pick_faces(np.cumsum(areas), rng.random(n) * total)
-    r1, r2 = rng.random((2, n))
-    s = np.sqrt(r1)
-    v, corners = mesh.vertices, mesh.faces[faces]
-    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
-    return (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
+    return surface_samples(mesh.vertices, mesh.faces, areas, total, rng, n)[0]
 
 
 def compare_meshes(

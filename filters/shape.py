@@ -28,7 +28,7 @@ from surfgen.filters.geometry import (
     bucket_points,
     column_bounds,
     first_edge_lengths,
-    pick_faces,
+    surface_samples,
     used_mask,
     weighted_centres,
 )
@@ -60,12 +60,7 @@ def _surface_points(mesh: Mesh, n: int) -> tuple[np.ndarray, np.ndarray]:
     total = float(areas.sum())
     centroid = weighted_centres(v, f, areas).sum(axis=0) / total
     rng = np.random.default_rng(SYMMETRY_SEED)
-    faces = pick_faces(np.cumsum(areas), rng.random(n) * total)
-    r1, r2 = rng.random((2, n))
-    s = np.sqrt(r1)
-    corners = f[faces]
-    a, b, c = v[corners[:, 0]], v[corners[:, 1]], v[corners[:, 2]]
-    pts = (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
+    pts = surface_samples(v, f, areas, total, rng, n)[0]
     return pts, centroid
 
 

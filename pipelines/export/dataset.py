@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from surfgen.filters.geometry import pick_faces
+from surfgen.filters.geometry import surface_samples
 from surfgen.generator.errors import SurfgenError
 from surfgen.generator.eval.reference import evaluate_points
 from surfgen.generator.files import renaming, write_atomic
@@ -174,11 +174,7 @@ def surface_points(mesh: Mesh, n: int, key: str) -> np.ndarray:
     tri = mesh.vertices[mesh.faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     doubled = np.linalg.norm(cross, axis=1)
-    faces = pick_faces(np.cumsum(doubled), rng.random(n) * doubled.sum())
-    r1, r2 = rng.random((2, n))
-    s = np.sqrt(r1)
-    a, b, c = tri[faces, 0], tri[faces, 1], tri[faces, 2]
-    points = (1 - s)[:, None] * a + (s * (1 - r2))[:, None] * b + (s * r2)[:, None] * c
+    points, faces = surface_samples(mesh.vertices, mesh.faces, doubled, doubled.sum(), rng, n)
     normals = cross[faces] / np.maximum(doubled[faces], np.finfo(np.float64).tiny)[:, None]
     return np.hstack([points, normals]).astype(np.float32)
 

@@ -237,10 +237,11 @@ def warm_shape_kernels(
     processes compile into numba's on-disk cache, one the interpreter, the grid kernel, the
     fine band's, the distances' and the pictures' (:func:`warm_first_in_child`), the other
     every other kernel (:func:`warm_in_child`), and this process then loads them all from the
-    cache, as a warm start does. A process that compiled is slower afterwards: the main job's shapes took 6-10 %
-    longer in a process (and in workers forked from one) that had compiled the kernels than in
-    one that loaded them (numba's compiler leaves the Python heap scattered). Python's cycle
-    collector is paused while this process compiles (:func:`_collector_paused`).
+    cache, as a warm start does. A process that compiled is slower afterwards: the main job's
+    shapes took 6-10 % longer in a process (and in workers forked from one) that had compiled
+    the kernels than in one that loaded them (numba's compiler leaves the Python heap
+    scattered). Python's cycle collector is paused while this process compiles
+    (:func:`_collector_paused`).
     ``meanwhile`` (the suite's own kernels) runs once the interpreter is ready, before this
     process waits for the second child: only the interpreter need be loaded for it."""
     t0 = time.perf_counter()
@@ -279,8 +280,8 @@ def _warm_here(
 ) -> None:
     """This process's part of :func:`warm_shape_kernels`: with children (``first`` compiling
     the interpreter, the grid, the fine band, the distances and the pictures, ``rest`` the
-    other kernels),
-    load what they compiled as each ends; without one, compile its part here."""
+    other kernels), load what they compiled as each ends; without one, compile its part
+    here."""
     try:
         if first is not None:
             _join_child(first)

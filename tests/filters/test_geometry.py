@@ -196,7 +196,7 @@ def _descriptor_numpy(m: Mesh) -> np.ndarray:
     areas = 0.5 * doubled
     total = float(areas.sum())
     rng = np.random.default_rng(d.SEED)
-    points = d._surface_points(m.vertices, m.faces, areas, total, rng)
+    points = geometry.surface_samples(m.vertices, m.faces, areas, total, rng, d.POINTS)[0]
     centroid = (areas[:, None] * tri.mean(axis=1)).sum(axis=0) / total
     i, j = rng.integers(0, d.POINTS, size=(2, d.PAIRS))
     d1 = np.linalg.norm(points - centroid, axis=1)
@@ -264,3 +264,32 @@ def test_faces_picked_by_area_are_numpy_s_searchsorted_clamped() -> None:
     got = geometry.pick_faces(cumulative, keys)
     assert got.dtype == want.dtype and np.array_equal(got, want)
     assert geometry.pick_faces(cumulative, keys[:0]).shape == (0,)
+
+
+def test_surface_samples_lie_on_their_faces_picked_by_area() -> None:
+    mesh = extract_mesh(evaluate(parse("x^2 + y^2/2 + z^2/3 - 1"), Grid(Box.cube(2.0), (14,) * 3)))
+    v, f = mesh.vertices, mesh.faces
+    tri = v[f]
+    doubled = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    points, faces = geometry.surface_samples(
+        v, f, doubled, doubled.sum(), np.random.default_rng(3), 5000
+    )
+    # the faces: the first draw, picked by area; any multiple of the areas picks the same
+    keys = np.random.default_rng(3).random(5000) * doubled.sum()
+    assert np.array_equal(faces, geometry.pick_faces(np.cumsum(doubled), keys))
+    half = geometry.surface_samples(
+        v, f, doubled / 2, doubled.sum() / 2, np.random.default_rng(3), 5000
+    )
+    assert np.array_equal(half[0], points) and np.array_equal(half[1], faces)
+    # each point inside its face: barycentric coordinates in [0, 1] summing to 1
+    a, b, c = tri[faces, 0], tri[faces, 1], tri[faces, 2]
+    e1, e2, d = b - a, c - a, points - a
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    p1, p2 = (d * e1).sum(1), (d * e2).sum(1)
+    det = d11 * d22 - d12 * d12
+    u, w = (d22 * p1 - d12 * p2) / det, (d11 * p2 - d12 * p1) / det
+    assert np.all(u >= -1e-9) and np.all(w >= -1e-9) and np.all(u + w <= 1 + 1e-9)
+    np.testing.assert_allclose(a + u[:, None] * e1 + w[:, None] * e2, points, atol=1e-12)
+    # uniform by area: each face's share of the points near its share of the area
+    big = doubled > np.quantile(doubled, 0.5)
+    assert abs(big[faces].mean() - doubled[big].sum() / doubled.sum()) < 0.03
