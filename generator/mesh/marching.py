@@ -357,17 +357,19 @@ def _same_targets(
 
 
 @njit(**INLINE)
-def _vertex_key(v, verts, shift, edges, moved, nx, ny, nz):
-    """The key of vertex ``v``'s group: its grid edge's first sample's number times 4 plus the
+def _vertex_key(axis, e1, e2, e3, moved, x, y, z, shift, nx, ny, nz):
+    """The key of a vertex's group: its grid edge's first sample's number times 4 plus the
     edge's axis, or for a moved vertex its box sample's number times 4 plus 3; -1 for a vertex
-    alone (a cell's centre)."""
-    if edges[v, 0] >= 0:
-        return (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + edges[v, 0]
-    if moved[v]:
+    alone (a cell's centre). The vertex's edge row ``(axis, e1, e2, e3)``, ``moved`` flag and
+    coordinates are passed as values: given the arrays, the inlined helper counted references
+    to each at every vertex (numba's increments are atomic: a third of the groups' time)."""
+    if axis >= 0:
+        return (((e1 * ny + e2) * nz + e3) << 2) + axis
+    if moved:
         # A moved vertex was clamped onto a box sample: the sample's number is its key.
-        s0 = min(max(np.int64(np.rint(np.float64(verts[v, 0]) - shift)), 0), nx - 1)
-        s1 = min(max(np.int64(np.rint(np.float64(verts[v, 1]) - shift)), 0), ny - 1)
-        s2 = min(max(np.int64(np.rint(np.float64(verts[v, 2]) - shift)), 0), nz - 1)
+        s0 = min(max(np.int64(np.rint(np.float64(x) - shift)), 0), nx - 1)
+        s1 = min(max(np.int64(np.rint(np.float64(y) - shift)), 0), ny - 1)
+        s2 = min(max(np.int64(np.rint(np.float64(z) - shift)), 0), nz - 1)
         return (((s0 * ny + s1) * nz + s2) << 2) + 3
     return np.int64(-1)
 
@@ -375,7 +377,7 @@ def _vertex_key(v, verts, shift, edges, moved, nx, ny, nz):
 @njit(**INLINE)
 def _table_size(n):
     """Slots of a vertex-group table for ``n`` keys (a power of two, at least ``2 n + 2`` and
-    two runs), and the shift that keeps a run number's top bits (:func:`_find_or_add`)."""
+    two runs), and the shift that keeps a run number's top bits (:func:`_home`)."""
     bits = _RUN + 1
     while (1 << bits) < 2 * n + 2:
         bits += 1
@@ -383,21 +385,14 @@ def _table_size(n):
 
 
 @njit(**INLINE)
-def _find_or_add(table, key, v, down, mask):
-    """The first vertex of ``key`` in the open-addressing ``table`` of ``(key, vertex)`` slots;
-    ``v`` where the key is new (then added). The probe starts at the key's run of ``2**_RUN``
-    slots, placed by Fibonacci hashing of the run's number (its top ``64 - down`` bits), at the
-    key's place in the run."""
+def _home(key, down, mask):
+    """The slot where the probe for ``key`` starts in a vertex-group table of ``mask + 1``
+    slots: its run of ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its
+    top ``64 - down`` bits), at the key's place in the run. The probe then moves on slot by
+    slot to the key's slot or a free one (the table of ``(key, vertex)`` slots read in the
+    kernels themselves: a helper given the table counted references to it at every vertex)."""
     run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
-    h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
-    while True:
-        if table[2 * h] == -1:
-            table[2 * h] = key
-            table[2 * h + 1] = v
-            return v
-        if table[2 * h] == key:
-            return table[2 * h + 1]
-        h = (h + 1) & mask
+    return (np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))) & mask
 
 
 @njit(**KERNEL)
@@ -416,7 +411,10 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
     plane = (ny * nz) << 2
     counts = np.zeros(nx, dtype=np.int64)
     for v in range(n):
-        key = _vertex_key(v, verts, shift, edges, moved, nx, ny, nz)
+        key = _vertex_key(
+            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
+            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
+        )  # fmt: skip
         if key >= 0:
             counts[key // plane] += 1
     size, down = _table_size(counts.max())
@@ -428,7 +426,10 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
     top = np.int64(-1)
     for v in range(n):
         target[v] = v
-        key = _vertex_key(v, verts, shift, edges, moved, nx, ny, nz)
+        key = _vertex_key(
+            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
+            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
+        )  # fmt: skip
         if key < 0:
             continue
         q = key // plane
@@ -439,9 +440,14 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
         if tag[t] != q:
             tables[t, :] = -1
             tag[t] = q
-        first = _find_or_add(tables[t], key, v, down, mask)
-        if first != v:
-            target[v] = first
+        h = _home(key, down, mask)
+        while tables[t, 2 * h] != -1 and tables[t, 2 * h] != key:
+            h = (h + 1) & mask
+        if tables[t, 2 * h] == -1:  # a new group, v its first vertex
+            tables[t, 2 * h] = key
+            tables[t, 2 * h + 1] = v
+        else:
+            target[v] = tables[t, 2 * h + 1]
             any_merge = True
     return target, any_merge, True
 
@@ -466,12 +472,20 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     any_merge = False
     for v in range(n):
         target[v] = v
-        key = _vertex_key(v, verts, shift, edges, moved, nx, ny, nz)
+        key = _vertex_key(
+            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
+            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
+        )  # fmt: skip
         if key < 0:
             continue
-        first = _find_or_add(table, key, v, down, mask)
-        if first != v:
-            target[v] = first
+        h = _home(key, down, mask)
+        while table[2 * h] != -1 and table[2 * h] != key:
+            h = (h + 1) & mask
+        if table[2 * h] == -1:  # a new group, v its first vertex
+            table[2 * h] = key
+            table[2 * h + 1] = v
+        else:
+            target[v] = table[2 * h + 1]
             any_merge = True
     return target, any_merge
 

@@ -188,7 +188,7 @@ def _edge_t(v, p, q, b0, b1, c0, c1, d0, d1):
 
 
 @njit(**KERNEL)
-def _test_internal(v, lut, meta, case, config, subconfig, s):
+def _test_internal(v, case, config, subconfig, s):
     """skimage's ``test_internal`` (cases 4, 6, 7, 10, 12, 13)."""
     At = Bt = Ct = Dt = 0.0
     if case == 4 or case == 10:
@@ -208,13 +208,13 @@ def _test_internal(v, lut, meta, case, config, subconfig, s):
         Dt = v[1] + (v[5] - v[1]) * t
     else:
         if case == 6:
-            edge = _get2(lut, meta, TEST6, config, 2)
+            edge = _get2(LUT, LUT_META, TEST6, config, 2)
         elif case == 7:
-            edge = _get2(lut, meta, TEST7, config, 4)
+            edge = _get2(LUT, LUT_META, TEST7, config, 4)
         elif case == 12:
-            edge = _get2(lut, meta, TEST12, config, 3)
+            edge = _get2(LUT, LUT_META, TEST12, config, 3)
         else:
-            edge = _get3(lut, meta, T13_5_1, config, subconfig, 0)
+            edge = _get3(LUT, LUT_META, T13_5_1, config, subconfig, 0)
         At = 0.0
         if 0 <= edge < 12:  # one call on the edge's row of corners (not 12 inlined copies)
             e = _EDGE_T[edge]
@@ -265,16 +265,17 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
     and that plane's z.
     """
     plane = nx * ny
+    n_cells = c1 - c0
     # skimage's two face layers, dense as skimage's own: slot 4 * (nx * y + x) + edge kind
     # (0, 1: the x and y edges of the layer's face, 2: the z edge, 3: the centre) -> vertex;
-    # the slots set are listed to clear them when skimage clears the layer
-    layer1 = np.full(4 * plane, -1, dtype=np.int32)
-    layer2 = np.full(4 * plane, -1, dtype=np.int32)
-    used1 = np.empty(64, dtype=np.int32)
-    used2 = np.empty(64, dtype=np.int32)
+    # row ``one`` is skimage's first layer, the other its second (a swap flips ``one``). The
+    # slots set in each are listed to clear them when skimage clears the layer: a cell sets
+    # at most 13, a layer holds those of two planes' cells, and a slot is listed once.
+    layers = np.full((2, 4 * plane), -1, dtype=np.int32)
+    used = np.empty((2, min(4 * plane, 26 * _widest_plane(keys, c0, c1, plane))), np.int32)
+    one = 0
     n1 = 0
     n2 = 0
-    n_cells = c1 - c0
     verts = np.empty((n_cells + n_cells // 4 + 64, 3), dtype=np.float32)
     faces = np.empty((2 * n_cells + n_cells // 4 + 64, 3), dtype=np.int32)
     head = np.empty(verts.shape[0] if track else 0, dtype=np.int32)
@@ -285,145 +286,165 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
     vv = np.empty(8)  # skimage's vv: the corners indexed by bits (x, y, z)
     tri = np.empty(36, dtype=np.int64)  # edge indices of the cell's triangles
     last_z = np.int64(-2)
-    for c in range(c0, c1):
-        key = keys[c]
-        z = key // plane
-        y = (key - z * plane) // nx
-        x = key - z * plane - y * nx
-        if z != last_z:
-            # skimage swaps its layers at every z (new_z_value): a layer's vertices live on
-            # for the next plane only
-            for u in range(n1):
-                layer1[used1[u]] = -1
-            if z == last_z + 1:
-                layer1, layer2 = layer2, layer1
-                used1, used2 = used2, used1
-                n1 = n2
-            else:
-                for u in range(n2):
-                    layer2[used2[u]] = -1
-                n1 = 0
-            n2 = 0
-            last_z = z
-        index = 0
-        for k in range(8):
-            v[k] = np.float64(corners[c, k])
-            if v[k] > 0.0:
-                index += 1 << k
-        case = _get2(lut, meta, CASES, index, 0)
-        if case <= 0:
-            continue
-        config = _get2(lut, meta, CASES, index, 1)
-        nt, table, i1, three = _big_switch(v, lut, meta, case, config)
-        if nt == 0:
-            continue
-        for q in range(3 * nt):
-            if three:
-                tri[q] = _get3(lut, meta, table, config, i1, q)
-            else:
-                tri[q] = _get2(lut, meta, table, config, q)
-        vv[0], vv[1], vv[2], vv[3] = v[0], v[1], v[3], v[2]
-        vv[4], vv[5], vv[6], vv[7] = v[4], v[5], v[7], v[6]
-        # the centre vertex (computed on first use, as skimage does)
-        cx12 = cy12 = cz12 = 0.0
-        have12 = False
-        # int64 values, not literals: numba compiles grown once per array type then
-        if verts.shape[0] < nv + 13:
-            verts = grown(verts, np.int64(nv), _ROOM)
+    c = c0
+    while c < c1:
+        # the cells in runs with room for the most a cell can add (13 vertices, 12
+        # triangles), the arrays grown between runs: no array is reassigned within a run,
+        # so numba counts no reference per cell (that took most of the marching's time)
+        run = min(c1 - c, (verts.shape[0] - nv) // _ROOM, (faces.shape[0] - nf) // 12)
+        if run < min(c1 - c, _RUN):
+            verts = grown(verts, np.int64(nv), _ROOM * _RUN)
             if track:
-                head = grown(head, np.int64(nv), _ROOM)
-        if faces.shape[0] < nf + nt:
-            faces = grown(faces, np.int64(nf), np.int64(nt))
-        if used1.size < n1 + 13:
-            used1 = grown(used1, np.int64(n1), _ROOM)
-        if used2.size < n2 + 13:
-            used2 = grown(used2, np.int64(n2), _ROOM)
-        for q in range(3 * nt):
-            vi = tri[q]
-            # skimage's get_index_in_facelayer
-            i = nx * y + x
-            j = 0
-            second = False
-            if vi < 8:
-                e = vi
-                if vi >= 4:
-                    e = vi - 4
-                    second = True
-                if e == 1:
-                    i += 1
-                    j = 1
-                elif e == 2:
-                    i += nx
-                elif e == 3:
-                    j = 1
-            elif vi < 12:
-                j = 2
-                if vi == 9:
-                    i += 1
-                elif vi == 10:
-                    i += nx + 1
-                elif vi == 11:
-                    i += nx
-            else:
-                j = 3
-            at_slot = 4 * i + j
-            at = layer2[at_slot] if second else layer1[at_slot]
-            if at < 0:
-                if vi == 12:
-                    if not have12:
-                        fx = fy = fz = ff = 0.0
-                        for k in range(8):
-                            w = 1.0 / (_EPS + abs(v[k]))
-                            # corners v0..v7 at (x, y, z) bits 000 100 110 010 001 101 111 011
-                            bx = 1.0 if k in (1, 2, 5, 6) else 0.0
-                            by = 1.0 if k in (2, 3, 6, 7) else 0.0
-                            bz = 1.0 if k >= 4 else 0.0
-                            fx += bx * w
-                            fy += by * w
-                            fz += bz * w
-                            ff += w
-                        cx12 = np.float64(x) + 1.0 * fx / ff
-                        cy12 = np.float64(y) + 1.0 * fy / ff
-                        cz12 = np.float64(z) + 1.0 * fz / ff
-                        have12 = True
-                    px, py, pz = cx12, cy12, cz12
+                head = grown(head, np.int64(nv), _ROOM * _RUN)
+            faces = grown(faces, np.int64(nf), np.int64(12) * _RUN)
+            continue
+        for cell in range(c, c + run):
+            key = keys[cell]
+            z = key // plane
+            y = (key - z * plane) // nx
+            x = key - z * plane - y * nx
+            if z != last_z:
+                # skimage swaps its layers at every z (new_z_value): a layer's vertices live
+                # on for the next plane only
+                for u in range(n1):
+                    layers[one, used[one, u]] = -1
+                if z == last_z + 1:
+                    one = 1 - one
+                    n1 = n2
                 else:
-                    dx1, dx2 = ex[vi, 0], ex[vi, 1]
-                    dy1, dy2 = ey[vi, 0], ey[vi, 1]
-                    dz1, dz2 = ez[vi, 0], ez[vi, 1]
-                    w1 = 1.0 / (_EPS + abs(vv[dz1 * 4 + dy1 * 2 + dx1]))
-                    w2 = 1.0 / (_EPS + abs(vv[dz2 * 4 + dy2 * 2 + dx2]))
-                    fx = 0.0 + np.float64(dx1) * w1
-                    fy = 0.0 + np.float64(dy1) * w1
-                    fz = 0.0 + np.float64(dz1) * w1
-                    ff = 0.0 + w1
-                    fx += np.float64(dx2) * w2
-                    fy += np.float64(dy2) * w2
-                    fz += np.float64(dz2) * w2
-                    ff += w2
-                    px = np.float64(x) + 1.0 * fx / ff
-                    py = np.float64(y) + 1.0 * fy / ff
-                    pz = np.float64(z) + 1.0 * fz / ff
-                # skimage's wrapper flips the vertices to the volume's axis order
-                verts[nv, 0] = np.float32(pz)
-                verts[nv, 1] = np.float32(py)
-                verts[nv, 2] = np.float32(px)
-                if track:  # an x or y edge of the first plane: the run before may hold it
-                    head[nv] = at_slot if (z == first_z and not second and j < 2) else -1
-                at = nv
-                nv += 1
-                if second:
-                    layer2[at_slot] = at
-                    used2[n2] = at_slot
-                    n2 += 1
+                    for u in range(n2):
+                        layers[1 - one, used[1 - one, u]] = -1
+                    n1 = 0
+                n2 = 0
+                last_z = z
+            index = 0
+            for k in range(8):
+                v[k] = np.float64(corners[cell, k])
+                if v[k] > 0.0:
+                    index += 1 << k
+            case = _get2(lut, meta, CASES, index, 0)
+            if case <= 0:
+                continue
+            config = _get2(lut, meta, CASES, index, 1)
+            corner_values = (v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7])
+            nt, table, i1, three = _big_switch(corner_values, case, config)
+            if nt == 0:
+                continue
+            for q in range(3 * nt):
+                if three:
+                    tri[q] = _get3(lut, meta, table, config, i1, q)
                 else:
-                    layer1[at_slot] = at
-                    used1[n1] = at_slot
-                    n1 += 1
-            # ... and reverses each triangle ('descent')
-            faces[nf + q // 3, 2 - q % 3] = at
-        nf += nt
-    return verts[:nv], faces[:nf], head[: nv if track else 0], layer2, last_z
+                    tri[q] = _get2(lut, meta, table, config, q)
+            vv[0], vv[1], vv[2], vv[3] = v[0], v[1], v[3], v[2]
+            vv[4], vv[5], vv[6], vv[7] = v[4], v[5], v[7], v[6]
+            # the centre vertex (computed on first use, as skimage does)
+            cx12 = cy12 = cz12 = 0.0
+            have12 = False
+            for q in range(3 * nt):
+                vi = tri[q]
+                # skimage's get_index_in_facelayer
+                i = nx * y + x
+                j = 0
+                second = False
+                if vi < 8:
+                    e = vi
+                    if vi >= 4:
+                        e = vi - 4
+                        second = True
+                    if e == 1:
+                        i += 1
+                        j = 1
+                    elif e == 2:
+                        i += nx
+                    elif e == 3:
+                        j = 1
+                elif vi < 12:
+                    j = 2
+                    if vi == 9:
+                        i += 1
+                    elif vi == 10:
+                        i += nx + 1
+                    elif vi == 11:
+                        i += nx
+                else:
+                    j = 3
+                at_slot = 4 * i + j
+                at = layers[1 - one, at_slot] if second else layers[one, at_slot]
+                if at < 0:
+                    if vi == 12:
+                        if not have12:
+                            fx = fy = fz = ff = 0.0
+                            for k in range(8):
+                                w = 1.0 / (_EPS + abs(v[k]))
+                                # corners v0..v7 at (x, y, z) bits 000 100 110 010 001 101 111 011
+                                bx = 1.0 if k in (1, 2, 5, 6) else 0.0
+                                by = 1.0 if k in (2, 3, 6, 7) else 0.0
+                                bz = 1.0 if k >= 4 else 0.0
+                                fx += bx * w
+                                fy += by * w
+                                fz += bz * w
+                                ff += w
+                            cx12 = np.float64(x) + 1.0 * fx / ff
+                            cy12 = np.float64(y) + 1.0 * fy / ff
+                            cz12 = np.float64(z) + 1.0 * fz / ff
+                            have12 = True
+                        px, py, pz = cx12, cy12, cz12
+                    else:
+                        dx1, dx2 = ex[vi, 0], ex[vi, 1]
+                        dy1, dy2 = ey[vi, 0], ey[vi, 1]
+                        dz1, dz2 = ez[vi, 0], ez[vi, 1]
+                        w1 = 1.0 / (_EPS + abs(vv[dz1 * 4 + dy1 * 2 + dx1]))
+                        w2 = 1.0 / (_EPS + abs(vv[dz2 * 4 + dy2 * 2 + dx2]))
+                        fx = 0.0 + np.float64(dx1) * w1
+                        fy = 0.0 + np.float64(dy1) * w1
+                        fz = 0.0 + np.float64(dz1) * w1
+                        ff = 0.0 + w1
+                        fx += np.float64(dx2) * w2
+                        fy += np.float64(dy2) * w2
+                        fz += np.float64(dz2) * w2
+                        ff += w2
+                        px = np.float64(x) + 1.0 * fx / ff
+                        py = np.float64(y) + 1.0 * fy / ff
+                        pz = np.float64(z) + 1.0 * fz / ff
+                    # skimage's wrapper flips the vertices to the volume's axis order
+                    verts[nv, 0] = np.float32(pz)
+                    verts[nv, 1] = np.float32(py)
+                    verts[nv, 2] = np.float32(px)
+                    if track:  # an x or y edge of the first plane: the run before may hold it
+                        head[nv] = at_slot if (z == first_z and not second and j < 2) else -1
+                    at = nv
+                    nv += 1
+                    if second:
+                        layers[1 - one, at_slot] = at
+                        used[1 - one, n2] = at_slot
+                        n2 += 1
+                    else:
+                        layers[one, at_slot] = at
+                        used[one, n1] = at_slot
+                        n1 += 1
+                # ... and reverses each triangle ('descent')
+                faces[nf + q // 3, 2 - q % 3] = at
+            nf += nt
+        c += run
+    return verts[:nv], faces[:nf], head[: nv if track else 0], layers[1 - one], last_z
+
+
+#: Cells a run of :func:`lewiner_range` takes at least between two growths of its arrays.
+_RUN = np.int64(256)
+
+
+@njit(**KERNEL)
+def _widest_plane(keys, c0, c1, plane):
+    """The most cells of ``keys[c0:c1]`` (sorted) on one plane (at least 1)."""
+    most = 1
+    count = 0
+    last = np.int64(-1)
+    for c in range(c0, c1):
+        z = keys[c] // plane
+        count = count + 1 if z == last else 1
+        last = z
+        most = max(most, count)
+    return most
 
 
 _ROOM = np.int64(13)  # room for what one cell adds (at most 12 edge vertices and its centre)
@@ -444,7 +465,7 @@ def grown(a, n, more):
 
 
 @njit(**KERNEL)
-def _big_switch(v, lut, meta, case, config):
+def _big_switch(v, case, config):
     """skimage's ``the_big_switch``: ``(triangles, table, second index, 3-d table?)``."""
     sub = np.int64(0)  # not a literal 0: _test_internal is compiled once, for an int64
     if case == 1:
@@ -452,27 +473,27 @@ def _big_switch(v, lut, meta, case, config):
     if case == 2:
         return 2, T2, 0, False
     if case == 3:
-        if _test_face(v, _get1(lut, meta, TEST3, config)):
+        if _test_face(v, _get1(LUT, LUT_META, TEST3, config)):
             return 4, T3_2, 0, False
         return 2, T3_1, 0, False
     if case == 4:
-        if _test_internal(v, lut, meta, case, config, sub, _get1(lut, meta, TEST4, config)):
+        if _test_internal(v, case, config, sub, _get1(LUT, LUT_META, TEST4, config)):
             return 2, T4_1, 0, False
         return 6, T4_2, 0, False
     if case == 5:
         return 3, T5, 0, False
     if case == 6:
-        if _test_face(v, _get2(lut, meta, TEST6, config, 0)):
+        if _test_face(v, _get2(LUT, LUT_META, TEST6, config, 0)):
             return 5, T6_2, 0, False
-        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, TEST6, config, 1)):
+        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, TEST6, config, 1)):
             return 3, T6_1_1, 0, False
         return 9, T6_1_2, 0, False
     if case == 7:
-        if _test_face(v, _get2(lut, meta, TEST7, config, 0)):
+        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 0)):
             sub += 1
-        if _test_face(v, _get2(lut, meta, TEST7, config, 1)):
+        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 1)):
             sub += 2
-        if _test_face(v, _get2(lut, meta, TEST7, config, 2)):
+        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 2)):
             sub += 4
         if sub == 0:
             return 3, T7_1, 0, False
@@ -488,7 +509,7 @@ def _big_switch(v, lut, meta, case, config):
             return 9, T7_3, 1, True
         if sub == 6:
             return 9, T7_3, 2, True
-        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, TEST7, config, 3)):
+        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, TEST7, config, 3)):
             return 9, T7_4_2, 0, False
         return 5, T7_4_1, 0, False
     if case == 8:
@@ -497,22 +518,22 @@ def _big_switch(v, lut, meta, case, config):
         return 4, T9, 0, False
     if case == 10 or case == 12:
         test = TEST10 if case == 10 else TEST12
-        if _test_face(v, _get2(lut, meta, test, config, 0)):
-            if _test_face(v, _get2(lut, meta, test, config, 1)):
+        if _test_face(v, _get2(LUT, LUT_META, test, config, 0)):
+            if _test_face(v, _get2(LUT, LUT_META, test, config, 1)):
                 return 4, (T10_1_1_ if case == 10 else T12_1_1_), 0, False
             return 8, (T10_2 if case == 10 else T12_2), 0, False
-        if _test_face(v, _get2(lut, meta, test, config, 1)):
+        if _test_face(v, _get2(LUT, LUT_META, test, config, 1)):
             return 8, (T10_2_ if case == 10 else T12_2_), 0, False
-        if _test_internal(v, lut, meta, case, config, sub, _get2(lut, meta, test, config, 2)):
+        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, test, config, 2)):
             return 4, (T10_1_1 if case == 10 else T12_1_1), 0, False
         return 8, (T10_1_2 if case == 10 else T12_1_2), 0, False
     if case == 11:
         return 4, T11, 0, False
     if case == 13:
         for f in range(6):
-            if _test_face(v, _get2(lut, meta, TEST13, config, f)):
+            if _test_face(v, _get2(LUT, LUT_META, TEST13, config, f)):
                 sub += 1 << f
-        sub = _get1(lut, meta, SUBCONFIG13, sub)
+        sub = _get1(LUT, LUT_META, SUBCONFIG13, sub)
         if sub == 0:
             return 4, T13_1, 0, False
         if sub <= 6:
@@ -523,7 +544,7 @@ def _big_switch(v, lut, meta, case, config):
             return 12, T13_4, sub - 19, True
         if sub <= 26:
             s = sub - 23
-            if _test_internal(v, lut, meta, case, config, s, _get2(lut, meta, TEST13, config, 6)):
+            if _test_internal(v, case, config, s, _get2(LUT, LUT_META, TEST13, config, 6)):
                 return 6, T13_5_1, s, True
             return 10, T13_5_2, s, True
         if sub <= 38:
