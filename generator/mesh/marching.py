@@ -377,7 +377,7 @@ def _vertex_key(axis, e1, e2, e3, moved, x, y, z, shift, nx, ny, nz):
 @njit(**INLINE)
 def _table_size(n):
     """Slots of a vertex-group table for ``n`` keys (a power of two, at least ``2 n + 2`` and
-    two runs), and the shift that keeps a run number's top bits (:func:`_home`)."""
+    two runs), and the shift that keeps a run number's top bits (:func:`_find_or_add`)."""
     bits = _RUN + 1
     while (1 << bits) < 2 * n + 2:
         bits += 1
@@ -385,14 +385,20 @@ def _table_size(n):
 
 
 @njit(**INLINE)
-def _home(key, down, mask):
-    """The slot where the probe for ``key`` starts in a vertex-group table of ``mask + 1``
-    slots: its run of ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its
-    top ``64 - down`` bits), at the key's place in the run. The probe then moves on slot by
-    slot to the key's slot or a free one (the table of ``(key, vertex)`` slots read in the
-    kernels themselves: a helper given the table counted references to it at every vertex)."""
+def _find_or_add(tables, t, key, v, down, mask):
+    """The first vertex of ``key`` in the open-addressing table ``tables[t]`` of ``(key,
+    vertex)`` slots; ``v`` where the key is new (then added). The probe starts at the key's run
+    of ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its top ``64 - down``
+    bits), at the key's place in the run. Given the tables and the row (not a view of the row)
+    and with one exit, it leaves no reference count in the callers' loops (their tests)."""
     run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
-    return (np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))) & mask
+    h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
+    while tables[t, 2 * h] != -1 and tables[t, 2 * h] != key:
+        h = (h + 1) & mask
+    if tables[t, 2 * h] == -1:
+        tables[t, 2 * h] = key
+        tables[t, 2 * h + 1] = v
+    return tables[t, 2 * h + 1]
 
 
 @njit(**KERNEL)
@@ -440,14 +446,9 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
         if tag[t] != q:
             tables[t, :] = -1
             tag[t] = q
-        h = _home(key, down, mask)
-        while tables[t, 2 * h] != -1 and tables[t, 2 * h] != key:
-            h = (h + 1) & mask
-        if tables[t, 2 * h] == -1:  # a new group, v its first vertex
-            tables[t, 2 * h] = key
-            tables[t, 2 * h + 1] = v
-        else:
-            target[v] = tables[t, 2 * h + 1]
+        first = _find_or_add(tables, t, key, v, down, mask)
+        if first != v:
+            target[v] = first
             any_merge = True
     return target, any_merge, True
 
@@ -467,7 +468,7 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     nx, ny, nz = shape[0], shape[1], shape[2]
     size, down = _table_size(n)
     mask = size - 1
-    table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) per slot
+    tables = np.full((1, 2 * size), -1, dtype=np.int64)  # one table of (key, first vertex)
     target = np.empty(n, dtype=np.int64)
     any_merge = False
     for v in range(n):
@@ -478,14 +479,9 @@ def _targets_kernel(verts, shift, edges, moved, shape):
         )  # fmt: skip
         if key < 0:
             continue
-        h = _home(key, down, mask)
-        while table[2 * h] != -1 and table[2 * h] != key:
-            h = (h + 1) & mask
-        if table[2 * h] == -1:  # a new group, v its first vertex
-            table[2 * h] = key
-            table[2 * h + 1] = v
-        else:
-            target[v] = table[2 * h + 1]
+        first = _find_or_add(tables, 0, key, v, down, mask)
+        if first != v:
+            target[v] = first
             any_merge = True
     return target, any_merge
 

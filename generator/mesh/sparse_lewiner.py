@@ -41,7 +41,9 @@ from surfgen.generator.jit.options import INLINE, KERNEL
 _EPS = float(np.spacing(1.0))
 
 # The tables skimage's LutProvider takes, in its order; each is stored flat in one int8 array
-# with its shape, and read as skimage's Lut.get1/get2/get3 read them (row-major offsets).
+# with its shape, and read as skimage's Lut.get1/get2/get3 read them (row-major offsets). The
+# kernels read these arrays as globals (numba freezes them into the machine code as constants):
+# no argument to count references to in the cell loop.
 _NAMES = [
     "CASES",
     "TILING1",
@@ -119,18 +121,19 @@ EDGE_Z = np.ascontiguousarray(_sk.EDGETORELATIVEPOSZ, dtype=np.int64)
 
 
 @njit(**INLINE)
-def _get1(lut, meta, t, i0):
-    return np.int64(lut[meta[t, 0] + i0])
+def _get1(t, i0):
+    return np.int64(LUT[LUT_META[t, 0] + i0])
 
 
 @njit(**INLINE)
-def _get2(lut, meta, t, i0, i1):
-    return np.int64(lut[meta[t, 0] + i0 * meta[t, 1] + i1])
+def _get2(t, i0, i1):
+    return np.int64(LUT[LUT_META[t, 0] + i0 * LUT_META[t, 1] + i1])
 
 
 @njit(**INLINE)
-def _get3(lut, meta, t, i0, i1, i2):
-    return np.int64(lut[meta[t, 0] + i0 * meta[t, 1] * meta[t, 2] + i1 * meta[t, 2] + i2])
+def _get3(t, i0, i1, i2):
+    m = LUT_META
+    return np.int64(LUT[m[t, 0] + i0 * m[t, 1] * m[t, 2] + i1 * m[t, 2] + i2])
 
 
 @njit(**KERNEL)
@@ -208,13 +211,13 @@ def _test_internal(v, case, config, subconfig, s):
         Dt = v[1] + (v[5] - v[1]) * t
     else:
         if case == 6:
-            edge = _get2(LUT, LUT_META, TEST6, config, 2)
+            edge = _get2(TEST6, config, 2)
         elif case == 7:
-            edge = _get2(LUT, LUT_META, TEST7, config, 4)
+            edge = _get2(TEST7, config, 4)
         elif case == 12:
-            edge = _get2(LUT, LUT_META, TEST12, config, 3)
+            edge = _get2(TEST12, config, 3)
         else:
-            edge = _get3(LUT, LUT_META, T13_5_1, config, subconfig, 0)
+            edge = _get3(T13_5_1, config, subconfig, 0)
         At = 0.0
         if 0 <= edge < 12:  # one call on the edge's row of corners (not 12 inlined copies)
             e = _EDGE_T[edge]
@@ -241,7 +244,7 @@ def _test_internal(v, case, config, subconfig, s):
 
 
 @njit(**KERNEL)
-def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
+def lewiner_range(keys, corners, c0, c1, nx, ny, track):
     """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``keys[c0:c1]``
     (int64 flat numbers ``(z * ny + y) * nx + x`` in the volume, sorted: skimage's visiting
     order) with corner values ``corners`` (C, 8) float32 in skimage's order v0..v7
@@ -322,19 +325,19 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
                 v[k] = np.float64(corners[cell, k])
                 if v[k] > 0.0:
                     index += 1 << k
-            case = _get2(lut, meta, CASES, index, 0)
+            case = _get2(CASES, index, 0)
             if case <= 0:
                 continue
-            config = _get2(lut, meta, CASES, index, 1)
+            config = _get2(CASES, index, 1)
             corner_values = (v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7])
             nt, table, i1, three = _big_switch(corner_values, case, config)
             if nt == 0:
                 continue
             for q in range(3 * nt):
                 if three:
-                    tri[q] = _get3(lut, meta, table, config, i1, q)
+                    tri[q] = _get3(table, config, i1, q)
                 else:
-                    tri[q] = _get2(lut, meta, table, config, q)
+                    tri[q] = _get2(table, config, q)
             vv[0], vv[1], vv[2], vv[3] = v[0], v[1], v[3], v[2]
             vv[4], vv[5], vv[6], vv[7] = v[4], v[5], v[7], v[6]
             # the centre vertex (computed on first use, as skimage does)
@@ -390,9 +393,9 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, lut, meta, ex, ey, ez, track):
                             have12 = True
                         px, py, pz = cx12, cy12, cz12
                     else:
-                        dx1, dx2 = ex[vi, 0], ex[vi, 1]
-                        dy1, dy2 = ey[vi, 0], ey[vi, 1]
-                        dz1, dz2 = ez[vi, 0], ez[vi, 1]
+                        dx1, dx2 = EDGE_X[vi, 0], EDGE_X[vi, 1]
+                        dy1, dy2 = EDGE_Y[vi, 0], EDGE_Y[vi, 1]
+                        dz1, dz2 = EDGE_Z[vi, 0], EDGE_Z[vi, 1]
                         w1 = 1.0 / (_EPS + abs(vv[dz1 * 4 + dy1 * 2 + dx1]))
                         w2 = 1.0 / (_EPS + abs(vv[dz2 * 4 + dy2 * 2 + dx2]))
                         fx = 0.0 + np.float64(dx1) * w1
@@ -473,27 +476,27 @@ def _big_switch(v, case, config):
     if case == 2:
         return 2, T2, 0, False
     if case == 3:
-        if _test_face(v, _get1(LUT, LUT_META, TEST3, config)):
+        if _test_face(v, _get1(TEST3, config)):
             return 4, T3_2, 0, False
         return 2, T3_1, 0, False
     if case == 4:
-        if _test_internal(v, case, config, sub, _get1(LUT, LUT_META, TEST4, config)):
+        if _test_internal(v, case, config, sub, _get1(TEST4, config)):
             return 2, T4_1, 0, False
         return 6, T4_2, 0, False
     if case == 5:
         return 3, T5, 0, False
     if case == 6:
-        if _test_face(v, _get2(LUT, LUT_META, TEST6, config, 0)):
+        if _test_face(v, _get2(TEST6, config, 0)):
             return 5, T6_2, 0, False
-        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, TEST6, config, 1)):
+        if _test_internal(v, case, config, sub, _get2(TEST6, config, 1)):
             return 3, T6_1_1, 0, False
         return 9, T6_1_2, 0, False
     if case == 7:
-        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 0)):
+        if _test_face(v, _get2(TEST7, config, 0)):
             sub += 1
-        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 1)):
+        if _test_face(v, _get2(TEST7, config, 1)):
             sub += 2
-        if _test_face(v, _get2(LUT, LUT_META, TEST7, config, 2)):
+        if _test_face(v, _get2(TEST7, config, 2)):
             sub += 4
         if sub == 0:
             return 3, T7_1, 0, False
@@ -509,7 +512,7 @@ def _big_switch(v, case, config):
             return 9, T7_3, 1, True
         if sub == 6:
             return 9, T7_3, 2, True
-        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, TEST7, config, 3)):
+        if _test_internal(v, case, config, sub, _get2(TEST7, config, 3)):
             return 9, T7_4_2, 0, False
         return 5, T7_4_1, 0, False
     if case == 8:
@@ -518,22 +521,22 @@ def _big_switch(v, case, config):
         return 4, T9, 0, False
     if case == 10 or case == 12:
         test = TEST10 if case == 10 else TEST12
-        if _test_face(v, _get2(LUT, LUT_META, test, config, 0)):
-            if _test_face(v, _get2(LUT, LUT_META, test, config, 1)):
+        if _test_face(v, _get2(test, config, 0)):
+            if _test_face(v, _get2(test, config, 1)):
                 return 4, (T10_1_1_ if case == 10 else T12_1_1_), 0, False
             return 8, (T10_2 if case == 10 else T12_2), 0, False
-        if _test_face(v, _get2(LUT, LUT_META, test, config, 1)):
+        if _test_face(v, _get2(test, config, 1)):
             return 8, (T10_2_ if case == 10 else T12_2_), 0, False
-        if _test_internal(v, case, config, sub, _get2(LUT, LUT_META, test, config, 2)):
+        if _test_internal(v, case, config, sub, _get2(test, config, 2)):
             return 4, (T10_1_1 if case == 10 else T12_1_1), 0, False
         return 8, (T10_1_2 if case == 10 else T12_1_2), 0, False
     if case == 11:
         return 4, T11, 0, False
     if case == 13:
         for f in range(6):
-            if _test_face(v, _get2(LUT, LUT_META, TEST13, config, f)):
+            if _test_face(v, _get2(TEST13, config, f)):
                 sub += 1 << f
-        sub = _get1(LUT, LUT_META, SUBCONFIG13, sub)
+        sub = _get1(SUBCONFIG13, sub)
         if sub == 0:
             return 4, T13_1, 0, False
         if sub <= 6:
@@ -544,7 +547,7 @@ def _big_switch(v, case, config):
             return 12, T13_4, sub - 19, True
         if sub <= 26:
             s = sub - 23
-            if _test_internal(v, case, config, s, _get2(LUT, LUT_META, TEST13, config, 6)):
+            if _test_internal(v, case, config, s, _get2(TEST13, config, 6)):
                 return 6, T13_5_1, s, True
             return 10, T13_5_2, s, True
         if sub <= 38:

@@ -200,8 +200,7 @@ def test_the_pass_grows_its_arrays_with_one_compile_per_array_type(monkeypatch):
     monkeypatch.setattr(lw, "grown", fresh)
     keys = np.zeros(1, dtype=np.int64)
     corners = np.ones((1, 8), dtype=np.float32)
-    edges = (lw.EDGE_X, lw.EDGE_Y, lw.EDGE_Z)
-    args = (keys, corners, 0, 1, 2, 2, lw.LUT, lw.LUT_META, *edges, True)
+    args = (keys, corners, 0, 1, 2, 2, True)
     numba.njit(**{**KERNEL, "cache": False})(lw.lewiner_range.py_func).compile(
         tuple(numba.typeof(a) for a in args)
     )
@@ -215,8 +214,7 @@ def test_the_cell_loop_counts_no_references():
     # cells now run in runs with room made between them, and the layers are two rows.
     keys = np.zeros(1, dtype=np.int64)
     corners = np.ones((1, 8), dtype=np.float32)
-    edges = (lw.EDGE_X, lw.EDGE_Y, lw.EDGE_Z)
     for track in (False, True):
-        args = (keys, corners, 0, 1, 2, 2, lw.LUT, lw.LUT_META, *edges, track)
+        args = (keys, corners, 0, 1, 2, 2, track)
         body = kernel_ir(lw.lewiner_range.py_func, *args)
         assert loop_refcounts(body, "_big_switch") == 0
