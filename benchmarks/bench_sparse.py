@@ -2,8 +2,10 @@
 
     python -m benchmarks.bench_sparse [--grids 128,256,512,1024] [--shapes eqA,eqB,eqC,...]
 
-Each shape is meshed as ``surfgen render`` meshes it (``realise``, caps as the shape has them)
-with ``--evaluator fast`` (every grid point) and ``--evaluator sparse``, each run in a fresh
+Each shape is meshed as ``surfgen render`` meshes it (``realise``, caps as the shape has them,
+the sparse samples freed once read: ``keep_samples=False``; the allocator giving freed memory
+back, :func:`~surfgen.generator.allocator.give_back_freed_memory`; the walls not classified) with
+``--evaluator fast`` (every grid point) and ``--evaluator sparse``, each run in a fresh
 process (numba's allocations are invisible to tracemalloc: the peak is the process's VmHWM
 from ``/proc/self/status``, and ``rss0`` the process after its warm-up on a small grid, so
 ``peak - rss0`` is what the run added: the table's *added ratio*, beside the ratio of the
@@ -33,6 +35,7 @@ import time
 from typing import Any
 
 from benchmarks import harness
+from surfgen.generator.allocator import give_back_freed_memory
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.limits import available_memory, estimate_memory
@@ -79,6 +82,7 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
     """One run in this (fresh) process: warm up on 24^3, then mesh on the job's grid.  The
     spec comes as JSON (the parent drew it), as ``render --from`` reads a stored one: the
     process loads what meshing needs, not the sampler's kernels too."""
+    give_back_freed_memory()  # the allocator's policy of `render` and `export`
     spec, cap = SurfaceSpec.from_json(job["spec"]), job["cap"]
     box = Box.from_bounds(spec.box)
     realise(spec, grid=Grid(box, (24,) * 3), evaluator=job["evaluator"], cap=cap, allow_empty=True)
@@ -86,7 +90,7 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
     n = job["grid"]
     t0 = time.perf_counter()
     made = realise(spec, grid=Grid(box, (n,) * 3), evaluator=job["evaluator"], cap=cap,
-                   allow_empty=True)  # fmt: skip
+                   allow_empty=True, keep_samples=False)  # fmt: skip
     seconds = time.perf_counter() - t0
     mesh = made.mesh
     digest = hashlib.sha256()

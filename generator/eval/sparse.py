@@ -20,8 +20,10 @@ are not all on one side lies in a sampled leaf.  So the sampled leaves hold ever
 the signs of every other sample are known from its leaf's state.  :class:`SparseField` holds the
 states, the sampled bricks and a lookup of any sampled grid point
 (:func:`sample_at`); the sparse meshing (:mod:`surfgen.generator.mesh.sparse_marching`) works on
-it.  ``faces=True`` also samples the inside leaves on the box's faces: a capped mesh closes the
-surface there with caps, whose vertices need those samples.
+it, and where its caller keeps only the mesh, frees the bricks' samples as soon as it has read
+them (:meth:`SparseField.release_samples`).  ``faces=True`` also samples the inside leaves on
+the box's faces: a capped mesh closes the surface there with caps, whose vertices need those
+samples.
 """
 
 from __future__ import annotations
@@ -79,7 +81,8 @@ class SparseField:
     index of each brick; ``values``: ``(K, B+1, B+1, B+1)`` samples of each brick (entries past
     the grid's last point are NaN and never read); ``extent``: ``(K, 3)`` points of each brick
     per axis.  ``level`` is the level the states refer to.  ``stats``: boxes bounded, points
-    evaluated, seconds.
+    evaluated, non-finite samples, seconds.  ``values`` is None once the samples are released
+    (:meth:`release_samples`): what was counted stays, what reads samples raises.
     """
 
     grid: Grid
@@ -89,8 +92,31 @@ class SparseField:
     slot: np.ndarray
     corner: np.ndarray
     extent: np.ndarray
-    values: np.ndarray
+    values: np.ndarray | None
     stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def released(self) -> bool:
+        """Whether the samples were released (:meth:`release_samples`)."""
+        return self.values is None
+
+    def release_samples(self) -> None:
+        """Free the bricks' samples, most of a fine field's memory, once nothing will read
+        them (the sparse meshing does, where its caller keeps only the mesh:
+        ``realise(..., keep_samples=False)``).  The states, the bricks' layout and ``stats``
+        stay; reading samples afterwards raises ``RuntimeError``."""
+        if "nonfinite" not in self.stats:  # counted now: nothing can count it later
+            self.stats["nonfinite"] = self.nonfinite
+        object.__setattr__(self, "values", None)  # frozen: the one field that may go
+
+    def samples(self) -> np.ndarray:
+        """The bricks' samples, ``(K, B+1, B+1, B+1)``; raises ``RuntimeError`` once released."""
+        if self.values is None:
+            raise RuntimeError(
+                "this sparse field's samples were released after meshing "
+                "(realise(..., keep_samples=True) keeps them)"
+            )
+        return self.values
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -115,7 +141,8 @@ class SparseField:
 
     @property
     def nbytes(self) -> int:
-        return int(self.values.nbytes + self.state.nbytes + self.slot.nbytes)
+        held = 0 if self.values is None else self.values.nbytes
+        return int(held + self.state.nbytes + self.slot.nbytes)
 
     @property
     def nonfinite(self) -> int:
@@ -125,7 +152,7 @@ class SparseField:
         if "nonfinite" in self.stats:
             return int(self.stats["nonfinite"])
         sides = np.empty(self.n_bricks, dtype=np.int8)  # what _sides also tells; unused here
-        args = (self.values, self.extent, self.corner, self.slot, self.block, 0, self.level)
+        args = (self.samples(), self.extent, self.corner, self.slot, self.block, 0, self.level)
         return int(_sides(*args, sides))
 
     def sign_proxy(self) -> Field:
@@ -142,28 +169,29 @@ class SparseField:
             for leaf in np.argwhere(self.state == side):
                 sl = tuple(slice(c * b, c * b + b + 1) for c in leaf)
                 values[sl] = fill
+        samples = self.samples()
         for brick, (c0, c1, c2) in enumerate(self.corner):
             e0, e1, e2 = self.extent[brick]
-            values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = self.values[brick, :e0, :e1, :e2]
+            values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = samples[brick, :e0, :e1, :e2]
         return Field(self.grid, values)
 
     def any_inside(self) -> bool:
         """Whether some sample is inside (``F < level``, finite)."""
         if np.any(self.state == INSIDE):
             return True
-        return bool(_bricks_count_inside(self.values, self.extent, self.level) > 0)
+        return bool(_bricks_count_inside(self.samples(), self.extent, self.level) > 0)
 
     def all_inside(self) -> bool:
         """Whether every sample is inside."""
         if np.any(self.state == OUTSIDE):
             return False
         return bool(
-            _bricks_count_inside(self.values, self.extent, self.level) == self.points_evaluated
+            _bricks_count_inside(self.samples(), self.extent, self.level) == self.points_evaluated
         )
 
     def lookup(self) -> tuple:
         """What :func:`sample_at` takes after the index: ``(slot, corner, values, block)``."""
-        return self.slot, self.corner, self.values, self.block
+        return self.slot, self.corner, self.samples(), self.block
 
     def values_at(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
         """F at grid indices ``(i, j, k)`` where sampled; NaN where not (:func:`sample_at`)."""

@@ -89,6 +89,7 @@ def realise(
     cap: bool = False,
     walls: str | None = None,
     allow_empty: bool = False,
+    keep_samples: bool = True,
 ) -> Realised:
     """Evaluate ``spec`` and extract ``F = spec.level`` (with box caps when ``cap``).
 
@@ -100,8 +101,11 @@ def realise(
     classifying the crossings (:func:`~surfgen.generator.mesh.mesh.extract_mesh`); ``keep``,
     ``mark`` or ``remove`` classifies them and keeps, labels or removes the walls
     (:func:`~surfgen.generator.mesh.walls.extract_labelled`). ``allow_empty``: an empty surface
-    gives ``mesh=None`` and its message in ``empty`` instead of raising.  Every evaluator gives
-    the same mesh, bit for bit.
+    gives ``mesh=None`` and its message in ``empty`` instead of raising.  ``keep_samples=False``
+    (for a caller that keeps only the mesh and the counts: ``render``, ``export``) frees a
+    sparse field's samples as soon as the meshing has read them
+    (:meth:`~surfgen.generator.eval.sparse.SparseField.release_samples`; ``field.stats`` and
+    ``field.nonfinite`` stay).  Every evaluator gives the same mesh, bit for bit.
 
     Raises :class:`EmptySurface` (unless ``allow_empty``), ``SpecError`` for an unknown walls
     mode, and what evaluation raises (``FormulaError``, ``LimitError``...).
@@ -137,10 +141,10 @@ def realise(
     try:
         if isinstance(field, SparseField):
             if walls is None:
-                mesh = extract_sparse(field, cap=cap, threads=threads)
+                mesh = extract_sparse(field, cap, threads, release=not keep_samples)
             else:
                 mesh, report = extract_sparse_labelled(
-                    field, tree, spec.params, cap, walls, threads
+                    field, tree, spec.params, cap, walls, threads, release=not keep_samples
                 )
         elif walls is None:
             mesh = extract_mesh(field, spec.level, cap=cap)

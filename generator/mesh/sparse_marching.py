@@ -41,7 +41,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import points_evaluator
 from surfgen.generator.eval.sparse import SparseField, locate, thread_count
 from surfgen.generator.formula.expr import Expr
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 from surfgen.generator.mesh.marching import _TINY32
 from surfgen.generator.mesh.mesh import Mesh, finish_marching
@@ -56,19 +56,24 @@ from surfgen.generator.mesh.walls import WallReport, check_walls_mode, label_wal
 log = logging.getLogger(__name__)
 
 
-def extract_sparse(sf: SparseField, cap: bool = False, threads: int | None = 1) -> Mesh:
+def extract_sparse(
+    sf: SparseField, cap: bool = False, threads: int | None = 1, release: bool = False
+) -> Mesh:
     """:func:`~surfgen.generator.mesh.mesh.extract_mesh` of the dense field, from ``sf``."""
-    return extract_sparse_with_edges(sf, cap, threads)[0]
+    return extract_sparse_with_edges(sf, cap, threads, release)[0]
 
 
 def extract_sparse_with_edges(
-    sf: SparseField, cap: bool = False, threads: int | None = 1
+    sf: SparseField, cap: bool = False, threads: int | None = 1, release: bool = False
 ) -> tuple[Mesh, np.ndarray]:
     """:func:`~surfgen.generator.mesh.mesh.extract_with_edges` of the dense field at
     ``sf.level``, from ``sf`` (the module's docstring).  ``cap`` needs ``sf`` sampled with
     ``faces=True``.  ``threads`` (None: numba's count) run the marching of large surfaces in
     runs of planes (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the same
-    mesh).  Raises :class:`EmptySurface` when every sample is inside or every one is outside."""
+    mesh).  ``release``: free the samples (:meth:`SparseField.release_samples`) once their
+    offsets are made, before the cells and the mesh (a third of what a 512^3 render holds at
+    its peak).  Raises :class:`EmptySurface` when every sample is inside or every one is
+    outside."""
     level = sf.level
     if not sf.any_inside():
         raise EmptySurface(_empty_message("outside", sf))
@@ -81,6 +86,9 @@ def extract_sparse_with_edges(
     offset, n_bad = brick_offsets(values, extent, level, threads)
     if n_bad and _mirror_bricks(values, extent, corner, offset, slot, block, shape):
         log.debug("sparse marching: non-finite samples mirrored")
+    del values  # the last read of the samples: the offsets are all the steps below need
+    if release:
+        sf.release_samples()
     n_cells, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, offset, slot, block, shape)
@@ -111,13 +119,17 @@ def extract_sparse_labelled(
     cap: bool = False,
     walls: str = "mark",
     threads: int | None = 1,
+    release: bool = False,
 ) -> tuple[Mesh, WallReport]:
     """:func:`~surfgen.generator.mesh.walls.extract_labelled` of the dense field, from ``sf``:
     the samples beside each crossing along its grid line that no brick holds are evaluated
-    (:func:`sparse_edge_lines`)."""
+    (:func:`sparse_edge_lines`).  ``release``: free the samples once those lines are read,
+    before the walls are classified."""
     check_walls_mode(walls)
     mesh, edges = extract_sparse_with_edges(sf, cap and walls != "remove", threads)
     lines = sparse_edge_lines(sf, edges, tree, params)
+    if release:
+        sf.release_samples()
     return label_walls(mesh, edges, sf, tree, params, sf.level, cap, walls, lines=lines)
 
 
@@ -131,13 +143,11 @@ def sparse_edge_lines(
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     shape = np.asarray(sf.grid.shape, dtype=np.int64)
     slot, corner, values, block = sf.lookup()
-    line, missing = _edge_lines(edges, shape, slot, values, block)
-    if missing.any():
-        where = np.nonzero(missing)
-        ijk = _line_points(edges, shape)[:, where[0], where[1]]
+    line, short = _edge_lines(edges, shape, slot, values, block)
+    if short.size:
+        flat, ijk = _missing_points(edges, shape, slot, block, short)
         ax, ay, az = sf.grid.axes()
-        got = points_evaluator(tree, params)(ax[ijk[0]], ay[ijk[1]], az[ijk[2]])
-        line[where] = got
+        line.reshape(-1)[flat] = points_evaluator(tree, params)(ax[ijk[0]], ay[ijk[1]], az[ijk[2]])
     return line
 
 
@@ -259,43 +269,64 @@ def _pad_corners(keys, offset, slot, block, shape):
     return out
 
 
-@njit(**KERNEL)
-def _line_positions(edges, shape):
-    """Grid indices ``(3, 4, V)`` of the four samples of each row's line (the walls' reading:
-    a missing neighbour is the edge's own sample; rows on no edge read sample 0)."""
-    n = edges.shape[0]
-    out = np.zeros((3, 4, n), dtype=np.int64)
-    for v in range(n):
-        axis = edges[v, 0]
-        if axis < 0:
-            continue
-        pos = edges[v, 1 + axis]
-        length = shape[axis]
-        if pos + 1 >= length:
-            continue
-        steps = (-1 if pos >= 1 else 0, 0, 1, 2 if pos + 2 < length else 1)
-        for q in range(4):
-            for c in range(3):
-                out[c, q, v] = edges[v, 1 + c] + (steps[q] if c == axis else 0)
-    return out
-
-
-def _line_points(edges: np.ndarray, shape: np.ndarray) -> np.ndarray:
-    return _line_positions(edges, shape)
+@njit(**INLINE)
+def _line_position(edges, v, q, shape):
+    """Grid index of sample ``q`` (0-3) of row ``v``'s line (the walls' reading: a missing
+    neighbour is the edge's own sample; rows on no edge, or on the grid's last sample, read
+    sample 0)."""
+    axis = edges[v, 0]
+    if axis < 0:
+        return 0, 0, 0
+    pos = edges[v, 1 + axis]
+    length = shape[axis]
+    if pos + 1 >= length:
+        return 0, 0, 0
+    if q == 0:
+        step = -1 if pos >= 1 else 0
+    elif q == 3:
+        step = 2 if pos + 2 < length else 1
+    else:
+        step = q - 1
+    i, j, k = edges[v, 1], edges[v, 2], edges[v, 3]
+    if axis == 0:
+        return i + step, j, k
+    if axis == 1:
+        return i, j + step, k
+    return i, j, k + step
 
 
 @njit(**KERNEL)
 def _edge_lines(edges, shape, slot, values, block):
-    """F at :func:`_line_positions` where a brick holds it, and where none does."""
-    pos = _line_positions(edges, shape)
+    """F at :func:`_line_position` of every row where a brick holds it (0 elsewhere), ``(4,
+    V)``, and the rows on an edge with a sample no brick holds (few: their positions are
+    listed by :func:`_missing_points`, not stored for the millions of rows of a fine mesh)."""
     n = edges.shape[0]
     line = np.zeros((4, n))
-    missing = np.zeros((4, n), dtype=np.bool_)
-    for v in range(n):
+    short = np.zeros(n, dtype=np.bool_)
+    for v in range(n):  # a row's four samples are neighbours: mostly in one brick
         for q in range(4):
-            s, a, b, c = locate(slot, block, pos[0, q, v], pos[1, q, v], pos[2, q, v])
+            i, j, k = _line_position(edges, v, q, shape)
+            s, a, b, c = locate(slot, block, i, j, k)
             if s >= 0:
                 line[q, v] = values[s, a, b, c]
             elif edges[v, 0] >= 0:
-                missing[q, v] = True
-    return line, missing
+                short[v] = True
+    return line, np.flatnonzero(short)
+
+
+@njit(**KERNEL)
+def _missing_points(edges, shape, slot, block, rows):
+    """The samples of ``rows`` (:func:`_edge_lines`) that no brick holds: their places in the
+    flattened ``(4, V)`` lines and their grid indices ``(3, M)``."""
+    n = edges.shape[0]
+    flat = np.empty(4 * rows.size, dtype=np.int64)
+    ijk = np.empty((3, 4 * rows.size), dtype=np.int64)
+    m = 0
+    for v in rows:
+        for q in range(4):
+            i, j, k = _line_position(edges, v, q, shape)
+            if locate(slot, block, i, j, k)[0] < 0:
+                flat[m] = q * n + v
+                ijk[0, m], ijk[1, m], ijk[2, m] = i, j, k
+                m += 1
+    return flat[:m], ijk[:, :m]

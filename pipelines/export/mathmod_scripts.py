@@ -80,7 +80,9 @@ def render_model(
     nonfinite = 0
     for comp in chosen:
         spec = build_spec(base=comp.spec, box=box, grid=grid, level=level)
-        made = realise(spec, evaluator=evaluator, cap=cap, allow_empty=len(chosen) > 1)
+        made = realise(
+            spec, evaluator=evaluator, cap=cap, allow_empty=len(chosen) > 1, keep_samples=False
+        )
         nonfinite += made.field.nonfinite
         mesh = made.mesh
         if made.empty is not None:

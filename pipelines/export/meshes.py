@@ -281,7 +281,7 @@ def load_source(
         warnings.append(f"{source.name}: mesh file {source.mesh_file} is missing, regenerated")
     for w in warnings:
         log.info("%s", w)  # the CLI prints the warnings it gets back
-    made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls)
+    made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls, keep_samples=False)
     return made.mesh, warnings  # type: ignore[return-value]
 
 

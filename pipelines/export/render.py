@@ -212,7 +212,7 @@ def render_spec(
     mesh: Mesh | None = None
     crossings: WallReport | None = None
     if want_mesh:
-        made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls)
+        made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls, keep_samples=False)
         field, mesh, crossings = made.field, made.mesh, made.walls
     else:
         field = evaluate(spec.tree(), grid, spec.params, evaluator=name)

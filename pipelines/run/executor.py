@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, Protocol
 
+from surfgen.generator.allocator import keep_freed_memory
 from surfgen.generator.errors import SurfgenError
 
 log = logging.getLogger(__name__)
@@ -139,33 +140,6 @@ def _worker_main(
                 conn.send(("crashed", task, None, f"{type(exc).__name__}: {exc}"))
             except (BrokenPipeError, ConnectionResetError):
                 return
-
-
-# glibc's mallopt parameters (malloc.h) and what a worker sets them to
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-HEAP_BELOW = 32 << 20  # bytes: smaller blocks from the heap (glibc's largest mmap threshold)
-KEEP_FREED = 1 << 30  # bytes of freed heap kept for the next blocks, not given back
-
-
-def keep_freed_memory() -> bool:
-    """Have this process's C allocator keep the memory it frees for the next allocations.
-
-    A worker makes and frees arrays of a few MiB for every shape (fields, bricks, meshes,
-    picture buffers). glibc maps a block above its mmap threshold afresh and unmaps it when
-    freed, so every page of the next such array faults again when first written: about 170 000
-    page faults per 400 shapes, 1.5-2 % of a worker's time on a 2-core Zen 4 (measured). Blocks
-    below :data:`HEAP_BELOW` then come from the heap, and up to :data:`KEEP_FREED` of freed heap
-    stays mapped: a worker's resident size stays near its peak (the shapes' largest arrays),
-    which it reaches anyway. Returns whether the allocator took both settings (glibc; not
-    musl's or macOS's, left as they are)."""
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError, TypeError):  # no C library by that name (Windows: None)
-        return False
-    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    heap = mallopt(_M_MMAP_THRESHOLD, HEAP_BELOW) == 1
-    kept = mallopt(_M_TRIM_THRESHOLD, KEEP_FREED) == 1
-    return heap and kept
 
 
 class _Worker:

@@ -115,7 +115,9 @@ def explore(
     check_grid(spec)
     with _LOCK:
         c0 = time.thread_time()  # CPU time of this thread: what the step costs on a quiet machine
-        made = realise(spec, evaluator="auto", threads=threads, cap=cap, allow_empty=True)
+        made = realise(
+            spec, evaluator="auto", threads=threads, cap=cap, allow_empty=True, keep_samples=False
+        )
     mesh = made.mesh
     t2 = time.perf_counter()
     glb = glb_bytes(mesh, web=True)
@@ -288,7 +290,7 @@ def save_variant(cat: Catalogue, key: str, changes: Mapping[str, Any]) -> dict[s
     if cat.conn.execute("SELECT 1 FROM shapes WHERE key=?", (new,)).fetchone():
         return get_shape(cat, new, full=False)
     with _LOCK:
-        made = realise(spec, evaluator="auto", cap=True)
+        made = realise(spec, evaluator="auto", cap=True, keep_samples=False)
     mesh = made.mesh
     metrics = shape_metrics(mesh, spec.box)
     metrics["nonfinite"] = made.field.nonfinite

@@ -28,8 +28,10 @@ from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_with_edges
 from surfgen.generator.mesh.realise import realise
 from surfgen.generator.mesh.sparse_marching import (
+    _edge_lines,
     extract_sparse_labelled,
     extract_sparse_with_edges,
+    sparse_edge_lines,
 )
 from surfgen.generator.mesh.walls import extract_labelled
 from surfgen.generator.model.families import family_names
@@ -281,3 +283,48 @@ def test_realise_sparse_is_realise_dense(walls):
     assert a.mesh.vertices.tobytes() == b.mesh.vertices.tobytes()
     assert a.mesh.faces.tobytes() == b.mesh.faces.tobytes()
     assert a.walls == b.walls
+
+
+def test_edge_lines_are_the_dense_fields_samples():
+    """``sparse_edge_lines`` reads each edge's line (the sample before, its two, the one after;
+    the edge's own at the grid's ends) as the dense field holds it, samples no brick holds
+    included (evaluated: here some rows have them)."""
+    tree = parse("tan(3*x)+0.3*y-z")
+    grid = Grid(Box.cube(1.0), (41, 41, 41))
+    field = evaluate(tree, grid)
+    sf = evaluate_sparse(tree, grid, bounds=sample_bounds(field), block=4)
+    _, edges = extract_sparse_with_edges(sf)
+    lines = sparse_edge_lines(sf, edges, tree, {})
+    shape = np.asarray(grid.shape, dtype=np.int64)
+    slot, _, values, block = sf.lookup()
+    assert _edge_lines(np.ascontiguousarray(edges), shape, slot, values, block)[1].size > 0
+    want = np.zeros_like(lines)
+    for v, (axis, *at) in enumerate(edges.tolist()):
+        if axis < 0 or at[axis] + 1 >= shape[axis]:
+            continue
+        pos, length = at[axis], shape[axis]
+        for q, step in enumerate((-1 if pos else 0, 0, 1, 2 if pos + 2 < length else 1)):
+            ijk = list(at)
+            ijk[axis] += step
+            want[q, v] = field.values[tuple(ijk)]
+    on_edge = edges[:, 0] >= 0
+    np.testing.assert_array_equal(lines[:, on_edge], want[:, on_edge])
+
+
+@pytest.mark.parametrize("walls", [None, "keep"])
+def test_released_samples_give_the_same_mesh_and_refuse_reads(walls):
+    """``realise(..., keep_samples=False)`` frees a sparse field's samples once the meshing
+    has read them: the same mesh and walls, the same counts, and reading samples raises."""
+    spec = SurfaceSpec("tan(2*x)*0.1+sin(3*x)*cos(2*y)+sin(2*z)-0.2", (-1.5, 1.5) * 3, (36,) * 3)
+    kept = realise(spec, evaluator="sparse", cap=True, walls=walls)
+    freed = realise(spec, evaluator="sparse", cap=True, walls=walls, keep_samples=False)
+    assert not kept.field.released and freed.field.released
+    assert kept.mesh.vertices.tobytes() == freed.mesh.vertices.tobytes()
+    assert kept.mesh.faces.tobytes() == freed.mesh.faces.tobytes()
+    assert kept.walls == freed.walls
+    assert freed.field.nonfinite == kept.field.nonfinite
+    assert freed.field.points_evaluated == kept.field.points_evaluated
+    assert freed.field.nbytes < kept.field.nbytes
+    for read in (freed.field.sign_proxy, freed.field.any_inside, freed.field.lookup):
+        with pytest.raises(RuntimeError, match="released after meshing"):
+            read()

@@ -49,56 +49,6 @@ def test_a_forked_worker_leaves_what_it_inherited_out_of_its_collections() -> No
     assert result.status == "ok" and result.value > 1000
 
 
-def heap_probe(keep: bool) -> tuple[int, int]:
-    """In a fresh process (``keep``: after :func:`keep_freed_memory`), glibc's account
-    (``mallinfo2``) of a 20 MiB array, the MiB mapped apart for it; and of eight 16 MiB arrays
-    made then freed, the MiB of them the heap still holds as free memory."""
-    import ctypes
-
-    import numpy as np
-
-    from surfgen.pipelines.run.executor import keep_freed_memory
-
-    class Info(ctypes.Structure):
-        _fields_ = [
-            (name, ctypes.c_size_t)
-            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
-            + ("fsmblks", "uordblks", "fordblks", "keepcost")
-        ]
-
-    info = ctypes.CDLL(None).mallinfo2
-    info.restype = Info
-    if keep:
-        assert keep_freed_memory()
-    start = info()
-    block = np.ones(20 << 17)  # 20 MiB of float64
-    mapped = (info().hblkhd - start.hblkhd) >> 20
-    del block
-    blocks = [np.ones(16 << 17) for _ in range(8)]
-    alive = info()
-    del blocks
-    return mapped, (info().fordblks - alive.fordblks) >> 20
-
-
-def test_keep_freed_memory_takes_blocks_from_the_heap_and_keeps_them() -> None:
-    """A process that called ``keep_freed_memory`` makes a 20 MiB array in its heap, and keeps
-    the 128 MiB it frees for the next arrays; a fresh process maps such a block apart, and
-    gives the freed heap back beyond glibc's (dynamic) trim threshold."""
-    import subprocess
-    import sys
-
-    def probe(keep: bool) -> tuple[int, ...]:
-        code = f"from tests.pipelines.run.test_executor import heap_probe as p; print(*p({keep}))"
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-        assert done.returncode == 0, done.stderr
-        return tuple(int(v) for v in done.stdout.split())
-
-    mapped, retained = probe(True)
-    assert mapped == 0 and retained >= 120
-    mapped, retained = probe(False)
-    assert mapped >= 20 and retained < 120
-
-
 def marked(task: int) -> str:
     return os.environ.get("SURFGEN_TEST_KEPT", "")
 

@@ -1,0 +1,95 @@
+"""The C allocator's policies (:mod:`surfgen.generator.allocator`), seen through glibc's own
+account of its memory (``mallinfo2``) in fresh processes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+
+def heap_probe(policy: str) -> tuple[int, int, int]:
+    """In a fresh process under ``policy`` (``keep``, ``give`` or ``none``): the MiB glibc maps
+    apart for a 20 MiB array; of eight 16 MiB arrays made then freed, the MiB of them the heap
+    still holds as free memory; and the KiB mapped apart for a 1 MiB array made after a 20 MiB
+    one was freed (the dynamic threshold would have risen above it)."""
+    import ctypes
+
+    import numpy as np
+
+    from surfgen.generator.allocator import give_back_freed_memory, keep_freed_memory
+
+    class Info(ctypes.Structure):
+        _fields_ = [
+            (name, ctypes.c_size_t)
+            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
+            + ("fsmblks", "uordblks", "fordblks", "keepcost")
+        ]
+
+    info = ctypes.CDLL(None).mallinfo2
+    info.restype = Info
+    if policy == "keep":
+        assert keep_freed_memory()
+    elif policy == "give":
+        assert give_back_freed_memory()
+    start = info()
+    block = np.ones(20 << 17)  # 20 MiB of float64
+    mapped = (info().hblkhd - start.hblkhd) >> 20
+    del block
+    blocks = [np.ones(16 << 17) for _ in range(8)]
+    alive = info()
+    del blocks
+    retained = (info().fordblks - alive.fordblks) >> 20
+    before = info().hblkhd
+    small = np.ones(1 << 17)  # 1 MiB
+    small_mapped = (info().hblkhd - before) >> 10
+    del small
+    return mapped, retained, small_mapped
+
+
+def probe(policy: str) -> tuple[int, ...]:
+    code = f"from tests.generator.test_allocator import heap_probe as p; print(*p({policy!r}))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return tuple(int(v) for v in done.stdout.split())
+
+
+def test_keep_freed_memory_takes_blocks_from_the_heap_and_keeps_them() -> None:
+    """A process that called ``keep_freed_memory`` makes a 20 MiB array in its heap, and keeps
+    the 128 MiB it frees for the next arrays; a fresh process maps such a block apart, and
+    gives the freed heap back beyond glibc's (dynamic) trim threshold."""
+    mapped, retained, _ = probe("keep")
+    assert mapped == 0 and retained >= 120
+    mapped, retained, _ = probe("none")
+    assert mapped >= 20 and retained < 120
+
+
+def test_give_back_freed_memory_maps_blocks_apart_and_keeps_nothing() -> None:
+    """After ``give_back_freed_memory`` a 1 MiB array is mapped apart even after a 20 MiB one
+    was freed (glibc's dynamic threshold, left alone, takes it from the heap then), and the
+    freed arrays leave nothing in the heap."""
+    mapped, retained, small = probe("give")
+    assert mapped >= 20 and retained == 0 and small >= 1024
+    _, _, small = probe("none")
+    assert small == 0
+
+
+@pytest.mark.parametrize("command", ["render", "export"])
+def test_one_shot_commands_give_freed_memory_back(command, monkeypatch, tmp_path) -> None:
+    """``render`` and ``export`` set the give-back policy before their work (a stand-in sees
+    the call; the command then fails on its missing input, after the call)."""
+    from typer.testing import CliRunner
+
+    from surfgen.pipelines.cli import export as export_cli
+    from surfgen.pipelines.cli import render as render_cli
+    from surfgen.pipelines.cli.main import app
+
+    calls: list[str] = []
+    module = render_cli if command == "render" else export_cli
+    monkeypatch.setattr(module, "give_back_freed_memory", lambda: calls.append(command))
+    missing = str(tmp_path / "missing")
+    args = ["render", "--spec", f"{missing}.json"] if command == "render" else [
+        "export", "no-such-key", "-C", missing, "-o", str(tmp_path / "out")]  # fmt: skip
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code != 0 and calls == [command]
