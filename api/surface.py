@@ -20,7 +20,7 @@ import numpy as np
 from surfgen.display import facts_html, picture, png_of, shorten, to_trimesh
 from surfgen.generator.errors import FormulaError, SpecError, SurfgenError
 from surfgen.generator.eval.evaluate import evaluate
-from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.formula.limits import MAX_SPEC_FILE_BYTES, read_text_file
 from surfgen.generator.interop.mathmod import load_model, parse_script, read_script
 from surfgen.generator.model.presets import get_preset
@@ -404,6 +404,7 @@ class Surface:
         surface = self._on(grid)
         made = surface._realised(self.cap if cap is None else cap, self.walls or "keep", "fast")
         assert made.mesh is not None and made.walls is not None
+        assert isinstance(made.field, Field)  # the "fast" evaluator: every grid point
         spec = surface.spec
         out: dict[str, Any] = {"nonfinite": made.field.nonfinite}
         if self._draw is not None and self._draw.envelope is not None:

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from surfgen.generator.allocator import give_back_freed_memory
+from surfgen.generator.allocator import one_shot_memory_policy
 from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, MARKABLE, PRINTABLE
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE
@@ -91,7 +91,7 @@ def export_command(
         longest_side,
     )
 
-    give_back_freed_memory()  # one pass over the shapes: a fine regrid's steps freed at once
+    one_shot_memory_policy()  # one pass over the shapes: a fine regrid's steps freed at once
     limit = parse_size(max_memory) if max_memory is not None else None
 
     if fmt.lower() in SCRIPT_FORMATS:  # the formula itself, for MathMod or K3DSurf

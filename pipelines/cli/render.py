@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 
 from surfgen import Catalogue
-from surfgen.generator.allocator import give_back_freed_memory
+from surfgen.generator.allocator import one_shot_memory_policy
 from surfgen.generator.errors import SpecError
 from surfgen.generator.formula.limits import parse_size
 from surfgen.generator.mesh.formats import MESH_SUFFIXES
@@ -88,7 +88,7 @@ def render(
     from surfgen.pipelines.export.render import build_spec, render_spec
     from surfgen.pipelines.run.warmup import compile_first
 
-    give_back_freed_memory()  # one shape, each step's arrays made once: its peak, no more
+    one_shot_memory_policy()  # one shape, each step's arrays made once: its peak, no more
     limit = parse_size(max_memory) if max_memory is not None else None
     if mathmod is not None:
         render_mathmod(

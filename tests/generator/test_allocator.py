@@ -18,7 +18,7 @@ def heap_probe(policy: str) -> tuple[int, int, int]:
 
     import numpy as np
 
-    from surfgen.generator.allocator import give_back_freed_memory, keep_freed_memory
+    from surfgen.generator.allocator import keep_freed_memory, one_shot_memory_policy
 
     class Info(ctypes.Structure):
         _fields_ = [
@@ -32,7 +32,7 @@ def heap_probe(policy: str) -> tuple[int, int, int]:
     if policy == "keep":
         assert keep_freed_memory()
     elif policy == "give":
-        assert give_back_freed_memory()
+        assert one_shot_memory_policy()
     start = info()
     block = np.ones(20 << 17)  # 20 MiB of float64
     mapped = (info().hblkhd - start.hblkhd) >> 20
@@ -65,8 +65,8 @@ def test_keep_freed_memory_takes_blocks_from_the_heap_and_keeps_them() -> None:
     assert mapped >= 20 and retained < 120
 
 
-def test_give_back_freed_memory_maps_blocks_apart_and_keeps_nothing() -> None:
-    """After ``give_back_freed_memory`` a 1 MiB array is mapped apart even after a 20 MiB one
+def test_one_shot_memory_policy_maps_blocks_apart_and_keeps_nothing() -> None:
+    """After ``one_shot_memory_policy`` a 1 MiB array is mapped apart even after a 20 MiB one
     was freed (glibc's dynamic threshold, left alone, takes it from the heap then), and the
     freed arrays leave nothing in the heap."""
     mapped, retained, small = probe("give")
@@ -87,9 +87,47 @@ def test_one_shot_commands_give_freed_memory_back(command, monkeypatch, tmp_path
 
     calls: list[str] = []
     module = render_cli if command == "render" else export_cli
-    monkeypatch.setattr(module, "give_back_freed_memory", lambda: calls.append(command))
+    monkeypatch.setattr(module, "one_shot_memory_policy", lambda: calls.append(command))
     missing = str(tmp_path / "missing")
     args = ["render", "--spec", f"{missing}.json"] if command == "render" else [
         "export", "no-such-key", "-C", missing, "-o", str(tmp_path / "out")]  # fmt: skip
     result = CliRunner().invoke(app, args)
     assert result.exit_code != 0 and calls == [command]
+
+
+def _numpy_advice(enabled: bool) -> bool:
+    """Set numpy's huge-page advice; returns what it was."""
+    import numpy as np
+
+    core = getattr(np, "_core", None) or np.core
+    return bool(core.multiarray._set_madvise_hugepage(enabled))
+
+
+@pytest.mark.parametrize(
+    ("setting", "off"),
+    [
+        ("always defer defer+madvise [madvise] never", True),
+        ("[always] defer defer+madvise madvise never", True),
+        ("always defer [defer+madvise] madvise never", True),
+        ("always [defer] defer+madvise madvise never", False),
+        ("always defer defer+madvise madvise [never]", False),
+    ],
+)
+def test_huge_page_advice_is_off_where_faults_would_compact(setting, off, tmp_path, monkeypatch):
+    """numpy's huge-page advice goes off exactly where the kernel's defrag setting compacts
+    memory on a fault in an advised region; a user's NUMPY_MADVISE_HUGEPAGE is left alone."""
+    from surfgen.generator.allocator import no_huge_page_stalls, thp_defrag
+
+    monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
+    path = tmp_path / "defrag"
+    path.write_text(setting + "\n")
+    assert thp_defrag(path) == setting.split("[")[1].split("]")[0]
+    before = _numpy_advice(True)
+    try:
+        assert no_huge_page_stalls(path) is off
+        assert _numpy_advice(True) is (not off)  # the advice as the call left it
+        monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", "1")
+        assert no_huge_page_stalls(path) is False and _numpy_advice(True) is True
+    finally:
+        _numpy_advice(before)
+    assert thp_defrag(tmp_path / "missing") is None
