@@ -71,8 +71,8 @@ def extract_sparse_with_edges(
     ``faces=True``.  ``threads`` (None: numba's count) run the marching of large surfaces in
     runs of planes (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the same
     mesh).  ``release``: free the samples (:meth:`SparseField.release_samples`) once their
-    offsets are made, before the cells and the mesh (a third of what a 512^3 render holds at
-    its peak).  Raises :class:`EmptySurface` when every sample is inside or every one is
+    offsets are made, before the cells and the mesh (sculpture-5 at 512^3: 42 of the 148 MiB
+    the run added).  Raises :class:`EmptySurface` when every sample is inside or every one is
     outside."""
     level = sf.level
     if not sf.any_inside():
