@@ -10,15 +10,17 @@ import logging
 import os
 import struct
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 
 from surfgen.generator.errors import MeshError
 from surfgen.generator.files import write_atomic
 from surfgen.generator.mesh.formats import FORMATS, MESH_SUFFIXES, Format
 from surfgen.generator.mesh.mesh import FACE_KINDS, JUMP, POLE, ROOT, Mesh
+
+if TYPE_CHECKING:
+    import trimesh
 
 logger = logging.getLogger(__name__)
 
@@ -28,6 +30,16 @@ KIND_COLOURS = np.array(
     dtype=np.uint8,
 )
 MAX_MESH_FILE_BYTES = 4 << 30  # 4 GiB: ~100 M faces of binary PLY
+
+
+def _trimesh() -> Any:
+    """trimesh, imported when a file is first written or read: with scipy and networkx it adds
+    about 60 MiB to a process, which ``render`` would otherwise hold through its meshing too
+    (the whole command's peak for a 512^3 sculpture: 363 -> 338 MiB). The sampler's warm-up
+    loads it before the workers fork."""
+    import trimesh  # deferred: see the docstring
+
+    return trimesh
 
 
 def mesh_format(path: str | os.PathLike) -> Format:
@@ -52,7 +64,7 @@ def encode_mesh(mesh: Mesh, fmt: Format | str) -> bytes:
     (:data:`KIND_COLOURS`; a vertex takes the colour of a wall if any face around it is one).
     """
     fmt = FORMATS[fmt] if isinstance(fmt, str) else fmt
-    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    tm = _trimesh().Trimesh(mesh.vertices, mesh.faces, process=False)
     if mesh.face_kinds is not None and fmt.marks_walls:
         _add_kinds(tm, mesh)
     data = tm.export(file_type=fmt.trimesh_type, **dict(fmt.options))
@@ -132,7 +144,7 @@ def _add_kinds(tm: trimesh.Trimesh, mesh: Mesh) -> None:
     best = np.zeros(mesh.n_vertices, dtype=np.int64)
     np.maximum.at(best, mesh.faces.reshape(-1), np.repeat(rank, 3))
     vertex_kind = np.array([ROOT, JUMP, POLE])[best]
-    tm.visual = trimesh.visual.ColorVisuals(
+    tm.visual = _trimesh().visual.ColorVisuals(
         tm, face_colors=KIND_COLOURS[kinds], vertex_colors=KIND_COLOURS[vertex_kind]
     )
 
@@ -175,7 +187,7 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     if fmt.name == "obj":
         _check_obj_indices(path)
     try:
-        loaded = trimesh.load(path, file_type=fmt.trimesh_type, force="mesh", process=False)
+        loaded = _trimesh().load(path, file_type=fmt.trimesh_type, force="mesh", process=False)
     # trimesh's readers fail on corrupt files with assorted exception types; all mean "unreadable".
     except Exception as exc:
         raise MeshError(f"cannot read '{path}' as {path.suffix.lower()[1:]}: {exc}") from exc

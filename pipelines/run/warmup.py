@@ -375,12 +375,15 @@ def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
 
 def _warm_extras(field, mesh) -> None:
     """The pictures' and the infill's struts' kernels on the tiny shape (``mesh``: its
-    surface)."""
+    surface), and the mesh files' writer (trimesh, which the writer imports when first used:
+    loaded here, the forked workers inherit it)."""
+    from surfgen.generator.mesh.exchange import encode_mesh
     from surfgen.generator.model.ridges import ridge_distances
     from surfgen.pipelines.pictures.raster import render_image
 
     render_image(mesh, size=16)
     ridge_distances(field.values < 0.0, 2, 8)  # the infill's struts
+    encode_mesh(mesh, "ply")
 
 
 def _warm_carving(field) -> None:

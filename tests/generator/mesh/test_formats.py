@@ -98,3 +98,28 @@ def test_only_markable_formats_carry_kinds(tmp_path, torus_mesh: Mesh) -> None:
     path = tmp_path / "m.ply"
     path.write_bytes(encode_mesh(marked, "ply"))
     assert np.array_equal(load_mesh(path).face_kinds, kinds)
+
+
+def test_trimesh_is_loaded_when_a_file_is_first_written():
+    """``render``'s path evaluates and meshes without trimesh (60 MiB with scipy, which the
+    command would hold through its meshing); the first file written loads it; the sampler's
+    warm-up loads it before its workers fork."""
+    import subprocess
+    import sys
+
+    made = (
+        "import sys\n"
+        "import surfgen.pipelines.export.render\n"
+        "from surfgen.generator.mesh.realise import realise\n"
+        "from surfgen.generator.model.spec import SurfaceSpec\n"
+        "made = realise(SurfaceSpec('x^2+y^2+z^2-1', (-1.5, 1.5) * 3, (12,) * 3))\n"
+        "print('trimesh' in sys.modules)\n"
+    )
+    written = "from surfgen.generator.mesh.exchange import encode_mesh\n"
+    written += "encode_mesh(made.mesh, 'ply')\nprint('trimesh' in sys.modules)\n"
+    warmed = "from surfgen.pipelines.run.warmup import _warm_extras\n"
+    warmed += "_warm_extras(made.field, made.mesh)\nprint('trimesh' in sys.modules)\n"
+    for code, want in ((made + written, ["False", "True"]), (made + warmed, ["False", "True"])):
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.split() == want
