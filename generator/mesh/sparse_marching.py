@@ -143,7 +143,7 @@ def sparse_edge_lines(
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     shape = np.asarray(sf.grid.shape, dtype=np.int64)
     slot, corner, values, block = sf.lookup()
-    line, short = _edge_lines(edges, shape, slot, values, block)
+    line, short = _edge_lines(edges, shape, slot, corner, sf.extent, values, block)
     if short.size:
         flat, ijk = _missing_points(edges, shape, slot, block, short)
         ax, ay, az = sf.grid.axes()
@@ -296,17 +296,27 @@ def _line_position(edges, v, q, shape):
 
 
 @njit(**KERNEL)
-def _edge_lines(edges, shape, slot, values, block):
+def _edge_lines(edges, shape, slot, corner, extent, values, block):
     """F at :func:`_line_position` of every row where a brick holds it (0 elsewhere), ``(4,
     V)``, and the rows on an edge with a sample no brick holds (few: their positions are
-    listed by :func:`_missing_points`, not stored for the millions of rows of a fine mesh)."""
+    listed by :func:`_missing_points`, not stored for the millions of rows of a fine mesh).
+    A row's four samples are neighbours, and the rows come in marching cubes' order: a sample
+    is read from the brick that held the one before when that brick holds it too (every brick
+    holding a point holds its value), else found by :func:`locate`: a third of the time."""
     n = edges.shape[0]
     line = np.zeros((4, n))
     short = np.zeros(n, dtype=np.bool_)
-    for v in range(n):  # a row's four samples are neighbours: mostly in one brick
+    s = -1
+    c0 = c1 = c2 = e0 = e1 = e2 = 0
+    for v in range(n):
         for q in range(4):
             i, j, k = _line_position(edges, v, q, shape)
-            s, a, b, c = locate(slot, block, i, j, k)
+            a, b, c = i - c0, j - c1, k - c2
+            if not (s >= 0 and 0 <= a < e0 and 0 <= b < e1 and 0 <= c < e2):
+                s, a, b, c = locate(slot, block, i, j, k)
+                if s >= 0:
+                    c0, c1, c2 = corner[s, 0], corner[s, 1], corner[s, 2]
+                    e0, e1, e2 = extent[s, 0], extent[s, 1], extent[s, 2]
             if s >= 0:
                 line[q, v] = values[s, a, b, c]
             elif edges[v, 0] >= 0:

@@ -296,8 +296,9 @@ def test_edge_lines_are_the_dense_fields_samples():
     _, edges = extract_sparse_with_edges(sf)
     lines = sparse_edge_lines(sf, edges, tree, {})
     shape = np.asarray(grid.shape, dtype=np.int64)
-    slot, _, values, block = sf.lookup()
-    assert _edge_lines(np.ascontiguousarray(edges), shape, slot, values, block)[1].size > 0
+    slot, corner, values, block = sf.lookup()
+    rows = _edge_lines(np.ascontiguousarray(edges), shape, slot, corner, sf.extent, values, block)
+    assert rows[1].size > 0
     want = np.zeros_like(lines)
     for v, (axis, *at) in enumerate(edges.tolist()):
         if axis < 0 or at[axis] + 1 >= shape[axis]:
