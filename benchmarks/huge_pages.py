@@ -23,8 +23,8 @@ from surfgen.generator.allocator import thp_defrag
 _CHILD = r"""
 import sys, time
 import numpy as np
-core = getattr(np, "_core", None) or np.core
-core.multiarray._set_madvise_hugepage(sys.argv[1] == "on")
+from surfgen.generator.allocator import numpy_huge_page_advice
+numpy_huge_page_advice(sys.argv[1] == "on")
 n = int(sys.argv[2]) << 16  # float64 values in half the MiB
 start = time.perf_counter()
 a, b = np.ones(n), np.ones(n)

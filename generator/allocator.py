@@ -50,7 +50,7 @@ def _mallopt(settings: tuple[tuple[int, int], ...]) -> bool:
     except (OSError, AttributeError, TypeError):  # no C library by that name (Windows: None)
         return False
     mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    return all([mallopt(param, value) == 1 for param, value in settings])
+    return all([mallopt(param, value) == 1 for param, value in settings])  # every one set
 
 
 def keep_freed_memory() -> bool:
@@ -97,6 +97,14 @@ def thp_defrag(path: Path = THP_DEFRAG) -> str | None:
     return text[start + 1 : end] if 0 <= start < end else None
 
 
+def numpy_huge_page_advice(enabled: bool) -> bool | None:
+    """Turn numpy's huge-page advice for its large arrays on or off; returns what it was, or
+    None where this numpy has no such switch (then nothing changed)."""
+    core = getattr(np, "_core", None) or np.core  # numpy 2 / 1.26
+    setter = getattr(core.multiarray, "_set_madvise_hugepage", None)
+    return None if setter is None else bool(setter(enabled))
+
+
 def no_huge_page_stalls(path: Path = THP_DEFRAG) -> bool:
     """Stop numpy advising huge pages for its large arrays where the kernel would compact
     memory synchronously to honour the advice (:data:`STALLING_DEFRAG`; the module's
@@ -104,9 +112,4 @@ def no_huge_page_stalls(path: Path = THP_DEFRAG) -> bool:
     advice is now off."""
     if "NUMPY_MADVISE_HUGEPAGE" in os.environ or thp_defrag(path) not in STALLING_DEFRAG:
         return False
-    core = getattr(np, "_core", None) or np.core  # numpy 2 / 1.26
-    setter = getattr(core.multiarray, "_set_madvise_hugepage", None)
-    if setter is None:
-        return False
-    setter(False)
-    return True
+    return numpy_huge_page_advice(False) is not None

@@ -10,7 +10,7 @@ import pytest
 
 
 def heap_probe(policy: str) -> tuple[int, int, int]:
-    """In a fresh process under ``policy`` (``keep``, ``give`` or ``none``): the MiB glibc maps
+    """In a fresh process under ``policy`` (``keep``, ``one_shot`` or ``none``): the MiB glibc maps
     apart for a 20 MiB array; of eight 16 MiB arrays made then freed, the MiB of them the heap
     still holds as free memory; and the KiB mapped apart for a 1 MiB array made after a 20 MiB
     one was freed (the dynamic threshold would have risen above it)."""
@@ -31,7 +31,7 @@ def heap_probe(policy: str) -> tuple[int, int, int]:
     info.restype = Info
     if policy == "keep":
         assert keep_freed_memory()
-    elif policy == "give":
+    elif policy == "one_shot":
         assert one_shot_memory_policy()
     start = info()
     block = np.ones(20 << 17)  # 20 MiB of float64
@@ -69,7 +69,7 @@ def test_one_shot_memory_policy_maps_blocks_apart_and_keeps_nothing() -> None:
     """After ``one_shot_memory_policy`` a 1 MiB array is mapped apart even after a 20 MiB one
     was freed (glibc's dynamic threshold, left alone, takes it from the heap then), and the
     freed arrays leave nothing in the heap."""
-    mapped, retained, small = probe("give")
+    mapped, retained, small = probe("one_shot")
     assert mapped >= 20 and retained == 0 and small >= 1024
     _, _, small = probe("none")
     assert small == 0
@@ -95,14 +95,6 @@ def test_one_shot_commands_give_freed_memory_back(command, monkeypatch, tmp_path
     assert result.exit_code != 0 and calls == [command]
 
 
-def _numpy_advice(enabled: bool) -> bool:
-    """Set numpy's huge-page advice; returns what it was."""
-    import numpy as np
-
-    core = getattr(np, "_core", None) or np.core
-    return bool(core.multiarray._set_madvise_hugepage(enabled))
-
-
 @pytest.mark.parametrize(
     ("setting", "off"),
     [
@@ -116,18 +108,22 @@ def _numpy_advice(enabled: bool) -> bool:
 def test_huge_page_advice_is_off_where_faults_would_compact(setting, off, tmp_path, monkeypatch):
     """numpy's huge-page advice goes off exactly where the kernel's defrag setting compacts
     memory on a fault in an advised region; a user's NUMPY_MADVISE_HUGEPAGE is left alone."""
-    from surfgen.generator.allocator import no_huge_page_stalls, thp_defrag
+    from surfgen.generator.allocator import (
+        no_huge_page_stalls,
+        numpy_huge_page_advice,
+        thp_defrag,
+    )
 
     monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
     path = tmp_path / "defrag"
     path.write_text(setting + "\n")
     assert thp_defrag(path) == setting.split("[")[1].split("]")[0]
-    before = _numpy_advice(True)
+    before = numpy_huge_page_advice(True)
     try:
         assert no_huge_page_stalls(path) is off
-        assert _numpy_advice(True) is (not off)  # the advice as the call left it
+        assert numpy_huge_page_advice(True) is (not off)  # the advice as the call left it
         monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", "1")
-        assert no_huge_page_stalls(path) is False and _numpy_advice(True) is True
+        assert no_huge_page_stalls(path) is False and numpy_huge_page_advice(True) is True
     finally:
-        _numpy_advice(before)
+        numpy_huge_page_advice(before)
     assert thp_defrag(tmp_path / "missing") is None
