@@ -38,6 +38,7 @@ import numba
 import numpy as np
 from numba import njit
 
+from surfgen.generator.allocator import scratch_kept
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import grid_point_bounds
@@ -265,7 +266,8 @@ def evaluate_sparse_program(
     axes = grid.axes()
     if bounds is None:
         bounds = grid_point_bounds(axes)
-    state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
+    with scratch_kept():
+        state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
     if faces:
         sample_face_leaves(state)
     t1 = time.perf_counter()
@@ -440,17 +442,18 @@ def _sample_and_decide(
     workers = thread_count(threads)
     rows = nonfinite = 0
     run = None
-    for c0 in range(0, n, CHUNK_BRICKS):
-        c1 = min(n, c0 + CHUNK_BRICKS)
-        run, ext, at = values[rows : rows + c1 - c0], extent[c0:c1], corner[c0:c1]
-        run[np.flatnonzero(np.any(ext <= block, axis=1))] = np.nan  # past the grid: defined
-        evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers)
-        nonfinite += _sides(run, ext, at, slot, block, c0, level, sides[c0:c1])
-        kept = sides[c0:c1] == _MIXED
-        if faces:  # a cap's vertices need the inside samples on the box's faces
-            kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
-        keep[c0:c1] = kept
-        rows += _move_down(run, np.flatnonzero(kept))
+    with scratch_kept():  # the columns' temporaries reused, not mapped afresh for each
+        for c0 in range(0, n, CHUNK_BRICKS):
+            c1 = min(n, c0 + CHUNK_BRICKS)
+            run, ext, at = values[rows : rows + c1 - c0], extent[c0:c1], corner[c0:c1]
+            run[np.flatnonzero(np.any(ext <= block, axis=1))] = np.nan  # past the grid: defined
+            evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers)
+            nonfinite += _sides(run, ext, at, slot, block, c0, level, sides[c0:c1])
+            kept = sides[c0:c1] == _MIXED
+            if faces:  # a cap's vertices need the inside samples on the box's faces
+                kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
+            keep[c0:c1] = kept
+            rows += _move_down(run, np.flatnonzero(kept))
     held = [values]
     del run, values  # no other reference: the array can then be resized in place
     return _shrunk(held, rows), sides, keep, int(nonfinite)

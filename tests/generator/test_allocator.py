@@ -48,8 +48,46 @@ def heap_probe(policy: str) -> tuple[int, int, int]:
     return mapped, retained, small_mapped
 
 
-def probe(policy: str) -> tuple[int, ...]:
-    code = f"from tests.generator.test_allocator import heap_probe as p; print(*p({policy!r}))"
+def scratch_probe(policy: str) -> tuple[int, int, int, int]:
+    """In a fresh process under ``policy`` (``one_shot`` or ``none``), within
+    ``scratch_kept``: the KiB mapped apart for a 1 MiB array, and the MiB the heap holds free
+    once eight 2 MiB arrays are freed; after it: the KiB mapped apart for a 1 MiB array, and
+    the MiB the heap still holds free."""
+    import ctypes
+
+    import numpy as np
+
+    from surfgen.generator.allocator import one_shot_memory_policy, scratch_kept
+
+    class Info(ctypes.Structure):
+        _fields_ = [
+            (name, ctypes.c_size_t)
+            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
+            + ("fsmblks", "uordblks", "fordblks", "keepcost")
+        ]
+
+    info = ctypes.CDLL(None).mallinfo2
+    info.restype = Info
+    if policy == "one_shot":
+        assert one_shot_memory_policy()
+    with scratch_kept():
+        before = info().hblkhd
+        small = np.ones(1 << 17)  # 1 MiB
+        inside_mapped = (info().hblkhd - before) >> 10
+        del small
+        blocks = [np.ones(1 << 18) for _ in range(8)]  # 2 MiB each
+        alive = info().fordblks
+        del blocks
+        kept = (info().fordblks - alive) >> 20
+    before = info().hblkhd
+    small = np.ones(1 << 17)
+    after_mapped = (info().hblkhd - before) >> 10
+    del small
+    return inside_mapped, kept, after_mapped, info().fordblks >> 20
+
+
+def probe(policy: str, name: str = "heap_probe") -> tuple[int, ...]:
+    code = f"from tests.generator.test_allocator import {name} as p; print(*p({policy!r}))"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     return tuple(int(v) for v in done.stdout.split())
@@ -73,6 +111,17 @@ def test_one_shot_memory_policy_maps_blocks_apart_and_keeps_nothing() -> None:
     assert mapped >= 20 and retained == 0 and small >= 1024
     _, _, small = probe("none")
     assert small == 0
+
+
+def test_scratch_kept_reuses_freed_memory_then_gives_it_back() -> None:
+    """Under the one-shot policy, ``scratch_kept`` takes a 1 MiB array from the heap and keeps
+    what is freed within it for the next ones; after it, such an array is mapped apart again
+    and the heap's free memory is given back. Without the policy it changes nothing."""
+    inside_mapped, kept, after_mapped, free_after = probe("one_shot", "scratch_probe")
+    assert inside_mapped == 0 and kept >= 14
+    assert after_mapped >= 1024 and free_after < 2
+    inside_mapped, kept, _, _ = probe("none", "scratch_probe")
+    assert inside_mapped >= 1024 and kept == 0
 
 
 @pytest.mark.parametrize("command", ["render", "export"])
