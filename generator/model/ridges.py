@@ -70,17 +70,36 @@ def _lower_envelope(f, n, out, v, z):
 
 
 @njit(**KERNEL)
-def _envelopes_along_last(a, line, res, v, z):
-    """:func:`_lower_envelope` along the last axis of every line of the 3-d ``a``, in place
-    (``line``, ``res``, ``v``, ``z``: scratch)."""
-    n0, n1, n = a.shape
-    for i in range(n0):
+def _envelopes_along(a, axis, line, res, v, z):
+    """:func:`_lower_envelope` along ``axis`` of every line of the 3-d ``a``, in place
+    (``line``, ``res``, ``v``, ``z``: scratch). Indexed in place rather than through a
+    transposed view: numba's ``transpose`` compiles its shape error's message (1.7 s of a cold
+    warm-up) and a second signature of the kernel for the views' layout."""
+    n0, n1, n2 = a.shape
+    if axis == 2:
+        for i in range(n0):
+            for j in range(n1):
+                for k in range(n2):
+                    line[k] = a[i, j, k]
+                _lower_envelope(line, n2, res, v, z)
+                for k in range(n2):
+                    a[i, j, k] = res[k]
+    elif axis == 1:
+        for i in range(n0):
+            for k in range(n2):
+                for j in range(n1):
+                    line[j] = a[i, j, k]
+                _lower_envelope(line, n1, res, v, z)
+                for j in range(n1):
+                    a[i, j, k] = res[j]
+    else:
         for j in range(n1):
-            for k in range(n):
-                line[k] = a[i, j, k]
-            _lower_envelope(line, n, res, v, z)
-            for k in range(n):
-                a[i, j, k] = res[k]
+            for k in range(n2):
+                for i in range(n0):
+                    line[i] = a[i, j, k]
+                _lower_envelope(line, n0, res, v, z)
+                for i in range(n0):
+                    a[i, j, k] = res[i]
 
 
 @njit(**KERNEL)
@@ -94,10 +113,8 @@ def _ridge_distances(phase, lo, hi):
         for j in range(n1):
             for k in range(n2):
                 sq[i, j, k] = np.inf if phase[i, j, k] else 0.0
-    # along z, then y, then x: each axis brought last by a view
-    _envelopes_along_last(sq, line, res, v, z)
-    _envelopes_along_last(sq.transpose((0, 2, 1)), line, res, v, z)
-    _envelopes_along_last(sq.transpose((1, 2, 0)), line, res, v, z)
+    for axis in (2, 1, 0):  # along z, then y, then x (one call site: one compile)
+        _envelopes_along(sq, axis, line, res, v, z)
     # the ridge compared on the squares (whole numbers: their roots order as they do)
     out = np.empty(max(hi - lo, 0) ** 3)
     m = 0

@@ -66,13 +66,15 @@ def warm_grid_kernel() -> None:
 
 def warm_first_in_child() -> None:
     """The first child's part of a parallel warm-up: the interpreter, the grid kernel and the
-    fine band's evaluation (which calls it), the resolution check's distances, then the
-    pictures' and the infill's struts' kernels (:func:`_warm_extras`), while the other child
-    (:func:`warm_in_child`) compiles the rest. No mesh kernel is run here: the distances and
-    the pictures get the tiny shape's mesh from scikit-image's marching cubes, since the other
-    child may not have cached surfgen's yet (two processes compiling the same kernel do the
-    work twice). Balanced by the children's end times on a 2-core Xeon (32.1 s here, 33.4 s
-    there; 35.9 and 31.9 s before this one compiled the rows of equation (13) only)."""
+    fine band's evaluation (which calls it), the resolution check's distances, the pictures'
+    and the infill's struts' kernels (:func:`_warm_extras`), then the shape descriptor's,
+    while the other child (:func:`warm_in_child`) compiles the rest. No mesh
+    kernel is run here: the distances, the pictures and the descriptor get the tiny shape's
+    mesh from scikit-image's marching cubes, since the other child may not have cached
+    surfgen's yet (two processes compiling the same kernel do the work twice). Balanced by the
+    children's times on a 2-core Xeon, each run alone: 31.4-31.8 s here, 32.1-32.5 s there
+    (32.7-32.9 and 31.0 s with the carving here too)."""
+    from surfgen.filters.descriptor import descriptor
     from surfgen.filters.resolution import warm_band, warm_distances
 
     with _collector_paused(collect=False):
@@ -82,6 +84,7 @@ def warm_first_in_child() -> None:
         mesh = _skimage_mesh(field)
         warm_distances(mesh, field.grid)  # the resolution check's distances
         _warm_extras(field, mesh)
+        descriptor(mesh)
 
 
 def _skimage_mesh(field: Field):
@@ -108,7 +111,8 @@ def warm_in_child() -> None:
         tree, box, field = _tiny_shape("reference")
         # "mark": the faces labelled, as the sampler's "keep" labels them where it finds walls
         # (here the classification is compiled, not run: it finds none)
-        _warm_measures(field, box, _warm_mesh(field, tree, "mark"), tree, resolution=False)
+        mesh = _warm_mesh(field, tree, "mark")
+        _warm_measures(field, box, mesh, tree, resolution=False, descriptor=False)
         _warm_rare_mesh(field)
         _warm_carving(field)
 
@@ -357,18 +361,22 @@ def _warm_the_rest(field, box, mesh, tree) -> None:
     _warm_extras(field, mesh)
 
 
-def _warm_measures(field, box, mesh, tree, resolution: bool = True) -> None:
-    """The filters', the descriptor's and (with ``resolution``) the resolution check's kernels
-    on the tiny shape; the warm-up's other child leaves the resolution check out (the first one
-    compiles its fine band and its distances, this one the sparse marching)."""
-    from surfgen.filters.descriptor import descriptor
+def _warm_measures(
+    field, box, mesh, tree, resolution: bool = True, descriptor: bool = True
+) -> None:
+    """The filters', (with ``descriptor``) the descriptor's and (with ``resolution``) the
+    resolution check's kernels on the tiny shape; the warm-up's other child leaves both out
+    (the first one compiles the descriptor, the fine band and the distances, this one the
+    sparse marching)."""
+    from surfgen.filters import descriptor as shape_descriptor
     from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
 
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))
-    descriptor(mesh)
+    if descriptor:
+        shape_descriptor.descriptor(mesh)
     if resolution:
         warm_kernels(tree, field, mesh)
 
