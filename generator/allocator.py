@@ -13,7 +13,9 @@ Two kinds of process want the opposite policies:
 * a one-shot command on a fine grid (:func:`one_shot_memory_policy`: ``render``, ``export``)
   makes each step's arrays once: what it frees should leave its resident size, which is the
   process's peak, at once (a 512^3 sparse render: a quarter of what it adds, measured), and
-  its fresh arrays should not stall for huge pages (below).
+  its fresh arrays should not stall for huge pages (below). Within such a command, a loop
+  that makes and frees the same small arrays again and again (the sparse evaluator's columns)
+  runs under the first policy for its duration (:func:`scratch_kept`).
 
 Both return whether the allocator took the settings (glibc's; other C libraries are left as
 they are).  ``numpy`` and numba's runtime allocate through ``malloc``: both follow the policy.
