@@ -46,6 +46,8 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 HEAP_BELOW = 32 << 20  # bytes: smaller blocks from the heap (glibc's largest mmap threshold)
 KEEP_FREED = 1 << 30  # bytes of freed heap kept for the next blocks, not given back
 GIVE_BACK_FROM = 128 << 10  # bytes: glibc's own starting thresholds, then held fixed
+_KEEP = ((_M_MMAP_THRESHOLD, HEAP_BELOW), (_M_TRIM_THRESHOLD, KEEP_FREED))
+_GIVE_BACK = ((_M_MMAP_THRESHOLD, GIVE_BACK_FROM), (_M_TRIM_THRESHOLD, GIVE_BACK_FROM))
 
 
 # Whether this process gives freed memory back (:func:`one_shot_memory_policy` took effect).
@@ -71,7 +73,7 @@ def keep_freed_memory() -> bool:
     below :data:`HEAP_BELOW` then come from the heap, and up to :data:`KEEP_FREED` of freed heap
     stays mapped: a worker's resident size stays near its peak (the shapes' largest arrays),
     which it reaches anyway."""
-    return _mallopt(((_M_MMAP_THRESHOLD, HEAP_BELOW), (_M_TRIM_THRESHOLD, KEEP_FREED)))
+    return _mallopt(_KEEP)
 
 
 def one_shot_memory_policy() -> bool:
@@ -87,14 +89,6 @@ def one_shot_memory_policy() -> bool:
     global _giving_back
     no_huge_page_stalls()
     _giving_back = _mallopt(_GIVE_BACK)
-    return _giving_back
-
-
-_GIVE_BACK = ((_M_MMAP_THRESHOLD, GIVE_BACK_FROM), (_M_TRIM_THRESHOLD, GIVE_BACK_FROM))
-
-
-def giving_back() -> bool:
-    """Whether :func:`one_shot_memory_policy` is in force in this process."""
     return _giving_back
 
 
@@ -114,7 +108,7 @@ def scratch_kept() -> Iterator[None]:
     if not _giving_back:
         yield
         return
-    _mallopt(((_M_MMAP_THRESHOLD, HEAP_BELOW), (_M_TRIM_THRESHOLD, KEEP_FREED)))
+    _mallopt(_KEEP)
     try:
         yield
     finally:

@@ -68,12 +68,12 @@ def warm_first_in_child() -> None:
     """The first child's part of a parallel warm-up: the interpreter, the grid kernel and the
     fine band's evaluation (which calls it), the resolution check's distances, the pictures'
     and the infill's struts' kernels (:func:`_warm_extras`), then the shape descriptor's,
-    while the other child (:func:`warm_in_child`) compiles the rest. No mesh
-    kernel is run here: the distances, the pictures and the descriptor get the tiny shape's
-    mesh from scikit-image's marching cubes, since the other child may not have cached
-    surfgen's yet (two processes compiling the same kernel do the work twice). Balanced by the
-    children's times on a 2-core Xeon, each run alone: 31.4-31.8 s here, 32.1-32.5 s there
-    (32.7-32.9 and 31.0 s with the carving here too)."""
+    while the other child (:func:`warm_in_child`) compiles the rest. No mesh kernel is run
+    here: the distances, the pictures and the descriptor get the tiny shape's mesh from
+    scikit-image's marching cubes, since the other child may not have cached surfgen's yet
+    (two processes compiling the same kernel do the work twice). Balanced by the children's
+    times on a 2-core Xeon, each run alone: 31.4-31.8 s here, 32.1-32.5 s there (32.7-32.9
+    and 31.0 s with the carving here too)."""
     from surfgen.filters.descriptor import descriptor
     from surfgen.filters.resolution import warm_band, warm_distances
 
