@@ -71,35 +71,25 @@ def _lower_envelope(f, n, out, v, z):
 
 @njit(**KERNEL)
 def _envelopes_along(a, axis, line, res, v, z):
-    """:func:`_lower_envelope` along ``axis`` of every line of the 3-d ``a``, in place
-    (``line``, ``res``, ``v``, ``z``: scratch). Indexed in place rather than through a
-    transposed view: numba's ``transpose`` compiles its shape error's message (1.7 s of a cold
-    warm-up) and a second signature of the kernel for the views' layout."""
+    """:func:`_lower_envelope` along ``axis`` of every line of the C-contiguous 3-d ``a``, in
+    place (``line``, ``res``, ``v``, ``z``: scratch). Indexed through the flat array with the
+    axes' strides rather than through a transposed view: numba's ``transpose`` compiles its
+    shape error's message (1.7 s of a cold warm-up) and a second signature of the kernel for
+    the views' layout."""
     n0, n1, n2 = a.shape
-    if axis == 2:
-        for i in range(n0):
-            for j in range(n1):
-                for k in range(n2):
-                    line[k] = a[i, j, k]
-                _lower_envelope(line, n2, res, v, z)
-                for k in range(n2):
-                    a[i, j, k] = res[k]
-    elif axis == 1:
-        for i in range(n0):
-            for k in range(n2):
-                for j in range(n1):
-                    line[j] = a[i, j, k]
-                _lower_envelope(line, n1, res, v, z)
-                for j in range(n1):
-                    a[i, j, k] = res[j]
-    else:
-        for j in range(n1):
-            for k in range(n2):
-                for i in range(n0):
-                    line[i] = a[i, j, k]
-                _lower_envelope(line, n0, res, v, z)
-                for i in range(n0):
-                    a[i, j, k] = res[i]
+    flat = a.reshape(n0 * n1 * n2)  # a view: a is C-contiguous
+    size = (n0, n1, n2)
+    stride = (n1 * n2, n2, 1)
+    p, q = (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))  # the other two axes
+    n, step = size[axis], stride[axis]
+    for i in range(size[p]):
+        for j in range(size[q]):
+            base = i * stride[p] + j * stride[q]
+            for k in range(n):
+                line[k] = flat[base + k * step]
+            _lower_envelope(line, n, res, v, z)
+            for k in range(n):
+                flat[base + k * step] = res[k]
 
 
 @njit(**KERNEL)
