@@ -3,10 +3,43 @@ account of its memory (``mallinfo2``) in fresh processes."""
 
 from __future__ import annotations
 
+import ctypes
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+
+from surfgen.generator.allocator import (
+    keep_freed_memory,
+    one_shot_memory_policy,
+    scratch_kept,
+)
+
+
+class _Info(ctypes.Structure):
+    """glibc's ``struct mallinfo2``."""
+
+    _fields_ = [
+        (name, ctypes.c_size_t)
+        for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
+        + ("fsmblks", "uordblks", "fordblks", "keepcost")
+    ]
+
+
+def _mallinfo():
+    """glibc's ``mallinfo2`` (in the probes' fresh processes: this module, imported there)."""
+    info = ctypes.CDLL(None).mallinfo2
+    info.restype = _Info
+    return info
+
+
+def _set_policy(policy: str) -> None:
+    """``keep``, ``one_shot`` or ``none`` (glibc's defaults) in this process."""
+    if policy == "keep":
+        assert keep_freed_memory()
+    elif policy == "one_shot":
+        assert one_shot_memory_policy()
 
 
 def heap_probe(policy: str) -> tuple[int, int, int]:
@@ -14,25 +47,8 @@ def heap_probe(policy: str) -> tuple[int, int, int]:
     apart for a 20 MiB array; of eight 16 MiB arrays made then freed, the MiB of them the heap
     still holds as free memory; and the KiB mapped apart for a 1 MiB array made after a 20 MiB
     one was freed (the dynamic threshold would have risen above it)."""
-    import ctypes
-
-    import numpy as np
-
-    from surfgen.generator.allocator import keep_freed_memory, one_shot_memory_policy
-
-    class Info(ctypes.Structure):
-        _fields_ = [
-            (name, ctypes.c_size_t)
-            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
-            + ("fsmblks", "uordblks", "fordblks", "keepcost")
-        ]
-
-    info = ctypes.CDLL(None).mallinfo2
-    info.restype = Info
-    if policy == "keep":
-        assert keep_freed_memory()
-    elif policy == "one_shot":
-        assert one_shot_memory_policy()
+    info = _mallinfo()
+    _set_policy(policy)
     start = info()
     block = np.ones(20 << 17)  # 20 MiB of float64
     mapped = (info().hblkhd - start.hblkhd) >> 20
@@ -53,23 +69,8 @@ def scratch_probe(policy: str) -> tuple[int, int, int, int]:
     ``scratch_kept``: the KiB mapped apart for a 1 MiB array, and the MiB the heap holds free
     once eight 2 MiB arrays are freed; after it: the KiB mapped apart for a 1 MiB array, and
     the MiB the heap still holds free."""
-    import ctypes
-
-    import numpy as np
-
-    from surfgen.generator.allocator import one_shot_memory_policy, scratch_kept
-
-    class Info(ctypes.Structure):
-        _fields_ = [
-            (name, ctypes.c_size_t)
-            for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks")
-            + ("fsmblks", "uordblks", "fordblks", "keepcost")
-        ]
-
-    info = ctypes.CDLL(None).mallinfo2
-    info.restype = Info
-    if policy == "one_shot":
-        assert one_shot_memory_policy()
+    info = _mallinfo()
+    _set_policy(policy)
     with scratch_kept():
         before = info().hblkhd
         small = np.ones(1 << 17)  # 1 MiB
