@@ -4,7 +4,8 @@ A sum of ``sum_terms`` products of ``factors`` random factors (:func:`draw_facto
 half-size in ``box_half`` and d at a quantile in ``d_quantile`` of the values; its keys are the
 shared ``[sampler]`` keys (:class:`~surfgen.generator.model.draw.DrawSettings`), so it has no
 table of its own. A draw whose finest period spans fewer than ``[sampler] period_cells`` cells of
-the run's grid is drawn again from the same stream (:mod:`.gridbound`); with ``period_cells = 0``
+the run's grid, or whose sum has a pole on a plane through the box's centre, is drawn again from
+the same stream (:mod:`.gridbound`); with ``period_cells = 0``
 the family is the first sampler's draw, unchanged (tests pin its models).
 """
 
@@ -25,7 +26,7 @@ from surfgen.generator.model.draw import (
     round_to,
 )
 from surfgen.generator.model.equation13 import Equation13
-from surfgen.generator.model.families.gridbound import cells_per_period
+from surfgen.generator.model.families.gridbound import cells_per_period, pole_planes
 
 CHECK_GRID = 24  # samples per axis of the box the bound's arguments are sampled on
 
@@ -33,7 +34,8 @@ CHECK_GRID = 24  # samples per axis of the box the bound's arguments are sampled
 def draw_free(seed: int, index: int, cfg: DrawSettings, settings: None = None) -> Draw:
     """Shape ``index`` of the run ``seed`` in the ``free`` family: drawn again from the same
     stream (at most ``resolve_tries`` times in all) while a factor's finest period spans fewer
-    than ``period_cells`` cells of the run's grid somewhere in the box (the last draw is kept)."""
+    than ``period_cells`` cells of the run's grid somewhere in the box, or the sum has a pole on
+    a plane through the box's centre (:func:`~.gridbound.pole_planes`; the last draw is kept)."""
     rng = rng_for(seed, index)
     attempt = 0
     while attempt < cfg.resolve_tries:
@@ -47,9 +49,14 @@ def draw_free(seed: int, index: int, cfg: DrawSettings, settings: None = None) -
             (cells_per_period(f, box, CHECK_GRID, cell) for t in terms for f in t if any(f.mus)),
             default=math.inf,
         )
-        if cells >= cfg.period_cells:
+        poles = pole_planes(Equation13(tuple(terms), 0.0).to_tree(), box, cell, CHECK_GRID)
+        if cells >= cfg.period_cells and not poles:
             break
-    structure = {"tries": attempt, "cells_per_period": round(min(cells, 9999.0), 2)}
+    structure = {
+        "tries": attempt,
+        "cells_per_period": round(min(cells, 9999.0), 2),
+        "pole_planes": poles,
+    }
     return Draw(Equation13(tuple(terms), 0.0), Box.cube(half), q, "free", structure)
 
 

@@ -16,6 +16,12 @@ the 95th percentile of ``|grad P|`` over the samples considered (the shape's nei
 takes the smallest over the factor's H arguments. The families keep it at least
 ``[sampler] period_cells``: the sculpture lowers its ornament's frequency, the lattice and the
 infill their number of periods, the twist its twist and lobes, the free draw redraws.
+
+A pole on a plane through the box's centre (a divisor such as ``y^2 z`` that vanishes on
+``y = 0``) is a grid matter too: a grid of odd size samples that plane and an even one steps
+over it, so the shape would depend on the grid's parity (the resolution check's nested grid,
+of odd size, finds it: ``resolution_singular``). :func:`pole_planes` counts such planes; the
+sculpture redraws an ornament that has one, the free draw redraws.
 """
 
 from __future__ import annotations
@@ -25,8 +31,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from surfgen.generator.eval.evaluate import evaluate
+from surfgen.generator.eval.compiler import Program
+from surfgen.generator.eval.evaluate import evaluate, evaluate_compiled
 from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.expr import Expr
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor, PowerFunction, PowerTerm, Transform
 from surfgen.generator.model.order_stats import quantile
@@ -87,6 +95,30 @@ def cells_per_period(
         if fastest > 0:
             worst = min(worst, period / (fastest * cell))
     return worst
+
+
+def pole_planes(f: Expr | Program, box: Box, cell: float, n: int = 24) -> int:
+    """How many of the three planes through the centre of ``box`` hold a pole of ``f`` (a tree
+    or a compiled program): on more than a line's worth (``n``) of the plane's ``n x n``
+    samples ``f`` is not finite, where it is finite half a ``cell`` to either side (where the
+    nearest samples of an even grid of that cell lie). A pole on a line or at a point, which
+    the resolution check tolerates, stays within ``n``: ``n`` is even, so the plane's samples
+    miss the other planes through the centre."""
+    planes = 0
+    for axis in range(3):
+        lo, hi, shape = list(box.lo), list(box.hi), [n] * 3
+        centre = (lo[axis] + hi[axis]) / 2
+        # 5 samples across the plane, a half cell apart: the middle three are the two nearest
+        # samples of the even grid and the plane between them
+        lo[axis], hi[axis], shape[axis] = centre - cell, centre + cell, 5
+        grid = Grid(Box(tuple(lo), tuple(hi)), tuple(shape))  # type: ignore[arg-type]
+        if isinstance(f, Program):
+            values = evaluate_compiled(f, grid, threads=1).values
+        else:
+            values = evaluate(f, grid, threads=1).values
+        finite = np.isfinite(np.moveaxis(values, axis, 0))
+        planes += int(np.count_nonzero(finite[1] & ~finite[2] & finite[3])) > n
+    return planes
 
 
 _ELEMENT = {"A": 0, "B": 1, "C": 2, "D": 3, "E": 4, "F": 5}

@@ -51,7 +51,7 @@ from surfgen.generator.model.equation13 import (
     Transform,
 )
 from surfgen.generator.model.families.bodies import power_max
-from surfgen.generator.model.families.gridbound import fit_factor, scale_arguments
+from surfgen.generator.model.families.gridbound import fit_factor, pole_planes, scale_arguments
 from surfgen.generator.model.families.symmetry import (
     GROUP_PERMUTATIONS,
     ornament_terms,
@@ -269,9 +269,10 @@ def draw_sculpture(seed: int, index: int, cfg: DrawSettings, s: SculptureSetting
     }
     structure["ornament"].update(frequency=freq, depth=depth)
     if checks is not None:
-        feature, stray, departure, pieces, cells = checks
+        feature, stray, departure, pieces, cells, poles = checks
         structure["ornament"].update(
             cells_per_period=round(min(cells, 9999.0), 2),
+            pole_planes=poles,
             feature=round(feature, 4),
             stray=round(stray, 4),
             departure=round(min(departure, 99.0), 4),
@@ -300,19 +301,21 @@ def coarse_ornament(
     Factor,
     float,
     list,
-    tuple[float, float, float, int, float] | None,
+    tuple[float, float, float, int, float, int] | None,
     tuple[float, float | None],
     int,
 ]:
     """Draw ornaments until one carves cleanly: features at least ``min_feature`` of the box,
     at most ``max_stray`` of its surface far from the envelope, a departure from the envelope
-    of at least ``min_departure``, and a carved body in at most ``max_pieces`` pieces (at most
-    ``ornament_tries``; else the best drawn).
+    of at least ``min_departure``, periods the grid resolves and no pole on a plane through the
+    centre (:func:`~.gridbound.pole_planes`), and a carved body in at most ``max_pieces``
+    pieces (at most ``ornament_tries``; else the best drawn).
     Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
     throw debris, and ornaments that break the body into crumbs make speckle: the filters
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
     balls (docs/guide/sampling.md, Families). Returns the ornament, its frequency, the expanded products, its
-    checks ``(feature, stray, departure, pieces)`` (None without an envelope), its strength
+    checks ``(feature, stray, departure, pieces, cells per period, pole planes)`` (None
+    without an envelope), its strength
     and d (:func:`~.carving.strength_on` the ``d_grid``: the checks judge the surface the draw
     will be) and the number of ornaments drawn. The unit is sampled by
     :func:`~.carving.unit_samples`."""
@@ -340,8 +343,11 @@ def coarse_ornament(
             products = ornament_terms(ornament, perms, mirror, k)
             return ornament, freq, products, None, (0.0, None), tries
         ornament, freq, cells = _resolved_ornament(ornament, freq, mirror, box, n, cfg, band)
-        resolved = cells >= cfg.period_cells * 0.999
         program = carving.ornament_program(ornament, mirror)
+        poles = pole_planes(program, box, cfg.cell(box.hi[0]), n) if cfg.period_cells > 0 else 0
+        if poles and best is not None:
+            continue  # slit on the odd grids whatever it carves: never preferred (score below)
+        resolved = cells >= cfg.period_cells * 0.999 and not poles
         o = carving.unit_samples(ornament, perms, mirror, k, box, n, program)
         feature = carving.feature_size(e, o, box, ge)
         o_d = carving.unit_samples(ornament, perms, mirror, k, box, cfg.d_grid, program)
@@ -358,13 +364,15 @@ def coarse_ornament(
             + min(departure / max(s.min_departure, 1e-9), 1.0)
             - stray
             - (not resolved)
+            if not poles
+            else -math.inf
         )
         if not shaped and best is not None and score <= best_score:
             continue  # neither clean nor the best, whatever its pieces: no need to count them
         n_pieces = 0 if f is None else carving.pieces(f)
         score -= n_pieces > s.max_pieces
         if best is None or score > best_score:
-            checks = (feature, stray, departure, n_pieces, cells)
+            checks = (feature, stray, departure, n_pieces, cells, poles)
             best, best_score = (ornament, freq, checks, strength_d), score
         if shaped and n_pieces <= s.max_pieces:
             break

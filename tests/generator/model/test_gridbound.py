@@ -125,10 +125,13 @@ def test_ornaments_and_free_draws_are_slowed_to_the_grid(family: str, grid: int)
         else:
             cells = draw.structure["cells_per_period"]
             fine = min(
-                cells_per_period(f, draw.box, 40, cfg.cell(draw.box.hi[0]))
-                for t in draw.equation.terms
-                for f in t
-                if any(f.mus)
+                (
+                    cells_per_period(f, draw.box, 40, cfg.cell(draw.box.hi[0]))
+                    for t in draw.equation.terms
+                    for f in t
+                    if any(f.mus)
+                ),
+                default=math.inf,  # no H: nothing periodic
             )
             if cells >= cfg.period_cells:
                 assert fine >= 0.8 * cfg.period_cells, (i, cells, fine)
@@ -149,3 +152,50 @@ def test_fit_factor_slows_a_wave_to_the_bound() -> None:
     assert period_of(Transform("saw2", (0.7,))) == 0.7
     assert period_of(Transform("tri3", (0.7,))) == 0.35
     assert period_of(Transform("tan")) == pytest.approx(math.pi)
+
+
+@pytest.mark.parametrize(
+    ("formula", "planes"),
+    [
+        ("x^2+y^2+z^2-1", 0),
+        ("x^2+y^2+z^2-1+0.01/(y^2*z)", 2),  # y^2 z vanishes on y = 0 and on z = 0
+        ("x^2+y^2+z^2-1+0.01/x", 1),
+        ("x^2+y^2+z^2-1+0.01*cot(x*y*z)", 3),  # cot(0): every plane through the centre
+        ("x^2+y^2+z^2-1+0.01/(x^2+y^2)", 0),  # a pole on a line (the z axis), not a plane
+        ("x^2+y^2+z^2-1+0.01/(y-0.3)", 0),  # a plane, but not through the centre
+        ("x^2+y^2+z^2-1+sqrt(0.5-x^2)", 0),  # non-finite beyond |x| > 0.7: not a thin plane
+    ],
+)
+def test_pole_planes_counts_the_poles_an_odd_grid_would_sample(formula: str, planes: int) -> None:
+    from surfgen.generator.eval.compiler import compile_tree
+    from surfgen.generator.formula.parser import parse
+    from surfgen.generator.model.families.gridbound import pole_planes
+
+    box, cell = Box.cube(1.5), 3.0 / 63
+    tree = parse(formula)
+    assert pole_planes(tree, box, cell) == planes
+    assert pole_planes(compile_tree(tree), box, cell) == planes  # the same on a program
+    # an odd grid samples those planes: non-finite there, finite on the planes beside them
+    finite = np.isfinite(evaluate(tree, Grid(box, (65,) * 3)).values)
+    found = 0
+    for axis in range(3):
+        a = np.moveaxis(finite, axis, 0)
+        found += np.count_nonzero(~a[32] & a[31] & a[33]) > 65
+    assert found == planes
+
+
+@pytest.mark.parametrize("family", ["sculpture", "free"])
+def test_draws_have_no_pole_on_a_plane_through_the_centre(family: str) -> None:
+    """Ornaments (and free draws) with a pole on x, y or z = 0 are redrawn: the whole formula,
+    re-measured on a finer plane grid, has none, and the draw records none."""
+    from surfgen.generator.model.families.gridbound import pole_planes
+
+    cfg = config(family, 64)
+    for i in range(16):
+        draw = draw_equation(7, i, cfg)
+        s = draw.structure["ornament"] if family == "sculpture" else draw.structure
+        if family == "free" and s["tries"] == cfg.resolve_tries:
+            continue  # the last of the tries is kept, whatever it is
+        assert s["pole_planes"] == 0, (i, s)
+        tree = draw.equation.with_d(0.0).to_tree()
+        assert pole_planes(tree, draw.box, cfg.cell(draw.box.hi[0]), n=40) == 0, i

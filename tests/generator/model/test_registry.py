@@ -42,16 +42,17 @@ ROOT = Path(__file__).resolve().parents[3]
 # (bend_prob, bend in [sampler.twist]; hollow_prob, shell in [sampler.infill], the infill's
 # envelope weights and periods, the assembly's body weights); and for version 9 (a hollow
 # torus of infill left uncut: the version is hashed); and for version 10 (aspect_prob, aspect
-# in [sampler]: proportions; [filters] max_pieces).
-DEFAULT_HASH = "46a7fee93eef"
-FAMILY_HASHES = {"sculpture": "583e788925f8", "lattice": "e5fe85ca023b", "free": "40bf3f35b94d"}
+# in [sampler]: proportions; [filters] max_pieces); and for version 11 (pole planes redrawn:
+# the version is hashed).
+DEFAULT_HASH = "09fcfd471ce7"
+FAMILY_HASHES = {"sculpture": "163a4c930ab6", "lattice": "22b713087917", "free": "155dd3be86dc"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("d20da0f07d8b", "c38fe90b4d06")
+OLD_STYLE_HASHES = ("26e6a039a080", "8800089e0ea8")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4
