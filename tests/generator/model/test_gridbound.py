@@ -162,6 +162,7 @@ def test_fit_factor_slows_a_wave_to_the_bound() -> None:
         ("x^2+y^2+z^2-1+0.01/x", 1),
         ("x^2+y^2+z^2-1+0.01*cot(x*y*z)", 3),  # cot(0): every plane through the centre
         ("x^2+y^2+z^2-1+0.01/(x^2+y^2)", 0),  # a pole on a line (the z axis), not a plane
+        ("x^2+y^2+z^2-1+0.01/(x^2+(y-z)^2)", 0),  # a line in the plane x = 0: sampled, not counted
         ("x^2+y^2+z^2-1+0.01/(y-0.3)", 0),  # a plane, but not through the centre
         ("x^2+y^2+z^2-1+sqrt(0.5-x^2)", 0),  # non-finite beyond |x| > 0.7: not a thin plane
     ],
