@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box
 from surfgen.generator.model.draw import (
     Draw,
@@ -49,7 +50,8 @@ def draw_free(seed: int, index: int, cfg: DrawSettings, settings: None = None) -
             (cells_per_period(f, box, CHECK_GRID, cell) for t in terms for f in t if any(f.mus)),
             default=math.inf,
         )
-        poles = pole_planes(Equation13(tuple(terms), 0.0).to_tree(), box, cell, CHECK_GRID)
+        program = compile_tree(Equation13(tuple(terms), 0.0).to_tree())
+        poles = pole_planes(program, box, cell, CHECK_GRID)
         if cells >= cfg.period_cells and not poles:
             break
     structure = {

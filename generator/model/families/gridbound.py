@@ -34,7 +34,6 @@ import numpy as np
 from surfgen.generator.eval.compiler import Program
 from surfgen.generator.eval.evaluate import evaluate, evaluate_compiled
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.formula.expr import Expr
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor, PowerFunction, PowerTerm, Transform
 from surfgen.generator.model.order_stats import quantile
@@ -97,10 +96,10 @@ def cells_per_period(
     return worst
 
 
-def pole_planes(f: Expr | Program, box: Box, cell: float, n: int = 24) -> int:
-    """How many of the three planes through the centre of ``box`` hold a pole of ``f`` (a tree
-    or a compiled program): on more than a line's worth (``n``) of the plane's ``n x n``
-    samples ``f`` is not finite, where it is finite half a ``cell`` to either side (where the
+def pole_planes(program: Program, box: Box, cell: float, n: int = 24) -> int:
+    """How many of the three planes through the centre of ``box`` hold a pole of the compiled
+    formula ``program`` (:func:`~surfgen.generator.eval.compiler.compile_tree`): on more than a
+    line's worth (``n``) of the plane's ``n x n`` samples it is not finite, where it is finite half a ``cell`` to either side (where the
     nearest samples of an even grid of that cell lie). A pole on a line or at a point, which
     the resolution check tolerates, stays within ``n``: ``n`` is even, so the plane's samples
     miss the other planes through the centre."""
@@ -112,10 +111,7 @@ def pole_planes(f: Expr | Program, box: Box, cell: float, n: int = 24) -> int:
         # samples of the even grid and the plane between them
         lo[axis], hi[axis], shape[axis] = centre - cell, centre + cell, 5
         grid = Grid(Box(tuple(lo), tuple(hi)), tuple(shape))  # type: ignore[arg-type]
-        if isinstance(f, Program):
-            values = evaluate_compiled(f, grid, threads=1).values
-        else:
-            values = evaluate(f, grid, threads=1).values
+        values = evaluate_compiled(program, grid, threads=1).values
         finite = np.isfinite(np.moveaxis(values, axis, 0))
         planes += int(np.count_nonzero(finite[1] & ~finite[2] & finite[3])) > n
     return planes

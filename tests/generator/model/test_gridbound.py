@@ -11,14 +11,17 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.draw import only_b
 from surfgen.generator.model.equation13 import Equation13, PowerFunction, PowerTerm, Transform
 from surfgen.generator.model.families.gridbound import (
     cells_per_period,
     fit_factor,
     period_of,
+    pole_planes,
     scale_arguments,
 )
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation
@@ -168,14 +171,9 @@ def test_fit_factor_slows_a_wave_to_the_bound() -> None:
     ],
 )
 def test_pole_planes_counts_the_poles_an_odd_grid_would_sample(formula: str, planes: int) -> None:
-    from surfgen.generator.eval.compiler import compile_tree
-    from surfgen.generator.formula.parser import parse
-    from surfgen.generator.model.families.gridbound import pole_planes
-
     box, cell = Box.cube(1.5), 3.0 / 63
     tree = parse(formula)
-    assert pole_planes(tree, box, cell) == planes
-    assert pole_planes(compile_tree(tree), box, cell) == planes  # the same on a program
+    assert pole_planes(compile_tree(tree), box, cell) == planes
     # an odd grid samples those planes: non-finite there, finite on the planes beside them
     finite = np.isfinite(evaluate(tree, Grid(box, (65,) * 3)).values)
     found = 0
@@ -189,8 +187,6 @@ def test_pole_planes_counts_the_poles_an_odd_grid_would_sample(formula: str, pla
 def test_draws_have_no_pole_on_a_plane_through_the_centre(family: str) -> None:
     """Ornaments (and free draws) with a pole on x, y or z = 0 are redrawn: the whole formula,
     re-measured on a finer plane grid, has none, and the draw records none."""
-    from surfgen.generator.model.families.gridbound import pole_planes
-
     cfg = config(family, 64)
     for i in range(16):
         draw = draw_equation(7, i, cfg)
@@ -198,5 +194,5 @@ def test_draws_have_no_pole_on_a_plane_through_the_centre(family: str) -> None:
         if family == "free" and s["tries"] == cfg.resolve_tries:
             continue  # the last of the tries is kept, whatever it is
         assert s["pole_planes"] == 0, (i, s)
-        tree = draw.equation.with_d(0.0).to_tree()
-        assert pole_planes(tree, draw.box, cfg.cell(draw.box.hi[0]), n=40) == 0, i
+        program = compile_tree(draw.equation.with_d(0.0).to_tree())
+        assert pole_planes(program, draw.box, cfg.cell(draw.box.hi[0]), n=40) == 0, i
