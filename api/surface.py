@@ -388,8 +388,11 @@ class Surface:
         ``faces``, ``components``, ``euler``, ``genus``, ``watertight``, ``boundary_edges``,
         ``nonmanifold_edges``, ``nonmanifold_vertices``, ``area``, ``volume``, ``bbox``); the
         filters' ``box_fraction``, ``largest_component_fraction``, ``total_curvature``,
-        ``wall_fraction``; ``free_standing``, ``solidity`` and the symmetries; a sculpture's
-        ``departure`` from its envelope. Full precision (the catalogue keeps 10 digits).
+        ``wall_fraction``, ``smallest_piece``; ``free_standing``, ``solidity``, ``outline``
+        (every view's silhouette over its convex hull; the sampler measures it for the one-piece
+        shapes of low genus of the families judged by their outline) and the symmetries; a
+        sculpture's ``departure`` from its envelope. Full precision (the catalogue keeps 10
+        digits).
 
         Raises
         ------
@@ -397,6 +400,7 @@ class Surface:
             Nothing crosses the level in the box.
         """
         # deferred: the filters load numba and pymeshlab
+        from surfgen.filters.outline import outline_fill
         from surfgen.filters.shape import quality_metrics
         from surfgen.filters.verdict import shape_metrics
         from surfgen.generator.model.families.carving import envelope_departure
@@ -413,6 +417,7 @@ class Surface:
         out.update(shape_metrics(made.mesh, spec.box))
         out["wall_fraction"] = made.walls.wall_fraction
         out.update(quality_metrics(made.mesh, out))
+        out["outline"] = outline_fill(made.mesh)
         return dict(sorted(out.items()))
 
     def check(self, config: ConfigLike = None) -> Check:

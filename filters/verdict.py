@@ -43,7 +43,7 @@ REASONS = (
     "fragmented",  # drawn as one body, broken into pieces; or bodies with flying debris
     "box_dominated",  # mostly the caps on the box faces
     "blob",  # only convex lumps (plates, slabs, smooth blobs)
-    "plain",  # its envelope with barely a mark on it (sculptures)
+    "plain",  # a lump: its envelope barely marked, or every view of it a convex outline
     "too_complex",  # genus beyond the limit
     "walls",  # too much of the area is walls (poles and jumps), not the zero set
     "unresolved",  # the surface changes on the nested grid twice as fine (aliasing)
@@ -67,12 +67,15 @@ class FilterConfig:
     min_largest_component_fraction: float = 0.2
     min_body_fraction: float = 0.8
     max_pieces: int = 8
+    min_piece_fraction: float = 0.1
     max_box_fraction: float = 0.35
     max_genus: int = 500
     blob_max_curvature: float = 1.25
     plain_max_departure: float = 0.12
     plain_min_solidity: float = 0.9
     plain_max_curvature: float = 6.0
+    plain_min_outline: float = 0.85
+    plain_outline_max_genus: int = 7
     require_manifold: bool = True
     max_wall_fraction: float = 0.25
     check_resolution: bool = True
@@ -91,9 +94,11 @@ class FilterConfig:
             "max_inside_fraction",
             "min_largest_component_fraction",
             "min_body_fraction",
+            "min_piece_fraction",
             "max_box_fraction",
             "plain_max_departure",
             "plain_min_solidity",
+            "plain_min_outline",
             "max_wall_fraction",
         )
         require_fractions(self, fractions, "filters")
@@ -109,7 +114,7 @@ class FilterConfig:
             )
         if not self.max_resolution_area >= 1:
             raise SpecError("config [filters]: max_resolution_area must be >= 1 (an area ratio)")
-        for name in ("min_faces", "max_components", "max_genus"):
+        for name in ("min_faces", "max_components", "max_genus", "plain_outline_max_genus"):
             if getattr(self, name) < 0:
                 raise SpecError(f"config [filters]: {name} must be >= 0")
         if self.max_pieces < 1:
@@ -189,8 +194,9 @@ def quick_metrics(
     mesh: Mesh, box: tuple[float, ...], areas: np.ndarray | None = None
 ) -> dict[str, Any]:
     """The cheap part of :func:`shape_metrics` (numpy only): ``faces``, ``components``,
-    ``box_fraction`` (share of the area on the box's faces) and ``largest_component_fraction``
-    (area of the largest component / total).  ``areas``: the mesh's
+    ``box_fraction`` (share of the area on the box's faces), ``largest_component_fraction``
+    (area of the largest component / total) and ``smallest_piece`` (area of the smallest
+    component / the largest's: 1 for one piece, small for a body with debris).  ``areas``: the mesh's
     :func:`~surfgen.generator.mesh.mesh.face_areas`, where the caller has them already."""
     areas = face_areas(mesh) if areas is None else areas
     total = float(areas.sum()) or 1.0
@@ -205,6 +211,7 @@ def quick_metrics(
         "components": int(per.size),
         "box_fraction": float(areas[on_face].sum()) / total,
         "largest_component_fraction": float(per.max()) / total if per.size else 0.0,
+        "smallest_piece": float(per.min() / per.max()) if per.size and per.max() > 0 else 1.0,
     }
 
 
@@ -273,6 +280,11 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
       exactly 2), a ring with a knob, a ball with one tunnel. Higher genera are not judged
       this way: a smooth frame or a box with tunnels has little curvature to spare, yet is
       not plain.
+    - from the mesh alone: one piece of genus at most ``plain_outline_max_genus`` whose
+      silhouette fills at least ``plain_min_outline`` of its convex hull in every view
+      (``outline``, :mod:`surfgen.filters.outline`): a lump whose ornament only dents it, a
+      lens, a gem whose facets barely change, however wavy its surface (measured only for the
+      families judged by their outline: every one but ``twist``, whose grooves are its look).
     Measures that are missing are not judged."""
     departure = metrics.get("departure")
     if departure is not None and departure < cfg.plain_max_departure:
@@ -280,6 +292,14 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     solidity = metrics.get("solidity")
     one_piece = metrics.get("components") == 1
     if one_piece and solidity is not None and solidity >= cfg.plain_min_solidity:
+        return True
+    outline = metrics.get("outline")
+    if (
+        one_piece
+        and outline is not None
+        and outline >= cfg.plain_min_outline
+        and metrics.get("genus", math.inf) <= cfg.plain_outline_max_genus
+    ):
         return True
     curvature = metrics.get("total_curvature")
     if curvature is None or not curvature < cfg.plain_max_curvature:
@@ -323,8 +343,9 @@ def judge(
     was drawn as one connected body (a family with ``one_body``: sculpture, infill, twist),
     so a largest piece under ``min_body_fraction`` of the area is ``fragmented``. ``porous``
     False: the shape was drawn as bodies that do not fall apart (every family but lattice and
-    infill), so more than ``max_pieces`` pieces is ``fragmented`` too: a body with flying
-    debris (a shape of no family, such as a formula given, is not judged this way)."""
+    infill), so more than ``max_pieces`` pieces, or a piece under ``min_piece_fraction`` of the
+    largest's area (``smallest_piece``), is ``fragmented`` too: a body with flying debris (a
+    shape of no family, such as a formula given, is not judged this way)."""
     m = metrics
     reasons: list[str] = []
     if m["faces"] < cfg.min_faces:
@@ -339,7 +360,11 @@ def judge(
     ):
         reasons.append("speckle")
     if (one_body and m["largest_component_fraction"] < cfg.min_body_fraction) or (
-        not porous and m["components"] > cfg.max_pieces
+        not porous
+        and (
+            m["components"] > cfg.max_pieces
+            or m.get("smallest_piece", 1.0) < cfg.min_piece_fraction
+        )
     ):
         reasons.append("fragmented")
     if m["box_fraction"] > cfg.max_box_fraction:

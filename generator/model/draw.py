@@ -223,7 +223,12 @@ class Family:
     drawn as one connected body, so the filters reject one broken into pieces (``fragmented``:
     ``[filters] min_body_fraction``); ``porous``: its shapes may fall into many pieces (struts
     cut by the box or an envelope), so the filters allow it more than ``[filters] max_pieces``
-    (a body, or a few, in more pieces has flying debris: ``fragmented``).
+    (a body, or a few, in more pieces has flying debris: ``fragmented``); ``outline``: a
+    lump of it is told by its silhouette (every view a convex outline: ``plain``,
+    :mod:`surfgen.filters.outline`) — False for a family whose look is the relief inside a
+    convex outline (``twist``: its grooves); ``aspect_limit``: the largest ratio of two of the
+    factors its shapes are stretched by (:mod:`surfgen.generator.model.stretch`; None: as
+    drawn) — a twisted column squashed flat is a lens.
     """
 
     name: str
@@ -233,6 +238,8 @@ class Family:
     mix_weight: float = 0.0
     one_body: bool = False
     porous: bool = False
+    outline: bool = True
+    aspect_limit: float | None = None
 
     @property
     def table(self) -> str | None:

@@ -51,7 +51,7 @@ from surfgen.generator.model.settings import (
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.generator.model.stretch import stretch_draw
 
-SAMPLER_VERSION = 11  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40); 7: spires and swelling lobes in twist, chains of 2-4 rings (every other one smaller) clear of each other and never ornamented, fewer blends, the near-duplicate check after the mesh checks, plain rings (genus 1 by curvature), fragmented bodies (min_body_fraction), min_inside_fraction 0.003; 8: bent twisted columns (horns: [sampler.twist] bend_prob, bend), perforated infill shells ([sampler.infill] hollow_prob, shell), infill periods and envelope weights, assembly body weights; 9: a hollow torus of infill left uncut (cut open it was a torn strip); 10: proportions: shapes of every family stretched along the axes, their axis swaps kept ([sampler] aspect_prob, aspect), the resolution check in cells of each axis, bodies in more than [filters] max_pieces pieces fragmented (flying debris); 11: ornaments and free draws with a pole on a plane through the centre redrawn (slit on grids of odd size: the resolution check rejected them after all the other work)
+SAMPLER_VERSION = 12  # 2: families (sculpture, lattice, free) and their mix; 3: ornaments redrawn when they crumble (sculpture_max_pieces); 4: ornament checks on the unit's transposed copies and a 24^3 grid, sculpture_min_departure 0.2, walls classified by bisection (wall_fraction); 5: half the ornaments pole-free (sculpture_pole_free_prob 0.5), group weights towards none and mirror; 6: priors bounded by the run's cell size ([sampler] period_cells), families infill, assembly and twist, a new default mix, the resolution check (unresolved, pole planes included) and plain by solidity and by curvature (issue 40); 7: spires and swelling lobes in twist, chains of 2-4 rings (every other one smaller) clear of each other and never ornamented, fewer blends, the near-duplicate check after the mesh checks, plain rings (genus 1 by curvature), fragmented bodies (min_body_fraction), min_inside_fraction 0.003; 8: bent twisted columns (horns: [sampler.twist] bend_prob, bend), perforated infill shells ([sampler.infill] hollow_prob, shell), infill periods and envelope weights, assembly body weights; 9: a hollow torus of infill left uncut (cut open it was a torn strip); 10: proportions: shapes of every family stretched along the axes, their axis swaps kept ([sampler] aspect_prob, aspect), the resolution check in cells of each axis, bodies in more than [filters] max_pieces pieces fragmented (flying debris); 11: ornaments and free draws with a pole on a plane through the centre redrawn (slit on grids of odd size: the resolution check rejected them after all the other work); 12: lumps told by their outline (plain: every view's silhouette fills [filters] plain_min_outline of its hull, twist excepted), debris under [filters] min_piece_fraction of the largest piece fragmented, assembly body weights towards rings
 
 
 @dataclass(frozen=True)
@@ -216,8 +216,9 @@ def draw_equation(seed: int, index: int, cfg: SamplerConfig) -> Draw:
     The family's shape is then stretched along the axes (:mod:`.stretch`, a stream of its own).
     """
     name = pick_family(seed, index, cfg)
-    draw = get_family(name).draw(seed, index, cfg, cfg.settings(name))
-    return stretch_draw(seed, index, cfg, draw)
+    family = get_family(name)
+    draw = family.draw(seed, index, cfg, cfg.settings(name))
+    return stretch_draw(seed, index, cfg, draw, family.aspect_limit)
 
 
 def draw_spec(

@@ -46,10 +46,15 @@ def stretch_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index, 2)))
 
 
-def stretch_draw(seed: int, index: int, cfg: DrawSettings, draw: Draw) -> Draw:
+def stretch_draw(
+    seed: int, index: int, cfg: DrawSettings, draw: Draw, limit: float | None = None
+) -> Draw:
     """``draw`` stretched by :func:`draw_scale` (the draw itself when it keeps its proportions);
-    the factors are recorded in its structure (``aspect``)."""
+    the factors are recorded in its structure (``aspect``). ``limit``: the family's
+    ``aspect_limit`` (:func:`limit_ratio`)."""
     scale = draw_scale(stretch_rng(seed, index), cfg, draw)
+    if limit is not None:
+        scale = limit_ratio(scale, limit)
     if scale == (1.0, 1.0, 1.0):
         return draw
     structure = {**(draw.structure or {}), "aspect": list(scale)}
@@ -78,6 +83,19 @@ def draw_scale(
     if cyclic:
         return (1.0, 1.0, 1.0)
     return tuple(factors)  # type: ignore[return-value]
+
+
+def limit_ratio(scale: Sequence[float], limit: float) -> tuple[float, float, float]:
+    """``scale`` with the ratio of its largest factor to its smallest brought down to
+    ``limit``: the logarithms drawn towards their middle, each factor to 2 decimals (``scale``
+    itself when within ``limit``). Equal factors stay equal, so a swap of axes the stretch
+    kept is kept."""
+    logs = [math.log(s) for s in scale]
+    low, high = min(logs), max(logs)
+    if high - low <= math.log(limit):
+        return tuple(scale)  # type: ignore[return-value]
+    middle, shrink = (high + low) / 2, math.log(limit) / (high - low)
+    return tuple(round(math.exp(middle + (v - middle) * shrink), 2) for v in logs)  # type: ignore[return-value]
 
 
 def axis_symmetries(

@@ -23,6 +23,7 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
+from surfgen.filters.outline import outline_fill
 from surfgen.filters.resolution import measure_resolution
 from surfgen.filters.shape import quality_metrics, solidity
 from surfgen.filters.verdict import (
@@ -224,14 +225,15 @@ def _judge(
 ) -> tuple[Verdict, dict[str, Any], Mesh | None, tuple[Later, Later]]:
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
     if any), mesh, cheap mesh checks; then, when called, ``mesh_checks()``: the walls, the full
-    mesh checks, the solidity (plain blobs); then ``fine_checks()``: the resolution check (the
-    nested grid twice as fine) and the shape-quality metrics of an accepted mesh. Returns the
+    mesh checks, the solidity and the outline (plain lumps); then ``fine_checks()``: the
+    resolution check (the nested grid twice as fine) and the shape-quality metrics of an accepted mesh. Returns the
     cheap checks' verdict, the metrics (the later checks add to them), the mesh (if made) and
     ``(mesh_checks, fine_checks)``, to be called in that order while the verdict accepts."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
     one_body = draw is not None and get_family(draw.family).one_body
     porous = draw is None or get_family(draw.family).porous
+    by_outline = draw is not None and get_family(draw.family).outline
 
     def stop(verdict: Verdict, mesh: Mesh | None = None):
         return verdict, metrics, mesh, (lambda: verdict, lambda: verdict)
@@ -297,6 +299,15 @@ def _judge(
             verdict = judged()
         if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
             metrics["solidity"] = solidity(mesh, metrics.get("volume"))
+            verdict = judged()
+        if (
+            verdict.accepted
+            and by_outline
+            and metrics["components"] == 1
+            and metrics.get("genus") is not None
+            and metrics["genus"] <= fcfg.plain_outline_max_genus
+        ):  # ...then its outline, for a lump whose every view is convex (plain)
+            metrics["outline"] = outline_fill(mesh)
             verdict = judged()
         watch.lap("filters")
         return verdict

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surfgen.filters.outline import outline_fill
 from surfgen.filters.shape import solidity
 from surfgen.filters.verdict import (
     FilterConfig,
@@ -234,10 +235,64 @@ def test_bodies_with_flying_debris_are_fragmented_unless_porous() -> None:
     assert "fragmented" in judge(nine, CFG, capped=True, porous=False).reasons
     assert "fragmented" not in judge(nine, CFG, capped=True, porous=True).reasons
     assert "fragmented" not in judge(nine, CFG, capped=True).reasons  # no family: not judged
-    assert "fragmented" not in judge(nine, FilterConfig(max_pieces=9), True, porous=False).reasons
-    eight = {**nine, "components": 8}
+    up_to_nine = FilterConfig(max_pieces=9, min_piece_fraction=0.0)
+    assert "fragmented" not in judge(nine, up_to_nine, True, porous=False).reasons
+    eight = {**nine, "components": 8, "smallest_piece": 1.0}
     assert "fragmented" not in judge(eight, CFG, capped=True, porous=False).reasons
     porous = {name for name in family_names() if get_family(name).porous}
     assert porous == {"lattice", "infill"}
     with pytest.raises(SpecError, match="max_pieces must be >= 1"):
         FilterConfig(max_pieces=0)
+
+
+def test_a_body_with_a_speck_of_debris_is_fragmented_unless_porous() -> None:
+    """Two pieces, one a speck beside the body (its area under ``min_piece_fraction`` of the
+    body's): fragmented in the families of bodies, whatever ``max_pieces``; two equal bodies
+    are not."""
+    speck = _closed_metrics("(x^2+y^2+z^2-0.64)*((x-1.25)^2+y^2+z^2-0.02)", 1.6, 48)
+    assert speck["components"] == 2 and 0.02 < speck["smallest_piece"] < 0.1, speck
+    assert "fragmented" in judge(speck, CFG, capped=True, porous=False).reasons
+    assert "fragmented" not in judge(speck, CFG, capped=True, porous=True).reasons
+    loose = FilterConfig(min_faces=100, min_piece_fraction=0.02)
+    assert "fragmented" not in judge(speck, loose, capped=True, porous=False).reasons
+    pair = _closed_metrics("((x-0.8)^2+y^2+z^2-0.25)*((x+0.8)^2+y^2+z^2-0.25)", 1.6, 40)
+    assert pair["smallest_piece"] > 0.9
+    assert "fragmented" not in judge(pair, CFG, capped=True, porous=False).reasons
+    one = _closed_metrics("x^2+y^2+z^2-1", 1.3, 24)
+    assert one["smallest_piece"] == 1.0
+    with pytest.raises(SpecError, match="min_piece_fraction"):
+        FilterConfig(min_piece_fraction=1.5)
+
+
+def test_plain_by_outline_only_for_one_piece_of_low_genus() -> None:
+    body = {"genus": 0, "components": 1, "solidity": 0.7, "total_curvature": 20.0}
+    assert not plain(body, CFG)  # not measured: not judged
+    assert plain({**body, "outline": 0.9}, CFG)
+    assert not plain({**body, "outline": 0.8}, CFG)
+    assert plain({**body, "genus": 7, "outline": 0.9}, CFG)
+    assert not plain({**body, "genus": 8, "outline": 0.9}, CFG)
+    assert not plain({**body, "components": 2, "outline": 0.9}, CFG)
+    assert not plain({**body, "outline": 0.9}, FilterConfig(plain_min_outline=0.95))
+    with pytest.raises(SpecError, match="plain_outline_max_genus"):
+        FilterConfig(plain_outline_max_genus=-1)
+
+
+def test_a_dented_ball_is_plain_by_its_outline_and_a_carved_star_is_not() -> None:
+    """Dents everywhere give a ball curvature to spare (total |K| / 4 pi 14) and take a sixth
+    of its hull away, so neither of the other mesh measures calls it plain; its outline does."""
+    dented_formula = "x^2+y^2+z^2-1+0.35*cos(6*x)*cos(6*y)*cos(6*z)"
+    dented = _closed_metrics(dented_formula, 1.6, 48)
+    assert dented["genus"] == 0 and dented["components"] == 1
+    assert dented["solidity"] < 0.85 and dented["total_curvature"] > 10
+    assert not plain(dented, CFG)
+    dented["outline"] = outline_fill(mesh_of(dented_formula, 1.6, 48)[0])
+    assert plain(dented, CFG) and "plain" in judge(dented, CFG, capped=True).reasons
+    star_formula = "min(min(y^2+z^2, x^2+z^2), x^2+y^2)-0.09+0.01*(x^2+y^2+z^2)"
+    star = _closed_metrics(star_formula, 1.4, 48)
+    star["outline"] = outline_fill(mesh_of(star_formula, 1.4, 48)[0])
+    assert star["genus"] <= CFG.plain_outline_max_genus and star["components"] == 1
+    assert not plain(star, CFG)
+
+
+def test_every_family_but_twist_is_judged_by_its_outline() -> None:
+    assert {name for name in family_names() if not get_family(name).outline} == {"twist"}

@@ -105,7 +105,7 @@ class AssemblySettings:
     arrangements: tuple[str, ...] = ARRANGEMENTS
     arrangement_weights: tuple[float, ...] = (0.175, 0.175, 0.225, 0.225, 0.1, 0.1)
     bodies: tuple[str, ...] = BODIES
-    body_weights: tuple[float, ...] = (0.25, 0.3, 0.45)
+    body_weights: tuple[float, ...] = (0.1, 0.1, 0.8)
     joins: tuple[str, ...] = JOINS
     join_weights: tuple[float, ...] = (0.25, 0.45, 0.3)
     spacing: tuple[float, float] = (1.3, 2.2)  # centre distance / body radius
@@ -178,10 +178,12 @@ def draw_assembly(seed: int, index: int, cfg: DrawSettings, s: AssemblySettings)
         stretch = tuple(round(float(rng.uniform(0.75, 1.3)), 2) for _ in range(3))
     if kind == "torus" and arrangement != "chain" and join != "boolean":
         # rings joined by a product must not touch (the product hollows their overlap into
-        # webs and debris): the tube is thinned to keep them apart; rings that cross are balls
+        # webs and debris): the tube is thinned to keep them apart; rings that would cross
+        # are linked into a chain instead (balls there were lumps more often than not, rings
+        # spread apart three of a kind)
         apart = _rings_apart(arrangement, spacing, axis, tilt, tube)
         if apart is None:
-            kind = "ball"
+            arrangement = "chain"
         else:
             tube = apart
     if arrangement == "chain":
@@ -459,5 +461,5 @@ FAMILY = Family(
     draw_assembly,
     "2-5 bodies placed by a symmetry group, blended, kept apart or combined by min/max",
     AssemblySettings,
-    mix_weight=0.18,
+    mix_weight=0.15,
 )

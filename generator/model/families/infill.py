@@ -396,7 +396,7 @@ FAMILY = Family(
     draw_infill,
     "an envelope filled with a triply periodic lattice (a gyroid-filled sculpture)",
     InfillSettings,
-    mix_weight=0.14,
+    mix_weight=0.2,
     one_body=True,
     porous=True,
 )

@@ -369,4 +369,6 @@ FAMILY = Family(
     TwistSettings,
     mix_weight=0.1,
     one_body=True,
+    outline=False,  # a screw's grooves show inside a convex outline
+    aspect_limit=1.5,  # squashed further, a column is a lens, a sliver or a stack of plates
 )

@@ -340,3 +340,17 @@ def test_a_hollow_infill_is_a_pierced_shell_of_the_drawn_thickness() -> None:
     assert all(st["cut"] is None for st in shells if st["envelope"]["kind"] == "torus")
     assert any(st["envelope"]["kind"] == "torus" for st in shells)
     assert {st["cut"]["kind"] for st in kinds if not st["shell"]} >= {"cube", "octahedron"}
+
+
+def test_rings_that_would_cross_are_linked_into_a_chain() -> None:
+    """Rings only (``body_weights`` all on the torus): an arrangement whose rings would cross
+    is drawn as a chain of linked rings, never as the balls it once fell back to; rings that
+    stay apart keep their arrangement."""
+    cfg = family("assembly").with_settings("assembly", body_weights=(0.0, 0.0, 1.0))
+    crossing = apart = 0
+    for i in range(120):
+        info = draw_equation(11, i, cfg).structure
+        assert info["body"] == "torus", (i, info)
+        crossing += info["arrangement"] == "chain"
+        apart += info["arrangement"] in ("triangle", "tetra", "row", "square")
+    assert crossing >= 10 and apart >= 10

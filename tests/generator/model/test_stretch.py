@@ -19,6 +19,7 @@ from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 from surfgen.generator.model.stretch import (
     axis_symmetries,
     draw_scale,
+    limit_ratio,
     stretch_box,
     stretch_draw,
     stretch_equation,
@@ -203,3 +204,28 @@ def test_a_symmetry_must_map_the_box_onto_itself() -> None:
     ball = polynomial_draw((1, 2, 0, 0), (1, 0, 2, 0), (1, 0, 0, 2))
     shifted = replace(ball, box=Box((-1.5, -1.5, -1.5), (1.875, 1.5, 1.5)))
     assert axis_symmetries(shifted, cfg) == ((0,), False)
+
+
+def test_a_family_limits_how_far_its_shapes_are_stretched() -> None:
+    """``limit_ratio`` draws the factors' logarithms towards their middle until the largest
+    over the smallest is the limit (to the factors' two decimals); equal factors stay equal, so
+    a kept swap of axes is kept; factors within the limit are left as drawn."""
+    assert limit_ratio((0.5, 1.0, 2.0), 2.0) == (0.71, 1.0, 1.41)
+    assert limit_ratio((0.45, 1.0, 1.0), 1.5)[1:] == (0.82, 0.82)
+    assert limit_ratio((0.8, 1.1, 1.0), 1.5) == (0.8, 1.1, 1.0)
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        scale = tuple(round(float(v), 2) for v in np.exp(rng.uniform(-0.8, 0.8, 3)))
+        out = limit_ratio(scale, 1.5)
+        assert max(out) / min(out) <= 1.5 * 1.02, (scale, out)
+        for a in range(3):  # the order of the factors kept (rounding may make two equal)
+            for b in range(3):
+                assert scale[a] >= scale[b] or out[a] <= out[b], (scale, out)
+    # the twist family's shapes (squashed further, a column is a lens or a stack of plates)
+    cfg = replace(SamplerConfig(), family="twist")
+    ratios = []
+    for i in range(60):
+        aspect = draw_equation(7, i, cfg).structure.get("aspect")
+        if aspect:
+            ratios.append(max(aspect) / min(aspect))
+    assert len(ratios) > 30 and max(ratios) <= 1.5 * 1.02 and max(ratios) > 1.3
