@@ -102,7 +102,8 @@ def test_a_streamed_shape_is_the_catalogued_one(
 
 
 def test_shapes_stops_at_max_draws_and_checks_its_arguments() -> None:
-    assert list(surfgen.shapes(SEED, grid=GRID, max_draws=1)) == []  # draw 0 is rejected
+    assert list(surfgen.shapes(2, grid=GRID, max_draws=1)) == []  # its draw 0 is rejected
+    assert len(list(surfgen.shapes(SEED, grid=GRID, max_draws=1))) == 1  # this one's is kept
     with pytest.raises(surfgen.LimitError, match="--seed must be a whole number"):
         surfgen.shapes(-1)
     with pytest.raises(surfgen.SpecError, match="--family must be one of"):

@@ -461,5 +461,5 @@ FAMILY = Family(
     draw_assembly,
     "2-5 bodies placed by a symmetry group, blended, kept apart or combined by min/max",
     AssemblySettings,
-    mix_weight=0.15,
+    mix_weight=0.13,
 )

@@ -78,5 +78,5 @@ FAMILY = Family(
     "free",
     draw_free,
     "the first sampler's draw: random sums of products of eq. (13) factors",
-    mix_weight=0.07,
+    mix_weight=0.05,
 )

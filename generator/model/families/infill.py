@@ -73,7 +73,7 @@ class InfillSettings:
     stretch_prob: float = 0.6  # the envelope stretched along one or two axes by 0.55-1.6
     patterns: tuple[str, ...] = INFILL_PATTERNS
     pattern_weights: tuple[float, ...] = (0.3, 0.25, 0.15, 0.15, 0.15)
-    periods: tuple[float, float] = (1.2, 3.5)  # periods across the envelope's width
+    periods: tuple[float, float] = (1.8, 3.5)  # periods across the envelope's width
     strut_cells: float = 3.0  # the thinner of struts and pores spans at least this many cells
     level: tuple[float, float] = (0.25, 0.65)  # t at this quantile of L: the solid's share
     margin: tuple[float, float] = (0.08, 0.2)  # box half = envelope extent * (1 + margin)
@@ -396,7 +396,7 @@ FAMILY = Family(
     draw_infill,
     "an envelope filled with a triply periodic lattice (a gyroid-filled sculpture)",
     InfillSettings,
-    mix_weight=0.2,
+    mix_weight=0.17,
     one_body=True,
     porous=True,
 )

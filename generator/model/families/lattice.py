@@ -178,6 +178,6 @@ FAMILY = Family(
     draw_lattice,
     "triply periodic patterns (Schwarz, gyroid, diamond, Neovius, I-WP ...) cut by the box",
     LatticeSettings,
-    mix_weight=0.06,
+    mix_weight=0.1,
     porous=True,
 )

@@ -498,6 +498,6 @@ FAMILY = Family(
     draw_sculpture,
     "an envelope carved by an ornament summed over a symmetry group",
     SculptureSettings,
-    mix_weight=0.42,
+    mix_weight=0.49,
     one_body=True,
 )

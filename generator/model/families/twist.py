@@ -367,7 +367,7 @@ FAMILY = Family(
     draw_twist,
     "twisted columns: a capped column whose m lobes turn along its axis (optionally braided)",
     TwistSettings,
-    mix_weight=0.1,
+    mix_weight=0.06,
     one_body=True,
     outline=False,  # a screw's grooves show inside a convex outline
     aspect_limit=1.5,  # squashed further, a column is a lens, a sliver or a stack of plates
