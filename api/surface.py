@@ -400,9 +400,9 @@ class Surface:
             Nothing crosses the level in the box.
         """
         # deferred: the filters load numba and pymeshlab
-        from surfgen.filters.outline import outline_fill
         from surfgen.filters.shape import quality_metrics
         from surfgen.filters.verdict import shape_metrics
+        from surfgen.generator.mesh.outline import outline_fill
         from surfgen.generator.model.families.carving import envelope_departure
 
         surface = self._on(grid)

@@ -282,7 +282,7 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
       not plain.
     - from the mesh alone: one piece of genus at most ``plain_outline_max_genus`` whose
       silhouette fills at least ``plain_min_outline`` of its convex hull in every view
-      (``outline``, :mod:`surfgen.filters.outline`): a lump whose ornament only dents it, a
+      (``outline``, :mod:`surfgen.generator.mesh.outline`): a lump whose ornament only dents it, a
       lens, a gem whose facets barely change, however wavy its surface (measured only for the
       families judged by their outline: every one but ``twist``, whose grooves are its look).
     Measures that are missing are not judged."""

@@ -225,7 +225,7 @@ class Family:
     cut by the box or an envelope), so the filters allow it more than ``[filters] max_pieces``
     (a body, or a few, in more pieces has flying debris: ``fragmented``); ``outline``: a
     lump of it is told by its silhouette (every view a convex outline: ``plain``,
-    :mod:`surfgen.filters.outline`) — False for a family whose look is the relief inside a
+    :mod:`surfgen.generator.mesh.outline`) — False for a family whose look is the relief inside a
     convex outline (``twist``: its grooves); ``aspect_limit``: the largest ratio of two of the
     factors its shapes are stretched by (:mod:`surfgen.generator.model.stretch`; None: as
     drawn) — a twisted column squashed flat is a lens.

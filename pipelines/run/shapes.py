@@ -23,7 +23,6 @@ from surfgen.filters.descriptor import (
     descriptor_from_text,
     descriptor_to_text,
 )
-from surfgen.filters.outline import outline_fill
 from surfgen.filters.resolution import measure_resolution
 from surfgen.filters.shape import quality_metrics, solidity
 from surfgen.filters.verdict import (
@@ -42,6 +41,7 @@ from surfgen.generator.files import write_atomic
 from surfgen.generator.formula.expr import Expr, substitute_params
 from surfgen.generator.mesh.exchange import encode_mesh
 from surfgen.generator.mesh.mesh import Mesh, extract_with_edges, face_areas
+from surfgen.generator.mesh.outline import outline_fill
 from surfgen.generator.mesh.walls import label_walls
 from surfgen.generator.model.draw import Draw
 from surfgen.generator.model.families import get_family

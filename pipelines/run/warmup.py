@@ -369,10 +369,10 @@ def _warm_measures(
     (the first one compiles the descriptor, the fine band and the distances, this one the
     sparse marching)."""
     from surfgen.filters import descriptor as shape_descriptor
-    from surfgen.filters.outline import outline_fill
     from surfgen.filters.resolution import warm_kernels
     from surfgen.filters.shape import quality_metrics
     from surfgen.filters.verdict import quick_metrics, shape_metrics
+    from surfgen.generator.mesh.outline import outline_fill
 
     quick = quick_metrics(mesh, box.bounds())
     quality_metrics(mesh, shape_metrics(mesh, box.bounds(), quick=quick))

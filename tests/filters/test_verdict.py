@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surfgen.filters.outline import outline_fill
 from surfgen.filters.shape import solidity
 from surfgen.filters.verdict import (
     FilterConfig,
@@ -21,6 +20,7 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_mesh
+from surfgen.generator.mesh.outline import outline_fill
 from surfgen.generator.model.families import family_names, get_family
 from surfgen.generator.model.presets import PRESETS
 

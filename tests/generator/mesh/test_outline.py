@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfgen.filters.outline import VIEWS, outline_fill, outline_fills
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
+from surfgen.generator.mesh.outline import VIEWS, outline_fill, outline_fills
 
 
 def mesh_of(formula: str, half: float, n: int = 40) -> Mesh:
