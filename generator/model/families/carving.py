@@ -13,13 +13,10 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.evaluate import evaluate_compiled
-from surfgen.generator.eval.grid import Box, Field, Grid
+from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.jit.options import KERNEL
-from surfgen.generator.mesh.mesh import extract_mesh
-from surfgen.generator.mesh.outline import outline_fill
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor
 from surfgen.generator.model.families.symmetry import ornament_combos, permute_factor
@@ -119,19 +116,6 @@ def carved(
     departure = envelope_departure(f, e)
     stray = np.count_nonzero(far) / count
     return stray, departure if math.isfinite(departure) else 0.0, f
-
-
-def body_outline(values: np.ndarray, box: Box) -> float:
-    """The outline (:func:`~surfgen.generator.mesh.outline.outline_fill`) of the body
-    ``values < 0`` sampled over ``box`` (a cube of samples, meshed with its caps): the same
-    measure as the plain filter's on the full grid, which a lump's coarse samples already give
-    (on sampler 12's sculptures at 24 samples a side: at least 0.85 for 85-96 % of those the
-    filter called plain, for 9 % of those it accepted). 1 when nothing crosses."""
-    grid = Grid(box, values.shape)
-    try:
-        return outline_fill(extract_mesh(Field(grid, values), 0.0, cap=True))
-    except EmptySurface:
-        return 1.0
 
 
 _CUBE = np.ones((3, 3, 3), dtype=bool)

@@ -100,7 +100,6 @@ class SculptureSettings:
     max_stray: float = 0.02  # share of the carved surface far from the envelope
     min_departure: float = 0.2  # carved surface's departure from the envelope
     max_pieces: int = 6  # pieces of the carved surface on the feature grid
-    max_outline: float = 0.88  # a carved body whose every view fills this of its hull: a lump
     ornament_tries: int = 6  # ornaments drawn until one carves cleanly
     feature_grid: int = 24  # samples per axis of the grid the ornament checks use
 
@@ -126,7 +125,7 @@ class SculptureSettings:
             "pole_free_prob",
         )
         require_fractions(self, probabilities, TABLE, "a probability")
-        require_fractions(self, ("max_stray", "max_outline"), TABLE, "a share")
+        require_fractions(self, ("max_stray",), TABLE, "a share")
         require_low_high(self, ("exponent", "depth", "margin", "frequency"), TABLE)
         if not 8 <= self.feature_grid <= 128:
             raise SpecError(f"config [{TABLE}]: feature_grid must be from 8 to 128")
@@ -309,9 +308,8 @@ def coarse_ornament(
     """Draw ornaments until one carves cleanly: features at least ``min_feature`` of the box,
     at most ``max_stray`` of its surface far from the envelope, a departure from the envelope
     of at least ``min_departure``, periods the grid resolves and no pole on a plane through the
-    centre (:func:`~.gridbound.pole_planes`), a carved body in at most ``max_pieces``
-    pieces and not a lump: its outline (:func:`~.carving.body_outline`, on the feature grid)
-    under ``max_outline`` (at most ``ornament_tries``; else the best drawn).
+    centre (:func:`~.gridbound.pole_planes`), and a carved body in at most ``max_pieces``
+    pieces (at most ``ornament_tries``; else the best drawn).
     Finer ornaments carve noise, ornaments that outgrow the envelope away from its surface
     throw debris, and ornaments that break the body into crumbs make speckle: the filters
     reject all three after evaluating and meshing the full grid, or the eye calls them rough
@@ -373,18 +371,10 @@ def coarse_ornament(
             continue  # neither clean nor the best, whatever its pieces: no need to count them
         n_pieces = 0 if f is None else carving.pieces(f)
         score -= n_pieces > s.max_pieces
-        lump = (
-            shaped
-            and n_pieces <= s.max_pieces
-            and f is not None
-            and s.max_outline > 0
-            and carving.body_outline(f, box) >= s.max_outline
-        )
-        score -= lump  # every view of it a convex outline: the plain filter's lump
         if best is None or score > best_score:
             checks = (feature, stray, departure, n_pieces, cells, poles)
             best, best_score = (ornament, freq, checks, strength_d), score
-        if shaped and n_pieces <= s.max_pieces and not lump:
+        if shaped and n_pieces <= s.max_pieces:
             break
     assert best is not None
     ornament, freq, checks, strength_d = best

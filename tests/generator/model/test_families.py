@@ -223,7 +223,6 @@ def test_sculptures_redraw_fine_ornaments() -> None:
         max_stray=1.0,
         min_departure=0.0,
         max_pieces=100000,
-        max_outline=0.0,
         ornament_tries=6,
     )
     strict = loose.with_settings("sculpture", min_feature=0.3)  # the feature size alone
@@ -515,31 +514,3 @@ def test_drawn_constituent_parameters_are_always_valid() -> None:
         compile_tree(t.apply(var("x")))  # raises FormulaError for invalid parameters
         halves += t.name == "rect2" and t.params[1] == t.params[0] / 2
     assert halves >= 1  # the collision happened and was mended
-
-
-def _feature_outline(draw, n: int = 24) -> float:
-    """The drawn sculpture's body on ``n`` samples a side of its box, outlined."""
-    values = evaluate(draw.equation.with_d(draw.d).to_tree(), Grid(draw.box, (n,) * 3)).values
-    return carving.body_outline(values, draw.box)
-
-
-def test_body_outline_tells_a_lump_from_a_star() -> None:
-    box = Box.cube(1.4)
-    x, y, z = np.meshgrid(*(np.linspace(-1.4, 1.4, 24),) * 3, indexing="ij")
-    assert carving.body_outline(x**2 + y**2 + z**2 - 1, box) > 0.95
-    bars = np.minimum(np.minimum(y**2 + z**2, x**2 + z**2), x**2 + y**2) - 0.09
-    assert carving.body_outline(bars + 0.01 * (x**2 + y**2 + z**2), box) < 0.7
-    assert carving.body_outline(np.ones((24, 24, 24)), box) == 1.0  # nothing crosses
-
-
-def test_sculptures_redraw_ornaments_that_leave_a_lump() -> None:
-    """With max_outline ([sampler.sculpture]), an ornament whose carved body is a convex outline
-    in every view on the feature grid (a lump: the plain filter's) is drawn again: the drawn
-    bodies are lumps far less often than with the check off."""
-    off = family("sculpture").with_settings("sculpture", max_outline=0.0)
-    on = family("sculpture")
-    lumps_off = sum(_feature_outline(draw_equation(5, i, off)) >= 0.88 for i in range(24))
-    lumps_on = sum(_feature_outline(draw_equation(5, i, on)) >= 0.88 for i in range(24))
-    assert lumps_off >= 6 and lumps_on <= lumps_off // 2, (lumps_off, lumps_on)
-    with pytest.raises(SpecError, match="max_outline"):
-        family("sculpture").with_settings("sculpture", max_outline=1.5)

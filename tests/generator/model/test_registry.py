@@ -44,17 +44,16 @@ ROOT = Path(__file__).resolve().parents[3]
 # torus of infill left uncut: the version is hashed); and for version 10 (aspect_prob, aspect
 # in [sampler]: proportions; [filters] max_pieces); and for version 11 (pole planes redrawn:
 # the version is hashed); and for version 12 ([filters] min_piece_fraction, plain_min_outline,
-# plain_outline_max_genus; the mix's and the assembly's body weights, the infill's periods; [sampler.sculpture]
-# max_outline).
-DEFAULT_HASH = "9d867ba645cb"
-FAMILY_HASHES = {"sculpture": "041f10b29c1e", "lattice": "8f957f257747", "free": "3b9c2248c750"}
+# plain_outline_max_genus; the mix's and the assembly's body weights, the infill's periods).
+DEFAULT_HASH = "1e632179d729"
+FAMILY_HASHES = {"sculpture": "68056f619fd9", "lattice": "ce6b1202fb37", "free": "27c6fee3beda"}
 OLD_STYLE = """[sampler]
 family = "sculpture"
 sculpture_exponent = [2.0, 3.0]
 lattice_periods = [1.5, 2.0]
 abs_prob = 0.4
 """
-OLD_STYLE_HASHES = ("b43d1e7b18b6", "16aaabc969f5")
+OLD_STYLE_HASHES = ("2ad9f9d357f3", "e15ab46f7bff")
 NEW_STYLE = """[sampler]
 family = "sculpture"
 abs_prob = 0.4
