@@ -226,8 +226,8 @@ def _judge(
     """The cascade: coarse field, full field (and how far it departs from the draw's envelope,
     if any), mesh, cheap mesh checks; then, when called, ``mesh_checks()``: the walls, the full
     mesh checks, the solidity and the outline (plain lumps); then ``fine_checks()``: the
-    resolution check (the nested grid twice as fine) and the shape-quality metrics of an accepted mesh. Returns the
-    cheap checks' verdict, the metrics (the later checks add to them), the mesh (if made) and
+    resolution check (the nested grid twice as fine) and the shape-quality metrics of an
+    accepted mesh. Returns the cheap checks' verdict, the metrics (the later checks add to them), the mesh (if made) and
     ``(mesh_checks, fine_checks)``, to be called in that order while the verdict accepts."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}

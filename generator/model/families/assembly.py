@@ -13,8 +13,9 @@ the centre; or a ``chain`` of 2-4 linked tori (every other one smaller, or not).
 - ``product``: ``Π B_i`` (one sum term of one factor per body): the union of bodies that do not
   overlap (linked tori, separate rings), kept apart: a product hollows an overlap into webs
   and debris, so the rings' tube is thinned until any two are apart (under 0.3 of their
-  closest approach each: the gap between them is at least 0.4 of it), and rings that cross (or nearly: a tube under 0.15 of the ring
-  radius) become balls;
+  closest approach each: the gap between them is at least 0.4 of it), and rings that would
+  cross (or nearly: a tube under 0.15 of the ring radius) are linked into a chain instead
+  (since sampler 12; they were balls, ornamented: lumps);
 - ``boolean``: two bodies by min/max through ``|·|`` (:func:`~.bodies.union`,
   :func:`~.bodies.intersection`, :func:`~.bodies.difference`): a ring through a ball, a box
   with a ball cut out, ...
@@ -67,7 +68,7 @@ from surfgen.generator.model.settings import (
 
 SIZE = 0.5  # a body's radius (a torus's ring radius)
 APART = 0.3  # a product's rings: tube radius at most this share of their closest approach
-MIN_TUBE = 0.15  # ... and not thinner than this share of the ring radius (else balls)
+MIN_TUBE = 0.15  # ... and not thinner than this share of the ring radius (else a chain)
 ARRANGEMENTS = ("pair", "row", "triangle", "tetra", "square", "chain")
 BODIES = ("ball", "box", "torus")
 JOINS = ("blend", "product", "boolean")
