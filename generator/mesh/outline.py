@@ -44,11 +44,15 @@ _UP = np.array([0.3, 0.5, 0.8])  # any direction along no view: fixes each view'
 
 
 def _image_axes() -> np.ndarray:
-    """``(V, 2, 3)``: two orthonormal image axes per view (perpendicular to it)."""
+    """``(V, 2, 3)``: two orthonormal image axes per view (perpendicular to it). The length is
+    summed in Python floats, not by ``np.linalg.norm`` (a BLAS dot, whose rounding may depend
+    on the CPU's kernel): the same axes on every machine."""
     out = np.empty((len(VIEWS), 2, 3))
     for i, d in enumerate(VIEWS):
         u = np.cross(d, _UP)
-        u /= np.linalg.norm(u)
+        u /= math.sqrt(
+            float(u[0]) * float(u[0]) + float(u[1]) * float(u[1]) + float(u[2]) * float(u[2])
+        )
         out[i, 0], out[i, 1] = u, np.cross(d, u)
     return out
 
