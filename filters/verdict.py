@@ -294,12 +294,7 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     if one_piece and solidity is not None and solidity >= cfg.plain_min_solidity:
         return True
     outline = metrics.get("outline")
-    if (
-        one_piece
-        and outline is not None
-        and outline >= cfg.plain_min_outline
-        and metrics.get("genus", math.inf) <= cfg.plain_outline_max_genus
-    ):
+    if outline is not None and outline >= cfg.plain_min_outline and judged_by_outline(metrics, cfg):
         return True
     curvature = metrics.get("total_curvature")
     if curvature is None or not curvature < cfg.plain_max_curvature:
@@ -310,6 +305,17 @@ def plain(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
     return (
         metrics.get("genus") == 0
         and cfg.blob_max_curvature * metrics.get("components", 1) <= curvature
+    )
+
+
+def judged_by_outline(metrics: Mapping[str, Any], cfg: FilterConfig) -> bool:
+    """Whether :func:`plain` judges the shape by its ``outline``: one piece, of genus at most
+    ``plain_outline_max_genus`` (the sampler measures the outline only then)."""
+    genus = metrics.get("genus")
+    return (
+        metrics.get("components") == 1
+        and genus is not None
+        and genus <= cfg.plain_outline_max_genus
     )
 
 

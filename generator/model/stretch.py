@@ -95,7 +95,8 @@ def limit_ratio(scale: Sequence[float], limit: float) -> tuple[float, float, flo
     if high - low <= math.log(limit):
         return tuple(scale)  # type: ignore[return-value]
     middle, shrink = (high + low) / 2, math.log(limit) / (high - low)
-    return tuple(round(math.exp(middle + (v - middle) * shrink), 2) for v in logs)  # type: ignore[return-value]
+    x, y, z = (round(math.exp(middle + (v - middle) * shrink), 2) for v in logs)
+    return x, y, z
 
 
 def axis_symmetries(

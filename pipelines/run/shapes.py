@@ -29,6 +29,7 @@ from surfgen.filters.verdict import (
     ACCEPT,
     Verdict,
     judge,
+    judged_by_outline,
     plain,
     quick_metrics,
     screen_field,
@@ -227,8 +228,9 @@ def _judge(
     if any), mesh, cheap mesh checks; then, when called, ``mesh_checks()``: the walls, the full
     mesh checks, the solidity and the outline (plain lumps); then ``fine_checks()``: the
     resolution check (the nested grid twice as fine) and the shape-quality metrics of an
-    accepted mesh. Returns the cheap checks' verdict, the metrics (the later checks add to them), the mesh (if made) and
-    ``(mesh_checks, fine_checks)``, to be called in that order while the verdict accepts."""
+    accepted mesh. Returns the cheap checks' verdict, the metrics (the later checks add to
+    them), the mesh (if made) and ``(mesh_checks, fine_checks)``, to be called in that order
+    while the verdict accepts."""
     fcfg, run = config.filters, config.run
     metrics: dict[str, Any] = {}
     one_body = draw is not None and get_family(draw.family).one_body
@@ -300,13 +302,8 @@ def _judge(
         if verdict.accepted:  # ...then how much of its convex hull it fills (plain blobs)
             metrics["solidity"] = solidity(mesh, metrics.get("volume"))
             verdict = judged()
-        if (
-            verdict.accepted
-            and by_outline
-            and metrics["components"] == 1
-            and metrics.get("genus") is not None
-            and metrics["genus"] <= fcfg.plain_outline_max_genus
-        ):  # ...then its outline, for a lump whose every view is convex (plain)
+        if verdict.accepted and by_outline and judged_by_outline(metrics, fcfg):
+            # ...then its outline, for a lump whose every view is convex (plain)
             metrics["outline"] = outline_fill(mesh)
             verdict = judged()
         watch.lap("filters")
