@@ -21,6 +21,7 @@ its own. The symmetries are those of the shape's inside on the coarse grid that 
 from __future__ import annotations
 
 import decimal
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -164,10 +165,15 @@ def _coefficient(term: PowerTerm, scale: Sequence[float]) -> float:
     value = decimal.Decimal(term.a)
     for s, e in zip(scale, (term.b, term.c, term.d), strict=True):
         if e != 0 and s != 1:
-            value = _CONTEXT.multiply(
-                value, _CONTEXT.power(decimal.Decimal(repr(s)), decimal.Decimal(repr(-e)))
-            )
+            value = _CONTEXT.multiply(value, _inverse_power(s, e))
     return round_significant(float(value), DIGITS)
+
+
+@functools.lru_cache(maxsize=1024, typed=True)  # 2 and 2.0: not the same repr
+def _inverse_power(s: float, e: float) -> decimal.Decimal:
+    """``s^-e`` in :data:`_CONTEXT`'s decimal arithmetic (a draw's three factors meet the same
+    few exponents in every term: computed once each)."""
+    return _CONTEXT.power(decimal.Decimal(repr(s)), decimal.Decimal(repr(-e)))
 
 
 def stretch_box(box: Box, scale: Sequence[float]) -> Box:

@@ -28,6 +28,7 @@ Its keys: the ``[sampler.assembly]`` table (:class:`AssemblySettings`).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Any
@@ -416,18 +417,27 @@ def _ring_gap(
     c1, a1, c2, a2, radius: float, radius2: float | None = None, samples: int = 96
 ) -> float:
     """The closest approach of two circles of ``radius`` (the second of ``radius2`` if given;
-    centres c, unit axes a), sampled."""
+    centres c, unit axes a), sampled: the smallest distance between ``samples`` points of each
+    (the squared distances summed x, y, z in that order, the root of the smallest taken)."""
+    r2 = radius if radius2 is None else radius2
+    p = np.asarray(c1) + _circle_offsets(tuple(map(float, a1)), float(radius), samples)
+    q = np.asarray(c2) + _circle_offsets(tuple(map(float, a2)), float(r2), samples)
+    dx, dy, dz = (p[:, k, None] - q[None, :, k] for k in range(3))
+    return float(np.sqrt((dx * dx + dy * dy + dz * dz).min()))
 
-    def circle(c, a, radius) -> np.ndarray:
-        a = np.asarray(a, dtype=float) / np.linalg.norm(a)
-        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        u /= np.linalg.norm(u)
-        v = np.cross(a, u)
-        t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
-        return np.asarray(c) + radius * (np.cos(t) * u + np.sin(t) * v)
 
-    p, q = circle(c1, a1, radius), circle(c2, a2, radius if radius2 is None else radius2)
-    return float(np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min())
+@functools.lru_cache(maxsize=512)
+def _circle_offsets(axis: tuple[float, ...], radius: float, samples: int) -> np.ndarray:
+    """``(samples, 3)``: points of the circle of ``radius`` about the origin, square to
+    ``axis`` (a chain's layouts move its rings, not their axes and radii: computed once)."""
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
+    out = radius * (np.cos(t) * u + np.sin(t) * v)
+    out.flags.writeable = False
+    return out
 
 
 def _boolean(
