@@ -54,8 +54,8 @@ from surfgen.generator.errors import EmptySurface, SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.formula.expr import Expr
-from surfgen.generator.jit.options import KERNEL
-from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_areas
+from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_areas, face_cross
 from surfgen.generator.mesh.sparse_marching import extract_sparse
 
 SAMPLES = 4000  # points drawn on each mesh for the distances
@@ -212,10 +212,15 @@ def _patch_singular(values, fine):
 
 def sample_points(mesh: Mesh, n: int = SAMPLES, seed: int = SAMPLE_SEED) -> np.ndarray:
     """``(n, 3)`` points uniform by area on ``mesh`` (a fixed seed: a function of the mesh)."""
-    areas = face_areas(mesh)
-    total = float(areas.sum())
+    return _sample(mesh.vertices, mesh.faces, face_areas(mesh), n, seed)
+
+
+def _sample(
+    v: np.ndarray, f: np.ndarray, areas: np.ndarray, n: int = SAMPLES, seed: int = SAMPLE_SEED
+) -> np.ndarray:
+    """:func:`sample_points` of the faces ``f`` of ``v``, their ``areas`` given."""
     rng = np.random.default_rng(seed)
-    return surface_samples(mesh.vertices, mesh.faces, areas, total, rng, n)[0]
+    return surface_samples(v, f, areas, float(areas.sum()), rng, n)[0]
 
 
 def compare_meshes(
@@ -226,16 +231,40 @@ def compare_meshes(
 
     The meshes are compared in the grid's index space (each axis divided by its spacing): on a
     box stretched along an axis (:mod:`surfgen.generator.model.stretch`) a cell is longer along
-    it, and a cell is what the grid resolves."""
+    it, and a cell is what the grid resolves. Each mesh is taken there, measured and bucketed
+    in one pass (:func:`_in_cells`): the values of :func:`sample_points` and
+    :func:`surface_distances` on the meshes moved there, bit for bit."""
     lo = np.array(grid.box.lo, dtype=np.float64)
     spacing = np.array(grid.spacing, dtype=np.float64)
     dims = np.array([max(n - 1, 1) for n in grid.shape], dtype=np.int64)
-    coarse_cells = Mesh((coarse.vertices - lo) / spacing, coarse.faces)
-    fine_cells = Mesh((fine.vertices - lo) / spacing, fine.faces)
+    c_cells, c_areas, c_world, *c_buckets = _in_cells(
+        coarse.vertices, coarse.faces, lo, spacing, dims
+    )
+    f_cells, f_areas, f_world, *f_buckets = _in_cells(fine.vertices, fine.faces, lo, spacing, dims)
     origin = np.zeros(3)
-    to_fine = surface_distances(sample_points(coarse_cells), fine_cells, origin, 1.0, dims, cap)
-    to_coarse = surface_distances(sample_points(fine_cells), coarse_cells, origin, 1.0, dims, cap)
-    area = float(face_areas(fine).sum()) / float(face_areas(coarse).sum())
+    to_fine = _distances(
+        _sample(c_cells, coarse.faces, c_areas),
+        f_cells,
+        fine.faces,
+        _sorted_buckets(*f_buckets, dims),
+        origin,
+        1.0,
+        dims,
+        cap,
+        DISTANCE_FLOOR,
+    )
+    to_coarse = _distances(
+        _sample(f_cells, fine.faces, f_areas),
+        c_cells,
+        coarse.faces,
+        _sorted_buckets(*c_buckets, dims),
+        origin,
+        1.0,
+        dims,
+        cap,
+        DISTANCE_FLOOR,
+    )
+    area = float(f_world.sum()) / float(c_world.sum())
     return Resolution(
         float(np.percentile(to_fine, PERCENTILE)),
         float(np.percentile(to_coarse, PERCENTILE)),
@@ -259,7 +288,14 @@ def surface_distances(
     outside it count in its border cells). Exact from ``floor`` up; below it, the distance to
     a triangle near the point, which is at most ``floor`` (``floor=0``: exact everywhere)."""
     v, f = mesh.vertices, mesh.faces
-    start, order, centres, radii = _bucket_triangles(v, f, lo, cell, dims)
+    buckets = _bucket_triangles(v, f, lo, cell, dims)
+    return _distances(points, v, f, buckets, lo, cell, dims, cap, floor)
+
+
+def _distances(points, v, f, buckets, lo, cell, dims, cap, floor) -> np.ndarray:
+    """:func:`surface_distances` with the triangles of ``f`` already bucketed (``buckets``:
+    :func:`_bucket_triangles`' four arrays)."""
+    start, order, centres, radii = buckets
     reach = float(radii.max(initial=0.0))
     rings = int(math.ceil(cap + reach / cell)) + 2
     # the points visited cell by cell (each point's distance is its own: any order gives the
@@ -290,26 +326,68 @@ def surface_distances(
 def _bucket_triangles(v, f, lo, cell, dims):
     """The triangles bucketed by centroid (as :func:`~surfgen.filters.geometry.bucket_points`
     buckets points: the same order): ``start``, ``order``, and in that order each triangle's
-    centroid ``(F, 3)`` and its largest distance to its corners, computed in one pass."""
+    centroid ``(F, 3)`` and its largest distance to its corners."""
     n = f.shape[0]
     centres = np.empty((n, 3))
     radii = np.empty(n)
     ids = np.empty(n, dtype=np.int64)
     for t in range(n):
+        _bucket_one(v, f, t, lo, cell, dims, centres, radii, ids)
+    return _sorted_buckets(centres, radii, ids, dims)
+
+
+@numba.njit(**KERNEL)
+def _in_cells(v, f, lo, spacing, dims):
+    """The mesh ``v``, ``f`` in the grid's index space, in one pass over its vertices and one
+    over its faces: the vertices ``(v - lo) / spacing``, each face's area there (what
+    :func:`sample_points` weighs by) and in world units, and its centroid, reach and lattice
+    cell there (what :func:`_bucket_triangles` sorts by, on a lattice of unit cells from 0)."""
+    w = np.empty(v.shape)
+    for i in range(v.shape[0]):
         for k in range(3):
-            centres[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
-        reach = 0.0
-        for c in range(3):
-            d = 0.0
-            for k in range(3):
-                e = v[f[t, c], k] - centres[t, k]
-                d += e * e
-            reach = max(reach, d)
-        radii[t] = math.sqrt(reach)
-        cx = cell_of(centres[t, 0], lo, cell, dims, 0)
-        cy = cell_of(centres[t, 1], lo, cell, dims, 1)
-        cz = cell_of(centres[t, 2], lo, cell, dims, 2)
-        ids[t] = (cx * dims[1] + cy) * dims[2] + cz
+            w[i, k] = (v[i, k] - lo[k]) / spacing[k]
+    n = f.shape[0]
+    areas = np.empty(n)
+    world = np.empty(n)
+    centres = np.empty((n, 3))
+    radii = np.empty(n)
+    ids = np.empty(n, dtype=np.int64)
+    origin = np.zeros(3)
+    for t in range(n):
+        x, y, z = face_cross(w, f[t, 0], f[t, 1], f[t, 2])
+        areas[t] = 0.5 * math.sqrt(x * x + y * y + z * z)
+        x, y, z = face_cross(v, f[t, 0], f[t, 1], f[t, 2])
+        world[t] = 0.5 * math.sqrt(x * x + y * y + z * z)
+        _bucket_one(w, f, t, origin, 1.0, dims, centres, radii, ids)
+    return w, areas, world, centres, radii, ids
+
+
+@numba.njit(**INLINE)
+def _bucket_one(v, f, t, lo, cell, dims, centres, radii, ids):
+    """Triangle ``t``'s centroid, its largest distance to its corners and its lattice cell
+    (:func:`~surfgen.filters.geometry.cell_of` of the centroid), into ``centres``, ``radii``,
+    ``ids``."""
+    for k in range(3):
+        centres[t, k] = (v[f[t, 0], k] + v[f[t, 1], k] + v[f[t, 2], k]) / 3.0
+    reach = 0.0
+    for c in range(3):
+        d = 0.0
+        for k in range(3):
+            e = v[f[t, c], k] - centres[t, k]
+            d += e * e
+        reach = max(reach, d)
+    radii[t] = math.sqrt(reach)
+    cx = cell_of(centres[t, 0], lo, cell, dims, 0)
+    cy = cell_of(centres[t, 1], lo, cell, dims, 1)
+    cz = cell_of(centres[t, 2], lo, cell, dims, 2)
+    ids[t] = (cx * dims[1] + cy) * dims[2] + cz
+
+
+@numba.njit(**KERNEL)
+def _sorted_buckets(centres, radii, ids, dims):
+    """The triangles counting-sorted by lattice cell ``ids``: ``start``, ``order`` and their
+    ``centres`` and ``radii`` in that order."""
+    n = ids.shape[0]
     start, order = counting_sort(ids, dims[0] * dims[1] * dims[2])
     sorted_centres = np.empty((n, 3))
     sorted_radii = np.empty(n)

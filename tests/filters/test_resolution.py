@@ -223,6 +223,30 @@ def test_distances_are_in_cells_of_each_axis() -> None:
     assert 0.8 < compare_meshes(a, moved, tall).to_fine < 1.1
 
 
+def test_compare_meshes_is_its_definition_bit_for_bit() -> None:
+    """The one-pass comparison (each mesh taken to the grid's index space, measured and
+    bucketed at once) gives what its definition gives, bit for bit: points sampled on each mesh
+    moved there, their distances to the other by :func:`surface_distances`, the areas' ratio in
+    world units — on a box with cells of three lengths and meshes of different sizes."""
+    grid = Grid(Box((-1.5, -1.2, -2.0), (1.5, 1.2, 2.0)), (23, 19, 29))
+    coarse_tree, fine_tree = parse("x^2+y^2+(z/1.3)^2-1"), parse(STRIPES)
+    coarse = extract_mesh(evaluate(coarse_tree, grid, threads=1), 0.0, cap=True)
+    fine = extract_mesh(evaluate(fine_tree, fine_grid(grid), threads=1), 0.0, cap=True)
+    lo, spacing = np.array(grid.box.lo), np.array(grid.spacing)
+    dims = np.array([n - 1 for n in grid.shape], dtype=np.int64)
+    c_cells = type(coarse)((coarse.vertices - lo) / spacing, coarse.faces)
+    f_cells = type(fine)((fine.vertices - lo) / spacing, fine.faces)
+    origin = np.zeros(3)
+    to_fine = res.surface_distances(res.sample_points(c_cells), f_cells, origin, 1.0, dims, 8.0)
+    to_coarse = res.surface_distances(res.sample_points(f_cells), c_cells, origin, 1.0, dims, 8.0)
+    area = float(res.face_areas(fine).sum()) / float(res.face_areas(coarse).sum())
+    want = Resolution(
+        float(np.percentile(to_fine, 95.0)), float(np.percentile(to_coarse, 95.0)), area, 7
+    )
+    assert compare_meshes(coarse, fine, grid, 7) == want  # float fields compared exactly
+    assert want.to_fine > 0.1 and want.to_coarse > 0.1  # distances that searched
+
+
 def test_bad_options_are_refused() -> None:
     tree = parse("x^2+y^2+z^2-1")
     coarse = evaluate(tree, Grid(Box.cube(1.5), (8,) * 3), threads=1)

@@ -129,6 +129,28 @@ def test_twist_lobes_are_a_turning_harmonic() -> None:
     assert np.allclose(v, want, atol=1e-9)
 
 
+def test_ring_gap_is_the_closest_pair_of_samples_bit_for_bit() -> None:
+    """The gap from cached circles and per-axis differences is the minimum over every pair of
+    the two circles' samples of the distance numpy gives (for axes of any length, and a second
+    radius or not)."""
+    rng = np.random.default_rng(3)
+
+    def circle(c, a, r, samples=96):
+        a = np.asarray(a, dtype=float) / np.linalg.norm(a)
+        u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        t = np.linspace(0, 2 * np.pi, samples, endpoint=False)[:, None]
+        return np.asarray(c) + r * (np.cos(t) * u + np.sin(t) * np.cross(a, u))
+
+    for _ in range(200):
+        c1, c2, a1, a2 = (tuple(np.round(rng.normal(size=3), 4)) for _ in range(4))
+        r1, r2 = (round(float(rng.uniform(0.2, 0.6)), 4) for _ in range(2))
+        for second in (r2, None):
+            p, q = circle(c1, a1, r1), circle(c2, a2, r1 if second is None else second)
+            want = float(np.sqrt(((p[:, None, :] - q[None, :, :]) ** 2).sum(-1)).min())
+            assert _ring_gap(c1, list(a1), c2, a2, r1, second) == want
+
+
 def test_rings_joined_by_a_product_are_kept_apart() -> None:
     # two coplanar rings whose centres are 1.3 radii apart cross: no tube keeps them apart
     assert _ring_gap((0, 0, 0), (0, 1, 0), (0.65, 0, 0), (0, 1, 0), 0.5) < 0.02  # sampled

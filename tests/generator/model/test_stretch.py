@@ -3,6 +3,7 @@ swaps kept."""
 
 from __future__ import annotations
 
+import decimal
 import re
 from dataclasses import replace
 
@@ -13,10 +14,12 @@ from surfgen.generator.errors import SpecError
 from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.expr import var
-from surfgen.generator.model.draw import Draw, only_a
+from surfgen.generator.model.draw import Draw, only_a, round_significant
 from surfgen.generator.model.equation13 import Equation13, PowerFunction, PowerTerm
 from surfgen.generator.model.sampler import SamplerConfig, draw_equation
 from surfgen.generator.model.stretch import (
+    DIGITS,
+    _coefficient,
     axis_symmetries,
     draw_scale,
     limit_ratio,
@@ -229,3 +232,27 @@ def test_a_family_limits_how_far_its_shapes_are_stretched() -> None:
         if aspect:
             ratios.append(max(aspect) / min(aspect))
     assert len(ratios) > 30 and max(ratios) <= 1.5 * 1.02 and max(ratios) > 1.3
+
+
+def test_coefficients_are_the_decimal_product_whatever_the_exponents_type() -> None:
+    """A stretched coefficient ``a sx^-b sy^-c sz^-d`` is the 40-digit decimal product rounded
+    to DIGITS, its powers cached per factor and exponent as computed afresh (integer, float and
+    fractional exponents)."""
+    ctx = decimal.Context(prec=40)
+
+    def fresh(term, scale):
+        value = decimal.Decimal(term.a)
+        for s, e in zip(scale, (term.b, term.c, term.d), strict=True):
+            if e != 0 and s != 1:
+                power = ctx.power(decimal.Decimal(repr(s)), decimal.Decimal(repr(-e)))
+                value = ctx.multiply(value, power)
+        return round_significant(float(value), DIGITS)
+
+    scale = (1.37, 0.81, 1.0)
+    for term in (
+        PowerTerm(1.25, 2, 1, 0),
+        PowerTerm(1.25, 2.0, 1.0, 0),
+        PowerTerm(-0.7, 3, 0, 2),
+        PowerTerm(0.3, 0.5, 1.5, 0),
+    ):
+        assert _coefficient(term, scale) == fresh(term, scale)
