@@ -237,39 +237,27 @@ def compare_meshes(
     lo = np.array(grid.box.lo, dtype=np.float64)
     spacing = np.array(grid.spacing, dtype=np.float64)
     dims = np.array([max(n - 1, 1) for n in grid.shape], dtype=np.int64)
-    c_cells, c_areas, c_world, *c_buckets = _in_cells(
-        coarse.vertices, coarse.faces, lo, spacing, dims
-    )
-    f_cells, f_areas, f_world, *f_buckets = _in_cells(fine.vertices, fine.faces, lo, spacing, dims)
-    origin = np.zeros(3)
-    to_fine = _distances(
-        _sample(c_cells, coarse.faces, c_areas),
-        f_cells,
-        fine.faces,
-        _sorted_buckets(*f_buckets, dims),
-        origin,
-        1.0,
-        dims,
-        cap,
-        DISTANCE_FLOOR,
-    )
-    to_coarse = _distances(
-        _sample(f_cells, fine.faces, f_areas),
-        c_cells,
-        coarse.faces,
-        _sorted_buckets(*c_buckets, dims),
-        origin,
-        1.0,
-        dims,
-        cap,
-        DISTANCE_FLOOR,
-    )
-    area = float(f_world.sum()) / float(c_world.sum())
+    coarse_in = _in_cells(coarse.vertices, coarse.faces, lo, spacing, dims)
+    fine_in = _in_cells(fine.vertices, fine.faces, lo, spacing, dims)
+    to_fine = _one_way(coarse_in, coarse.faces, fine_in, fine.faces, dims, cap)
+    to_coarse = _one_way(fine_in, fine.faces, coarse_in, coarse.faces, dims, cap)
+    area = float(fine_in[2].sum()) / float(coarse_in[2].sum())
     return Resolution(
         float(np.percentile(to_fine, PERCENTILE)),
         float(np.percentile(to_coarse, PERCENTILE)),
         area,
         fine_points,
+    )
+
+
+def _one_way(source, source_faces, target, target_faces, dims, cap) -> np.ndarray:
+    """Distances, in cells, from points sampled on one mesh to the other, both taken to the
+    grid's index space by :func:`_in_cells` (``source``, ``target``: its six arrays)."""
+    points = _sample(source[0], source_faces, source[1])
+    cells, _, _, centres, radii, ids = target
+    buckets = _sorted_buckets(centres, radii, ids, dims)
+    return _distances(
+        points, cells, target_faces, buckets, np.zeros(3), 1.0, dims, cap, DISTANCE_FLOOR
     )
 
 
