@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -237,11 +238,11 @@ def compare_meshes(
     lo = np.array(grid.box.lo, dtype=np.float64)
     spacing = np.array(grid.spacing, dtype=np.float64)
     dims = np.array([max(n - 1, 1) for n in grid.shape], dtype=np.int64)
-    coarse_in = _in_cells(coarse.vertices, coarse.faces, lo, spacing, dims)
-    fine_in = _in_cells(fine.vertices, fine.faces, lo, spacing, dims)
-    to_fine = _one_way(coarse_in, coarse.faces, fine_in, fine.faces, dims, cap)
-    to_coarse = _one_way(fine_in, fine.faces, coarse_in, coarse.faces, dims, cap)
-    area = float(fine_in[2].sum()) / float(coarse_in[2].sum())
+    coarse_in = _InCells(coarse.faces, *_in_cells(coarse.vertices, coarse.faces, lo, spacing, dims))
+    fine_in = _InCells(fine.faces, *_in_cells(fine.vertices, fine.faces, lo, spacing, dims))
+    to_fine = _one_way(coarse_in, fine_in, dims, cap)
+    to_coarse = _one_way(fine_in, coarse_in, dims, cap)
+    area = float(fine_in.world_areas.sum()) / float(coarse_in.world_areas.sum())
     return Resolution(
         float(np.percentile(to_fine, PERCENTILE)),
         float(np.percentile(to_coarse, PERCENTILE)),
@@ -250,14 +251,24 @@ def compare_meshes(
     )
 
 
-def _one_way(source, source_faces, target, target_faces, dims, cap) -> np.ndarray:
-    """Distances, in cells, from points sampled on one mesh to the other, both taken to the
-    grid's index space by :func:`_in_cells` (``source``, ``target``: its six arrays)."""
-    points = _sample(source[0], source_faces, source[1])
-    cells, _, _, centres, radii, ids = target
-    buckets = _sorted_buckets(centres, radii, ids, dims)
+class _InCells(NamedTuple):
+    """A mesh in the grid's index space (:func:`_in_cells`' arrays, its faces beside them)."""
+
+    faces: np.ndarray
+    vertices: np.ndarray  # (v - lo) / spacing
+    areas: np.ndarray  # each face's area there: the samples' weights
+    world_areas: np.ndarray  # each face's area in world units
+    centres: np.ndarray  # each triangle's centroid, reach and lattice cell there
+    radii: np.ndarray
+    ids: np.ndarray
+
+
+def _one_way(source: _InCells, target: _InCells, dims, cap) -> np.ndarray:
+    """Distances, in cells, from points sampled on ``source`` to the surface of ``target``."""
+    points = _sample(source.vertices, source.faces, source.areas)
+    buckets = _sorted_buckets(target.centres, target.radii, target.ids, dims)
     return _distances(
-        points, cells, target_faces, buckets, np.zeros(3), 1.0, dims, cap, DISTANCE_FLOOR
+        points, target.vertices, target.faces, buckets, np.zeros(3), 1.0, dims, cap, DISTANCE_FLOOR
     )
 
 
