@@ -387,8 +387,10 @@ def brick_layout(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Where the sampled leaves' bricks go: the leaves in C order ``(K, 3)``, each leaf's
     brick number (``slot``, -1 where not sampled), the bricks' first grid indices
-    (``corner``) and their points per axis (``extent``), as :class:`SparseField` holds them."""
-    leaves = np.argwhere(state == SAMPLED).astype(np.int64)
+    (``corner``) and their points per axis (``extent``), as :class:`SparseField` holds them.
+    All C-contiguous, whatever the count (``np.argwhere`` gives a transposed array), so the
+    kernels that read them are compiled for one layout."""
+    leaves = np.ascontiguousarray(np.argwhere(state == SAMPLED), dtype=np.int64)
     slot = np.full(state.shape, -1, dtype=np.int32)
     slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
     corner = leaves * block

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numba
 import numpy as np
 import pytest
 
@@ -19,6 +20,7 @@ from surfgen.generator.eval.sparse import (
     OUTSIDE,
     SAMPLED,
     SparseField,
+    brick_layout,
     evaluate_sparse,
     leaf_counts,
     memory_estimate,
@@ -241,3 +243,20 @@ def test_sampling_holds_no_second_copy_of_the_bricks_kept():
     # every leaf's brick allocated (its pages touched only as far as the bricks kept and one
     # run), then shrunk in place: a copy of the bricks kept would add `kept` to the peak
     assert peak < n_leaves * brick + kept / 2
+
+
+def test_brick_layout_has_one_layout_whatever_the_count() -> None:
+    """``np.argwhere`` gives a transposed array when it finds two leaves or more and a
+    contiguous one for one: the layout is made C-contiguous, so the kernels reading it are
+    compiled once (the second layout's compile landed inside a timed 512^3 render)."""
+    grid = Grid(Box.cube(1.0), (33, 33, 33))
+    kinds = set()
+    for count in (1, 2, 17, 64):
+        state = np.full((4, 4, 4), OUTSIDE, dtype=np.int8)
+        state.flat[np.arange(0, 64, 64 // count)[:count]] = SAMPLED
+        leaves, slot, corner, extent = brick_layout(state, grid, 8)
+        assert len(leaves) == count
+        assert all(a.flags.c_contiguous for a in (leaves, slot, corner, extent))
+        assert (corner == leaves * 8).all() and (extent == np.minimum(9, 33 - corner)).all()
+        kinds.add(tuple(numba.typeof(a) for a in (leaves, slot, corner, extent)))
+    assert len(kinds) == 1
