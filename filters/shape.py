@@ -107,7 +107,9 @@ def _cell_index(
     ``limit`` of a query lies in the query's cell or one of its 26 neighbours. Returns the
     cells' start offsets into ``order`` (points sorted by cell), the grid's origin, the cell
     width and the grid's dimensions."""
-    lo, hi = column_bounds(cloud, np.ones(len(cloud), dtype=np.bool_))
+    frozen = cloud.view()  # read-only as the meshes' vertices are: one compiled signature
+    frozen.flags.writeable = False
+    lo, hi = column_bounds(frozen, np.ones(len(cloud), dtype=np.bool_))
     extent = hi - lo
     # A little wider than the limit: rounding in the division cannot push a neighbour two
     # cells away.

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
+from surfgen.filters import geometry, metrics, shape
 from surfgen.filters.metrics import measure_mesh
 from surfgen.filters.shape import (
     mesh_symmetries,
@@ -96,3 +98,20 @@ def test_a_sphere_with_a_tiny_bump_is_plain_and_a_carved_one_is_not() -> None:
     assert judge(base | {"departure": tiny}, cfg, capped=True).reasons == ("plain",)
     assert judge(base | {"departure": carved}, cfg, capped=True).accepted
     assert judge(base, cfg, capped=True).accepted  # no envelope: never plain
+
+
+def test_column_bounds_has_one_signature_from_the_metrics_and_the_symmetries(monkeypatch) -> None:
+    """The metrics read the mesh's (read-only) vertices, the symmetry check a cloud it made:
+    both hand the kernel a read-only array, so numba compiles it once."""
+    seen = []
+
+    def spy(a, mask):
+        seen.append(numba.typeof(a))
+        return geometry.column_bounds(a, mask)
+
+    monkeypatch.setattr(metrics, "column_bounds", spy)
+    monkeypatch.setattr(shape, "column_bounds", spy)
+    m = mesh_of("x^2+y^2+z^2-1")
+    measure_mesh(m)
+    assert mesh_symmetries(m)[0] == "xyz"
+    assert len(seen) >= 3 and len(set(seen)) == 1 and not seen[0].mutable

@@ -6,6 +6,7 @@ import hashlib
 import json
 from dataclasses import replace
 
+import numba
 import numpy as np
 import pytest
 
@@ -514,3 +515,31 @@ def test_drawn_constituent_parameters_are_always_valid() -> None:
         compile_tree(t.apply(var("x")))  # raises FormulaError for invalid parameters
         halves += t.name == "rect2" and t.params[1] == t.params[0] / 2
     assert halves >= 1  # the collision happened and was mended
+
+
+def test_envelope_departure_gives_its_kernel_one_signature(monkeypatch) -> None:
+    """Writable or read-only grids, the kernel is handed read-only ones (numba compiles a
+    kernel once per signature, and a second one cost the cold job a compile); the measure is
+    the same either way."""
+    seen = []
+    kernel = carving._crossing_offsets
+
+    def spy(v, level, e):
+        seen.append((numba.typeof(v), numba.typeof(e)))
+        return kernel(v, level, e)
+
+    monkeypatch.setattr(carving, "_crossing_offsets", spy)
+    x, y, z = np.meshgrid(*(np.linspace(-1.5, 1.5, n) for n in (20, 21, 22)), indexing="ij")
+    values = x * x + y * y + z * z - 1.0 + 0.2 * np.sin(7.0 * x)
+    envelope = x * x + y * y + z * z - 1.1
+    frozen = [a.copy() for a in (values, envelope)]
+    for a in frozen:
+        a.flags.writeable = False
+    measures = {
+        envelope_departure(values, envelope),
+        envelope_departure(*frozen),
+        envelope_departure(values, frozen[1]),
+    }
+    assert len(measures) == 1 and np.isfinite(measures.pop())
+    assert len(set(seen)) == 1 and not (seen[0][0].mutable or seen[0][1].mutable)
+    assert values.flags.writeable  # the caller's array is left as it was
