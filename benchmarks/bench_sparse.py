@@ -7,15 +7,19 @@ Each shape is meshed as ``surfgen render`` meshes it (``realise``, caps as the s
 the sparse samples freed once read: ``keep_samples=False``; the allocator giving freed memory
 back, :func:`~surfgen.generator.allocator.one_shot_memory_policy`; the walls not classified) with
 ``--evaluator fast`` (every grid point) and ``--evaluator sparse``, each run in a fresh
-process (numba's allocations are invisible to tracemalloc: the peak is the process's VmHWM
-from ``/proc/self/status``, and ``rss0`` the process after its warm-up on a small grid, so
-``peak - rss0`` is what the run added: the table's *added ratio*, beside the ratio of the
-peaks, which the process's own few hundred MiB bound).  Both runs hash their mesh (vertices and faces bytes):
-the table says whether they are the same mesh, bit for bit.  Dense runs are skipped where the
-dense estimate exceeds the available memory (``--dense-max`` caps the grid too).  With
-``--repeats N`` each pair runs N times, in turns (sparse, dense, sparse, ...): the table gives
-the best time of each and the median peak (the dense runs' times vary most here: the machine
-is shared, and faulting in 2 GiB of pages is slow at times).
+process after a warm-up that calls every kernel the run will (:func:`warm_up`; the table is
+followed by any kernel first called inside a timed run, which would time its compile or its
+load from numba's cache). Numba's allocations are invisible to tracemalloc: the peak is the
+process's VmHWM from ``/proc/self/status``, started afresh after the warm-up
+(:func:`reset_peak`), and ``rss0`` the process's size then, so ``peak - rss0`` is what the run
+added: the table's *added ratio*, beside the ratio of the peaks, which the process's own two
+hundred MiB bound. Both runs hash their mesh (vertices and faces bytes): the table says
+whether they are the same mesh, bit for bit. Dense runs are skipped where the dense estimate
+exceeds the available memory (``--dense-max`` caps the grid too). With ``--repeats N`` each
+pair runs N times, in turns (sparse, dense, sparse, ...): the table gives the best time of
+each and the median peak (the dense runs' times vary most here: the machine is shared, and
+faulting in 2 GiB of pages is slow at times: a dense 512^3 run took 2.0 s on one day and
+3.4-5.4 s on another, on the same Xeon).
 
 Shapes: the paper's equations A, B, C (presets) and the first draws of each sampler family
 (seed 5) that have a surface: ``sculpture-1``, ``sculpture-3``, ``lattice-0``, ``free-0``...
@@ -38,6 +42,8 @@ import sys
 import time
 from typing import Any
 
+from numba.core.registry import CPUDispatcher as Dispatcher
+
 from benchmarks import harness
 from surfgen.generator.allocator import one_shot_memory_policy
 from surfgen.generator.eval.compiler import compile_tree
@@ -49,6 +55,7 @@ from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equati
 from surfgen.generator.model.spec import SurfaceSpec
 
 FIDGET_OPS = {"fidget VM (brute force)": 7866 * 1024**2 / 5.8, "fidget JIT": 7866 * 1024**2 / 0.182}
+WARM_UP_GRIDS = (64, 256)
 DEFAULT_SHAPES = "eqA,eqB,eqC,sculpture-1,sculpture-3,sculpture-5,lattice-0,free-0"
 
 
@@ -82,20 +89,56 @@ def vm_rss() -> int:
     return 0
 
 
+def reset_peak() -> None:
+    """Start the process's VmHWM afresh at its current size (Linux's ``clear_refs`` 5), so the
+    peak is the timed run's and not the warm-up's (whose compiles alone can take a few hundred
+    MiB on an empty numba cache)."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+
+
+def kernel_signatures() -> dict[str, int]:
+    """The signatures each of surfgen's numba kernels has in this process: a kernel's first
+    call with new argument types adds one, whether numba compiles it or loads it from its
+    cache (both take time: a kernel first called inside the timed run is timed with it)."""
+    modules = [m for name, m in list(sys.modules.items()) if name.startswith("surfgen.")]
+    kernels = {v for m in modules for v in vars(m).values() if isinstance(v, Dispatcher)}
+    return {f"{k.py_func.__module__}.{k.py_func.__name__}": len(k.overloads) for k in kernels}
+
+
+def warm_up(spec: SurfaceSpec, cap: bool, evaluator: str) -> None:
+    """Compile (or load from numba's cache) every kernel the timed run calls: equation C,
+    capped as the job is, on WARM_UP_GRIDS (a small mesh, and one large enough that the
+    marching runs on every thread and its vertices are grouped plane by plane), then the job's
+    own formula on 24^3.  A 24^3 warm-up alone left the large meshes' kernels to be loaded, or
+    compiled, inside the timed run."""
+    warm = PRESETS["eqC"].spec()
+    for n in WARM_UP_GRIDS:
+        realise(warm, grid=Grid(Box.from_bounds(warm.box), (n,) * 3), evaluator=evaluator,
+                cap=cap, keep_samples=False)  # fmt: skip
+    box = Box.from_bounds(spec.box)
+    realise(spec, grid=Grid(box, (24,) * 3), evaluator=evaluator, cap=cap, allow_empty=True)
+
+
 def child(job: dict[str, Any]) -> dict[str, Any]:
-    """One run in this (fresh) process: warm up on 24^3, then mesh on the job's grid.  The
-    spec comes as JSON (the parent drew it), as ``render --from`` reads a stored one: the
-    process loads what meshing needs, not the sampler's kernels too."""
+    """One run in this (fresh) process: warm up (:func:`warm_up`), then mesh on the job's grid.
+    The spec comes as JSON (the parent drew it), as ``render --from`` reads a stored one: the
+    process loads what meshing needs, not the sampler's kernels too.  ``compiled`` counts the
+    kernels numba compiled inside the timed run (0 when the warm-up did its job)."""
     one_shot_memory_policy()  # the allocator's policy of `render` and `export`
     spec, cap = SurfaceSpec.from_json(job["spec"]), job["cap"]
-    box = Box.from_bounds(spec.box)
-    realise(spec, grid=Grid(box, (24,) * 3), evaluator=job["evaluator"], cap=cap, allow_empty=True)
+    warm_up(spec, cap, job["evaluator"])
+    reset_peak()
     rss0 = vm_rss()
     n = job["grid"]
+    before = kernel_signatures()
+    grid = Grid(Box.from_bounds(spec.box), (n,) * 3)
     t0 = time.perf_counter()
-    made = realise(spec, grid=Grid(box, (n,) * 3), evaluator=job["evaluator"], cap=cap,
-                   allow_empty=True, keep_samples=False)  # fmt: skip
+    made = realise(spec, grid=grid, evaluator=job["evaluator"], cap=cap, allow_empty=True,
+                   keep_samples=False)  # fmt: skip
     seconds = time.perf_counter() - t0
+    after = kernel_signatures()
+    first_called = sorted(k for k, count in after.items() if count > before.get(k, 0))
     mesh = made.mesh
     digest = hashlib.sha256()
     faces = 0
@@ -124,6 +167,7 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
         "faces": faces,
         "ops_per_s": ops * points / eval_s if eval_s > 0 else None,
         "hash": digest.hexdigest()[:16] if mesh is not None else None,
+        "first_called": first_called,
     }
 
 
@@ -208,6 +252,11 @@ def main(argv: list[str] | None = None) -> None:
                 f"{sparse['peak'] / mib:.0f} | {memory} | {added} | {sparse['share']:.3f} | "
                 f"{sparse['faces']} | {same} | {f'{ops:.2g}' if ops else '-'} |"
             )
+    for r in rows:
+        for kind in ("sparse", "dense"):
+            if r[kind] and r[kind]["first_called"]:
+                run.say(f"{r['shape']} {r['grid']}^3 {kind}: kernels first called (compiled or "
+                        f"loaded) inside the timed run: {', '.join(r[kind]['first_called'])}")  # fmt: skip
     for label, value in FIDGET_OPS.items():
         run.say(f"{label}: {value:.2g} clause-evaluations/s (published)")
     sculptures = [r for r in rows if r["shape"].startswith("sculpture") and r["dense"]]

@@ -1,0 +1,45 @@
+"""bench_sparse's runs: each child warms up every kernel its timed run calls, and measures the
+run's own peak."""
+
+from __future__ import annotations
+
+import pytest
+
+from benchmarks import bench_sparse
+from surfgen.generator.mesh import marching
+from surfgen.generator.model.presets import PRESETS
+
+
+def job(shape: str, grid: int, evaluator: str) -> dict:
+    preset = PRESETS[shape]
+    return {"shape": shape, "spec": preset.spec().to_json(), "cap": preset.cap, "grid": grid,
+            "evaluator": evaluator}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("shape", "grid"),
+    [("eqA", 96), ("eqB", 128)],  # a small capped mesh; a large uncapped one, on every thread
+)
+def test_the_warm_up_leaves_no_kernel_to_the_timed_run(shape: str, grid: int) -> None:
+    """A kernel first called inside the timed run is timed with its compile or its load from
+    numba's cache (a 24^3 warm-up left seven to a 512^3 render); the peak is the run's, not
+    the warm-up's (which compiles on an empty cache)."""
+    sparse = bench_sparse.run_job(job(shape, grid, "sparse"))
+    dense = bench_sparse.run_job(job(shape, grid, "fast"))
+    assert sparse is not None and dense is not None
+    for run in (sparse, dense):
+        assert run["first_called"] == []
+        assert run["rss0"] <= run["peak"]
+    if shape == "eqA":  # 96^3 adds a few MiB; the warm-up's 256^3 peaked 75-300 MiB higher
+        assert sparse["peak"] - sparse["rss0"] < 40 << 20
+        assert dense["peak"] - dense["rss0"] < 40 << 20
+    assert sparse["hash"] == dense["hash"] and sparse["faces"] > 0
+
+
+def test_the_kernels_are_found_with_their_signatures() -> None:
+    """What the check reads: every numba kernel of surfgen's loaded modules, and the
+    signatures it has so far."""
+    found = bench_sparse.kernel_signatures()
+    key = f"{marching.mixed_cells.py_func.__module__}.mixed_cells"
+    assert key in found and found[key] == len(marching.mixed_cells.overloads)
+    assert all(name.startswith("surfgen.") for name in found)
