@@ -48,7 +48,7 @@ from benchmarks import harness
 from surfgen.generator.allocator import one_shot_memory_policy
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.formula.limits import available_memory, estimate_memory
+from surfgen.generator.formula.limits import MemoryBudget, available_memory, estimate_memory
 from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.presets import PRESETS
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
@@ -134,8 +134,9 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
     before = kernel_signatures()
     grid = Grid(Box.from_bounds(spec.box), (n,) * 3)
     t0 = time.perf_counter()
+    budget = MemoryBudget.begin(None, f"{job['shape']} at {n}^3")  # as render refuses
     made = realise(spec, grid=grid, evaluator=job["evaluator"], cap=cap, allow_empty=True,
-                   keep_samples=False)  # fmt: skip
+                   keep_samples=False, budget=budget)  # fmt: skip
     seconds = time.perf_counter() - t0
     after = kernel_signatures()
     first_called = sorted(k for k, count in after.items() if count > before.get(k, 0))
@@ -194,7 +195,8 @@ def run_job(job: dict[str, Any]) -> dict[str, Any] | None:
     out = subprocess.run(cmd, capture_output=True, text=True, cwd=harness.ROOT, check=False)
     if out.returncode != 0:
         said = {k: v for k, v in job.items() if k != "spec"}
-        print(f"  {said}: failed\n{out.stderr[-2000:]}", flush=True)
+        why = out.stderr.strip().splitlines()[-1:] or [f"exit code {out.returncode}"]
+        print(f"  {said}: failed: {why[0][-2000:]}", flush=True)
         return None
     return json.loads(out.stdout.strip().splitlines()[-1])
 

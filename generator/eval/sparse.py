@@ -44,6 +44,7 @@ from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import grid_point_bounds
 from surfgen.generator.eval.tape import evaluate_columns, evaluate_points
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.limits import MemoryBudget, check_step
 from surfgen.generator.jit.options import INLINE, KERNEL
 
 log = logging.getLogger(__name__)
@@ -224,6 +225,7 @@ def evaluate_sparse(
     block: int = BLOCK,
     bounds: Bounds | None = None,
     max_share: float | None = None,
+    budget: MemoryBudget | None = None,
 ) -> SparseField | None:
     """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
 
@@ -234,7 +236,9 @@ def evaluate_sparse(
     :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``max_share``:
     return
     None, having only bounded the blocks, when the leaves left to sample hold more than this
-    share of the grid's points (the dense grid is then cheaper).
+    share of the grid's points (the dense grid is then cheaper); ``budget``: refuse (a
+    ``LimitError``) a run of leaves whose samples would take the command past its memory limit,
+    before it is sampled.
     Raises ``FormulaError`` as compiling the formula does.
     """
     return evaluate_sparse_program(
@@ -246,6 +250,7 @@ def evaluate_sparse(
         block,
         bounds,
         max_share,
+        budget,
     )
 
 
@@ -258,6 +263,7 @@ def evaluate_sparse_program(
     block: int = BLOCK,
     bounds: Bounds | None = None,
     max_share: float | None = None,
+    budget: MemoryBudget | None = None,
 ) -> SparseField | None:
     """:func:`evaluate_sparse` of a compiled program."""
     if int(block) != block or block < 1:
@@ -280,7 +286,7 @@ def evaluate_sparse_program(
     sampled, points = len(leaves), int(np.prod(extent, axis=1).sum())
     values, sides, keep, nonfinite = _sample_and_decide(
         program, axes, state.shape, leaves, slot, corner, extent, block, float(level), faces,
-        threads,
+        threads, budget,
     )  # fmt: skip
     t2 = time.perf_counter()
     if not keep.all():  # the one-sided leaves decided, the layout of the bricks kept
@@ -422,6 +428,7 @@ def _sample_and_decide(
     level: float,
     faces: bool,
     threads: int | None,
+    budget: MemoryBudget | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """F at the sampled leaves' bricks, :data:`CHUNK_BRICKS` at a time, each run's one-sided
     bricks dropped before the next is sampled (:func:`evaluate_sparse_program`): returns the
@@ -434,9 +441,11 @@ def _sample_and_decide(
     column's z points, and the values are scattered to the bricks, all of a run's columns in
     one kernel call per thread (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call
     per column from Python, on a pool of threads, spent more time in Python than in the
-    kernel: 4-6x slower)."""
+    kernel: 4-6x slower). ``budget``: each run's samples are checked against it before they
+    are written (the array is reserved, not touched, whole)."""
     n = len(corner)
     values = np.empty((n, block + 1, block + 1, block + 1))
+    brick_bytes = values.itemsize * (block + 1) ** 3
     sides = np.empty(n, dtype=np.int8)
     keep = np.empty(n, dtype=np.bool_)
     top = np.asarray(leaf_shape, dtype=np.int64) - 1
@@ -447,6 +456,8 @@ def _sample_and_decide(
     with scratch_kept():  # the columns' temporaries reused, not mapped afresh for each
         for c0 in range(0, n, CHUNK_BRICKS):
             c1 = min(n, c0 + CHUNK_BRICKS)
+            check_step(budget, (c1 - c0) * brick_bytes,
+                       f"sampling the {n:,} leaves the surface may cross")  # fmt: skip
             run, ext, at = values[rows : rows + c1 - c0], extent[c0:c1], corner[c0:c1]
             run[np.flatnonzero(np.any(ext <= block, axis=1))] = np.nan  # past the grid: defined
             evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers)

@@ -8,6 +8,7 @@ line instead of a ``RecursionError``, ``MemoryError`` or a stalled machine.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 from surfgen.generator.errors import FormulaSyntaxError, SpecError, SurfgenError
@@ -166,6 +167,10 @@ CLEANUP_MESH_COPIES = 4  # pymeshlab's cleanup and remeshing hold a few copies o
 SPARSE_POINTS_PER_AREA = 96
 SPARSE_BYTES_PER_SAMPLE = 24
 SPARSE_MESH_BYTES_PER_AREA = 3000
+# What meshing adds per cell the surface crosses, from the list of those cells to the mesh
+# with its walls classified and written to a file in memory (``surfgen render``): measured
+# below, checked by a sparse run once it has counted its cells (:class:`MemoryBudget`).
+SPARSE_BYTES_PER_MIXED_CELL = 400
 
 
 def estimate_memory(
@@ -215,6 +220,68 @@ def available_memory() -> int:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError):  # pragma: no cover - not POSIX
         return 1 << 34
+
+
+def resident_memory() -> int:
+    """This process's resident memory in bytes (``/proc/self/statm``; 0 where it is missing)."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+@dataclass(frozen=True)
+class MemoryBudget:
+    """What a command may add to its process's memory, checked again as the work learns its
+    size. The estimate before a run (:func:`estimate_memory`) assumes a typical surface; a
+    sparse run learns how many leaves it samples, bricks it keeps and cells it meshes, and
+    :meth:`check` refuses the next step before it allocates (equation B's foam crosses every
+    leaf: at 1024^3 its sparse render was killed by the kernel's out-of-memory killer, past the
+    estimate's 5.5 GiB). ``limit``: bytes the command may add; ``start``: the process's
+    resident memory when the command began; ``what`` names the command in the message;
+    ``copies``: the copies of a finished mesh the command goes on to hold (export's cleanup
+    and remeshing: :data:`CLEANUP_MESH_COPIES`)."""
+
+    limit: int
+    what: str
+    source: str
+    start: int
+    copies: int = 1
+
+    @classmethod
+    def begin(cls, limit: int | None, what: str, copies: int = 1) -> MemoryBudget:
+        """A budget from now on: ``limit`` bytes (None: the memory available now)."""
+        source = "--max-memory" if limit is not None else "the available memory; --max-memory"
+        have = available_memory() if limit is None else int(limit)
+        return cls(have, what, source, resident_memory(), copies)
+
+    def mesh_bytes(self, cells: int) -> int:
+        """What meshing ``cells`` crossed cells adds, and what the command then does with the
+        mesh (:data:`SPARSE_BYTES_PER_MIXED_CELL` a cell and copy)."""
+        return int(cells) * SPARSE_BYTES_PER_MIXED_CELL * self.copies
+
+    def in_use(self) -> int:
+        """What the command holds beyond the process's memory when it began."""
+        return max(resident_memory() - self.start, 0)
+
+    def check(self, need: int, step: str) -> None:
+        """Refuse ``step`` when its ``need`` (bytes, beyond what the command holds) would take
+        the command past its limit: :class:`LimitError`, before ``step`` allocates."""
+        used = self.in_use()
+        if used + need > self.limit:
+            raise LimitError(
+                f"{self.what}: {step} needs about {format_bytes(need)} more beside the "
+                f"{format_bytes(used)} in use, more than the limit of {format_bytes(self.limit)} "
+                f"({self.source} sets it); use a smaller grid"
+            )
+
+
+def check_step(budget: MemoryBudget | None, need: int, step: str) -> None:
+    """:meth:`MemoryBudget.check` where there is a budget (callers without one, the sampler and
+    the Python API's small grids, check nothing)."""
+    if budget is not None:
+        budget.check(need, step)
 
 
 _UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}

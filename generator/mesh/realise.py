@@ -24,6 +24,7 @@ from surfgen.generator.errors import EmptySurface, FormulaError
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
+from surfgen.generator.formula.limits import MemoryBudget
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_sparse_labelled
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
@@ -90,6 +91,7 @@ def realise(
     walls: str | None = None,
     allow_empty: bool = False,
     keep_samples: bool = True,
+    budget: MemoryBudget | None = None,
 ) -> Realised:
     """Evaluate ``spec`` and extract ``F = spec.level`` (with box caps when ``cap``).
 
@@ -105,7 +107,10 @@ def realise(
     (for a caller that keeps only the mesh and the counts: ``render``, ``export``) frees a
     sparse field's samples as soon as the meshing has read them
     (:meth:`~surfgen.generator.eval.sparse.SparseField.release_samples`; ``field.stats`` and
-    ``field.nonfinite`` stay).  Every evaluator gives the same mesh, bit for bit.
+    ``field.nonfinite`` stay).  ``budget`` (``render``, ``export``): the sparse path checks
+    each step's memory against it once it knows its size, before the step allocates
+    (:class:`~surfgen.generator.formula.limits.MemoryBudget`).  Every evaluator gives the same
+    mesh, bit for bit.
 
     Raises :class:`EmptySurface` (unless ``allow_empty``), ``SpecError`` for an unknown walls
     mode, and what evaluation raises (``FormulaError``, ``LimitError``...).
@@ -127,6 +132,7 @@ def realise(
                 level=spec.level,
                 faces=cap,
                 max_share=AUTO_MAX_SHARE if fallback else None,
+                budget=budget,
             )
             if field is None:
                 name = "fast"
@@ -141,10 +147,10 @@ def realise(
     try:
         if isinstance(field, SparseField):
             if walls is None:
-                mesh = extract_sparse(field, cap, threads, release=not keep_samples)
+                mesh = extract_sparse(field, cap, threads, not keep_samples, budget)
             else:
                 mesh, report = extract_sparse_labelled(
-                    field, tree, spec.params, cap, walls, threads, release=not keep_samples
+                    field, tree, spec.params, cap, walls, threads, not keep_samples, budget
                 )
         elif walls is None:
             mesh = extract_mesh(field, spec.level, cap=cap)

@@ -41,6 +41,7 @@ from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import points_evaluator
 from surfgen.generator.eval.sparse import SparseField, locate, thread_count
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.limits import MemoryBudget, check_step
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
 from surfgen.generator.mesh.marching import _TINY32
@@ -57,14 +58,22 @@ log = logging.getLogger(__name__)
 
 
 def extract_sparse(
-    sf: SparseField, cap: bool = False, threads: int | None = 1, release: bool = False
+    sf: SparseField,
+    cap: bool = False,
+    threads: int | None = 1,
+    release: bool = False,
+    budget: MemoryBudget | None = None,
 ) -> Mesh:
     """:func:`~surfgen.generator.mesh.mesh.extract_mesh` of the dense field, from ``sf``."""
-    return extract_sparse_with_edges(sf, cap, threads, release)[0]
+    return extract_sparse_with_edges(sf, cap, threads, release, budget)[0]
 
 
 def extract_sparse_with_edges(
-    sf: SparseField, cap: bool = False, threads: int | None = 1, release: bool = False
+    sf: SparseField,
+    cap: bool = False,
+    threads: int | None = 1,
+    release: bool = False,
+    budget: MemoryBudget | None = None,
 ) -> tuple[Mesh, np.ndarray]:
     """:func:`~surfgen.generator.mesh.mesh.extract_with_edges` of the dense field at
     ``sf.level``, from ``sf`` (the module's docstring).  ``cap`` needs ``sf`` sampled with
@@ -72,8 +81,10 @@ def extract_sparse_with_edges(
     runs of planes (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the same
     mesh).  ``release``: free the samples (:meth:`SparseField.release_samples`) once their
     offsets are made, before the cells and the mesh (sculpture-5 at 512^3: 42 of the 148 MiB
-    the run added).  Raises :class:`EmptySurface` when every sample is inside or every one is
-    outside."""
+    the run added).  ``budget``: the offsets, then the mesh (from the count of the cells the
+    surface crosses: :meth:`~surfgen.generator.formula.limits.MemoryBudget.mesh_bytes`) are
+    checked against it before they are made (a ``LimitError``).  Raises :class:`EmptySurface`
+    when every sample is inside or every one is outside."""
     level = sf.level
     if not sf.any_inside():
         raise EmptySurface(_empty_message("outside", sf))
@@ -83,6 +94,7 @@ def extract_sparse_with_edges(
     extent = sf.extent
     shape = np.asarray(sf.grid.shape, dtype=np.int64)
     threads = thread_count(threads)
+    check_step(budget, values.size * 4, f"the float32 offsets of {len(values):,} bricks")
     offset, n_bad = brick_offsets(values, extent, level, threads)
     if n_bad and _mirror_bricks(values, extent, corner, offset, slot, block, shape):
         log.debug("sparse marching: non-finite samples mirrored")
@@ -98,6 +110,9 @@ def extract_sparse_with_edges(
         pad_corners = _pad_corners(pad_keys, offset, slot, block, shape)
     else:
         pad_keys, pad_corners = np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32)
+    if budget is not None:  # the cells to mesh are counted: check the mesh before it is made
+        cells = int(n_cells) + len(pad_keys)
+        budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
     keys, corners = brick_cells(
         offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
     )
@@ -120,13 +135,14 @@ def extract_sparse_labelled(
     walls: str = "mark",
     threads: int | None = 1,
     release: bool = False,
+    budget: MemoryBudget | None = None,
 ) -> tuple[Mesh, WallReport]:
     """:func:`~surfgen.generator.mesh.walls.extract_labelled` of the dense field, from ``sf``:
     the samples beside each crossing along its grid line that no brick holds are evaluated
     (:func:`sparse_edge_lines`).  ``release``: free the samples once those lines are read,
     before the walls are classified."""
     check_walls_mode(walls)
-    mesh, edges = extract_sparse_with_edges(sf, cap and walls != "remove", threads)
+    mesh, edges = extract_sparse_with_edges(sf, cap and walls != "remove", threads, False, budget)
     lines = sparse_edge_lines(sf, edges, tree, params)
     if release:
         sf.release_samples()

@@ -38,6 +38,8 @@ from surfgen.filters.metrics import Metrics, measure_mesh
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.files import write_all_atomic
 from surfgen.generator.formula.limits import (
+    CLEANUP_MESH_COPIES,
+    MemoryBudget,
     check_memory,
     estimate_memory,
 )
@@ -210,11 +212,12 @@ def export_shapes(
                 f"exporting {s.name} on a {n or 'x'.join(map(str, s.spec.grid))}"
                 f"{'^3' if n else ''} grid",
             )
+    budget = MemoryBudget.begin(max_memory, "export", CLEANUP_MESH_COPIES)
     prepared = []
     for i, s in enumerate(sources):
         if progress is not None:
             progress(i, len(sources), s.name)
-        prepared.append(prepare_export(s, options))
+        prepared.append(prepare_export(s, options, budget))
     if progress is not None:
         progress(len(sources), len(sources), "")
     refused = [p for p in prepared if p.problems]
@@ -243,13 +246,18 @@ def export_shapes(
 
 
 def load_source(
-    source: Source, regrid: int | None = None, walls: str = "keep", evaluator: str = "auto"
+    source: Source,
+    regrid: int | None = None,
+    walls: str = "keep",
+    evaluator: str = "auto",
+    budget: MemoryBudget | None = None,
 ) -> tuple[Mesh, list[str]]:
     """The mesh to clean and any warnings: the stored mesh, or the spec meshed with caps.
 
     With ``walls`` other than keep a formula is meshed again with its crossings classified
     (:func:`surfgen.generator.mesh.walls.extract_labelled`); a mesh file must then carry the labels
-    of ``--walls mark``.
+    of ``--walls mark``. ``budget``: the export's memory, checked again as a sparse run learns
+    the surface's size (:class:`~surfgen.generator.formula.limits.MemoryBudget`).
     """
     warnings: list[str] = []
     if source.spec is None:
@@ -281,7 +289,11 @@ def load_source(
         warnings.append(f"{source.name}: mesh file {source.mesh_file} is missing, regenerated")
     for w in warnings:
         log.info("%s", w)  # the CLI prints the warnings it gets back
-    made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls, keep_samples=False)
+    if budget is not None:
+        shape = f"{regrid}^3" if regrid is not None else "x".join(map(str, spec.grid))
+        budget = replace(budget, what=f"exporting {source.name} on a {shape} grid")
+    made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls, keep_samples=False,
+                   budget=budget)  # fmt: skip
     return made.mesh, warnings  # type: ignore[return-value]
 
 
@@ -313,10 +325,14 @@ def _transfer_kinds(labelled: Mesh, target: Mesh) -> Mesh:
     return Mesh(target.vertices, target.faces, labelled.face_kinds[nearest])
 
 
-def prepare_export(source: Source, options: ExportOptions) -> Prepared:
-    """Load, clean, remesh, smooth and scale one input; measure before and after."""
+def prepare_export(
+    source: Source, options: ExportOptions, budget: MemoryBudget | None = None
+) -> Prepared:
+    """Load, clean, remesh, smooth and scale one input; measure before and after (``budget``:
+    :func:`load_source`)."""
     start = time.perf_counter()
-    mesh, warnings = load_source(source, options.regrid, options.walls, options.evaluator)
+    mesh, warnings = load_source(source, options.regrid, options.walls, options.evaluator,
+                                 budget)  # fmt: skip
     before = measure_mesh(mesh)
     result = repair_mesh(mesh, options.cleanup)
     cleanup = options.cleanup

@@ -20,6 +20,7 @@ from surfgen.generator.eval.sparse import SparseField
 from surfgen.generator.files import write_all_atomic, write_atomic
 from surfgen.generator.formula.limits import (
     MAX_SPEC_FILE_BYTES,
+    MemoryBudget,
     check_memory,
     estimate_memory,
     read_text_file,
@@ -198,6 +199,7 @@ def render_spec(
                 "use --evaluator auto, fast or reference"
             )
         name = "fast"
+    what = f"render on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)"
     check_memory(
         estimate_memory(
             grid.size,
@@ -206,13 +208,15 @@ def render_spec(
             sparse=name == "sparse",
         ),
         max_memory,
-        f"render on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)",
+        what,
     )
+    budget = MemoryBudget.begin(max_memory, what)  # checked again once the surface's size is known
     start = time.perf_counter()
     mesh: Mesh | None = None
     crossings: WallReport | None = None
     if want_mesh:
-        made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls, keep_samples=False)
+        made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls, keep_samples=False,
+                       budget=budget)  # fmt: skip
         field, mesh, crossings = made.field, made.mesh, made.walls
     else:
         field = evaluate(spec.tree(), grid, spec.params, evaluator=name)
