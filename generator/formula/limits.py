@@ -167,9 +167,11 @@ CLEANUP_MESH_COPIES = 4  # pymeshlab's cleanup and remeshing hold a few copies o
 SPARSE_POINTS_PER_AREA = 96
 SPARSE_BYTES_PER_SAMPLE = 24
 SPARSE_MESH_BYTES_PER_AREA = 3000
-# What meshing adds per cell the surface crosses, from the list of those cells to the mesh
-# with its walls classified and written to a file in memory (``surfgen render``): measured
-# below, checked by a sparse run once it has counted its cells (:class:`MemoryBudget`).
+# What meshing adds per cell to mesh, from the list of those cells to the mesh with its walls
+# classified and written to a file in memory (``surfgen render``), checked by a sparse run once
+# it has counted its cells (:class:`MemoryBudget`): 216-285 bytes measured on equations B and
+# C, a sculpture and a lattice at 256-512^3 (the log, 2026-12-06 (16)), with room for surfaces
+# of more faces a cell.
 SPARSE_BYTES_PER_MIXED_CELL = 400
 
 
@@ -238,7 +240,7 @@ class MemoryBudget:
     sparse run learns how many leaves it samples, bricks it keeps and cells it meshes, and
     :meth:`check` refuses the next step before it allocates (equation B's foam crosses every
     leaf: at 1024^3 its sparse render was killed by the kernel's out-of-memory killer, past the
-    estimate's 5.5 GiB). ``limit``: bytes the command may add; ``start``: the process's
+    estimate's 5.2 GiB). ``limit``: bytes the command may add; ``start``: the process's
     resident memory when the command began; ``what`` names the command in the message;
     ``copies``: the copies of a finished mesh the command goes on to hold (export's cleanup
     and remeshing: :data:`CLEANUP_MESH_COPIES`)."""
