@@ -21,7 +21,13 @@ from surfgen.display import facts_html, picture, png_of, shorten, to_trimesh
 from surfgen.generator.errors import FormulaError, SpecError, SurfgenError
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
-from surfgen.generator.formula.limits import MAX_SPEC_FILE_BYTES, read_text_file
+from surfgen.generator.formula.limits import (
+    MAX_SPEC_FILE_BYTES,
+    MemoryBudget,
+    check_memory,
+    estimate_memory,
+    read_text_file,
+)
 from surfgen.generator.interop.mathmod import load_model, parse_script, read_script
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
@@ -366,6 +372,9 @@ class Surface:
             Nothing crosses the level in the box.
         SpecError
             An unknown walls mode.
+        LimitError
+            The grid needs more memory than is available: estimated before anything is
+            allocated, and checked again as a sparse run learns the surface's size.
         """
         surface = self._on(grid)
         made = surface._realised(self.cap if cap is None else cap, walls or self.walls, evaluator)
@@ -521,12 +530,20 @@ class Surface:
         """The field and mesh for these options: the one kept for the pictures if it is
         theirs, else made (and kept when ``keep``: a notebook shows the same mesh twice, as
         PNG and HTML, and a data loader holding many shapes must not hold their fields)."""
-        from surfgen.generator.mesh.realise import realise  # deferred: the mesher (numba)
+        # deferred: the mesher (numba)
+        from surfgen.generator.mesh.realise import realise, resolve_evaluator
 
         key = (cap, walls, evaluator)
         if key in self._made:
             return self._made[key]
-        made = realise(self.spec, evaluator=evaluator, cap=cap, walls=walls)
+        grid = self.spec.to_grid()
+        name = resolve_evaluator(evaluator, grid)
+        what = f"meshing {self.key} on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)"
+        # as render: the estimate before anything is allocated, then a sparse run's own checks
+        parts = estimate_memory(grid.size, mesh=True, sparse=name == "sparse")
+        check_memory(parts, None, what, setting=None)
+        budget = MemoryBudget.begin(None, what, setting=None)
+        made = realise(self.spec, evaluator=evaluator, cap=cap, walls=walls, budget=budget)
         if keep:
             self._made.clear()
             self._made[key] = made

@@ -252,9 +252,12 @@ class MemoryBudget:
     copies: int = 1
 
     @classmethod
-    def begin(cls, limit: int | None, what: str, copies: int = 1) -> MemoryBudget:
-        """A budget from now on: ``limit`` bytes (None: the memory available now)."""
-        source = "--max-memory" if limit is not None else "the available memory; --max-memory"
+    def begin(
+        cls, limit: int | None, what: str, copies: int = 1, setting: str | None = "--max-memory"
+    ) -> MemoryBudget:
+        """A budget from now on: ``limit`` bytes (None: the memory available now); ``setting``
+        names the option that sets the limit in the message (None: there is none)."""
+        source = _limit_source(limit, setting)
         have = available_memory() if limit is None else int(limit)
         return cls(have, what, source, resident_memory(), copies)
 
@@ -275,7 +278,7 @@ class MemoryBudget:
             raise LimitError(
                 f"{self.what}: {step} needs about {format_bytes(need)} more beside the "
                 f"{format_bytes(used)} in use, more than the limit of {format_bytes(self.limit)} "
-                f"({self.source} sets it); use a smaller grid"
+                f"({self.source}); use a smaller grid"
             )
 
 
@@ -326,18 +329,33 @@ def check_formula_size(nodes: int) -> None:
         )
 
 
-def check_memory(parts: dict[str, int], limit: int | None, what: str, times: int = 1) -> int:
+def _limit_source(limit: int | None, setting: str | None) -> str:
+    """What set a memory limit, for a message: ``--max-memory sets it``, or the available
+    memory (and the option that would set it)."""
+    if limit is not None:
+        return f"{setting} sets it" if setting else "the limit given"
+    return f"the available memory; {setting} sets it" if setting else "the available memory"
+
+
+def check_memory(
+    parts: dict[str, int],
+    limit: int | None,
+    what: str,
+    times: int = 1,
+    setting: str | None = "--max-memory",
+) -> int:
     """Refuse, before anything is allocated, a command whose estimate exceeds ``limit`` (None:
-    the machine's available memory). ``times`` parallel copies (worker processes).
+    the machine's available memory). ``times`` parallel copies (worker processes); ``setting``:
+    the option that sets the limit, named in the message (None: there is none).
     Returns the estimate; raises :class:`LimitError` with the estimate, its parts and the limit."""
     need = sum(parts.values()) * times
-    source = "--max-memory" if limit is not None else "the available memory; --max-memory"
+    source = _limit_source(limit, setting)
     limit = available_memory() if limit is None else limit
     if need > limit:
         detail = ", ".join(f"{k} {format_bytes(v)}" for k, v in parts.items())
         per = f" x {times} workers" if times > 1 else ""
         raise LimitError(
             f"{what} needs about {format_bytes(need)} of memory ({detail}{per}), more than the "
-            f"limit of {format_bytes(limit)} ({source} sets it); use a smaller grid"
+            f"limit of {format_bytes(limit)} ({source}); use a smaller grid"
         )
     return need

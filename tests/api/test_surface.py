@@ -228,3 +228,20 @@ def test_only_the_pictures_keep_a_mesh() -> None:
     assert len(surface._made) == 1  # shown twice in a notebook (PNG, HTML), made once
     np.testing.assert_array_equal(surface.mesh().vertices, first.vertices)
     assert pickle.loads(pickle.dumps(surface))._made == {}
+
+
+def test_a_mesh_beyond_the_memory_is_refused_before_it_is_made(monkeypatch) -> None:
+    """As ``render``: the estimate first (a dense 2048^3 grid), then a sparse run's own checks
+    (equation B's foam passes the estimate, which counts a typical surface, and is refused
+    once its cells are counted), each a LimitError naming the limit."""
+    from surfgen.generator.formula import limits
+
+    with pytest.raises(limits.LimitError, match=r"fast evaluator\) needs about 464.0 GiB") as e:
+        Surface.from_preset("sphere").mesh(grid=2048, evaluator="fast")
+    assert str(e.value).endswith("(the available memory); use a smaller grid")
+    monkeypatch.setattr(limits, "available_memory", lambda: 600 << 20)
+    foam = Surface.from_preset("eqB")
+    with pytest.raises(limits.LimitError, match="meshing the .* cells the surface crosses"):
+        foam.mesh(grid=256, evaluator="sparse")
+    monkeypatch.undo()
+    assert len(foam.mesh(grid=48, evaluator="sparse").faces) > 0

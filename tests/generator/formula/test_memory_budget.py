@@ -40,8 +40,8 @@ def recording(refuse: str = "", copies: int = 1) -> Recording:
 
 def test_check_refuses_past_the_limit_with_one_line(monkeypatch) -> None:
     monkeypatch.setattr(limits, "resident_memory", lambda: 300 << 20)
-    budget = MemoryBudget(1 << 30, "render on a 8x8x8 grid (sparse evaluator)", "--max-memory",
-                          100 << 20)  # fmt: skip
+    budget = MemoryBudget(1 << 30, "render on a 8x8x8 grid (sparse evaluator)",
+                          "--max-memory sets it", 100 << 20)  # fmt: skip
     assert budget.in_use() == 200 << 20
     budget.check((1 << 30) - (200 << 20), "meshing")  # exactly at the limit: allowed
     with pytest.raises(LimitError) as info:
@@ -60,9 +60,10 @@ def test_begin_takes_the_available_memory_or_the_limit_given(monkeypatch) -> Non
     monkeypatch.setattr(limits, "resident_memory", lambda: 123)
     free = MemoryBudget.begin(None, "export", copies=4)
     assert (free.limit, free.start, free.copies) == (7 << 30, 123, 4)
-    assert "the available memory; --max-memory" in free.source
+    assert free.source == "the available memory; --max-memory sets it"
     given = MemoryBudget.begin(2 << 30, "render")
-    assert (given.limit, given.source, given.copies) == (2 << 30, "--max-memory", 1)
+    assert (given.limit, given.source, given.copies) == (2 << 30, "--max-memory sets it", 1)
+    assert MemoryBudget.begin(None, "meshing", setting=None).source == "the available memory"
     assert given.mesh_bytes(10) == 10 * SPARSE_BYTES_PER_MIXED_CELL
     assert free.mesh_bytes(10) == 40 * SPARSE_BYTES_PER_MIXED_CELL
     check_step(None, 1 << 60, "anything")  # no budget: nothing checked
