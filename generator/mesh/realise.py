@@ -24,7 +24,7 @@ from surfgen.generator.errors import EmptySurface, FormulaError
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
-from surfgen.generator.formula.limits import MemoryBudget
+from surfgen.generator.formula.limits import MemoryBudget, check_step, estimate_memory
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_sparse_labelled
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
@@ -134,8 +134,11 @@ def realise(
                 max_share=AUTO_MAX_SHARE if fallback else None,
                 budget=budget,
             )
-            if field is None:
+            if field is None:  # the bounds leave most of the grid to sample: every point then
                 name = "fast"
+                dense = sum(estimate_memory(grid.size, mesh=True).values())
+                check_step(budget, dense, f"evaluating all {grid.size:,} points (the bounds "
+                           "leave more than half of them to sample)")  # fmt: skip
         if name != "sparse":
             field = evaluate(tree, grid, spec.params, evaluator=name, threads=threads)
     elif isinstance(field, SparseField) and field.level != spec.level:

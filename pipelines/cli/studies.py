@@ -14,8 +14,9 @@ from typing import Annotated
 import typer
 
 from surfgen.generator.errors import SpecError
+from surfgen.generator.formula.limits import parse_size
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, open_catalogue
-from surfgen.pipelines.cli.common import CatalogueOption, echo_err, parse_numbers
+from surfgen.pipelines.cli.common import CatalogueOption, MaxMemoryOption, echo_err, parse_numbers
 
 plot_app = typer.Typer(no_args_is_help=True, help="Plots of the paper's figures.")
 
@@ -44,6 +45,7 @@ def sweep_cmd(
             help="Close surfaces cut by the box (default: the preset's; catalogued shapes are capped).",
         ),
     ] = None,
+    max_memory: MaxMemoryOption = None,
 ) -> None:
     """Sweep one number of a shape over a range: meshes, contact sheet, GIF, sweep.json, a plot."""
     # Deferred (see the module's docstring).
@@ -55,6 +57,7 @@ def sweep_cmd(
     from surfgen.pipelines.studies.sweep import SweepError, parse_range, run_sweep, uses_param
 
     name, values = parse_range(param)
+    limit = parse_size(max_memory) if max_memory is not None else None
     catalogued = None
     if from_catalogue is not None:
         with open_catalogue(from_catalogue[0], must_exist=True) as cat:
@@ -79,7 +82,7 @@ def sweep_cmd(
         task = bar.add_task("sweep", total=len(values))
         res = run_sweep(
             base, name, values, output, cap=cap,
-            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            progress=lambda i, n: bar.update(task, completed=i, total=n), max_memory=limit,
         )  # fmt: skip
     for s in res.steps:
         d = "-" if s.distance_prev is None else f"{s.distance_prev:.4g}"

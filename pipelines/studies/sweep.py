@@ -36,10 +36,11 @@ from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.sparse import SparseField
 from surfgen.generator.files import staged_into, write_atomic
 from surfgen.generator.formula.expr import params_of
+from surfgen.generator.formula.limits import MemoryBudget, check_memory, estimate_memory
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.exchange import save_mesh
 from surfgen.generator.mesh.mesh import Mesh
-from surfgen.generator.mesh.realise import realise
+from surfgen.generator.mesh.realise import realise, resolve_evaluator
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.pictures.raster import _BACKGROUND, contact_sheet, render_image, write_png
 from surfgen.pipelines.studies.explore import mesh_stats
@@ -166,6 +167,21 @@ def union_box(specs: Sequence[SurfaceSpec]) -> tuple[float, ...]:
     return tuple(float(v) for pair in zip(lo, hi, strict=True) for v in pair)
 
 
+def step_memory(grid: Grid) -> dict[str, int]:
+    """The memory one step needs on ``grid``, by part: its field and mesh
+    (:func:`~surfgen.generator.formula.limits.estimate_memory`, sparse from where ``auto``
+    is), and for a sparse field the dense sign proxy the comparisons read (8 bytes a point)."""
+    sparse = resolve_evaluator("auto", grid) == "sparse"
+    parts = estimate_memory(grid.size, mesh=True, sparse=sparse)
+    if sparse:
+        parts["sign proxy"] = 8 * grid.size
+    return parts
+
+
+def _step_name(spec: SurfaceSpec) -> str:
+    return f"sweep step on a {'x'.join(map(str, spec.grid))} grid"
+
+
 def comparison_grid(specs: Sequence[SurfaceSpec]) -> Grid:
     """One grid over the union of the boxes, :data:`COMPARE_POINTS` per axis at most."""
     n = min(COMPARE_POINTS, max(max(s.grid) for s in specs))
@@ -211,11 +227,17 @@ def run_sweep(
     out: Path,
     cap: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    max_memory: int | None = None,
 ) -> SweepResult:
     """Evaluate ``base`` with ``{name: value}`` for each value and write the sweep's files to
-    ``out`` (see the module docstring). Every step's spec is checked before anything is
-    evaluated or written. Raises the change set's errors and :class:`SweepError`."""
+    ``out`` (see the module docstring). Every step's spec, and the memory its grid needs
+    (``max_memory`` bytes; None: the available memory), is checked before anything is
+    evaluated or written; a sparse step checks again as it learns the surface's size
+    (:class:`~surfgen.generator.formula.limits.MemoryBudget`). Raises the change set's errors,
+    ``LimitError`` and :class:`SweepError`."""
     specs = sweep_specs(base, name, values)
+    for spec in specs:
+        check_memory(step_memory(spec.to_grid()), max_memory, _step_name(spec))
     target = comparison_grid(specs)
     frame_box = union_box(specs)
     out = Path(out)
@@ -224,7 +246,7 @@ def run_sweep(
         # at the end, all together: a failure leaves ``out`` as it was.
         with staged_into(out) as work:
             steps, files = _sweep_into(work, base, name, values, specs, target, frame_box, cap,
-                                       progress)  # fmt: skip
+                                       progress, max_memory)  # fmt: skip
     except OSError as exc:
         raise SweepError(
             f"cannot write the sweep to {out}: {exc.strerror or exc}"
@@ -244,6 +266,7 @@ def _sweep_into(
     frame_box: tuple[float, ...],
     cap: bool,
     progress: Callable[[int, int], None] | None,
+    max_memory: int | None = None,
 ) -> tuple[list[Step], dict[str, str]]:
     """Evaluate every step and write all the sweep's files into the (new) folder ``out``."""
 
@@ -253,7 +276,8 @@ def _sweep_into(
     first_inside = first_points = prev_inside = prev_points = None
     for i, (value, spec) in enumerate(zip(values, specs, strict=True)):
         t0 = time.perf_counter()
-        made = realise(spec, evaluator="auto", cap=cap, allow_empty=True)
+        budget = MemoryBudget.begin(max_memory, _step_name(spec))
+        made = realise(spec, evaluator="auto", cap=cap, allow_empty=True, budget=budget)
         field, mesh, empty = made.field, made.mesh, made.empty
         # the comparisons read the sides of cells (a sparse field's proxy gives the same)
         dense = field.sign_proxy() if isinstance(field, SparseField) else field

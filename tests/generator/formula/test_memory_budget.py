@@ -124,3 +124,13 @@ def test_the_dense_path_and_a_given_grid_are_unchanged() -> None:
     made = realise(spec, grid=Grid(Box.from_bounds(spec.box), (30,) * 3), evaluator="fast",
                    budget=budget)  # fmt: skip
     assert made.mesh.n_faces > 0 and budget.steps == []
+
+
+def test_auto_falling_back_to_every_point_checks_the_dense_grid() -> None:
+    """``auto`` estimated the sparse work; where the bounds leave more than half of the grid
+    to sample it evaluates every point, and checks that first."""
+    budget = recording(refuse="evaluating all")
+    with pytest.raises(LimitError, match="evaluating all 8,000,000 points"):
+        realise(spec_of("eqB", 200), evaluator="auto", budget=budget)
+    step, need = budget.steps[-1]
+    assert need == sum(limits.estimate_memory(200**3, mesh=True).values())
