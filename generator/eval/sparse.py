@@ -226,6 +226,7 @@ def evaluate_sparse(
     bounds: Bounds | None = None,
     max_share: float | None = None,
     budget: MemoryBudget | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> SparseField | None:
     """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
 
@@ -238,7 +239,8 @@ def evaluate_sparse(
     None, having only bounded the blocks, when the leaves left to sample hold more than this
     share of the grid's points (the dense grid is then cheaper); ``budget``: refuse (a
     ``LimitError``) a run of leaves whose samples would take the command past its memory limit,
-    before it is sampled.
+    before it is sampled; ``progress``: called with the share of the leaves sampled after each
+    run of them.
     Raises ``FormulaError`` as compiling the formula does.
     """
     return evaluate_sparse_program(
@@ -251,6 +253,7 @@ def evaluate_sparse(
         bounds,
         max_share,
         budget,
+        progress,
     )
 
 
@@ -264,6 +267,7 @@ def evaluate_sparse_program(
     bounds: Bounds | None = None,
     max_share: float | None = None,
     budget: MemoryBudget | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> SparseField | None:
     """:func:`evaluate_sparse` of a compiled program."""
     if int(block) != block or block < 1:
@@ -286,7 +290,7 @@ def evaluate_sparse_program(
     sampled, points = len(leaves), int(np.prod(extent, axis=1).sum())
     values, sides, keep, nonfinite = _sample_and_decide(
         program, axes, state.shape, leaves, slot, corner, extent, block, float(level), faces,
-        threads, budget,
+        threads, budget, progress,
     )  # fmt: skip
     t2 = time.perf_counter()
     if not keep.all():  # the one-sided leaves decided, the layout of the bricks kept
@@ -429,6 +433,7 @@ def _sample_and_decide(
     faces: bool,
     threads: int | None,
     budget: MemoryBudget | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """F at the sampled leaves' bricks, :data:`CHUNK_BRICKS` at a time, each run's one-sided
     bricks dropped before the next is sampled (:func:`evaluate_sparse_program`): returns the
@@ -442,7 +447,8 @@ def _sample_and_decide(
     one kernel call per thread (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call
     per column from Python, on a pool of threads, spent more time in Python than in the
     kernel: 4-6x slower). ``budget``: each run's samples are checked against it before they
-    are written (the array is reserved, not touched, whole)."""
+    are written (the array is reserved, not touched, whole); ``progress``: called with the
+    share of the bricks sampled after each run."""
     n = len(corner)
     values = np.empty((n, block + 1, block + 1, block + 1))
     brick_bytes = values.itemsize * (block + 1) ** 3
@@ -467,6 +473,8 @@ def _sample_and_decide(
                 kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
             keep[c0:c1] = kept
             rows += _move_down(run, np.flatnonzero(kept))
+            if progress is not None:
+                progress(c1 / n)
     held = [values]
     del run, values  # no other reference: the array can then be resized in place
     return _shrunk(held, rows), sides, keep, int(nonfinite)

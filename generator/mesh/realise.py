@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 
 from surfgen.generator.errors import EmptySurface, FormulaError
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
@@ -80,6 +81,15 @@ class Realised:
         return isinstance(self.field, SparseField)
 
 
+#: A long run's progress: its stage's name, and the share of it done where that is known.
+StageProgress = Callable[[str, float | None], None]
+
+
+def _stage(progress: StageProgress | None, name: str) -> None:
+    if progress is not None:
+        progress(name, None)
+
+
 def realise(
     spec: SurfaceSpec,
     *,
@@ -92,6 +102,7 @@ def realise(
     allow_empty: bool = False,
     keep_samples: bool = True,
     budget: MemoryBudget | None = None,
+    progress: StageProgress | None = None,
 ) -> Realised:
     """Evaluate ``spec`` and extract ``F = spec.level`` (with box caps when ``cap``).
 
@@ -109,8 +120,10 @@ def realise(
     (:meth:`~surfgen.generator.eval.sparse.SparseField.release_samples`; ``field.stats`` and
     ``field.nonfinite`` stay).  ``budget`` (``render``, ``export``): the sparse path checks
     each step's memory against it once it knows its size, before the step allocates
-    (:class:`~surfgen.generator.formula.limits.MemoryBudget`).  Every evaluator gives the same
-    mesh, bit for bit.
+    (:class:`~surfgen.generator.formula.limits.MemoryBudget`).  ``progress``: called with
+    each stage's name as it starts (``bounding``, ``sampling``, ``evaluating``, ``meshing``)
+    and the share done where it is known (a sparse run's leaves sampled), else None.  Every
+    evaluator gives the same mesh, bit for bit.
 
     Raises :class:`EmptySurface` (unless ``allow_empty``), ``SpecError`` for an unknown walls
     mode, and what evaluation raises (``FormulaError``, ``LimitError``...).
@@ -124,6 +137,7 @@ def realise(
         name = resolve_evaluator(evaluator, grid)
         if name == "sparse":
             fallback = evaluator == "auto" and grid.size <= AUTO_DENSE_UP_TO
+            _stage(progress, "bounding")
             field = evaluate_sparse(
                 tree,
                 grid,
@@ -133,6 +147,7 @@ def realise(
                 faces=cap,
                 max_share=AUTO_MAX_SHARE if fallback else None,
                 budget=budget,
+                progress=None if progress is None else lambda done: progress("sampling", done),
             )
             if field is None:  # the bounds leave most of the grid to sample: every point then
                 name = "fast"
@@ -140,6 +155,7 @@ def realise(
                 check_step(budget, dense, f"evaluating all {grid.size:,} points (the bounds "
                            "leave more than half of them to sample)")  # fmt: skip
         if name != "sparse":
+            _stage(progress, "evaluating")
             field = evaluate(tree, grid, spec.params, evaluator=name, threads=threads)
     elif isinstance(field, SparseField) and field.level != spec.level:
         raise ValueError(f"sparse field sampled at level {field.level}, not {spec.level}")
@@ -147,6 +163,7 @@ def realise(
     mesh: Mesh | None = None
     report: WallReport | None = None
     empty: str | None = None
+    _stage(progress, "meshing")
     try:
         if isinstance(field, SparseField):
             if walls is None:

@@ -7,6 +7,8 @@ import json
 import logging
 import math
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -82,6 +84,36 @@ def check_workers(workers: int | None) -> int | None:
 def echo_err(text: str) -> None:
     """A line on stderr: notices that are not the command's output."""
     typer.echo(text, err=True)
+
+
+@contextmanager
+def stage_bar(label: str) -> Iterator[Callable[[str, float | None], None]]:
+    """A progress bar on stderr for one long run in stages (a terminal only: redirected
+    output stays clean), and the callback that moves it: ``(stage, share done or None)``. The
+    bar goes when the run ends."""
+    from rich.console import Console  # deferred: the CLI's start loads no more than it needs
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        TextColumn(f"{label}: {{task.description}}"),
+        BarColumn(),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        disable=not sys.stderr.isatty(),
+        transient=True,
+    ) as bar:
+        shown: dict[str, Any] = {}  # the stage shown, and its task
+
+        def move(stage: str, done: float | None) -> None:
+            if shown.get("stage") != (stage, done is None):  # a stage of its own kind of bar
+                if "task" in shown:
+                    bar.remove_task(shown["task"])
+                shown["task"] = bar.add_task(stage, total=None if done is None else 1.0)
+                shown["stage"] = (stage, done is None)
+            if done is not None:
+                bar.update(shown["task"], completed=done)
+
+        yield move
 
 
 def emit_json(obj: Any) -> None:

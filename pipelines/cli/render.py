@@ -25,6 +25,7 @@ from surfgen.pipelines.cli.common import (
     emit_json,
     parse_numbers,
     parse_params,
+    stage_bar,
 )
 from surfgen.pipelines.cli.interop import render_mathmod
 
@@ -126,17 +127,19 @@ def render(
     )
     if evaluator != "reference":  # fast, sparse and auto use the numba kernels
         compile_first(echo_err)
-    result = render_spec(
-        spec_obj,
-        cap=cap if cap is not None else bool(preset) and get_preset(preset).cap,
-        evaluator=evaluator,
-        mesh_path=output,
-        field_path=save_field,
-        png_path=png,
-        max_memory=limit,
-        walls=walls,
-        force=force,
-    )
+    with stage_bar("render") as progress:
+        result = render_spec(
+            spec_obj,
+            cap=cap if cap is not None else bool(preset) and get_preset(preset).cap,
+            evaluator=evaluator,
+            mesh_path=output,
+            field_path=save_field,
+            png_path=png,
+            max_memory=limit,
+            walls=walls,
+            force=force,
+            progress=progress,
+        )
     s = result.summary()
     if as_json:
         emit_json(s)

@@ -28,7 +28,7 @@ from surfgen.generator.formula.limits import (
 from surfgen.generator.mesh.exchange import encode_mesh, mesh_format
 from surfgen.generator.mesh.formats import FORMATS, MESH_SUFFIXES
 from surfgen.generator.mesh.mesh import Mesh
-from surfgen.generator.mesh.realise import realise, resolve_evaluator
+from surfgen.generator.mesh.realise import StageProgress, realise, resolve_evaluator
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode
 from surfgen.generator.model.presets import get_preset
 from surfgen.generator.model.spec import SurfaceSpec
@@ -161,6 +161,7 @@ def render_spec(
     walls: str = "keep",
     force: bool = False,
     max_memory: int | None = None,
+    progress: StageProgress | None = None,
 ) -> RenderResult:
     """Evaluate, mesh and write what was asked.
 
@@ -172,7 +173,9 @@ def render_spec(
     whose estimated memory is larger, before anything is allocated.  ``evaluator``: ``fast``,
     ``reference``, ``sparse`` or ``auto`` (sparse on large grids:
     :func:`~surfgen.generator.mesh.realise.resolve_evaluator`; a field file needs every sample,
-    so ``auto`` evaluates densely then; every evaluator makes the same mesh).  Raises
+    so ``auto`` evaluates densely then; every evaluator makes the same mesh).  ``progress``:
+    each stage as it starts (:func:`~surfgen.generator.mesh.realise.realise`'s, then
+    ``writing``).  Raises
     :class:`SurfgenError` subclasses (e.g. ``EmptySurface``, ``LimitError``); on error no file
     is written.
     """
@@ -216,13 +219,17 @@ def render_spec(
     crossings: WallReport | None = None
     if want_mesh:
         made = realise(spec, grid=grid, evaluator=name, cap=cap, walls=walls, keep_samples=False,
-                       budget=budget)  # fmt: skip
+                       budget=budget, progress=progress)  # fmt: skip
         field, mesh, crossings = made.field, made.mesh, made.walls
     else:
+        if progress is not None:
+            progress("evaluating", None)
         field = evaluate(spec.tree(), grid, spec.params, evaluator=name)
     seconds = time.perf_counter() - start
     # Every file is made in memory first, then all are written together: a full disk or a
     # bad folder for one of them leaves none of them behind.
+    if progress is not None:
+        progress("writing", None)
     outputs: dict[str, tuple[Path, bytes]] = {}
     if field_path is not None and isinstance(field, Field):
         outputs["field"] = (Path(field_path), field_bytes(field))

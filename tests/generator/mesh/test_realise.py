@@ -67,3 +67,17 @@ def test_an_empty_surface_raises_unless_allowed() -> None:
 def test_an_unknown_walls_mode_is_refused_before_evaluating() -> None:
     with pytest.raises(SpecError, match="unknown --walls mode 'hide'"):
         realise(TORUS, walls="hide")
+
+
+def test_progress_names_each_stage_and_the_share_sampled() -> None:
+    spec = SurfaceSpec("x^2+y^2+z^2-1", (-1.5, 1.5) * 3, (40, 40, 40))
+    seen: list = []
+    realise(spec, evaluator="sparse", cap=True, progress=lambda s, d: seen.append((s, d)))
+    stages = [s for s, _ in seen]
+    assert stages[0] == "bounding" and stages[-1] == "meshing"
+    shares = [d for s, d in seen if s == "sampling"]
+    assert shares and shares == sorted(shares) and shares[-1] == 1.0
+    assert all(d is None for s, d in seen if s != "sampling")
+    seen.clear()
+    realise(spec, evaluator="fast", progress=lambda s, d: seen.append((s, d)))
+    assert seen == [("evaluating", None), ("meshing", None)]
