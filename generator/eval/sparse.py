@@ -164,17 +164,10 @@ class SparseField:
         grid cell lies in one leaf, so whatever reads a cell's corners for their sides, or
         interpolates within a cell and compares with the level, reads it as from the dense
         field (the sweep's inside-sample comparisons)."""
-        b = self.block
         values = np.empty(self.grid.shape)
         below = self.level - max(1.0, abs(self.level) / 2)
-        for side, fill in ((OUTSIDE, np.inf), (INSIDE, below)):
-            for leaf in np.argwhere(self.state == side):
-                sl = tuple(slice(c * b, c * b + b + 1) for c in leaf)
-                values[sl] = fill
-        samples = self.samples()
-        for brick, (c0, c1, c2) in enumerate(self.corner):
-            e0, e1, e2 = self.extent[brick]
-            values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = samples[brick, :e0, :e1, :e2]
+        _fill_proxy(values, self.state, self.block, below, self.samples(), self.corner,
+                    self.extent)  # fmt: skip
         return Field(self.grid, values)
 
     def any_inside(self) -> bool:
@@ -503,6 +496,33 @@ def _sides(values, extent, corner, slot, block, first, level, out):
                         n_bad += locate(slot, block, gi, gj, gk)[0] == first + b
         out[b] = _MIXED if inside and outside else (_ALL_INSIDE if inside else _ALL_OUTSIDE)
     return n_bad
+
+
+@njit(**KERNEL)
+def _fill_proxy(values, state, block, below, samples, corner, extent):
+    """:meth:`SparseField.sign_proxy`'s values: each skipped leaf's box (faces included) +inf
+    where outside, then ``below`` where inside (an inside and an outside leaf share no point:
+    the bounds hold every grid point), then the bricks' samples over both (a point two bricks
+    share has the same sample in both). The leaves' loop in Python took 3 s at 512^3."""
+    n0, n1, n2 = values.shape
+    for side in (OUTSIDE, INSIDE):
+        fill = np.inf if side == OUTSIDE else below
+        for a in range(state.shape[0]):
+            for b in range(state.shape[1]):
+                for c in range(state.shape[2]):
+                    if state[a, b, c] != side:
+                        continue
+                    for i in range(a * block, min(a * block + block + 1, n0)):
+                        for j in range(b * block, min(b * block + block + 1, n1)):
+                            for k in range(c * block, min(c * block + block + 1, n2)):
+                                values[i, j, k] = fill
+    for r in range(corner.shape[0]):
+        for i in range(extent[r, 0]):
+            for j in range(extent[r, 1]):
+                for k in range(extent[r, 2]):
+                    values[corner[r, 0] + i, corner[r, 1] + j, corner[r, 2] + k] = samples[
+                        r, i, j, k
+                    ]
 
 
 @njit(**KERNEL)

@@ -177,6 +177,38 @@ def test_sign_proxy_compares_as_the_dense_field():
     )
 
 
+def _proxy_by_leaves(sf: SparseField) -> np.ndarray:
+    """The sign proxy as it was written in Python, leaf by leaf then brick by brick."""
+    b = sf.block
+    values = np.empty(sf.grid.shape)
+    below = sf.level - max(1.0, abs(sf.level) / 2)
+    for side, fill in ((OUTSIDE, np.inf), (INSIDE, below)):
+        for leaf in np.argwhere(sf.state == side):
+            values[tuple(slice(c * b, c * b + b + 1) for c in leaf)] = fill
+    samples = sf.samples()
+    for brick, (c0, c1, c2) in enumerate(sf.corner):
+        e0, e1, e2 = sf.extent[brick]
+        values[c0 : c0 + e0, c1 : c1 + e1, c2 : c2 + e2] = samples[brick, :e0, :e1, :e2]
+    return values
+
+
+@pytest.mark.parametrize(
+    ("formula", "shape", "level", "block", "faces"),
+    [
+        ("x^2+y^2+z^2-1", (48, 48, 48), 0.0, 8, False),
+        ("x^2+y^2+z^2-1", (41, 37, 30), -0.3, 4, True),  # odd, unequal; inside leaves kept
+        ("sin(3*x)*cos(3*y)+sin(3*y)*cos(3*z)+sin(3*z)*cos(3*x)", (33, 40, 26), 0.2, 8, False),
+        ("1/(x^2+y^2+z^2-1)-3", (36, 36, 36), 0.0, 4, True),  # poles: non-finite samples
+    ],
+)
+def test_sign_proxy_is_the_leaf_by_leaf_fill_bit_for_bit(formula, shape, level, block, faces):
+    grid = Grid(Box((-1.5, -1.3, -1.6), (1.5, 1.4, 1.2)), shape)
+    sf = evaluate_sparse(parse(formula), grid, level=level, block=block, faces=faces)
+    assert (sf.state == INSIDE).any() or (sf.state == OUTSIDE).any()
+    fast, slow = sf.sign_proxy().values, _proxy_by_leaves(sf)
+    assert fast.tobytes() == slow.tobytes()
+
+
 def test_auto_picks_sparse_on_large_grids_and_falls_back():
     small, large = Grid(Box.cube(1), (128,) * 3), Grid(Box.cube(1), (192,) * 3)
     assert resolve_evaluator("auto", small) == "fast"
