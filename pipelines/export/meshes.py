@@ -46,7 +46,12 @@ from surfgen.generator.formula.limits import (
 from surfgen.generator.mesh.exchange import encode_mesh, load_mesh
 from surfgen.generator.mesh.formats import EXPORT_FORMATS, FORMATS, MARKABLE, PRINTABLE
 from surfgen.generator.mesh.mesh import CAP, WALL_KINDS, Mesh, face_areas, wall_fraction
-from surfgen.generator.mesh.realise import EVALUATOR_CHOICES, realise, resolve_evaluator
+from surfgen.generator.mesh.realise import (
+    EVALUATOR_CHOICES,
+    StageProgress,
+    realise,
+    resolve_evaluator,
+)
 from surfgen.generator.mesh.walls import WALL_MODES
 from surfgen.pipelines.catalogue.store import DEFAULT_CATALOGUE, now
 from surfgen.pipelines.export.sources import (
@@ -215,9 +220,11 @@ def export_shapes(
     budget = MemoryBudget.begin(max_memory, "export", CLEANUP_MESH_COPIES)
     prepared = []
     for i, s in enumerate(sources):
+        stage = None
         if progress is not None:
             progress(i, len(sources), s.name)
-        prepared.append(prepare_export(s, options, budget))
+            stage = _stages(progress, i, len(sources), s.name)
+        prepared.append(prepare_export(s, options, budget, stage))
     if progress is not None:
         progress(len(sources), len(sources), "")
     refused = [p for p in prepared if p.problems]
@@ -245,19 +252,26 @@ def export_shapes(
     return [result for _, result in files]
 
 
+def _stages(progress: Callable[[int, int, str], None], i: int, n: int, name: str) -> StageProgress:
+    """The export's progress for input ``i`` of ``n``, its stage after its name."""
+    return lambda stage, done: progress(i, n, f"{name}: {stage}")
+
+
 def load_source(
     source: Source,
     regrid: int | None = None,
     walls: str = "keep",
     evaluator: str = "auto",
     budget: MemoryBudget | None = None,
+    progress: StageProgress | None = None,
 ) -> tuple[Mesh, list[str]]:
     """The mesh to clean and any warnings: the stored mesh, or the spec meshed with caps.
 
     With ``walls`` other than keep a formula is meshed again with its crossings classified
     (:func:`surfgen.generator.mesh.walls.extract_labelled`); a mesh file must then carry the labels
     of ``--walls mark``. ``budget``: the export's memory, checked again as a sparse run learns
-    the surface's size (:class:`~surfgen.generator.formula.limits.MemoryBudget`).
+    the surface's size (:class:`~surfgen.generator.formula.limits.MemoryBudget`); ``progress``:
+    the stages of meshing a formula (:func:`~surfgen.generator.mesh.realise.realise`).
     """
     warnings: list[str] = []
     if source.spec is None:
@@ -293,7 +307,7 @@ def load_source(
         shape = f"{regrid}^3" if regrid is not None else "x".join(map(str, spec.grid))
         budget = replace(budget, what=f"exporting {source.name} on a {shape} grid")
     made = realise(spec, grid=grid, evaluator=evaluator, cap=True, walls=walls, keep_samples=False,
-                   budget=budget)  # fmt: skip
+                   budget=budget, progress=progress)  # fmt: skip
     return made.mesh, warnings  # type: ignore[return-value]
 
 
@@ -326,13 +340,18 @@ def _transfer_kinds(labelled: Mesh, target: Mesh) -> Mesh:
 
 
 def prepare_export(
-    source: Source, options: ExportOptions, budget: MemoryBudget | None = None
+    source: Source,
+    options: ExportOptions,
+    budget: MemoryBudget | None = None,
+    progress: StageProgress | None = None,
 ) -> Prepared:
-    """Load, clean, remesh, smooth and scale one input; measure before and after (``budget``:
-    :func:`load_source`)."""
+    """Load, clean, remesh, smooth and scale one input; measure before and after (``budget``,
+    ``progress``: :func:`load_source`; then ``cleaning``)."""
     start = time.perf_counter()
     mesh, warnings = load_source(source, options.regrid, options.walls, options.evaluator,
-                                 budget)  # fmt: skip
+                                 budget, progress)  # fmt: skip
+    if progress is not None:
+        progress("cleaning", None)
     before = measure_mesh(mesh)
     result = repair_mesh(mesh, options.cleanup)
     cleanup = options.cleanup

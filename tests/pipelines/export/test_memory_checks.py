@@ -15,6 +15,7 @@ from surfgen.generator.formula.limits import (
 )
 from surfgen.generator.model.presets import PRESETS
 from surfgen.pipelines.cli.main import main
+from surfgen.pipelines.export.meshes import ExportOptions, export_shapes
 
 
 def one_line_error(args: list[str], capsys) -> str:
@@ -64,3 +65,18 @@ def test_export_regrid_counts_the_copies_its_cleanup_holds(tmp_path: Path, capsy
     assert f"cells the surface crosses needs about {need} more" in line
     assert "limit of 1.0 GiB" in line
     assert not (tmp_path / "o").exists()
+
+
+def test_export_reports_each_shape_s_stages(tmp_path: Path) -> None:
+    """A re-gridded formula's meshing stages, then its cleaning, after the shape's name."""
+    spec = tmp_path / "sphere.json"
+    spec.write_text(json.dumps(PRESETS["sphere"].spec().to_dict()))
+    seen: list[tuple[int, int, str]] = []
+    options = ExportOptions(format="ply", regrid=40, evaluator="sparse")
+    export_shapes([str(spec)], tmp_path / "o", options, progress=lambda *a: seen.append(a))
+    names = [name for _, _, name in seen]
+    assert names[0] == "sphere" and seen[-1][:2] == (1, 1)
+    stages = [name.split(": ", 1)[1] for name in names if ": " in name]
+    assert stages[0] == "bounding" and "sampling" in stages
+    assert stages.index("meshing") < stages.index("cleaning") == len(stages) - 1
+    assert all(i == 0 for i, _, name in seen if ": " in name)
