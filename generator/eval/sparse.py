@@ -29,7 +29,6 @@ samples.
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -596,25 +595,3 @@ def _values_at(ii, jj, kk, slot, corner, values, block, out):
 def _sampled_at(ii, jj, kk, slot, block, out):
     for p in range(ii.size):
         out[p] = locate(slot, block, ii[p], jj[p], kk[p])[0] >= 0
-
-
-def leaf_state_at(sf: SparseField, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """The state of the leaf ``index // block`` (clipped to the leaves) of grid points."""
-    b = sf.block
-    n = sf.state.shape
-    ii = np.minimum(np.asarray(i) // b, n[0] - 1)
-    jj = np.minimum(np.asarray(j) // b, n[1] - 1)
-    kk = np.minimum(np.asarray(k) // b, n[2] - 1)
-    return sf.state[ii, jj, kk]
-
-
-def memory_estimate(grid: Grid, block: int = BLOCK, share: float = 0.25) -> int:
-    """Bytes of a sparse evaluation and meshing of ``grid`` if ``share`` of its leaves are
-    sampled: the bricks (float64 values, float32 offsets, the inside flags), the leaves'
-    states and slots, and the mixed cells' corners (about a quarter of a sampled leaf's cells,
-    8 float32 corners, 3 int64 indices).  The default share is generous: sculptures sample
-    2-15 % of their leaves at 256-1024 (``benchmarks/bench_sparse.py``)."""
-    leaves = math.prod(leaf_counts(grid, block))
-    bricks = share * leaves
-    per_brick = (block + 1) ** 3 * (8 + 4 + 1) + 0.25 * block**3 * (8 * 4 + 3 * 8) * 2
-    return int(leaves * 5 + bricks * per_brick)

@@ -23,7 +23,6 @@ from surfgen.generator.eval.sparse import (
     brick_layout,
     evaluate_sparse,
     leaf_counts,
-    memory_estimate,
 )
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import extract_with_edges
@@ -233,12 +232,6 @@ def test_bad_block_and_evaluator():
     assert resolve_evaluator("dense", grid) == "fast"  # the name for the fast path
     with pytest.raises(Exception, match="unknown evaluator 'sparce'.*auto, dense, fast"):
         resolve_evaluator("sparce", grid)
-
-
-def test_memory_estimate_grows_with_the_surface():
-    a = memory_estimate(Grid(Box.cube(1), (256,) * 3))
-    b = memory_estimate(Grid(Box.cube(1), (512,) * 3))
-    assert 0 < a < b < 9 * a
 
 
 def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():

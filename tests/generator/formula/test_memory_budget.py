@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -67,6 +68,16 @@ def test_begin_takes_the_available_memory_or_the_limit_given(monkeypatch) -> Non
     assert given.mesh_bytes(10) == 10 * SPARSE_BYTES_PER_MIXED_CELL
     assert free.mesh_bytes(10) == 40 * SPARSE_BYTES_PER_MIXED_CELL
     check_step(None, 1 << 60, "anything")  # no budget: nothing checked
+
+
+def test_the_sparse_estimate_grows_with_the_surface() -> None:
+    """What render and export check before a sparse run: about 4x per doubling of the grid
+    (a surface's size), where the dense estimate grows 8x."""
+    sparse = [sum(limits.estimate_memory(n**3, sparse=True).values()) for n in (256, 512, 1024)]
+    dense = [sum(limits.estimate_memory(n**3).values()) for n in (256, 512, 1024)]
+    for small, large in itertools.pairwise(sparse):
+        assert 3.9 * small < large < 4.1 * small
+    assert dense[1] == 8 * dense[0] and sparse[2] < dense[2] / 10
 
 
 def test_resident_memory_is_this_process() -> None:
