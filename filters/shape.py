@@ -32,7 +32,7 @@ from surfgen.filters.geometry import (
     used_mask,
     weighted_centres,
 )
-from surfgen.generator.jit.options import CHECKED
+from surfgen.generator.jit.options import CHECKED, read_only
 from surfgen.generator.mesh.mesh import Mesh, face_areas
 
 SYMMETRY_POINTS = 1024  # surface points tested per element
@@ -107,9 +107,8 @@ def _cell_index(
     ``limit`` of a query lies in the query's cell or one of its 26 neighbours. Returns the
     cells' start offsets into ``order`` (points sorted by cell), the grid's origin, the cell
     width and the grid's dimensions."""
-    frozen = cloud.view()  # read-only as the meshes' vertices are: one compiled signature
-    frozen.flags.writeable = False
-    lo, hi = column_bounds(frozen, np.ones(len(cloud), dtype=np.bool_))
+    # read-only as the meshes' vertices are: one compiled signature
+    lo, hi = column_bounds(read_only(cloud), np.ones(len(cloud), dtype=np.bool_))
     extent = hi - lo
     # A little wider than the limit: rounding in the division cannot push a neighbour two
     # cells away.

@@ -11,7 +11,8 @@ these sets, by name, so that one place says how surfgen's kernels are compiled a
 No set asks for ``fastmath``: the evaluator's results are the reference's bit for bit (no
 contraction into FMAs, no reassociation, NaN and inf kept).
 
-This module imports no numba: it is read by modules that do, when they define their kernels.
+This module imports no numba: it is read by modules that do, when they define their kernels
+(and by their callers, for :func:`read_only`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
+
+import numpy as np
 
 #: A kernel: cached, NaN/inf as values, the GIL released.
 KERNEL: Mapping[str, Any] = MappingProxyType({"cache": True, "error_model": "numpy", "nogil": True})
@@ -49,3 +52,14 @@ OVERLOAD: Mapping[str, Any] = MappingProxyType({"error_model": "numpy", "nogil":
 CHECKED: Mapping[str, Any] = MappingProxyType({"cache": True, "nogil": True})
 
 __all__ = ["C_FUNCTION", "C_HELPER", "CHECKED", "FORCE_INLINE", "INLINE", "KERNEL", "OVERLOAD"]
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` read-only: itself when it is, else a read-only view (no copy). Numba compiles a
+    kernel once per signature and types read-only arrays apart from writable ones, so a kernel
+    whose callers pass both is compiled twice; its callers pass it ``read_only(...)``."""
+    if not a.flags.writeable:
+        return a
+    view = a.view()
+    view.flags.writeable = False
+    return view

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import KERNEL, read_only
 
 
 def gradient_norm(a: np.ndarray, steps: float | Sequence[float]) -> np.ndarray:
@@ -33,9 +33,7 @@ def gradient_norm(a: np.ndarray, steps: float | Sequence[float]) -> np.ndarray:
     if a.ndim != 3 or a.dtype != np.float64 or min(a.shape) < 2 or len(h) != 3:
         with np.errstate(invalid="ignore", over="ignore"):
             return np.sqrt(sum(g**2 for g in np.gradient(a, *given)))
-    a = np.ascontiguousarray(a)
-    if not a.flags.writeable:  # one compiled signature: numba types read-only arrays apart
-        a = a.copy()
+    a = read_only(np.ascontiguousarray(a))  # one compiled signature, and no copy
     out = np.empty(a.shape)
     _gradient_norm(a, h[0], h[1], h[2], out)
     return out

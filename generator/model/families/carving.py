@@ -16,7 +16,7 @@ from scipy import ndimage
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.evaluate import evaluate_compiled
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.jit.options import KERNEL
+from surfgen.generator.jit.options import KERNEL, read_only
 from surfgen.generator.model.draw import round_significant
 from surfgen.generator.model.equation13 import Factor
 from surfgen.generator.model.families.symmetry import ornament_combos, permute_factor
@@ -141,16 +141,6 @@ def pieces(values: np.ndarray, level: float = 0.0) -> int:
     return int(n_solid + n_rest - 1)
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    """``a`` read-only (a view when it is writable): numba compiles a kernel once per
-    signature, and types read-only arrays apart from writable ones."""
-    if not a.flags.writeable:
-        return a
-    view = a.view()
-    view.flags.writeable = False
-    return view
-
-
 def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 0.0) -> float:
     """How far the surface ``values = level`` departs from its envelope ``envelope = 0``, both
     sampled on the same grid: the spread (5th to 95th percentile) of the envelope's normal
@@ -170,7 +160,7 @@ def envelope_departure(values: np.ndarray, envelope: np.ndarray, level: float = 
     env = np.ascontiguousarray(envelope, dtype=np.float64)
     if f.ndim != 3 or f.shape != env.shape or min(f.shape) < 2:
         raise ValueError(f"values and envelope must be one 3-D grid, got {f.shape}, {env.shape}")
-    f, env = _frozen(f), _frozen(env)  # one compiled signature of the kernel
+    f, env = read_only(f), read_only(env)  # one compiled signature of the kernel
     n_env, off = _crossing_offsets(f, float(level), env)
     if n_env == 0:
         return float("inf")
