@@ -102,16 +102,16 @@ def stage_bar(label: str) -> Iterator[Callable[[str, float | None], None]]:
         disable=not sys.stderr.isatty(),
         transient=True,
     ) as bar:
-        shown: dict[str, Any] = {}  # the stage shown, and its task
+        task, shown = None, None  # the bar's task, and the stage it shows
 
         def move(stage: str, done: float | None) -> None:
-            if shown.get("stage") != (stage, done is None):  # a stage of its own kind of bar
-                if "task" in shown:
-                    bar.remove_task(shown["task"])
-                shown["task"] = bar.add_task(stage, total=None if done is None else 1.0)
-                shown["stage"] = (stage, done is None)
+            nonlocal task, shown
+            if stage != shown:  # each stage a task of its own: a share, or a pulse
+                if task is not None:
+                    bar.remove_task(task)
+                task, shown = bar.add_task(stage, total=None if done is None else 1.0), stage
             if done is not None:
-                bar.update(shown["task"], completed=done)
+                bar.update(task, completed=done)
 
         yield move
 
