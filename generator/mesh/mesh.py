@@ -18,14 +18,12 @@ from surfgen.generator.errors import EmptySurface, MeshError
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.lewiner_chunks import lewiner_cells
-from surfgen.generator.mesh.marching import (
-    _keep_off_cell_faces,
-    _merge_same,
-    _offsets,
-    _pad_outside,
-    _place,
-    _same_targets,
-    mixed_cells,
+from surfgen.generator.mesh.marching import _offsets, _pad_outside, mixed_cells
+from surfgen.generator.mesh.placement import (
+    keep_off_cell_faces,
+    merge_same,
+    place_vertices,
+    same_targets,
 )
 
 logger = logging.getLogger(__name__)
@@ -210,24 +208,25 @@ def extract_with_edges(
 
 
 def finish_marching(
-    verts: np.ndarray, faces: np.ndarray, grid: Grid, level: float, cap: bool
+    verts: np.ndarray, faces: np.ndarray, grid: Grid, level: float, cap: bool, threads: int = 1
 ) -> tuple[Mesh, np.ndarray]:
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
     skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
     ``cap``): vertices placed on the box, interior vertices kept off their cell's faces, one
-    vertex per grid edge. The sparse path (:mod:`~surfgen.generator.mesh.sparse_marching`)
-    ends here too."""
+    vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place a large
+    mesh's vertices in runs at once). The sparse path
+    (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
     spacing = np.asarray(grid.spacing, dtype=np.float64)
     shape = np.asarray(grid.shape, dtype=np.int64)
     verts = np.ascontiguousarray(verts, dtype=np.float32)
     shift = 1.0 if cap else 0.0
-    vertices, edges, moved, off_cell = _place(verts, shift, shape, lo, hi, spacing)
+    vertices, edges, moved, off_cell = place_vertices(verts, shift, shape, lo, hi, spacing, threads)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     if off_cell:
         index = verts.astype(np.float64) - shift
-        inner = _keep_off_cell_faces(index, faces, edges, moved)
+        inner = keep_off_cell_faces(index, faces, edges, moved)
         if inner is not None:
             rows, index_rows = inner
             vertices[rows] = lo + index_rows * spacing
@@ -236,9 +235,9 @@ def finish_marching(
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
     # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
     # Give each such group one index and drop the triangles that collapse.
-    target = _same_targets(verts, shift, edges, moved, shape)
+    target = same_targets(verts, shift, edges, moved, shape)
     if target is not None:
-        vertices, faces, edges = _merge_same(vertices, faces, edges, target)
+        vertices, faces, edges = merge_same(vertices, faces, edges, target)
     logger.debug(
         "extract_mesh: %d vertices, %d faces (level %g, cap %s)",
         len(vertices),

@@ -124,7 +124,7 @@ def extract_sparse_with_edges(
     del keys, corners
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
-    return finish_marching(verts, faces, sf.grid, level, cap)
+    return finish_marching(verts, faces, sf.grid, level, cap, threads)
 
 
 def extract_sparse_labelled(

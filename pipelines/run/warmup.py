@@ -412,10 +412,10 @@ def _warm_rare_mesh(field) -> None:
     """The mesh kernels only some shapes run: vertices of one grid edge given one index (a
     crossing on a box edge of a capped shape, an ambiguous cell), and non-finite samples (a
     pole on a sample) given an offset from their neighbours; the warm ball has neither."""
-    from surfgen.generator.mesh.marching import _merge_same
     from surfgen.generator.mesh.mesh import extract_with_edges
+    from surfgen.generator.mesh.placement import merge_same
 
-    _merge_same(
+    merge_same(
         np.zeros((3, 3)),
         np.array([[0, 1, 2]], dtype=np.int64),
         np.full((3, 4), -1, dtype=np.int64),

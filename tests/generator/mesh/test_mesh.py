@@ -18,7 +18,6 @@ from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.exchange import load_mesh, save_mesh
 from surfgen.generator.mesh.formats import MESH_SUFFIXES
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
-from tests.support.refcounts import kernel_ir, refcounts_in_loops
 
 CANONICAL = ["sphere", "torus", "genus2", "two_spheres"]
 
@@ -284,77 +283,6 @@ def test_random_fields_with_exact_zeros_survive_merges():
             continue
         assert_merge_robust(mesh)
         assert_vertices_apart(mesh, grid)
-
-
-def _groups_both_ways(field, monkeypatch, permute=None):
-    """The vertex groups of ``field``'s capped mesh by the per-plane tables and by the whole
-    mesh's table (``permute``: the vertices in another order first)."""
-    from surfgen.generator.mesh import marching
-    from surfgen.generator.mesh import mesh as mesh_module
-
-    seen = []
-    real = mesh_module._same_targets
-    monkeypatch.setattr(marching, "PLANE_TABLES_FROM", 0)  # the tables by plane on any mesh
-
-    def spy(verts, shift, edges, moved, shape):
-        args = (verts, shift, edges, moved, shape)
-        if permute is not None:
-            order = permute(len(verts))
-            args = (verts[order], shift, edges[order], moved[order], shape)
-        seen.append(
-            (marching._targets_by_plane(*args), marching._targets_kernel(*args), real(*args))
-        )
-        return real(verts, shift, edges, moved, shape)
-
-    monkeypatch.setattr(mesh_module, "_same_targets", spy)
-    extract_mesh(field, cap=True)
-    return seen[0]
-
-
-@pytest.mark.parametrize(
-    ("formula", "groups"),
-    [
-        ("x*y*z", True),  # exact zeros on three grid planes: ambiguous cells
-        ("floor(2*x)*floor(2*y)-floor(2*z)", True),
-        ("z-0.3", True),  # a plane cut by the box: its crossings on the box's edges
-        ("x^2+y^2+z^2-2.5", True),  # a ball cut by the box
-        ("x^2+y^2+z^2-1.8", False),  # a ball inside the box: no group
-    ],
-)
-def test_vertex_groups_by_plane_are_the_whole_meshs(formula, groups, monkeypatch):
-    grid = Grid(Box((-1.2, -1.0, -1.1), (1.2, 1.3, 1.1)), (23, 26, 21))
-    field = evaluate_reference(parse(formula), grid)
-    (by_plane, merged, ordered), (whole, merged_whole), got = _groups_both_ways(field, monkeypatch)
-    assert ordered and merged == merged_whole == groups
-    assert np.array_equal(by_plane, whole)
-    assert (got is None) == (not merged)
-
-
-@pytest.mark.parametrize("kernel", ["_targets_kernel", "_targets_by_plane"])
-def test_vertex_groups_count_no_references_per_vertex(kernel):
-    # the vertex's key and its table's probe are read in the loop itself: helpers given the
-    # arrays (inlined by numba) counted references to each of them at every vertex, atomic
-    # increments that took a third of the groups' time
-    from surfgen.generator.mesh import marching
-
-    verts = np.zeros((4, 3), dtype=np.float32)
-    edges = np.zeros((4, 4), dtype=np.int64)
-    moved = np.zeros(4, dtype=np.bool_)
-    shape = np.array([3, 3, 3], dtype=np.int64)
-    body = kernel_ir(getattr(marching, kernel).py_func, verts, 0.5, edges, moved, shape)
-    assert refcounts_in_loops(body) == 0
-
-
-def test_vertex_groups_out_of_plane_order_fall_back_to_one_table(monkeypatch):
-    grid = Grid(Box.cube(1.5), (25, 25, 25))
-    field = evaluate_reference(parse("z-0.3"), grid)  # cut by the box: merges
-
-    def backwards(n):
-        return np.arange(n)[::-1].copy()
-
-    (_, _, ordered), (whole, merged), got = _groups_both_ways(field, monkeypatch, backwards)
-    assert not ordered and merged
-    assert np.array_equal(got, whole)
 
 
 def test_crossings_stay_a_percent_of_an_edge_from_the_samples():

@@ -289,12 +289,12 @@ CHILD_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, mesh, sparse_bricks, walls
+from surfgen.generator.mesh import marching, mesh, placement, sparse_bricks, walls
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_in_child
 
 warm_in_child()
-ran = {k: len(v.signatures) for m in (mesh, marching) for k, v in vars(m).items()
+ran = {k: len(v.signatures) for m in (mesh, marching, placement) for k, v in vars(m).items()
        if isinstance(v, CPUDispatcher)}
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
@@ -324,12 +324,12 @@ FIRST_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, sparse_bricks, sparse_lewiner, walls
+from surfgen.generator.mesh import marching, placement, sparse_bricks, sparse_lewiner, walls
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_first_in_child
 
 warm_first_in_child()
-ran = {k: len(v.signatures) for m in (marching, sparse_lewiner) for k, v in vars(m).items()
+ran = {k: len(v.signatures) for m in (marching, placement, sparse_lewiner) for k, v in vars(m).items()
        if isinstance(v, CPUDispatcher)}
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
