@@ -28,6 +28,7 @@ samples.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from collections.abc import Callable, Mapping
@@ -154,7 +155,7 @@ class SparseField:
             return int(self.stats["nonfinite"])
         sides = np.empty(self.n_bricks, dtype=np.int8)  # what _sides also tells; unused here
         args = (self.samples(), self.extent, self.corner, self.slot, self.block, 0, self.level)
-        return int(_sides(*args, sides))
+        return int(_sides(*args, sides, 0, self.n_bricks))
 
     def sign_proxy(self) -> Field:
         """A dense :class:`Field` with F where sampled, and in the skipped leaves a value of
@@ -438,9 +439,10 @@ def _sample_and_decide(
     column's z points, and the values are scattered to the bricks, all of a run's columns in
     one kernel call per thread (:func:`~surfgen.generator.eval.tape.evaluate_columns`; a call
     per column from Python, on a pool of threads, spent more time in Python than in the
-    kernel: 4-6x slower). ``budget``: each run's samples are checked against it before they
-    are written (the array is reserved, not touched, whole); ``progress``: called with the
-    share of the bricks sampled after each run."""
+    kernel: 4-6x slower), each thread then deciding the sides of the bricks it filled
+    (:func:`_sides`). ``budget``: each run's samples are checked against it before they are
+    written (the array is reserved, not touched, whole); ``progress``: called with the share
+    of the bricks sampled after each run."""
     n = len(corner)
     values = np.empty((n, block + 1, block + 1, block + 1))
     brick_bytes = values.itemsize * (block + 1) ** 3
@@ -450,7 +452,7 @@ def _sample_and_decide(
     on_face = np.any((leaves == 0) | (leaves == top[None, :]), axis=1)
     workers = thread_count(threads)
     rows = nonfinite = 0
-    run = None
+    run = decide = None
     with scratch_kept():  # the columns' temporaries reused, not mapped afresh for each
         for c0 in range(0, n, CHUNK_BRICKS):
             c1 = min(n, c0 + CHUNK_BRICKS)
@@ -458,8 +460,9 @@ def _sample_and_decide(
                        f"sampling the {n:,} leaves the surface may cross")  # fmt: skip
             run, ext, at = values[rows : rows + c1 - c0], extent[c0:c1], corner[c0:c1]
             run[np.flatnonzero(np.any(ext <= block, axis=1))] = np.nan  # past the grid: defined
-            evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers)
-            nonfinite += _sides(run, ext, at, slot, block, c0, level, sides[c0:c1])
+            decide = functools.partial(_sides, run, ext, at, slot, block, c0, level, sides[c0:c1])
+            bad = evaluate_columns(program, axes, np.arange(c1 - c0), at, ext, run, workers, decide)
+            nonfinite += sum(bad)
             kept = sides[c0:c1] == _MIXED
             if faces:  # a cap's vertices need the inside samples on the box's faces
                 kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
@@ -468,17 +471,17 @@ def _sample_and_decide(
             if progress is not None:
                 progress(c1 / n)
     held = [values]
-    del run, values  # no other reference: the array can then be resized in place
+    del run, decide, values  # no other reference: the array can then be resized in place
     return _shrunk(held, rows), sides, keep, int(nonfinite)
 
 
 @njit(**KERNEL)
-def _sides(values, extent, corner, slot, block, first, level, out):
-    """Each brick's side into ``out``: all its samples outside the level (above it or
-    non-finite), all inside (finite, below it) or both; returns its non-finite samples, each
+def _sides(values, extent, corner, slot, block, first, level, out, b0, b1):
+    """Bricks ``b0:b1``'s sides into ``out``: all its samples outside the level (above it or
+    non-finite), all inside (finite, below it) or both; returns their non-finite samples, each
     counted in the brick :func:`locate` finds for it (``first``: the number of brick 0)."""
     n_bad = 0
-    for b in range(values.shape[0]):
+    for b in range(b0, b1):
         inside = outside = False
         for i in range(extent[b, 0]):
             for j in range(extent[b, 1]):

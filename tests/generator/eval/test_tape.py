@@ -668,6 +668,37 @@ def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
     assert np.isnan(values[extent[:, 2] < block + 1][..., block]).all()  # past the grid: untouched
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_columns_then_runs_on_each_threads_bricks_once_they_are_filled(threads):
+    # evaluate_columns(..., then=f): each thread calls f on the members it filled, as soon as
+    # they are (the sparse evaluator decides the bricks' sides there): the ranges cover the
+    # members once, in order, and each sees its bricks filled
+    from surfgen.generator.eval import tape as fast
+
+    program = compile_tree(parse("x*y - z"))
+    grid = Grid(Box.cube(1.0), (33, 17, 25))
+    block = 4
+    leaves = np.argwhere(np.ones((8, 4, 6), dtype=bool)).astype(np.int64)
+    corner = leaves * block
+    extent = np.minimum(block + 1, np.asarray(grid.shape)[None, :] - corner)
+    values = np.full((len(leaves), block + 1, block + 1, block + 1), np.nan)
+
+    def filled(m0: int, m1: int) -> tuple[int, int, bool]:
+        done = all(
+            np.isfinite(values[b, : extent[b, 0], : extent[b, 1], : extent[b, 2]]).all()
+            for b in range(m0, m1)
+        )
+        return m0, m1, done
+
+    members = np.arange(len(leaves), dtype=np.int64)
+    got = fast.evaluate_columns(program, grid.axes(), members, corner, extent, values, threads,
+                                filled)  # fmt: skip
+    assert len(got) == threads
+    assert [g[0] for g in got] == [0] + [g[1] for g in got[:-1]] and got[-1][1] == len(leaves)
+    assert all(g[2] and g[1] > g[0] for g in got)
+    assert fast.evaluate_columns(program, grid.axes(), members, corner, extent, values, 2) == []
+
+
 def test_the_columns_kernel_calls_the_grid_kernel_with_the_grids_own_types(monkeypatch):
     # run_columns passes int64 values, not literal constants, for the grid kernel's part and
     # rows: numba then compiles run_grid once (for the grid evaluator and the bricks alike)
