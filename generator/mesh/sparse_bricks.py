@@ -86,42 +86,40 @@ def _tight(ma, b):
 
 
 def scan_bricks(offset, extent, corner, shape, threads: int = 1):
-    """The number of mixed cells of the bricks, and the crossing edges of the bricks that need
-    a raise (``|a| < _RATIO |b|`` or the reverse) as global flat sample numbers ``(a, b)``
-    (an edge on a face shared by two bricks twice), in brick order; ``threads`` take runs of
-    bricks."""
+    """The number of mixed cells of each brick (int64), and the crossing edges of the bricks
+    that need a raise (``|a| < _RATIO |b|`` or the reverse) as global flat sample numbers
+    ``(a, b)`` (an edge on a face shared by two bricks twice), in brick order; ``threads`` take
+    runs of bricks."""
+    per = np.empty(len(offset), dtype=np.int64)
     parts = run_at_once(
         [
-            lambda a=a, b=b: _scan(offset, extent, corner, shape, a, b)
+            lambda a=a, b=b: _scan(offset, extent, corner, shape, per, a, b)
             for a, b in brick_runs(len(offset), threads)
         ]
     )
     if len(parts) == 1:
-        return parts[0]
-    return (
-        sum(p[0] for p in parts),
-        np.concatenate([p[1] for p in parts]),
-        np.concatenate([p[2] for p in parts]),
-    )
+        return per, parts[0][0], parts[0][1]
+    return per, np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 @njit(**KERNEL)
-def _scan(offset, extent, corner, shape, b0, b1):
-    """:func:`scan_bricks` of bricks ``b0:b1``."""
+def _scan(offset, extent, corner, shape, per, b0, b1):
+    """:func:`scan_bricks` of bricks ``b0:b1`` (their counts into ``per``)."""
     col = np.empty(offset.shape[3], dtype=np.int64)
-    n_cells = 0
     ta = np.empty(64, dtype=np.int64)
     tb = np.empty(64, dtype=np.int64)
     m = 0
     s1, s2 = shape[1] * shape[2], shape[2]
     for b in range(b0, b1):
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+        n_cells = 0
         for i in range(e0 - 1):
             for j in range(e1 - 1):
                 column_counts(offset, b, i, j, e2, col)
                 for k in range(e2 - 1):
                     t = col[k] + col[k + 1]
                     n_cells += t != 0 and t != 8
+        per[b] = n_cells
         c0, c1, c2 = corner[b, 0], corner[b, 1], corner[b, 2]
         for i in range(e0):
             for j in range(e1):
@@ -150,7 +148,7 @@ def _scan(offset, extent, corner, shape, b0, b1):
                             tb = grown(tb, np.int64(m), _ONE)
                         ta[m], tb[m] = g, g + step
                         m += 1
-    return n_cells, ta[:m], tb[:m]
+    return ta[:m], tb[:m]
 
 
 # ----------------------------------------------------------------------------- raises
@@ -310,29 +308,81 @@ def _write_sample(offset, slot, block, i, j, k, value):
 # ----------------------------------------------------------------------------- cells
 
 
+def brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners, threads=1):
+    """The mixed cells of the bricks (``per``: each brick's count, :func:`scan_bricks`) and the
+    pad's cells ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's
+    order (C order of the volume): flat numbers in the (padded when ``shift``) volume and
+    their corners in skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).
+
+    A *slab* (the bricks of one leaf x, consecutive: the bricks are in C order of their
+    leaves) holds the cells of its own planes only, so the list is the slabs' cells one slab
+    after the other, the pad's cells merged in by their numbers: a slab's cells start after
+    the earlier slabs' and the pad's cells before its first plane. ``threads`` write runs of
+    slabs of about equal counts at once (:func:`_slab_cells`), the same list."""
+    n_bricks = len(per)
+    shape = np.asarray(shape, dtype=np.int64)
+    n_pad = len(pad_keys)
+    slab = np.flatnonzero(np.r_[True, corner[1:, 0] != corner[:-1, 0]]) if n_bricks else per[:0]
+    slab_cells = np.add.reduceat(per, slab) if n_bricks else per[:0]
+    # the pad's cells a slab writes: from its first plane (the first slab: all before it) up
+    # to the next slab's first plane (the last slab: all after it)
+    plane = (shape[1] + 2 * shift) * (shape[2] + 2 * shift)
+    first_keys = (corner[slab, 0] + shift) * plane
+    q = np.searchsorted(pad_keys, first_keys)
+    q[:1] = 0
+    q_end = np.r_[q[1:], n_pad]
+    m = np.r_[0, np.cumsum(slab_cells)[:-1]] + q if n_bricks else q
+    keys = np.empty(int(per.sum()) + n_pad, dtype=np.int64)
+    corners = np.empty((len(keys), 8), dtype=np.float32)
+    if n_bricks == 0:
+        keys[:], corners[:] = pad_keys, pad_corners
+        return keys, corners
+    ends = np.r_[slab[1:], n_bricks]
+    # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks' worth a thread)
+    runs = max(1, min(int(threads), n_bricks // RUN_BRICKS))
+    done = np.cumsum(slab_cells)
+    cut = np.searchsorted(done, done[-1] * np.arange(1, runs) / runs, side="right")
+    bounds = sorted({0, *cut.tolist(), len(slab)})
+    run_at_once(
+        [
+            lambda a=a, b=b: _slab_cells(
+                offset,
+                extent,
+                corner,
+                shift,
+                shape,
+                pad_keys,
+                pad_corners,
+                keys,
+                corners,
+                slab,
+                ends,
+                m,
+                q,
+                q_end,
+                a,
+                b,
+            )  # fmt: skip
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+            if b > a
+        ]
+    )
+    return keys, corners
+
+
 @njit(**KERNEL)
-def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
-    """The ``n`` mixed cells of the bricks (:func:`scan_bricks`) and the pad's cells
-    ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's order (C
-    order of the volume): flat numbers in the (padded when ``shift``) volume and their corners
-    in skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).  The bricks are in C order of
-    their leaves, so per plane ``i`` of a slab of leaves, the columns (one ``j`` range each)
-    and, per row ``j``, the column's bricks (one ``k`` range each) come in order: no sort; the
-    pad's cells are written where their numbers fall."""
-    n_bricks = offset.shape[0]
+def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, keys, corners,
+                slab, ends, m_at, q_at, q_end, r0, r1):  # fmt: skip
+    """:func:`brick_cells` of slabs ``r0:r1`` (slab ``r``: bricks ``slab[r]:ends[r]``, its
+    cells written from ``m_at[r]``, with the pad's cells ``q_at[r]:q_end[r]``): per plane
+    ``i`` of a slab, the columns (one ``j`` range each) and, per row ``j``, the column's
+    bricks (one ``k`` range each) come in order: no sort."""
     col = np.empty(offset.shape[3], dtype=np.int64)
-    n_pad = pad_keys.size
-    keys = np.empty(n + n_pad, dtype=np.int64)
-    corners = np.empty((n + n_pad, 8), dtype=np.float32)
-    q = 0
     p1 = shape[1] + 2 * shift
     p2 = shape[2] + 2 * shift
-    m = 0
-    s0 = 0
-    while s0 < n_bricks:  # a slab: the bricks of one leaf x
-        s1 = s0
-        while s1 < n_bricks and corner[s1, 0] == corner[s0, 0]:
-            s1 += 1
+    for r in range(r0, r1):
+        s0, s1 = slab[r], ends[r]
+        m, q, q1 = m_at[r], q_at[r], q_end[r]
         for i in range(extent[s0, 0] - 1):
             c0 = s0
             while c0 < s1:  # a column: the slab's bricks of one leaf y
@@ -350,7 +400,7 @@ def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
                             t = col[k] + col[k + 1]
                             if t == 0 or t == 8:
                                 continue
-                            while q < n_pad and pad_keys[q] < row + k:
+                            while q < q1 and pad_keys[q] < row + k:
                                 keys[m] = pad_keys[q]
                                 for c in range(8):  # not a row copy: numba would compile
                                     corners[m, c] = pad_corners[q, c]  # its shape error
@@ -367,11 +417,9 @@ def brick_cells(offset, extent, corner, shape, shift, n, pad_keys, pad_corners):
                             corners[m, 7] = offset[b, i + 1, j + 1, k]
                             m += 1
                 c0 = c1
-        s0 = s1
-    while q < n_pad:  # the pad's cells after the last brick cell
-        keys[m] = pad_keys[q]
-        for c in range(8):
-            corners[m, c] = pad_corners[q, c]
-        m += 1
-        q += 1
-    return keys, corners
+        while q < q1:  # the pad's cells after the slab's last cell, before the next slab
+            keys[m] = pad_keys[q]
+            for c in range(8):
+                corners[m, c] = pad_corners[q, c]
+            m += 1
+            q += 1

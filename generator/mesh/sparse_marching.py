@@ -101,7 +101,7 @@ def extract_sparse_with_edges(
     del values  # the last read of the samples: the offsets are all the steps below need
     if release:
         sf.release_samples()
-    n_cells, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
+    per, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, offset, slot, block, shape)
     shift = 1 if cap else 0
@@ -111,10 +111,10 @@ def extract_sparse_with_edges(
     else:
         pad_keys, pad_corners = np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32)
     if budget is not None:  # the cells to mesh are counted: check the mesh before it is made
-        cells = int(n_cells) + len(pad_keys)
+        cells = int(per.sum()) + len(pad_keys)
         budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
     keys, corners = brick_cells(
-        offset, extent, corner, shape, shift, n_cells, pad_keys, pad_corners
+        offset, extent, corner, shape, shift, per, pad_keys, pad_corners, threads
     )
     # each step's inputs freed as soon as the next has what it needs: the offsets before the
     # marching, the cells before the mesh's end (a third of the memory a 512^3 surface adds)

@@ -191,10 +191,11 @@ def test_special_fields(formula, bounds_, shape, bounds):
 def test_threads_give_the_same_mesh(monkeypatch, formula, bounds_, threads):
     # runs of a brick or more for the offsets and the scan, of a plane or more for the marching
     # (lewiner_chunks): the one-thread mesh, bit for bit
-    from surfgen.generator.mesh import lewiner_chunks, sparse_bricks
+    from surfgen.generator.mesh import lewiner_chunks, placement, sparse_bricks
 
     monkeypatch.setattr(sparse_bricks, "RUN_BRICKS", 1)
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
+    monkeypatch.setattr(placement, "PLACE_RUN", 1)
     grid = Grid(Box.from_bounds(bounds_), (31, 30, 29))
     for cap in (False, True):
         dense, sparse, _sf = both_paths(
