@@ -203,7 +203,7 @@ def extract_with_edges(
     # skimage's marching cubes ('descent': "values grow outward", normals towards F > level)
     # on the cells with both signs: the Lewiner pass the sparse path runs too
     keys, corners = mixed_cells(work)
-    verts, faces = lewiner_cells(keys, corners, work.shape[2], work.shape[1])
+    verts, faces = lewiner_cells([keys, corners], work.shape[2], work.shape[1])
     return finish_marching(verts, faces, field.grid, level, cap)
 
 

@@ -113,15 +113,14 @@ def extract_sparse_with_edges(
     if budget is not None:  # the cells to mesh are counted: check the mesh before it is made
         cells = int(per.sum()) + len(pad_keys)
         budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
-    keys, corners = brick_cells(
-        offset, extent, corner, shape, shift, per, pad_keys, pad_corners, threads
-    )
+    cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
+                             threads))  # fmt: skip
     # each step's inputs freed as soon as the next has what it needs: the offsets before the
-    # marching, the cells before the mesh's end (a third of the memory a 512^3 surface adds)
+    # marching, the cells before the runs are joined (a third of the memory a 512^3 surface
+    # adds)
     del offset, pad_keys, pad_corners
     size = shape + 2 * shift
-    verts, faces = lewiner_cells(keys, corners, int(size[2]), int(size[1]), threads)
-    del keys, corners
+    verts, faces = lewiner_cells(cells, int(size[2]), int(size[1]), threads)
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
     return finish_marching(verts, faces, sf.grid, level, cap, threads)

@@ -350,7 +350,7 @@ def _warm_sparse_marching() -> None:
     # and on threads (render's): two cells on two planes, a run each, joined
     corners = np.ones((2, 8), dtype=np.float32)
     corners[:, 0] = -1.0
-    lewiner_cells(np.array([0, 4], dtype=np.int64), corners, 2, 2, threads=2, min_cells=1)
+    lewiner_cells([np.array([0, 4], dtype=np.int64), corners], 2, 2, threads=2, min_cells=1)
 
 
 def _warm_the_rest(field, box, mesh, tree) -> None:

@@ -36,7 +36,7 @@ def run_port(
     """The port on the cells ``mask`` lets through: it returns what skimage's
     ``marching_cubes`` returns ('descent'), faces int64."""
     keys, corners = cells_of(work, mask)
-    return lewiner_cells(keys, corners, work.shape[2], work.shape[1], threads, min_cells)
+    return lewiner_cells([keys, corners], work.shape[2], work.shape[1], threads, min_cells)
 
 
 def volume(kind: int, shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
@@ -167,6 +167,31 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
         # the runs number in int32; the joined (or single) pass hands the mesh's int64
         assert f.dtype == one[1].dtype == np.int64 and v.dtype == np.float32
         assert calls == ([True] * runs if runs > 1 else [False])
+
+
+def test_the_cells_are_freed_before_the_runs_are_joined(monkeypatch):
+    # lewiner_cells takes the cells out of the list it is given and drops them once the runs
+    # are made: the joined mesh takes their memory, not memory beside them
+    import weakref
+
+    from surfgen.generator.mesh import lewiner_chunks
+
+    rng = np.random.default_rng(5)
+    w = volume(2, (12, 9, 8), rng)
+    keys, corners = cells_of(w, skimage_mask(w))
+    alive = [weakref.ref(keys), weakref.ref(corners)]
+    join = lewiner_chunks._join
+    seen = []
+
+    def spy(parts, first_planes):
+        seen.append([ref() is not None for ref in alive])
+        return join(parts, first_planes)
+
+    monkeypatch.setattr(lewiner_chunks, "_join", spy)
+    cells = [keys, corners]
+    del keys, corners
+    v, f = lewiner_cells(cells, w.shape[2], w.shape[1], threads=2, min_cells=1)
+    assert cells == [] and seen == [[False, False]] and len(f) > 0
 
 
 def test_every_case_is_met():
