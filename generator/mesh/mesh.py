@@ -213,8 +213,8 @@ def finish_marching(
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
     skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
     ``cap``): vertices placed on the box, interior vertices kept off their cell's faces, one
-    vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place a large
-    mesh's vertices in runs at once). The sparse path
+    vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place and
+    group a large mesh's vertices in runs at once). The sparse path
     (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
@@ -235,7 +235,7 @@ def finish_marching(
     # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
     # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
     # Give each such group one index and drop the triangles that collapse.
-    target = same_targets(verts, shift, edges, moved, shape)
+    target = same_targets(verts, shift, edges, moved, shape, threads)
     if target is not None:
         vertices, faces, edges = merge_same(vertices, faces, edges, target)
     logger.debug(

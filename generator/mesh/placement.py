@@ -116,20 +116,61 @@ def _place_range(verts, shift, shape, lo, hi, spacing, vertices, edges, moved, v
 
 
 def same_targets(
-    verts: np.ndarray, shift: float, edges: np.ndarray, moved: np.ndarray, shape: np.ndarray
+    verts: np.ndarray,
+    shift: float,
+    edges: np.ndarray,
+    moved: np.ndarray,
+    shape: np.ndarray,
+    threads: int = 1,
 ) -> np.ndarray | None:
     """For each vertex, the first vertex of its group (:func:`merge_same`), or None when every
     vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place_range`). A large
     mesh's groups are found plane by plane (:func:`_targets_by_plane`: its table would hold
-    tens of MiB at the end of a fine render, more than a gigabyte for equation B at 512^3), a
-    small one's in one table (:func:`_targets_kernel`: the sampler's meshes, 11 % faster)."""
+    tens of MiB at the end of a fine render, more than a gigabyte for equation B at 512^3), with
+    ``threads`` > 1 in two halves at once (:func:`_targets_in_halves`); a small one's in one
+    table (:func:`_targets_kernel`: the sampler's meshes, 11 % faster)."""
     if len(verts) >= PLANE_TABLES_FROM:
-        target, any_merge, ordered = _targets_by_plane(verts, shift, edges, moved, shape)
-        if ordered:
-            return target if any_merge else None
+        found = _targets_in_halves(verts, shift, edges, moved, shape) if threads > 1 else None
+        if found is None:
+            target, any_merge, ordered = _targets_by_plane(verts, shift, edges, moved, shape)
+            found = (target, any_merge) if ordered else None
+        if found is not None:
+            return found[0] if found[1] else None
     # a small mesh, or not marching cubes' plane order: one table for the whole mesh
     target, any_merge = _targets_kernel(verts, shift, edges, moved, shape)
     return target if any_merge else None
+
+
+def _targets_in_halves(
+    verts: np.ndarray,
+    shift: float,
+    edges: np.ndarray,
+    moved: np.ndarray,
+    shape: np.ndarray,
+    mid: int | None = None,
+) -> tuple[np.ndarray, bool] | None:
+    """:func:`_targets_by_plane`'s targets and whether any vertex merges, the two halves of the
+    vertices grouped at once (:func:`_plane_groups`), then the second half's vertices on the
+    first half's last planes given the first half's first vertex of their key
+    (:func:`_link_halves`). None where either half is out of plane order, or the second half
+    reaches further down than the first's last two planes (:func:`_targets_by_plane` decides).
+    ``mid``: the second half's first vertex (None: the middle one)."""
+    n = len(verts)
+    mid = n // 2 if mid is None else int(mid)
+    target = np.empty(n, dtype=np.int64)
+    first, second = run_at_once(
+        [
+            lambda a=a, b=b: _plane_groups(verts, shift, edges, moved, shape, target, a, b)
+            for a, b in ((0, mid), (mid, n))
+        ]
+    )
+    tables, down, mask, merged, ordered, _, top = first
+    merged_second, ordered_second, low_second = second[3], second[4], second[5]
+    del first, second  # the second half's tables
+    if not (ordered and ordered_second and low_second >= top - 1):
+        return None
+    linked = _link_halves(verts, shift, edges, moved, shape, target, mid, tables, down, mask, top)
+    return target, bool(merged or merged_second or linked)
 
 
 @njit(**INLINE)
@@ -189,21 +230,56 @@ def _find_or_add(tables, t, key, v, down, mask, plane):
 @njit(**KERNEL)
 def _targets_by_plane(verts, shift, edges, moved, shape):
     """:func:`_targets_kernel`'s groups with a table per plane of samples along the first axis,
-    three at a time: marching cubes visits the cells plane by plane and numbers vertices as it
-    makes them, and a cell of plane ``c`` makes vertices whose keys lie on plane ``c`` or
-    ``c + 1`` (an edge, or a box sample, is in the cells of at most two neighbouring planes),
-    so the vertices of one group come while the planes of its key and the one below are
-    visited. A plane's table is reused three planes on as it is: the keys of the plane it
-    held count as free slots (:func:`_find_or_add`; clearing the tables took 40 % of the time
-    for equation C at 512^3, 0.20 -> 0.12 s). A few tables of a plane's vertices in place of
-    one of the mesh's (16 bytes a slot, twice the vertices): the same
-    targets in a sliver of the memory. Returns ``(target, any_merge, ordered)``; ``ordered``
-    False (and nothing else meaningful) where a key lies two planes below one already seen."""
+    two at a time (:func:`_plane_groups` over every vertex). Returns ``(target, any_merge,
+    ordered)``; ``ordered`` False (and nothing else meaningful) where a key lies two planes
+    below one already seen."""
     n = verts.shape[0]
+    target = np.empty(n, dtype=np.int64)
+    found = _plane_groups(verts, shift, edges, moved, shape, target, 0, n)
+    return target, found[3], found[4]
+
+
+@njit(**INLINE)
+def _find(tables, t, key, down, mask, plane):
+    """The first vertex of ``key`` in ``tables[t]`` (:func:`_find_or_add`'s probe), or -1."""
+    run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
+    h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
+    q = key // plane
+    found = np.int64(-1)
+    while True:
+        held = tables[t, 2 * h]
+        if held == key:
+            found = tables[t, 2 * h + 1]
+            break
+        if held == -1 or held // plane != q:
+            break
+        h = (h + 1) & mask
+    return found
+
+
+@njit(**KERNEL)
+def _plane_groups(verts, shift, edges, moved, shape, target, v0, v1):
+    """The groups of vertices ``v0:v1`` (among themselves: their targets into ``target``) with
+    a table per plane of samples along the first axis, two at a time: marching cubes visits
+    the cells plane by plane and numbers vertices as it makes them, and a cell of plane ``c``
+    makes vertices whose keys lie on plane ``c`` or ``c + 1`` (an edge, or a box sample, is in
+    the cells of at most two neighbouring planes), so the vertices of one group come while the
+    planes of its key and the one below are visited, and once a key of plane ``c + 2`` comes,
+    none of plane ``c`` does (else the keys are out of order: ``ordered`` False). A plane's
+    table is reused two planes on as it is: the keys of the plane it held count as free slots
+    (:func:`_find_or_add`; clearing the tables took 40 % of the time for equation C at 512^3,
+    0.20 -> 0.12 s; a third table, which the order never needs, held 8 of equation C's 24
+    MiB). A few tables of a plane's vertices in place of one of the mesh's (16 bytes a slot,
+    twice the vertices): the same targets in a sliver of the memory.
+
+    Returns ``(tables, down, mask, any_merge, ordered, low, top)``: the tables as they end and
+    their hashing, whether any vertex merged, whether the keys came in plane order (False,
+    and nothing else meaningful, where a key lies two planes below one already seen), and the
+    lowest and highest planes of their keys."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     plane = (ny * nz) << 2
     counts = np.zeros(nx, dtype=np.int64)
-    for v in range(n):
+    for v in range(v0, v1):
         key = _vertex_key(
             edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
             verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
@@ -212,11 +288,11 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
             counts[key // plane] += 1
     size, down = _table_size(counts.max())
     mask = size - 1
-    tables = np.full((3, 2 * size), -1, dtype=np.int64)
-    target = np.empty(n, dtype=np.int64)
+    tables = np.full((2, 2 * size), -1, dtype=np.int64)
     any_merge = False
+    low = nx
     top = np.int64(-1)
-    for v in range(n):
+    for v in range(v0, v1):
         target[v] = v
         key = _vertex_key(
             edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
@@ -226,13 +302,41 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
             continue
         q = key // plane
         if q < top - 1:
-            return target, False, False
+            return tables, down, mask, False, False, low, top
         top = max(top, q)
-        first = _find_or_add(tables, q % 3, key, v, down, mask, plane)
+        low = min(low, q)
+        first = _find_or_add(tables, q % 2, key, v, down, mask, plane)
         if first != v:
             target[v] = first
             any_merge = True
-    return target, any_merge, True
+    return tables, down, mask, any_merge, True, low, top
+
+
+@njit(**KERNEL)
+def _link_halves(verts, shift, edges, moved, shape, target, mid, tables, down, mask, top):
+    """The vertices from ``mid`` on whose key the first half has too (on its last plane
+    ``top`` or the one below, whose tables ``tables`` still holds) take the first half's first
+    vertex of the key (:func:`_targets_in_halves`); they come before any key two planes above
+    ``top`` (the second half is in plane order). Returns whether any did."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    plane = (ny * nz) << 2
+    linked = False
+    for v in range(mid, verts.shape[0]):
+        key = _vertex_key(
+            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
+            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
+        )  # fmt: skip
+        if key < 0:
+            continue
+        q = key // plane
+        if q >= top + 2:
+            break
+        if q <= top:
+            first = _find(tables, q % 2, key, down, mask, plane)
+            if first >= 0:
+                target[v] = first
+                linked = True
+    return linked
 
 
 @njit(**KERNEL)

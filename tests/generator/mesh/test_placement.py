@@ -67,6 +67,11 @@ def test_plane_tables_reused_as_they_are_group_as_one_table():
     whole, merged_whole = placement._targets_kernel(verts, 0.0, edges, moved, shape)
     assert ordered and merged and merged_whole
     assert np.array_equal(by_plane, whole)
+    # in two halves at once, the second's vertices of keys the first has linked to them
+    for cut in (n // 2, n // 3):  # through a plane's vertices: groups on both sides
+        halves, merged_halves = placement._targets_in_halves(verts, 0.0, edges, moved, shape, cut)
+        assert merged_halves and np.array_equal(halves, whole)
+        assert (halves[cut:] < cut).any()  # some of the second half's groups began before it
     # the groups themselves: each vertex's target is the first vertex with its edge
     key = {}
     for v in range(n):
@@ -84,15 +89,20 @@ def _groups_both_ways(field, monkeypatch, permute=None):
     real = mesh_module.same_targets
     monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)  # the tables by plane on any mesh
 
-    def spy(verts, shift, edges, moved, shape):
+    def spy(verts, shift, edges, moved, shape, threads=1):
         args = (verts, shift, edges, moved, shape)
         if permute is not None:
             order = permute(len(verts))
             args = (verts[order], shift, edges[order], moved[order], shape)
         seen.append(
-            (placement._targets_by_plane(*args), placement._targets_kernel(*args), real(*args))
+            (
+                placement._targets_by_plane(*args),
+                placement._targets_kernel(*args),
+                real(*args),
+                placement._targets_in_halves(*args),
+            )
         )
-        return real(verts, shift, edges, moved, shape)
+        return real(verts, shift, edges, moved, shape, threads)
 
     monkeypatch.setattr(mesh_module, "same_targets", spy)
     extract_mesh(field, cap=True)
@@ -112,13 +122,16 @@ def _groups_both_ways(field, monkeypatch, permute=None):
 def test_vertex_groups_by_plane_are_the_whole_meshs(formula, groups, monkeypatch):
     grid = Grid(Box((-1.2, -1.0, -1.1), (1.2, 1.3, 1.1)), (23, 26, 21))
     field = evaluate_reference(parse(formula), grid)
-    (by_plane, merged, ordered), (whole, merged_whole), got = _groups_both_ways(field, monkeypatch)
+    (by_plane, merged, ordered), (whole, merged_whole), got, halves = _groups_both_ways(
+        field, monkeypatch
+    )
     assert ordered and merged == merged_whole == groups
     assert np.array_equal(by_plane, whole)
     assert (got is None) == (not merged)
+    assert np.array_equal(halves[0], whole) and halves[1] == merged
 
 
-@pytest.mark.parametrize("kernel", ["_targets_kernel", "_targets_by_plane"])
+@pytest.mark.parametrize("kernel", ["_targets_kernel", "_plane_groups", "_link_halves"])
 def test_vertex_groups_count_no_references_per_vertex(kernel):
     # the vertex's key and its table's probe are read in the loop itself: helpers given the
     # arrays (inlined by numba) counted references to each of them at every vertex, atomic
@@ -127,7 +140,14 @@ def test_vertex_groups_count_no_references_per_vertex(kernel):
     edges = np.zeros((4, 4), dtype=np.int64)
     moved = np.zeros(4, dtype=np.bool_)
     shape = np.array([3, 3, 3], dtype=np.int64)
-    body = kernel_ir(getattr(placement, kernel).py_func, verts, 0.5, edges, moved, shape)
+    args = (verts, 0.5, edges, moved, shape)
+    target, v0, v1 = np.zeros(4, dtype=np.int64), np.int64(0), np.int64(4)
+    if kernel == "_plane_groups":
+        args = (*args, target, v0, v1)
+    elif kernel == "_link_halves":
+        tables = np.full((3, 2048), -1, dtype=np.int64)
+        args = (*args, target, v0, tables, np.uint64(54), np.int64(1023), np.int64(1))
+    body = kernel_ir(getattr(placement, kernel).py_func, *args)
     assert refcounts_in_loops(body) == 0
 
 
@@ -138,6 +158,6 @@ def test_vertex_groups_out_of_plane_order_fall_back_to_one_table(monkeypatch):
     def backwards(n):
         return np.arange(n)[::-1].copy()
 
-    (_, _, ordered), (whole, merged), got = _groups_both_ways(field, monkeypatch, backwards)
-    assert not ordered and merged
+    (_, _, ordered), (whole, merged), got, halves = _groups_both_ways(field, monkeypatch, backwards)
+    assert not ordered and merged and halves is None
     assert np.array_equal(got, whole)
