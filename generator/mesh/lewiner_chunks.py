@@ -37,11 +37,11 @@ def lewiner_cells(
     """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells
     ``[keys, corners]`` taken out of the list ``cells``
     (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`): float32 vertices (V, 3)
-    and int64 faces (F, 3) (the runs' own int32 numbers widened). With ``threads`` > 1, in runs of whole planes of at least
-    ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per thread, joined into the same
-    arrays. The cells are freed once the runs are made, before the join (where nothing else
-    holds them: a list, not the arrays, is passed for that), so the join's arrays take their
-    place (sculpture-1 at 512^3: 30 MiB off the render's peak)."""
+    and int64 faces (F, 3) (the runs' own int32 numbers widened). With ``threads`` > 1, in
+    runs of whole planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per
+    thread, joined into the same arrays. The cells are freed once the runs are made, before
+    the join (a list, not the arrays, is passed so that nothing else holds them): the joined
+    arrays take their place (sculpture-1 at 512^3: the join's peak 309 -> 279 MiB)."""
     keys, corners = cells
     cells.clear()
     n = len(keys)
@@ -77,10 +77,10 @@ def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
 def _join(parts, first_planes) -> tuple[np.ndarray, np.ndarray]:
     """The runs' vertices and faces numbered as one pass numbers them, each run written by a
     thread of its own (its new vertices and its faces are rows of their own); ``parts`` is
-    emptied once they are written. Written one after the other, each run freed as soon as
-    written, the join held one run less at its peak, but the cells freed before it (made
-    :func:`lewiner_cells` leave more room than that: the render's peak is elsewhere), and it
-    took longer (sculpture-2 at 512^3: 0.020 -> 0.014 s)."""
+    emptied once all are written. One run after the other, each freed once written, held one
+    run less at the join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s);
+    with the cells freed before the join, its peak stays below the render's (sculpture-1: 301
+    MiB against the offsets' 303; equation C: 510 against the vertex groups' 573)."""
     numbers, starts, total = _numbering(parts, first_planes)
     out_v = np.empty((total, 3), dtype=np.float32)
     out_f = np.empty((sum(len(p[1]) for p in parts), 3), dtype=np.int64)

@@ -319,50 +319,32 @@ def brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners
     after the other, the pad's cells merged in by their numbers: a slab's cells start after
     the earlier slabs' and the pad's cells before its first plane. ``threads`` write runs of
     slabs of about equal counts at once (:func:`_slab_cells`), the same list."""
-    n_bricks = len(per)
+    n_bricks, n_pad = len(per), len(pad_keys)
+    if n_bricks == 0:  # the pad's cells alone
+        return np.array(pad_keys, dtype=np.int64), np.array(pad_corners, dtype=np.float32)
     shape = np.asarray(shape, dtype=np.int64)
-    n_pad = len(pad_keys)
-    slab = np.flatnonzero(np.r_[True, corner[1:, 0] != corner[:-1, 0]]) if n_bricks else per[:0]
-    slab_cells = np.add.reduceat(per, slab) if n_bricks else per[:0]
+    slab = np.flatnonzero(np.r_[True, corner[1:, 0] != corner[:-1, 0]])  # each slab's first
+    ends = np.r_[slab[1:], n_bricks]
+    slab_cells = np.add.reduceat(per, slab)
     # the pad's cells a slab writes: from its first plane (the first slab: all before it) up
     # to the next slab's first plane (the last slab: all after it)
     plane = (shape[1] + 2 * shift) * (shape[2] + 2 * shift)
-    first_keys = (corner[slab, 0] + shift) * plane
-    q = np.searchsorted(pad_keys, first_keys)
-    q[:1] = 0
+    q = np.searchsorted(pad_keys, (corner[slab, 0] + shift) * plane)
+    q[0] = 0
     q_end = np.r_[q[1:], n_pad]
-    m = np.r_[0, np.cumsum(slab_cells)[:-1]] + q if n_bricks else q
+    m = np.r_[0, np.cumsum(slab_cells)[:-1]] + q
     keys = np.empty(int(per.sum()) + n_pad, dtype=np.int64)
     corners = np.empty((len(keys), 8), dtype=np.float32)
-    if n_bricks == 0:
-        keys[:], corners[:] = pad_keys, pad_corners
-        return keys, corners
-    ends = np.r_[slab[1:], n_bricks]
-    # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks' worth a thread)
+    # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks a thread)
     runs = max(1, min(int(threads), n_bricks // RUN_BRICKS))
     done = np.cumsum(slab_cells)
     cut = np.searchsorted(done, done[-1] * np.arange(1, runs) / runs, side="right")
     bounds = sorted({0, *cut.tolist(), len(slab)})
+    args = (offset, extent, corner, shift, shape, pad_keys, pad_corners, keys, corners, slab,
+            ends, m, q, q_end)  # fmt: skip
     run_at_once(
         [
-            lambda a=a, b=b: _slab_cells(
-                offset,
-                extent,
-                corner,
-                shift,
-                shape,
-                pad_keys,
-                pad_corners,
-                keys,
-                corners,
-                slab,
-                ends,
-                m,
-                q,
-                q_end,
-                a,
-                b,
-            )  # fmt: skip
+            lambda a=a, b=b: _slab_cells(*args, a, b)
             for a, b in zip(bounds[:-1], bounds[1:], strict=True)
             if b > a
         ]
