@@ -165,7 +165,7 @@ def _targets_in_halves(
         ]
     )
     tables, down, mask, merged, ordered, _, top = first
-    merged_second, ordered_second, low_second = second[3], second[4], second[5]
+    _, _, _, merged_second, ordered_second, low_second, _ = second
     del first, second  # the second half's tables
     if not (ordered and ordered_second and low_second >= top - 1):
         return None
@@ -194,7 +194,7 @@ def _vertex_key(axis, e1, e2, e3, moved, x, y, z, shift, nx, ny, nz):
 @njit(**INLINE)
 def _table_size(n):
     """Slots of a vertex-group table for ``n`` keys (a power of two, at least ``2 n + 2`` and
-    two runs), and the shift that keeps a run number's top bits (:func:`_find_or_add`)."""
+    two runs), and the shift that keeps a run number's top bits (:func:`_probe`)."""
     bits = _RUN + 1
     while (1 << bits) < 2 * n + 2:
         bits += 1
@@ -202,29 +202,43 @@ def _table_size(n):
 
 
 @njit(**INLINE)
-def _find_or_add(tables, t, key, v, down, mask, plane):
-    """The first vertex of ``key`` in the open-addressing table ``tables[t]`` of ``(key,
-    vertex)`` slots; ``v`` where the key is new (then added). The probe starts at the key's run
-    of ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its top ``64 - down``
+def _probe(tables, t, key, down, mask, plane):
+    """The slot of ``key`` in the open-addressing table ``tables[t]`` of ``(key, vertex)``
+    slots, or the free slot where it would go. The probe starts at the key's run of
+    ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its top ``64 - down``
     bits), at the key's place in the run. With ``plane`` (keys per plane, > 0) a slot holding
-    a key of another plane than ``key``'s counts as free (:func:`_targets_by_plane` reuses a
-    table without clearing it: a current key is never overwritten, so the probes of the
-    plane's keys meet the same keys as in a cleared table); ``plane`` 0: only -1 is free.
-    Given the tables and the row (not a view of the row) and with one exit, it leaves no
-    reference count in the callers' loops (their tests)."""
+    a key of another plane than ``key``'s counts as free (:func:`_plane_groups` reuses a table
+    without clearing it: a current key is never overwritten, so the probes of the plane's keys
+    meet the same keys as in a cleared table); ``plane`` 0: only -1 is free. Given the tables
+    and the row (not a view of the row) and with one exit, it leaves no reference count in the
+    callers' loops (their tests)."""
     run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
     h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
     q = key // plane if plane > 0 else np.int64(0)
     while True:
         held = tables[t, 2 * h]
-        if held == key:
-            break
-        if held == -1 or (plane > 0 and held // plane != q):  # free: the key is new
-            tables[t, 2 * h] = key
-            tables[t, 2 * h + 1] = v
+        if held == key or held == -1 or (plane > 0 and held // plane != q):
             break
         h = (h + 1) & mask
+    return h
+
+
+@njit(**INLINE)
+def _find_or_add(tables, t, key, v, down, mask, plane):
+    """The first vertex of ``key`` in ``tables[t]`` (:func:`_probe`); ``v`` where the key is
+    new (then added)."""
+    h = _probe(tables, t, key, down, mask, plane)
+    if tables[t, 2 * h] != key:  # a free slot: the key is new
+        tables[t, 2 * h] = key
+        tables[t, 2 * h + 1] = v
     return tables[t, 2 * h + 1]
+
+
+@njit(**INLINE)
+def _find(tables, t, key, down, mask, plane):
+    """The first vertex of ``key`` in ``tables[t]`` (:func:`_probe`), or -1."""
+    h = _probe(tables, t, key, down, mask, plane)
+    return tables[t, 2 * h + 1] if tables[t, 2 * h] == key else np.int64(-1)
 
 
 @njit(**KERNEL)
@@ -235,26 +249,10 @@ def _targets_by_plane(verts, shift, edges, moved, shape):
     below one already seen."""
     n = verts.shape[0]
     target = np.empty(n, dtype=np.int64)
-    found = _plane_groups(verts, shift, edges, moved, shape, target, 0, n)
-    return target, found[3], found[4]
-
-
-@njit(**INLINE)
-def _find(tables, t, key, down, mask, plane):
-    """The first vertex of ``key`` in ``tables[t]`` (:func:`_find_or_add`'s probe), or -1."""
-    run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
-    h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
-    q = key // plane
-    found = np.int64(-1)
-    while True:
-        held = tables[t, 2 * h]
-        if held == key:
-            found = tables[t, 2 * h + 1]
-            break
-        if held == -1 or held // plane != q:
-            break
-        h = (h + 1) & mask
-    return found
+    _, _, _, any_merge, ordered, _, _ = _plane_groups(
+        verts, shift, edges, moved, shape, target, 0, n
+    )
+    return target, any_merge, ordered
 
 
 @njit(**KERNEL)
@@ -267,7 +265,7 @@ def _plane_groups(verts, shift, edges, moved, shape, target, v0, v1):
     planes of its key and the one below are visited, and once a key of plane ``c + 2`` comes,
     none of plane ``c`` does (else the keys are out of order: ``ordered`` False). A plane's
     table is reused two planes on as it is: the keys of the plane it held count as free slots
-    (:func:`_find_or_add`; clearing the tables took 40 % of the time for equation C at 512^3,
+    (:func:`_probe`; clearing the tables took 40 % of the time for equation C at 512^3,
     0.20 -> 0.12 s; a third table, which the order never needs, held 8 of equation C's 24
     MiB). A few tables of a plane's vertices in place of one of the mesh's (16 bytes a slot,
     twice the vertices): the same targets in a sliver of the memory.

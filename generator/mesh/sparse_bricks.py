@@ -332,12 +332,12 @@ def brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners
     q = np.searchsorted(pad_keys, (corner[slab, 0] + shift) * plane)
     q[0] = 0
     q_end = np.r_[q[1:], n_pad]
-    m = np.r_[0, np.cumsum(slab_cells)[:-1]] + q
+    done = np.cumsum(slab_cells)  # the cells of the slabs up to each
+    m = np.r_[0, done[:-1]] + q
     keys = np.empty(int(per.sum()) + n_pad, dtype=np.int64)
     corners = np.empty((len(keys), 8), dtype=np.float32)
     # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks a thread)
     runs = max(1, min(int(threads), n_bricks // RUN_BRICKS))
-    done = np.cumsum(slab_cells)
     cut = np.searchsorted(done, done[-1] * np.arange(1, runs) / runs, side="right")
     bounds = sorted({0, *cut.tolist(), len(slab)})
     args = (offset, extent, corner, shift, shape, pad_keys, pad_corners, keys, corners, slab,
