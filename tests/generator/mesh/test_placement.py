@@ -47,7 +47,7 @@ def test_vertices_placed_in_runs_are_one_pass(threads, monkeypatch):
 
 
 def test_plane_tables_reused_as_they_are_group_as_one_table():
-    # Many planes, each table reused every third plane with the keys of its earlier plane
+    # Many planes, each table reused every second plane with the keys of its earlier plane
     # left in it (counted as free slots): the groups are those of one table for the mesh.
     rng = np.random.default_rng(5)
     shape = np.array([60, 9, 8], dtype=np.int64)
@@ -145,7 +145,7 @@ def test_vertex_groups_count_no_references_per_vertex(kernel):
     if kernel == "_plane_groups":
         args = (*args, target, v0, v1)
     elif kernel == "_link_halves":
-        tables = np.full((3, 2048), -1, dtype=np.int64)
+        tables = np.full((2, 2048), -1, dtype=np.int64)
         args = (*args, target, v0, tables, np.uint64(54), np.int64(1023), np.int64(1))
     body = kernel_ir(getattr(placement, kernel).py_func, *args)
     assert refcounts_in_loops(body) == 0

@@ -177,6 +177,19 @@ def test_special_fields(formula, bounds_, shape, bounds):
         assert_same(dense, sparse)
 
 
+def _returns(monkeypatch, module, name: str) -> list:
+    """What each call of ``module.name`` returns from now on (the test's monkeypatch)."""
+    seen: list = []
+    real = getattr(module, name)
+
+    def spy(*args):
+        seen.append(real(*args))
+        return seen[-1]
+
+    monkeypatch.setattr(module, name, spy)
+    return seen
+
+
 @pytest.mark.parametrize(
     "formula, bounds_",
     [
@@ -198,14 +211,7 @@ def test_threads_give_the_same_mesh(monkeypatch, formula, bounds_, threads):
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
     monkeypatch.setattr(placement, "PLACE_RUN", 1)
     monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)  # the groups in two halves too
-    halves = []
-    in_halves = placement._targets_in_halves
-
-    def spy(*args):
-        halves.append(in_halves(*args))
-        return halves[-1]
-
-    monkeypatch.setattr(placement, "_targets_in_halves", spy)
+    halves = _returns(monkeypatch, placement, "_targets_in_halves")
     grid = Grid(Box.from_bounds(bounds_), (31, 30, 29))
     for cap in (False, True):
         dense, sparse, _sf = both_paths(
@@ -221,14 +227,7 @@ def test_groups_linked_across_the_halves_give_the_same_mesh(monkeypatch):
     from surfgen.generator.mesh import placement
 
     monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)
-    linked = []
-    link = placement._link_halves
-
-    def spy(*args):
-        linked.append(link(*args))
-        return linked[-1]
-
-    monkeypatch.setattr(placement, "_link_halves", spy)
+    linked = _returns(monkeypatch, placement, "_link_halves")
     grid = Grid(Box.from_bounds((-3.0, 3.0, -1.0, 1.0, -0.5, 0.5)), (30, 31, 29))
     dense, sparse, _sf = both_paths(
         parse("y^2+z^2+0.1*x-1.3"), grid, {}, 0.0, True, block=4, threads=2
