@@ -24,7 +24,6 @@ from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.formula.limits import (
     MAX_SPEC_FILE_BYTES,
     MemoryBudget,
-    check_memory,
     estimate_memory,
     read_text_file,
 )
@@ -541,8 +540,7 @@ class Surface:
         what = f"meshing {self.key} on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)"
         # as render: the estimate before anything is allocated, then a sparse run's own checks
         parts = estimate_memory(grid.size, mesh=True, sparse=name == "sparse")
-        check_memory(parts, None, what, setting=None)
-        budget = MemoryBudget.begin(None, what, setting=None)
+        budget = MemoryBudget.after_estimate(parts, None, what, setting=None)
         made = realise(self.spec, evaluator=evaluator, cap=cap, walls=walls, budget=budget)
         if keep:
             self._made.clear()

@@ -261,6 +261,21 @@ class MemoryBudget:
         have = available_memory() if limit is None else int(limit)
         return cls(have, what, source, resident_memory(), copies)
 
+    @classmethod
+    def after_estimate(
+        cls,
+        parts: dict[str, int],
+        limit: int | None,
+        what: str,
+        copies: int = 1,
+        setting: str | None = "--max-memory",
+    ) -> MemoryBudget:
+        """Refuse the command where its estimate ``parts`` exceeds the limit
+        (:func:`check_memory`, before anything is allocated), else its budget from now on
+        (:meth:`begin`): the two checks of a command that meshes one grid."""
+        check_memory(parts, limit, what, setting=setting)
+        return cls.begin(limit, what, copies, setting)
+
     def mesh_bytes(self, cells: int) -> int:
         """What meshing ``cells`` crossed cells adds, and what the command then does with the
         mesh (:data:`SPARSE_BYTES_PER_MIXED_CELL` a cell and copy)."""

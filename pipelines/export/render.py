@@ -21,7 +21,6 @@ from surfgen.generator.files import write_all_atomic, write_atomic
 from surfgen.generator.formula.limits import (
     MAX_SPEC_FILE_BYTES,
     MemoryBudget,
-    check_memory,
     estimate_memory,
     read_text_file,
 )
@@ -203,17 +202,11 @@ def render_spec(
             )
         name = "fast"
     what = f"render on a {'x'.join(map(str, grid.shape))} grid ({name} evaluator)"
-    check_memory(
-        estimate_memory(
-            grid.size,
-            mesh=want_mesh,
-            field_copy=field_path is not None,
-            sparse=name == "sparse",
-        ),
-        max_memory,
-        what,
+    parts = estimate_memory(
+        grid.size, mesh=want_mesh, field_copy=field_path is not None, sparse=name == "sparse"
     )
-    budget = MemoryBudget.begin(max_memory, what)  # checked again once the surface's size is known
+    # the estimate now, then again as the sparse path learns the surface's size
+    budget = MemoryBudget.after_estimate(parts, max_memory, what)
     start = time.perf_counter()
     mesh: Mesh | None = None
     crossings: WallReport | None = None
