@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.errors import SpecError
+from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.sparse import (
     BLOCK,
@@ -44,7 +45,6 @@ from surfgen.generator.eval.sparse import (
     SparseField,
     brick_layout,
     leaf_counts,
-    locate,
     sample_face_leaves,
 )
 from surfgen.generator.eval.tape import compile_cached, evaluate_columns

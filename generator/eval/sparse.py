@@ -19,8 +19,8 @@ A cell lies in exactly one leaf, and its corners in that leaf's closed box: a ce
 are not all on one side lies in a sampled leaf.  So the sampled leaves hold every crossing, and
 the signs of every other sample are known from its leaf's state.  :class:`SparseField` holds the
 states, the sampled bricks and a lookup of any sampled grid point
-(:func:`sample_at`); the sparse meshing (:mod:`surfgen.generator.mesh.sparse_marching`) works on
-it, and where its caller keeps only the mesh, frees the bricks' samples as soon as it has read
+(:func:`~.brick_lookup.sample_at`); the sparse meshing
+(:mod:`surfgen.generator.mesh.sparse_marching`) works on it, and where its caller keeps only the mesh, frees the bricks' samples as soon as it has read
 them (:meth:`SparseField.release_samples`).  ``faces=True`` also samples the inside leaves on
 the box's faces: a capped mesh closes the surface there with caps, whose vertices need those
 samples.
@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.allocator import scratch_kept
+from surfgen.generator.eval.brick_lookup import locate, sampled_at, values_at
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import grid_point_bounds
@@ -192,14 +193,14 @@ class SparseField:
         """F at grid indices ``(i, j, k)`` where sampled; NaN where not (:func:`sample_at`)."""
         ii, jj, kk = (np.ascontiguousarray(a, dtype=np.int64).reshape(-1) for a in (i, j, k))
         out = np.empty(ii.size)
-        _values_at(ii, jj, kk, *self.lookup(), out)
+        values_at(ii, jj, kk, *self.lookup(), out)
         return out
 
     def sampled_at(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
         """Whether the grid points ``(i, j, k)`` lie in a sampled brick."""
         ii, jj, kk = (np.ascontiguousarray(a, dtype=np.int64).reshape(-1) for a in (i, j, k))
         out = np.empty(ii.size, dtype=np.bool_)
-        _sampled_at(ii, jj, kk, self.slot, self.block, out)
+        sampled_at(ii, jj, kk, self.slot, self.block, out)
         return out
 
 
@@ -479,24 +480,51 @@ def _sample_and_decide(
 def _sides(values, extent, corner, slot, block, first, level, out, b0, b1):
     """Bricks ``b0:b1``'s sides into ``out``: all its samples outside the level (above it or
     non-finite), all inside (finite, below it) or both; returns their non-finite samples, each
-    counted in the brick :func:`locate` finds for it (``first``: the number of brick 0)."""
+    counted in the brick :func:`locate` finds for it (``first``: the number of brick 0).
+    Counted without a branch, a whole brick as one run of samples (which the compiler
+    vectorises); a brick with a non-finite sample is gone over again to find whose it is."""
     n_bad = 0
+    m0, m1, m2 = values.shape[1], values.shape[2], values.shape[3]
     for b in range(b0, b1):
-        inside = outside = False
-        for i in range(extent[b, 0]):
-            for j in range(extent[b, 1]):
-                for k in range(extent[b, 2]):
-                    x = values[b, i, j, k]
-                    if np.isfinite(x):
-                        if x < level:
-                            inside = True
-                        else:
-                            outside = True
-                    else:
-                        outside = True
-                        gi, gj, gk = corner[b, 0] + i, corner[b, 1] + j, corner[b, 2] + k
-                        n_bad += locate(slot, block, gi, gj, gk)[0] == first + b
-        out[b] = _MIXED if inside and outside else (_ALL_INSIDE if inside else _ALL_OUTSIDE)
+        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+        if e0 == m0 and e1 == m1 and e2 == m2:  # a whole brick: one run of samples
+            inside, bad = _counts(values[b].reshape(m0 * m1 * m2), level)
+        else:
+            inside = bad = 0
+            for i in range(e0):
+                for j in range(e1):
+                    got = _counts(values[b, i, j, :e2], level)
+                    inside, bad = inside + got[0], bad + got[1]
+        if inside == e0 * e1 * e2:
+            out[b] = _ALL_INSIDE
+        else:
+            out[b] = _MIXED if inside else _ALL_OUTSIDE
+        if bad:
+            n_bad += _bad_here(values, extent, corner, slot, block, first, b)
+    return n_bad
+
+
+@njit(**INLINE)
+def _counts(run, level):
+    """The samples of ``run`` inside (finite, below ``level``) and the non-finite ones."""
+    inside = bad = 0
+    for q in range(run.size):
+        x = run[q]
+        inside += np.int64((x < level) & (x > -np.inf))  # NaN fails both
+        bad += np.int64(not abs(x) < np.inf)
+    return inside, bad
+
+
+@njit(**KERNEL)
+def _bad_here(values, extent, corner, slot, block, first, b):
+    """Brick ``b``'s non-finite samples that :func:`locate` finds in it."""
+    n_bad = 0
+    for i in range(extent[b, 0]):
+        for j in range(extent[b, 1]):
+            for k in range(extent[b, 2]):
+                if not np.isfinite(values[b, i, j, k]):
+                    gi, gj, gk = corner[b, 0] + i, corner[b, 1] + j, corner[b, 2] + k
+                    n_bad += locate(slot, block, gi, gj, gk)[0] == first + b
     return n_bad
 
 
@@ -545,56 +573,5 @@ def _bricks_count_inside(values, extent, level):
     for b in range(values.shape[0]):
         for i in range(extent[b, 0]):
             for j in range(extent[b, 1]):
-                for k in range(extent[b, 2]):
-                    x = values[b, i, j, k]
-                    if np.isfinite(x) and x < level:
-                        n += 1
+                n += _counts(values[b, i, j, : extent[b, 2]], level)[0]
     return n
-
-
-@njit(**INLINE)
-def locate(slot, block, i, j, k):
-    """The brick holding grid point ``(i, j, k)`` and the point's place in it, or brick -1.
-
-    A point on a leaf's face is in up to 8 bricks (all hold the same value); the one of the
-    leaf ``index // block`` is tried first, then the lower neighbours where the point is on
-    their face."""
-    n0, n1, n2 = slot.shape
-    b0, b1, b2 = i // block, j // block, k // block
-    for d0 in range(2):
-        c0 = b0 - d0
-        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
-            continue
-        for d1 in range(2):
-            c1 = b1 - d1
-            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
-                continue
-            for d2 in range(2):
-                c2 = b2 - d2
-                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
-                    continue
-                s = slot[c0, c1, c2]
-                if s >= 0:
-                    return s, i - c0 * block, j - c1 * block, k - c2 * block
-    return -1, 0, 0, 0
-
-
-@njit(**INLINE)
-def sample_at(i, j, k, slot, corner, values, block):
-    """F at grid point ``(i, j, k)``, NaN where no brick holds it (:func:`locate`)."""
-    s, li, lj, lk = locate(slot, block, i, j, k)
-    if s < 0:
-        return np.nan
-    return values[s, li, lj, lk]
-
-
-@njit(**KERNEL)
-def _values_at(ii, jj, kk, slot, corner, values, block, out):
-    for p in range(ii.size):
-        out[p] = sample_at(ii[p], jj[p], kk[p], slot, corner, values, block)
-
-
-@njit(**KERNEL)
-def _sampled_at(ii, jj, kk, slot, block, out):
-    for p in range(ii.size):
-        out[p] = locate(slot, block, ii[p], jj[p], kk[p])[0] >= 0

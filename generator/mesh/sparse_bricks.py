@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.sparse import locate
+from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, column_counts, offset_of

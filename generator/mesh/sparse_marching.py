@@ -38,8 +38,9 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.errors import EmptySurface
+from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.evaluate import points_evaluator
-from surfgen.generator.eval.sparse import SparseField, locate, thread_count
+from surfgen.generator.eval.sparse import SparseField, thread_count
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.limits import MemoryBudget, check_step
 from surfgen.generator.jit.options import INLINE, KERNEL

@@ -1,0 +1,65 @@
+"""Where a sparse field's bricks hold a grid point (:class:`~.sparse.SparseField`'s lookup).
+
+A sampled leaf's brick holds the ``(BLOCK + 1)**3`` grid points of its closed box, so a point
+on a leaf's face is in up to eight bricks, all with the same sample. ``slot`` maps each leaf
+to its brick (-1: not sampled), ``corner`` each brick to its first grid point; the sparse
+meshing's passes (:mod:`~surfgen.generator.mesh.sparse_bricks`,
+:mod:`~surfgen.generator.mesh.sparse_marching`) find samples with :func:`locate`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from surfgen.generator.jit.options import INLINE, KERNEL
+
+
+@njit(**INLINE)
+def locate(slot, block, i, j, k):
+    """The brick holding grid point ``(i, j, k)`` and the point's place in it, or brick -1.
+
+    A point on a leaf's face is in up to 8 bricks (all hold the same value); the one of the
+    leaf ``index // block`` is tried first, then the lower neighbours where the point is on
+    their face."""
+    n0, n1, n2 = slot.shape
+    b0, b1, b2 = i // block, j // block, k // block
+    for d0 in range(2):
+        c0 = b0 - d0
+        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+            continue
+        for d1 in range(2):
+            c1 = b1 - d1
+            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+                continue
+            for d2 in range(2):
+                c2 = b2 - d2
+                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                    continue
+                s = slot[c0, c1, c2]
+                if s >= 0:
+                    return s, i - c0 * block, j - c1 * block, k - c2 * block
+    return -1, 0, 0, 0
+
+
+@njit(**INLINE)
+def sample_at(i, j, k, slot, corner, values, block):
+    """F at grid point ``(i, j, k)``, NaN where no brick holds it (:func:`locate`)."""
+    s, li, lj, lk = locate(slot, block, i, j, k)
+    if s < 0:
+        return np.nan
+    return values[s, li, lj, lk]
+
+
+@njit(**KERNEL)
+def values_at(ii, jj, kk, slot, corner, values, block, out):
+    """``out[p]``: :func:`sample_at` of point ``(ii[p], jj[p], kk[p])``."""
+    for p in range(ii.size):
+        out[p] = sample_at(ii[p], jj[p], kk[p], slot, corner, values, block)
+
+
+@njit(**KERNEL)
+def sampled_at(ii, jj, kk, slot, block, out):
+    """``out[p]``: whether a brick holds point ``(ii[p], jj[p], kk[p])`` (:func:`locate`)."""
+    for p in range(ii.size):
+        out[p] = locate(slot, block, ii[p], jj[p], kk[p])[0] >= 0
