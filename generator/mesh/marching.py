@@ -249,7 +249,7 @@ def mixed_cells(work):
 def _list_mixed(work, keys, corners):
     """The number of mixed cells of ``work``, listed into ``keys`` and ``corners`` unless they
     are empty (the counting pass); the inside counts of a cell's corner columns by
-    :func:`column_counts`, as the sparse path's scan counts them in a brick."""
+    :func:`column_counts`."""
     n0, n1, n2 = work.shape
     one = work.reshape((1, n0, n1, n2))
     write = keys.size > 0

@@ -15,9 +15,10 @@ size of the grid or of its crossing edges:
   the crossing edges, which does not depend on the order the edges are visited in;
 - :func:`brick_cells`: the mixed cells in skimage's order with their corners.
 
-A cell is mixed when the sum of its corners' inside flags is neither 0 nor 8; the flags are
-summed per column of four samples along the brick's last axis, each column shared by two
-cells of a row.
+A cell is mixed when its corners are neither all inside nor all outside; the scan and the
+listing find them from bit masks of the inside samples of a brick's rows along its last axis
+(:func:`_mixed`: a row of cells from four masks), and look at the samples only where a row
+has a mixed cell or a crossing edge.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from numba import njit
 from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.marching import _RATIO, column_counts, offset_of
+from surfgen.generator.mesh.marching import _RATIO, offset_of
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
@@ -104,51 +105,86 @@ def scan_bricks(offset, extent, corner, shape, threads: int = 1):
 
 @njit(**KERNEL)
 def _scan(offset, extent, corner, shape, per, b0, b1):
-    """:func:`scan_bricks` of bricks ``b0:b1`` (their counts into ``per``)."""
-    col = np.empty(offset.shape[3], dtype=np.int64)
+    """:func:`scan_bricks` of bricks ``b0:b1`` (their counts into ``per``). Each row of a
+    brick along its last axis is a bit mask of its inside samples (:func:`_row_mask`), so a
+    pair of rows' mixed cells and a row's crossing edges are a few operations on masks, and
+    only a crossing is looked at sample by sample (sculpture-1 at 512^3: 32 -> 9 ms a thread,
+    against the flags summed column by column)."""
+    rows = np.empty((offset.shape[1], offset.shape[2]), dtype=np.int64)
     ta = np.empty(64, dtype=np.int64)
     tb = np.empty(64, dtype=np.int64)
     m = 0
     s1, s2 = shape[1] * shape[2], shape[2]
     for b in range(b0, b1):
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+        for i in range(e0):
+            for j in range(e1):
+                rows[i, j] = _row_mask(offset, b, i, j, e2)
         n_cells = 0
         for i in range(e0 - 1):
             for j in range(e1 - 1):
-                column_counts(offset, b, i, j, e2, col)
-                for k in range(e2 - 1):
-                    t = col[k] + col[k + 1]
-                    n_cells += t != 0 and t != 8
+                n_cells += _bits(
+                    _mixed(rows[i, j], rows[i, j + 1], rows[i + 1, j], rows[i + 1, j + 1], e2)
+                )
         per[b] = n_cells
+        along = (np.int64(1) << (e2 - 1)) - 1  # the samples with a next one on the row
         c0, c1, c2 = corner[b, 0], corner[b, 1], corner[b, 2]
         for i in range(e0):
             for j in range(e1):
+                r = rows[i, j]
+                cx = r ^ rows[i + 1, j] if i + 1 < e0 else np.int64(0)
+                cy = r ^ rows[i, j + 1] if j + 1 < e1 else np.int64(0)
+                cz = (r ^ (r >> 1)) & along
+                crossing = cx | cy | cz
+                if crossing == 0:
+                    continue
+                g0 = (c0 + i) * s1 + (c1 + j) * s2 + c2
                 for k in range(e2):
-                    w = offset[b, i, j, k]
-                    s = w < 0
-                    ma = abs(np.float64(w))
-                    g = (c0 + i) * s1 + (c1 + j) * s2 + (c2 + k)
+                    if not (crossing >> k) & 1:
+                        continue
+                    ma = abs(np.float64(offset[b, i, j, k]))
                     for axis in range(3):
                         if axis == 0:
-                            if i + 1 >= e0:
-                                continue
-                            o, step = offset[b, i + 1, j, k], s1
+                            cross, o, step = cx, offset[b, i + 1, j, k], s1
                         elif axis == 1:
-                            if j + 1 >= e1:
-                                continue
-                            o, step = offset[b, i, j + 1, k], s2
+                            cross, o, step = cy, offset[b, i, j + 1, k], s2
                         else:
-                            if k + 1 >= e2:
-                                continue
-                            o, step = offset[b, i, j, k + 1], 1
-                        if (o < 0) == s or not _tight(ma, o):
+                            cross, o, step = cz, offset[b, i, j, k + 1], 1
+                        if not (cross >> k) & 1 or not _tight(ma, o):
                             continue
                         if m == ta.size:
                             ta = grown(ta, np.int64(m), _ONE)
                             tb = grown(tb, np.int64(m), _ONE)
-                        ta[m], tb[m] = g, g + step
+                        ta[m], tb[m] = g0 + k, g0 + k + step
                         m += 1
     return ta[:m], tb[:m]
+
+
+@njit(**INLINE)
+def _row_mask(offset, b, i, j, n):
+    """Bit ``k`` set where sample ``(i, j, k)`` of brick ``b`` is inside, for ``k < n``."""
+    r = np.int64(0)
+    for k in range(n):
+        r |= np.int64(offset[b, i, j, k] < 0) << k
+    return r
+
+
+@njit(**INLINE)
+def _mixed(r0, r1, r2, r3, n):
+    """Bit ``k`` set where cell ``k`` between four neighbouring rows (their masks, ``n``
+    samples each) is mixed: it is all inside when bits ``k`` and ``k + 1`` are set in every
+    row, all outside when they are set in none."""
+    every, some = r0 & r1 & r2 & r3, r0 | r1 | r2 | r3
+    return ~(every & (every >> 1)) & (some | (some >> 1)) & ((np.int64(1) << (n - 1)) - 1)
+
+
+@njit(**INLINE)
+def _bits(x):
+    """The number of bits set in ``x`` (non-negative)."""
+    x = x - ((x >> 1) & 0x5555555555555555)
+    x = (x & 0x3333333333333333) + ((x >> 2) & 0x3333333333333333)
+    x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0F
+    return (x * 0x0101010101010101) >> 56
 
 
 # ----------------------------------------------------------------------------- raises
@@ -359,7 +395,6 @@ def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, key
     cells written from ``m_at[r]``, with the pad's cells ``q_at[r]:q_end[r]``): per plane
     ``i`` of a slab, the columns (one ``j`` range each) and, per row ``j``, the column's
     bricks (one ``k`` range each) come in order: no sort."""
-    col = np.empty(offset.shape[3], dtype=np.int64)
     p1 = shape[1] + 2 * shift
     p2 = shape[2] + 2 * shift
     for r in range(r0, r1):
@@ -374,13 +409,20 @@ def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, key
                 for j in range(extent[c0, 1] - 1):
                     for b in range(c0, c1):
                         e2 = extent[b, 2]
-                        column_counts(offset, b, i, j, e2, col)
+                        mixed = _mixed(
+                            _row_mask(offset, b, i, j, e2),
+                            _row_mask(offset, b, i, j + 1, e2),
+                            _row_mask(offset, b, i + 1, j, e2),
+                            _row_mask(offset, b, i + 1, j + 1, e2),
+                            e2,
+                        )
+                        if mixed == 0:
+                            continue
                         gi = corner[b, 0] + i + shift
                         gj = corner[b, 1] + j + shift
                         row = (gi * p1 + gj) * p2 + corner[b, 2] + shift
                         for k in range(e2 - 1):
-                            t = col[k] + col[k + 1]
-                            if t == 0 or t == 8:
+                            if not (mixed >> k) & 1:
                                 continue
                             while q < q1 and pad_keys[q] < row + k:
                                 keys[m] = pad_keys[q]
