@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from surfgen.generator.allocator import recycled
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import KERNEL
 from surfgen.generator.mesh.sparse_lewiner import lewiner_range
@@ -39,9 +40,11 @@ def lewiner_cells(
     (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`): float32 vertices (V, 3)
     and int64 faces (F, 3) (the runs' own int32 numbers widened). With ``threads`` > 1, in
     runs of whole planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per
-    thread, joined into the same arrays. The cells are freed once the runs are made, before
-    the join (a list, not the arrays, is passed so that nothing else holds them): the joined
-    arrays take their place (sculpture-1 at 512^3: the join's peak 309 -> 279 MiB)."""
+    thread, joined into the same arrays. Once the runs are made, the joined arrays take the
+    cells' memory (:func:`~surfgen.generator.allocator.recycled`; a list, not the arrays, is
+    passed so that nothing else holds them): the cells are not held beside the join
+    (sculpture-1 at 512^3: the join's peak 309 -> 279 MiB), nor their pages unmapped and
+    faulted again."""
     keys, corners = cells
     cells.clear()
     n = len(keys)
@@ -57,8 +60,9 @@ def lewiner_cells(
         ]
     )
     first_planes = [keys[a] // (nx * ny) for a in runs[:-1]]
+    spare = [keys, corners]
     del keys, corners
-    return _join(parts, first_planes)
+    return _join(parts, first_planes, spare)
 
 
 def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
@@ -74,16 +78,18 @@ def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
     return [*bounds, size] if size > bounds[-1] else bounds
 
 
-def _join(parts, first_planes) -> tuple[np.ndarray, np.ndarray]:
+def _join(parts, first_planes, spare) -> tuple[np.ndarray, np.ndarray]:
     """The runs' vertices and faces numbered as one pass numbers them, each run written by a
-    thread of its own (its new vertices and its faces are rows of their own); ``parts`` is
-    emptied once all are written. One run after the other, each freed once written, held one
+    thread of its own (its new vertices and its faces are rows of their own), the faces on the
+    memory of the last array of ``spare``, the vertices on the one before (the cells' corners
+    and keys: :func:`~surfgen.generator.allocator.recycled`); ``parts`` is emptied once all
+    are written. One run after the other, each freed once written, held one
     run less at the join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s);
     with the cells freed before the join, its peak stays below the render's (sculpture-1: 301
     MiB against the offsets' 303; equation C: 510 against the vertex groups' 573)."""
     numbers, starts, total = _numbering(parts, first_planes)
-    out_v = np.empty((total, 3), dtype=np.float32)
-    out_f = np.empty((sum(len(p[1]) for p in parts), 3), dtype=np.int64)
+    out_f = recycled(spare, (sum(len(p[1]) for p in parts), 3), np.int64)
+    out_v = recycled(spare, (total, 3), np.float32)
     f0 = np.cumsum([0] + [len(p[1]) for p in parts])
     run_at_once(
         [

@@ -99,8 +99,9 @@ def extract_sparse_with_edges(
     offset, n_bad = brick_offsets(values, extent, level, threads)
     if n_bad and _mirror_bricks(values, extent, corner, offset, slot, block, shape):
         log.debug("sparse marching: non-finite samples mirrored")
-    del values  # the last read of the samples: the offsets are all the steps below need
-    if release:
+    spare = [values]  # the last read of the samples: the offsets are all the steps below need
+    del values
+    if release:  # then nothing else holds them: the cells take their memory (brick_cells)
         sf.release_samples()
     per, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
@@ -115,7 +116,7 @@ def extract_sparse_with_edges(
         cells = int(per.sum()) + len(pad_keys)
         budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
     cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
-                             threads))  # fmt: skip
+                             threads, spare))  # fmt: skip
     # each step's inputs freed as soon as the next has what it needs: the offsets before the
     # marching, the cells before the runs are joined (a third of the memory a 512^3 surface
     # adds)

@@ -236,6 +236,32 @@ def test_groups_linked_across_the_halves_give_the_same_mesh(monkeypatch):
     assert linked == [True]
 
 
+def test_cells_and_join_on_recycled_memory_give_the_same_mesh(monkeypatch):
+    # under the one-shot policy, with the samples released: the cells take the bricks'
+    # memory, the joined faces and vertices the cells' (allocator.recycled), bit for bit the
+    # dense mesh, none of the three a fresh array
+    from surfgen.generator import allocator
+    from surfgen.generator.mesh import lewiner_chunks, sparse_bricks
+
+    monkeypatch.setattr(allocator, "_giving_back", True)
+    monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
+    taken: list[bool] = []  # whether each array took memory (holding it would stop the next)
+
+    def spy(held, shape, dtype):
+        made = allocator.recycled(held, shape, dtype)
+        taken.append(made.base is not None)
+        return made
+
+    monkeypatch.setattr(sparse_bricks, "recycled", spy)
+    monkeypatch.setattr(lewiner_chunks, "recycled", spy)
+    tree = parse("sin(3*x)*cos(2*y)+sin(2*z)-0.2")
+    grid = Grid(Box.from_bounds((-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)), (31, 30, 29))
+    dense = extract_with_edges(evaluate(tree, grid, {}), 0.0, True)
+    sf = evaluate_sparse(tree, grid, {}, level=0.0, faces=True, block=4)
+    assert_same(dense, extract_sparse_with_edges(sf, True, threads=2, release=True))
+    assert taken == [True, True, True]  # the cells' corners, the joined faces and vertices
+
+
 @pytest.mark.parametrize("block", [1, 3, 4, 16])
 def test_block_sizes(block):
     grid = Grid(Box.from_bounds((-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)), (30, 29, 31))
