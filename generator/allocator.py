@@ -117,32 +117,58 @@ def scratch_kept() -> Iterator[None]:
         _trim()
 
 
+#: Bytes between the starts of the arrays :func:`recycled_many` makes on one block (a cache line).
+ALIGN = 64
+
+
 def recycled(held: list[np.ndarray], shape: tuple[int, ...], dtype) -> np.ndarray:
     """An array of ``shape`` and ``dtype`` (its contents undefined) on the memory of the last
-    array in ``held``, taken out of the list: under :func:`one_shot_memory_policy`, a step's
-    new array takes an array that is done with instead of freeing it and mapping a fresh
-    block, whose every page would fault on first write (glibc's ``realloc`` of a mapped block
-    remaps its pages, shrinking or growing it, without copying them: numpy's in-place
-    ``resize``).  The sparse path's cells take the bricks' samples, the joined mesh the cells
-    (sculpture-1 at 512^3: 14,000 of 76,000 page faults).
+    array in ``held``, taken out of the list, where it fits (:func:`recycled_many`)."""
+    return recycled_many(held, [(shape, dtype)])[0]
 
-    A view is replaced by the array it views.  Anything else holding that array (numpy's
+
+def recycled_many(held: list[np.ndarray], specs) -> list[np.ndarray]:
+    """Arrays ``[(shape, dtype), ...]`` (their contents undefined) on the memory of the last
+    array in ``held``, taken out of the list: under :func:`one_shot_memory_policy`, a step's
+    new arrays take an array that is done with instead of freeing it and mapping fresh blocks,
+    whose every page would fault on first write. Those that fit in it, in order, are laid one
+    after the other (each from a multiple of :data:`ALIGN` bytes), and the block is shrunk to
+    them (numpy's in-place ``resize``: glibc's ``realloc`` of a mapped block keeps the pages it
+    keeps, without copying them, and unmaps the rest); the others are fresh. A block is never
+    grown: numpy would zero the new part on one thread, which costs what the faults on the
+    threads that write the arrays would (measured). The sparse path's cells take the bricks'
+    samples, the marching's runs the offsets, the joined vertices the cells, the placement's
+    edges the runs.
+
+    A view is replaced by the array it views. Anything else holding that array (numpy's
     reference check: another name, a view, a weak reference), memory it does not own (numba's
-    arrays) or a process that keeps its freed memory (where a fresh array comes from the heap,
-    without faults) gets a fresh ``np.empty``."""
-    dead = held.pop()
-    owner = dead if dead.base is None else dead.base
+    arrays), an empty ``held``, or a process that keeps its freed memory (where a fresh array
+    comes from the heap, without faults) gives fresh arrays only."""
+    dead = held.pop() if held else None
+    owner = dead if dead is None or dead.base is None else dead.base
     del dead
-    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    if _giving_back and nbytes and isinstance(owner, np.ndarray):
+    sizes = [int(np.prod(shape)) * np.dtype(dtype).itemsize for shape, dtype in specs]
+    room = owner.nbytes if _giving_back and isinstance(owner, np.ndarray) else 0
+    starts: list[int | None] = []
+    used = 0
+    for n in sizes:
+        step = -(-n // ALIGN) * ALIGN
+        fits = n > 0 and used + step <= room
+        starts.append(used if fits else None)
+        used += step if fits else 0
+    if used:
         try:
-            owner.resize((-(-nbytes // owner.itemsize),))  # refcheck: nothing else holds it
+            owner.resize((used // owner.itemsize,))  # refcheck: nothing else holds it
         except (ValueError, SystemError):  # held elsewhere, or not its own memory
-            pass
-        else:
-            return owner.view(np.uint8)[:nbytes].view(dtype).reshape(shape)
+            starts = [None] * len(specs)
+    raw = owner.view(np.uint8) if any(start is not None for start in starts) else None
     del owner
-    return np.empty(shape, dtype=dtype)
+    return [
+        np.empty(shape, dtype=dtype)
+        if start is None
+        else raw[start : start + n].view(dtype).reshape(shape)
+        for (shape, dtype), start, n in zip(specs, starts, sizes, strict=True)
+    ]
 
 
 def _trim() -> None:

@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.allocator import recycled
+from surfgen.generator.allocator import recycled_many
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import KERNEL
-from surfgen.generator.mesh.sparse_lewiner import lewiner_range
+from surfgen.generator.mesh.sparse_lewiner import lewiner_range, run_buffers
 
 #: Cells per run at least: a run of 100,000 cells takes about 7 ms (Xeon: 66 ns a cell), and
 #: joining it about a fifth of that (the join's writes: 11 ms for 1.6 million faces, Zen 4).
@@ -33,36 +33,64 @@ CHUNK_CELLS = 100_000
 
 
 def lewiner_cells(
-    cells: list[np.ndarray], nx: int, ny: int, threads: int = 1, min_cells: int | None = None
+    cells: list[np.ndarray],
+    nx: int,
+    ny: int,
+    threads: int = 1,
+    min_cells: int | None = None,
+    spare: list[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells
     ``[keys, corners]`` taken out of the list ``cells``
     (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`): float32 vertices (V, 3)
     and int64 faces (F, 3) (the runs' own int32 numbers widened). With ``threads`` > 1, in
     runs of whole planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per
-    thread, joined into the same arrays. Once the runs are made, the joined arrays take the
-    cells' memory (:func:`~surfgen.generator.allocator.recycled`; a list, not the arrays, is
-    passed so that nothing else holds them): the cells are not held beside the join
-    (sculpture-1 at 512^3: the join's peak 309 -> 279 MiB), nor their pages unmapped and
-    faulted again."""
+    thread, joined into the same arrays. Once the runs are made, the cells are done with (a
+    list, not the arrays, is passed so that nothing else holds them): the keys are freed and
+    the joined vertices take the corners' memory
+    (:func:`~surfgen.generator.allocator.recycled_many`), so the cells are not held beside
+    the join (sculpture-1 at 512^3: the join's peak 309 -> 279 MiB).
+
+    ``spare``: a list holding an array done with (the offsets), on whose memory the runs
+    write where their arrays fit (the rest fresh); on return it holds that memory, done with
+    too (the placement's arrays take it:
+    :func:`~surfgen.generator.mesh.placement.place_vertices`). A single run's arrays are its
+    own, and ``spare`` is emptied."""
     keys, corners = cells
     cells.clear()
     n = len(keys)
+    plane = nx * ny
     least = CHUNK_CELLS if min_cells is None else max(1, int(min_cells))
-    runs = _runs(keys, nx * ny, max(1, min(int(threads), n // least)))
-    if len(runs) <= 2:  # one run (or no cell): skimage's single pass, nothing to join
-        verts, faces, _, _, _ = lewiner_range(keys, corners, 0, n, nx, ny, False)
+    runs = _runs(keys, plane, max(1, min(int(threads), n // least)))
+    pairs = list(zip(runs[:-1], runs[1:], strict=True)) or [(0, 0)]
+    track = len(pairs) > 1
+    specs = [spec for a, b in pairs for spec in run_buffers(b - a, plane, track)]
+    if not track:  # one run (or no cell): skimage's single pass, nothing to join; its arrays
+        # apart (the layers freed once it is done, the vertices kept)
+        if spare is not None:
+            spare.clear()
+        a, b = pairs[0]
+        buffers = [np.empty(shape, dtype=dtype) for shape, dtype in specs]
+        verts, faces, _, _, _ = lewiner_range(keys, corners, a, b, nx, ny, False, *buffers)
         return verts, faces.astype(np.int64)
+    buffers = recycled_many(spare if spare is not None else [], specs)
+    taken = [b for b in buffers if b.base is not None]
+    if spare is not None and taken:  # a view of the block under those that took it
+        spare.append(taken[0])
+    del taken
     parts = run_at_once(
         [
-            lambda a=a, b=b, k=keys, c=corners: lewiner_range(k, c, a, b, nx, ny, True)
-            for a, b in zip(runs[:-1], runs[1:], strict=True)
+            lambda a=a, b=b, k=keys, c=corners, run=buffers[4 * r : 4 * r + 4]: lewiner_range(
+                k, c, a, b, nx, ny, True, *run
+            )
+            for r, (a, b) in enumerate(pairs)
         ]
     )
-    first_planes = [keys[a] // (nx * ny) for a in runs[:-1]]
-    spare = [keys, corners]
+    del buffers
+    first_planes = [keys[a] // plane for a in runs[:-1]]
+    spent = [corners]
     del keys, corners
-    return _join(parts, first_planes, spare)
+    return _join(parts, first_planes, spent)
 
 
 def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
@@ -78,18 +106,19 @@ def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
     return [*bounds, size] if size > bounds[-1] else bounds
 
 
-def _join(parts, first_planes, spare) -> tuple[np.ndarray, np.ndarray]:
+def _join(parts, first_planes, spent) -> tuple[np.ndarray, np.ndarray]:
     """The runs' vertices and faces numbered as one pass numbers them, each run written by a
-    thread of its own (its new vertices and its faces are rows of their own), the faces on the
-    memory of the last array of ``spare``, the vertices on the one before (the cells' corners
-    and keys: :func:`~surfgen.generator.allocator.recycled`); ``parts`` is emptied once all
-    are written. One run after the other, each freed once written, held one
-    run less at the join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s);
-    with the cells freed before the join, its peak stays below the render's (sculpture-1: 301
-    MiB against the offsets' 303; equation C: 510 against the vertex groups' 573)."""
+    thread of its own (its new vertices and its faces are rows of their own), on the memory
+    of the array in ``spent`` where they fit (the cells' corners: the vertices;
+    :func:`~surfgen.generator.allocator.recycled_many`); ``parts`` is emptied once all are
+    written. One run after the other, each freed once written, held one run less at the
+    join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s); with the cells
+    freed before the join, its peak stays below the render's (sculpture-1: 301 MiB against
+    the offsets' 303; equation C: 510 against the vertex groups' 573)."""
     numbers, starts, total = _numbering(parts, first_planes)
-    out_f = recycled(spare, (sum(len(p[1]) for p in parts), 3), np.int64)
-    out_v = recycled(spare, (total, 3), np.float32)
+    out_v, out_f = recycled_many(
+        spent, [((total, 3), np.float32), ((sum(len(p[1]) for p in parts), 3), np.int64)]
+    )
     f0 = np.cumsum([0] + [len(p[1]) for p in parts])
     run_at_once(
         [

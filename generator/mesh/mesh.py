@@ -208,21 +208,30 @@ def extract_with_edges(
 
 
 def finish_marching(
-    verts: np.ndarray, faces: np.ndarray, grid: Grid, level: float, cap: bool, threads: int = 1
+    verts: np.ndarray,
+    faces: np.ndarray,
+    grid: Grid,
+    level: float,
+    cap: bool,
+    threads: int = 1,
+    spare: list[np.ndarray] | None = None,
 ) -> tuple[Mesh, np.ndarray]:
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
     skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
     ``cap``): vertices placed on the box, interior vertices kept off their cell's faces, one
     vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place and
-    group a large mesh's vertices in runs at once). The sparse path
-    (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
+    group a large mesh's vertices in runs at once; ``spare``: memory done with, for the
+    placement's arrays). The sparse path (:mod:`~surfgen.generator.mesh.sparse_marching`)
+    ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
     spacing = np.asarray(grid.spacing, dtype=np.float64)
     shape = np.asarray(grid.shape, dtype=np.int64)
     verts = np.ascontiguousarray(verts, dtype=np.float32)
     shift = 1.0 if cap else 0.0
-    vertices, edges, moved, off_cell = place_vertices(verts, shift, shape, lo, hi, spacing, threads)
+    vertices, edges, moved, off_cell = place_vertices(
+        verts, shift, shape, lo, hi, spacing, threads, spare
+    )
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     if off_cell:
         index = verts.astype(np.float64) - shift

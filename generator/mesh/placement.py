@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from surfgen.generator.allocator import recycled_many
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import SEPARATION
@@ -40,14 +41,17 @@ def place_vertices(
     hi: np.ndarray,
     spacing: np.ndarray,
     threads: int = 1,
+    spare: list[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """:func:`_place_range` over all of ``verts``, in ``threads`` runs of at least
     :data:`PLACE_RUN` vertices at once (each vertex on its own: the same arrays whatever the
-    runs). Returns ``(vertices, edges, moved, off_cell)``."""
+    runs). Returns ``(vertices, edges, moved, off_cell)``; ``edges`` and ``moved`` on the
+    memory of the array in ``spare``, done with (the sparse marching's runs:
+    :func:`~surfgen.generator.allocator.recycled_many`), the vertices, which the mesh keeps,
+    on their own."""
     n = verts.shape[0]
     vertices = np.empty((n, 3))
-    edges = np.empty((n, 4), dtype=np.int64)
-    moved = np.empty(n, dtype=np.bool_)
+    edges, moved = recycled_many(spare or [], [((n, 4), np.int64), ((n,), np.bool_)])
     runs = max(1, min(int(threads), n // PLACE_RUN))
     bounds = [n * r // runs for r in range(runs + 1)]
     near = run_at_once(

@@ -376,7 +376,7 @@ def brick_cells(
     done = np.cumsum(slab_cells)  # the cells of the slabs up to each
     m = np.r_[0, done[:-1]] + q
     keys = np.empty(int(per.sum()) + n_pad, dtype=np.int64)
-    corners = recycled(spare or [np.empty(0)], (len(keys), 8), np.float32)
+    corners = recycled(spare or [], (len(keys), 8), np.float32)
     # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks a thread)
     runs = max(1, min(int(threads), n_bricks // RUN_BRICKS))
     cut = np.searchsorted(done, done[-1] * np.arange(1, runs) / runs, side="right")

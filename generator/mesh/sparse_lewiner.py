@@ -243,8 +243,22 @@ def _test_internal(v, case, config, subconfig, s):
 # ----------------------------------------------------------------------------- the cells
 
 
+def run_buffers(n_cells: int, plane: int, track: bool) -> list:
+    """What :func:`lewiner_range` writes into, for a run of ``n_cells`` cells of a volume
+    whose planes have ``plane`` cells, as ``[(shape, dtype), ...]``: the two face layers, and
+    the vertices, faces and heads sized for the usual two triangles per cell (grown when a
+    surface needs more)."""
+    rows = n_cells + n_cells // 4 + 64
+    return [
+        ((2, 4 * plane), np.int32),
+        ((rows, 3), np.float32),
+        ((2 * n_cells + n_cells // 4 + 64, 3), np.int32),
+        ((rows if track else 0,), np.int32),
+    ]
+
+
 @njit(**KERNEL)
-def lewiner_range(keys, corners, c0, c1, nx, ny, track):
+def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, head):
     """Marching cubes (skimage's Lewiner, step 1, not classic) over the cells ``keys[c0:c1]``
     (int64 flat numbers ``(z * ny + y) * nx + x`` in the volume, sorted: skimage's visiting
     order) with corner values ``corners`` (C, 8) float32 in skimage's order v0..v7
@@ -266,6 +280,10 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track):
     that it was made for (-1 for the others), which the run before may hold already; the last
     plane's second layer (slot -> vertex: the next plane's first layer; int32, as ``head``)
     and that plane's z.
+
+    ``layers``, ``verts``, ``faces``, ``head``: the arrays it writes into (their contents
+    undefined; :func:`run_buffers`), which the caller makes (on memory done with:
+    :func:`~surfgen.generator.allocator.recycled_many`).
     """
     plane = nx * ny
     n_cells = c1 - c0
@@ -274,14 +292,11 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track):
     # row ``one`` is skimage's first layer, the other its second (a swap flips ``one``). The
     # slots set in each are listed to clear them when skimage clears the layer: a cell sets
     # at most 13, a layer holds those of two planes' cells, and a slot is listed once.
-    layers = np.full((2, 4 * plane), -1, dtype=np.int32)
+    layers[:] = -1
     used = np.empty((2, min(4 * plane, 26 * _widest_plane(keys, c0, c1, plane))), np.int32)
     one = 0
     n1 = 0
     n2 = 0
-    verts = np.empty((n_cells + n_cells // 4 + 64, 3), dtype=np.float32)
-    faces = np.empty((2 * n_cells + n_cells // 4 + 64, 3), dtype=np.int32)
-    head = np.empty(verts.shape[0] if track else 0, dtype=np.int32)
     first_z = keys[c0] // plane if n_cells > 0 else np.int64(-2)
     nv = 0
     nf = 0

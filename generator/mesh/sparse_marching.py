@@ -117,15 +117,16 @@ def extract_sparse_with_edges(
         budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
     cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
                              threads, spare))  # fmt: skip
-    # each step's inputs freed as soon as the next has what it needs: the offsets before the
-    # marching, the cells before the runs are joined (a third of the memory a 512^3 surface
-    # adds)
+    # each step's inputs given to the next as soon as it has what it needs (a third of the
+    # memory a 512^3 surface adds, and their pages not faulted again: allocator.recycled):
+    # the offsets to the marching's runs, the cells to their join, the runs to the placement
+    spare = [offset]
     del offset, pad_keys, pad_corners
     size = shape + 2 * shift
-    verts, faces = lewiner_cells(cells, int(size[2]), int(size[1]), threads)
+    verts, faces = lewiner_cells(cells, int(size[2]), int(size[1]), threads, spare=spare)
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
-    return finish_marching(verts, faces, sf.grid, level, cap, threads)
+    return finish_marching(verts, faces, sf.grid, level, cap, threads, spare)
 
 
 def extract_sparse_labelled(

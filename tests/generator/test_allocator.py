@@ -15,6 +15,7 @@ from surfgen.generator.allocator import (
     keep_freed_memory,
     one_shot_memory_policy,
     recycled,
+    recycled_many,
     scratch_kept,
 )
 
@@ -90,29 +91,29 @@ def scratch_probe(policy: str) -> tuple[int, int, int, int]:
 
 
 def recycle_probe(policy: str) -> tuple[int, int, int]:
-    """In a fresh process under ``policy`` (``one_shot``): the page faults of writing a 16 MiB
-    float32 array recycled from a 32 MiB float64 one written before, then of a 24 MiB int64
-    array recycled from that one (8 MiB more than it had), then of a fresh 16 MiB array."""
+    """In a fresh process under ``policy`` (``one_shot``): the page faults of writing 8 MiB
+    and 4 MiB arrays recycled from a 24 MiB one written before, with a 20 MiB array between
+    them that does not fit (fresh); then of a fresh 16 MiB array."""
     import resource
 
     def faults() -> int:
         return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
     _set_policy(policy)
-    held = [np.ones(32 << 17)]
+    held = [np.ones(24 << 17)]
+    first, too_big, last = recycled_many(
+        held, [((1 << 20,), np.float64), ((5 << 20,), np.float32), ((1 << 20,), np.int32)]
+    )
     start = faults()
-    smaller = recycled(held, (4 << 20,), np.float32)
-    smaller.fill(2.0)
-    shrink = faults() - start
-    held = [smaller]
-    del smaller
+    first.fill(1.0)
+    last.fill(2)
+    taken = faults() - start
     start = faults()
-    larger = recycled(held, (1 << 20, 3), np.int64)
-    larger.fill(3)
-    grow = faults() - start
+    too_big.fill(3.0)
+    apart = faults() - start
     start = faults()
     np.empty(4 << 20, dtype=np.float32).fill(1.0)
-    return shrink, grow, faults() - start
+    return taken, apart, faults() - start
 
 
 def probe(policy: str, name: str = "heap_probe") -> tuple[int, ...]:
@@ -154,11 +155,11 @@ def test_scratch_kept_reuses_freed_memory_then_gives_it_back() -> None:
 
 
 def test_recycled_arrays_take_the_pages_of_the_array_done_with() -> None:
-    """Under the one-shot policy a recycled array's pages are the old array's (16 MiB from 32:
-    no fault where a fresh array faults 4096 times; 24 MiB from 16: the 2048 pages added
-    only)."""
-    shrink, grow, fresh = probe("one_shot", "recycle_probe")
-    assert shrink < 200 and 2048 <= grow < 2048 + 200 and fresh >= 4000
+    """Under the one-shot policy, arrays recycled from a block written before take its pages
+    (12 MiB of them: no fault where fresh ones fault 3072 times); one that does not fit in
+    what is left is fresh (its 5120 pages fault), and the block is not grown."""
+    taken, apart, fresh = probe("one_shot", "recycle_probe")
+    assert taken < 200 and apart >= 5000 and fresh >= 4000
 
 
 def test_recycled_leaves_arrays_held_elsewhere_alone(monkeypatch) -> None:
@@ -177,7 +178,7 @@ def test_recycled_leaves_arrays_held_elsewhere_alone(monkeypatch) -> None:
     made_by_numba = njit(lambda n: np.zeros(n))(1000)
     assert not np.shares_memory(recycled([made_by_numba], (30,), np.int64), made_by_numba)
     taken = recycled([np.arange(1000.0)[5:]], (30,), np.int64)
-    assert taken.base is not None and taken.base.nbytes == 30 * 8
+    assert taken.base is not None and taken.base.nbytes == 256  # 30 * 8, to ALIGN bytes
     assert recycled([np.arange(1000.0)], (0, 3), np.int64).shape == (0, 3)
     monkeypatch.setattr(allocator, "_giving_back", False)  # a process keeping freed memory
     assert recycled([np.arange(1000.0)], (30,), np.int64).base is None  # a fresh array

@@ -151,7 +151,7 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
     kernel = lewiner_chunks.lewiner_range
 
     def counted(*args):
-        calls.append(args[-1])  # track
+        calls.append(args[6])  # track
         return kernel(*args)
 
     monkeypatch.setattr(lewiner_chunks, "lewiner_range", counted)
@@ -172,8 +172,8 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
 @pytest.mark.parametrize("giving_back", [True, False])
 def test_the_joined_mesh_takes_the_cells_memory(monkeypatch, giving_back):
     # lewiner_cells takes the cells out of the list it is given; under the one-shot policy
-    # the joined faces and vertices are made on the cells' corners and keys (nothing else
-    # holds them), otherwise the cells are dropped and the join's arrays are fresh
+    # the joined vertices are made on the cells' corners (nothing else holds them; the
+    # faces do not fit there), otherwise the cells are dropped and the join's arrays are fresh
     import weakref
 
     from surfgen.generator import allocator
@@ -188,8 +188,8 @@ def test_the_joined_mesh_takes_the_cells_memory(monkeypatch, giving_back):
     del keys, corners
     v, f = lewiner_cells(cells, w.shape[2], w.shape[1], threads=2, min_cells=1)
     assert cells == [] and len(f) > 0
-    if giving_back:  # the int64 vertex numbers under the vertices, the float32 corners under
-        assert v.base.dtype == np.int64 and f.base.dtype == np.float32  # the faces
+    if giving_back:
+        assert v.base.dtype == np.float32 and v.base.size >= 3 * len(v) and f.base is None
     else:
         assert v.base is None and f.base is None
         assert alive[0]() is None and alive[1]() is None
@@ -226,7 +226,8 @@ def test_the_pass_grows_its_arrays_with_one_compile_per_array_type(monkeypatch):
     monkeypatch.setattr(lw, "grown", fresh)
     keys = np.zeros(1, dtype=np.int64)
     corners = np.ones((1, 8), dtype=np.float32)
-    args = (keys, corners, 0, 1, 2, 2, True)
+    buffers = [np.empty(shape, dtype=dtype) for shape, dtype in lw.run_buffers(1, 4, True)]
+    args = (keys, corners, 0, 1, 2, 2, True, *buffers)
     numba.njit(**{**KERNEL, "cache": False})(lw.lewiner_range.py_func).compile(
         tuple(numba.typeof(a) for a in args)
     )
@@ -241,6 +242,7 @@ def test_the_cell_loop_counts_no_references():
     keys = np.zeros(1, dtype=np.int64)
     corners = np.ones((1, 8), dtype=np.float32)
     for track in (False, True):
-        args = (keys, corners, 0, 1, 2, 2, track)
+        made = lw.run_buffers(1, 4, track)
+        args = (keys, corners, 0, 1, 2, 2, track, *(np.empty(s, dtype=d) for s, d in made))
         body = kernel_ir(lw.lewiner_range.py_func, *args)
         assert loop_refcounts(body, "_big_switch") == 0

@@ -236,30 +236,41 @@ def test_groups_linked_across_the_halves_give_the_same_mesh(monkeypatch):
     assert linked == [True]
 
 
-def test_cells_and_join_on_recycled_memory_give_the_same_mesh(monkeypatch):
-    # under the one-shot policy, with the samples released: the cells take the bricks'
-    # memory, the joined faces and vertices the cells' (allocator.recycled), bit for bit the
-    # dense mesh, none of the three a fresh array
+def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
+    # under the one-shot policy, with the samples released, each step's arrays take the
+    # memory of the step before's where they fit (allocator.recycled_many): the cells the
+    # bricks', the runs the offsets', the joined vertices the cells', the placement's edges
+    # the runs'; bit for bit the dense mesh, each step on recycled memory
     from surfgen.generator import allocator
-    from surfgen.generator.mesh import lewiner_chunks, sparse_bricks
+    from surfgen.generator.mesh import lewiner_chunks, placement, sparse_bricks
 
     monkeypatch.setattr(allocator, "_giving_back", True)
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
-    taken: list[bool] = []  # whether each array took memory (holding it would stop the next)
+    taken: list[tuple[str, bool]] = []  # holding the arrays would stop the next step's
 
-    def spy(held, shape, dtype):
-        made = allocator.recycled(held, shape, dtype)
-        taken.append(made.base is not None)
-        return made
+    def spy(module, name):
+        real = getattr(allocator, name)
 
-    monkeypatch.setattr(sparse_bricks, "recycled", spy)
-    monkeypatch.setattr(lewiner_chunks, "recycled", spy)
+        def recorded(held, *args):
+            made = real(held, *args)
+            arrays = made if isinstance(made, list) else [made]
+            taken.append(
+                (module.__name__.rsplit(".", 1)[1], any(a.base is not None for a in arrays))
+            )
+            return made
+
+        monkeypatch.setattr(module, name, recorded)
+
     tree = parse("sin(3*x)*cos(2*y)+sin(2*z)-0.2")
     grid = Grid(Box.from_bounds((-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)), (31, 30, 29))
-    dense = extract_with_edges(evaluate(tree, grid, {}), 0.0, True)
+    dense = extract_with_edges(evaluate(tree, grid, {}), 0.0, True)  # (fresh arrays)
+    for module, name in [(sparse_bricks, "recycled"), (lewiner_chunks, "recycled_many"),
+                         (placement, "recycled_many")]:  # fmt: skip
+        spy(module, name)
     sf = evaluate_sparse(tree, grid, {}, level=0.0, faces=True, block=4)
     assert_same(dense, extract_sparse_with_edges(sf, True, threads=2, release=True))
-    assert taken == [True, True, True]  # the cells' corners, the joined faces and vertices
+    assert taken == [("sparse_bricks", True), ("lewiner_chunks", True),
+                     ("lewiner_chunks", True), ("placement", True)]  # fmt: skip
 
 
 @pytest.mark.parametrize("block", [1, 3, 4, 16])
