@@ -202,9 +202,27 @@ def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan, points=None) -> None
     run_boxes(prog, BOXES_TILE, levels, counts, offsets, item_map, SL, SH, SN, flo, fhi, nan)
 
 
+#: The last :func:`_axis_points` made, with the program (held, so that its id stays its own)
+#: and copies of the axes it was made from: a sparse classification bounds every level of
+#: blocks with the same program and axes (sculpture-1 at 512^3: four times 0.85 ms).
+_LAST_AXIS_POINTS: list = [None, None, None]
+
+
 def _axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
     """Per axis: its coordinates and the one-axis level's stores at each of them, bounded over
-    the point (a box of zero width): ``(axis, L, H, N)``, stores ``(depth, n)``."""
+    the point (a box of zero width): ``(axis, L, H, N)``, stores ``(depth, n)``; the last
+    result again for the same program (the same object) and equal axes."""
+    last_prog, last_axes, last = _LAST_AXIS_POINTS
+    if (last_prog is not None and last_prog[0] is prog and last_prog[1] == depth
+            and all(np.array_equal(a, b) for a, b in zip(samples, last_axes, strict=True))):  # fmt: skip
+        return last
+    points = _made_axis_points(prog, depth, samples)
+    _LAST_AXIS_POINTS[:] = [(prog, depth), [np.array(a) for a in samples], points]
+    return points
+
+
+def _made_axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
+    """:func:`_axis_points`, made."""
     n = [len(a) for a in samples]
     counts = np.array([0, n[0], n[1], 0, n[2], 0, 0, 0], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)

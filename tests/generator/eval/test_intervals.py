@@ -368,6 +368,30 @@ def assert_grid_points_bounded(tree, params, grid: Grid, blocks: int, rng) -> No
             assert np.isfinite(part).all(), f"box {k} {box}"
 
 
+def test_the_axis_points_are_made_once_for_the_same_axes(monkeypatch) -> None:
+    """Bounding several sets of boxes on one grid (a classification's levels) makes the axes'
+    one-axis bounds once; axes changed in place, or another program, make them again, and the
+    bounds are those of the axes then."""
+    from surfgen.generator.eval import intervals
+
+    made = []
+    real = intervals._made_axis_points
+    monkeypatch.setattr(intervals, "_made_axis_points", lambda *a: made.append(1) or real(*a))
+    monkeypatch.setattr(intervals, "_LAST_AXIS_POINTS", [None, None, None])
+    grid = Grid(Box.cube(2.0), (9,) * 3)
+    axes = tuple(np.array(a, dtype=np.float64) for a in grid.axes())
+    program = compile_tree(parse("abs(tan(0.9*x)) + y^2 + z - 1"), {})
+    blo, bhi = np.array([[-2.0, -2.0, -2.0]]), np.array([[2.0, 2.0, 2.0]])
+    bounds = grid_point_bounds(axes)
+    first = bounds(program, blo, bhi)
+    assert bounds(program, blo * 0.5, bhi * 0.5) and len(made) == 1
+    axes[0][:] *= 0.5  # the same arrays, other coordinates
+    changed = bounds(program, blo, bhi)
+    assert len(made) == 2 and changed[1][0] < first[1][0]  # tan at 1 is below tan at 2
+    bounds(compile_tree(parse("x + y + z"), {}), blo, bhi)
+    assert len(made) == 3
+
+
 def test_a_pole_between_samples_leaves_grid_point_bounds_finite() -> None:
     """tan(m x) has poles on planes x = const: over a block's box its bounds are infinite,
     over the block's grid points they are the values there (and hold them all)."""
