@@ -37,6 +37,7 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit
 
+from surfgen.generator.allocator import recycled
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.evaluate import points_evaluator
@@ -56,6 +57,8 @@ from surfgen.generator.mesh.sparse_bricks import (
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, label_walls
 
 log = logging.getLogger(__name__)
+
+_NO_KEYS = np.empty(0, dtype=np.int64)
 
 
 def extract_sparse(
@@ -104,17 +107,23 @@ def extract_sparse_with_edges(
     if release:  # then nothing else holds them: the cells take their memory (brick_cells)
         sf.release_samples()
     per, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
+    shift = 1 if cap else 0
+    # the pad's cells by the samples' sides, which the raises keep (their corners after)
+    pad_keys = np.unique(_pad_cells(offset, extent, corner, shape)) if cap else _NO_KEYS
+    n_cells = int(per.sum()) + len(pad_keys)
+    # the samples' memory shrunk to the cells' corners now: the raises' tables are not made
+    # beside all of it
+    spare = [recycled(spare, (n_cells, 8), np.float32)]
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, offset, slot, block, shape)
-    shift = 1 if cap else 0
     if cap:
-        pad_keys = np.unique(_pad_cells(offset, extent, corner, shape))
         pad_corners = _pad_corners(pad_keys, offset, slot, block, shape)
     else:
-        pad_keys, pad_corners = np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32)
+        pad_corners = np.empty((0, 8), dtype=np.float32)
     if budget is not None:  # the cells to mesh are counted: check the mesh before it is made
-        cells = int(per.sum()) + len(pad_keys)
-        budget.check(budget.mesh_bytes(cells), f"meshing the {cells:,} cells the surface crosses")
+        budget.check(
+            budget.mesh_bytes(n_cells), f"meshing the {n_cells:,} cells the surface crosses"
+        )
     cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
                              threads, spare))  # fmt: skip
     # each step's inputs given to the next as soon as it has what it needs (a third of the
