@@ -20,9 +20,10 @@ are not all on one side lies in a sampled leaf.  So the sampled leaves hold ever
 the signs of every other sample are known from its leaf's state.  :class:`SparseField` holds the
 states, the sampled bricks and a lookup of any sampled grid point
 (:func:`~.brick_lookup.sample_at`); the sparse meshing
-(:mod:`surfgen.generator.mesh.sparse_marching`) works on it, and where its caller keeps only the mesh, frees the bricks' samples as soon as it has read
-them (:meth:`SparseField.release_samples`).  ``faces=True`` also samples the inside leaves on
-the box's faces: a capped mesh closes the surface there with caps, whose vertices need those
+(:mod:`surfgen.generator.mesh.sparse_marching`) works on it, and where its caller keeps only
+the mesh, frees the bricks' samples as soon as it has read them
+(:meth:`SparseField.release_samples`).  ``faces=True`` also samples the inside leaves on the
+box's faces: a capped mesh closes the surface there with caps, whose vertices need those
 samples.
 """
 
@@ -54,6 +55,9 @@ log = logging.getLogger(__name__)
 #: 4 bounds four times as many boxes and evaluates 125/64 points per cell; 16 samples
 #: ~2x more cells around the surface.
 BLOCK = 8
+#: The largest leaf: the meshing reads a brick's rows of ``block + 1`` samples as the bits
+#: of an int64 (:func:`surfgen.generator.mesh.sparse_bricks._row_mask`).
+MAX_BLOCK = 62
 #: Blocks per side at the coarsest level (at most): the first bounding pass.
 TOP_BLOCKS = 8
 #: Bricks sampled at a time (23 MiB of samples at ``BLOCK`` 8) before the one-sided ones are
@@ -190,7 +194,8 @@ class SparseField:
         return self.slot, self.corner, self.samples(), self.block
 
     def values_at(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
-        """F at grid indices ``(i, j, k)`` where sampled; NaN where not (:func:`sample_at`)."""
+        """F at grid indices ``(i, j, k)`` where sampled; NaN where not
+        (:func:`~.brick_lookup.sample_at`)."""
         ii, jj, kk = (np.ascontiguousarray(a, dtype=np.int64).reshape(-1) for a in (i, j, k))
         out = np.empty(ii.size)
         values_at(ii, jj, kk, *self.lookup(), out)
@@ -264,8 +269,8 @@ def evaluate_sparse_program(
     progress: Callable[[float], None] | None = None,
 ) -> SparseField | None:
     """:func:`evaluate_sparse` of a compiled program."""
-    if int(block) != block or block < 1:
-        raise ValueError(f"block must be a whole number >= 1, got {block!r}")
+    if int(block) != block or not 1 <= block <= MAX_BLOCK:
+        raise ValueError(f"block must be a whole number from 1 to {MAX_BLOCK}, got {block!r}")
     t0 = time.perf_counter()
     axes = grid.axes()
     if bounds is None:

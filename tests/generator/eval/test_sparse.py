@@ -229,6 +229,13 @@ def test_bad_block_and_evaluator():
     grid = Grid(Box.cube(1), (16,) * 3)
     with pytest.raises(ValueError, match="block"):
         evaluate_sparse(SPHERE, grid, block=0)
+    # a brick's rows are read as the bits of an int64: 63 samples at most
+    with pytest.raises(ValueError, match="block must be a whole number from 1 to 62, got 63"):
+        evaluate_sparse(SPHERE, Grid(Box.cube(1), (130,) * 3), block=63)
+    big = Grid(Box.cube(1.5), (130,) * 3)
+    field = extract_with_edges(evaluate(SPHERE, big, {}), 0.0, True)
+    sparse = extract_sparse_with_edges(evaluate_sparse(SPHERE, big, block=62, faces=True), True)
+    assert field[0].faces.tobytes() == sparse[0].faces.tobytes()
     assert resolve_evaluator("dense", grid) == "fast"  # the name for the fast path
     with pytest.raises(Exception, match="unknown evaluator 'sparce'.*auto, dense, fast"):
         resolve_evaluator("sparce", grid)
