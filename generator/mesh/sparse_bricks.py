@@ -90,8 +90,9 @@ def _tight(ma, b):
 def scan_bricks(offset, extent, corner, shape, threads: int = 1):
     """The number of mixed cells of each brick (int64), and the crossing edges of the bricks
     that need a raise (``|a| < _RATIO |b|`` or the reverse) as global flat sample numbers
-    ``(a, b)`` (an edge on a face shared by two bricks twice), in brick order; ``threads`` take
-    runs of bricks."""
+    ``(a, b)`` (an edge on a face shared by two bricks twice), in brick order, with the two
+    samples' magnitudes (float64 ``|a|``, ``|b|``: what the raises start from); ``threads``
+    take runs of bricks."""
     per = np.empty(len(offset), dtype=np.int64)
     parts = run_at_once(
         [
@@ -100,8 +101,8 @@ def scan_bricks(offset, extent, corner, shape, threads: int = 1):
         ]
     )
     if len(parts) == 1:
-        return per, parts[0][0], parts[0][1]
-    return per, np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        return (per, *parts[0])
+    return (per, *(np.concatenate([p[q] for p in parts]) for q in range(4)))
 
 
 @njit(**KERNEL)
@@ -114,6 +115,8 @@ def _scan(offset, extent, corner, shape, per, b0, b1):
     rows = np.empty((offset.shape[1], offset.shape[2]), dtype=np.int64)
     ta = np.empty(64, dtype=np.int64)
     tb = np.empty(64, dtype=np.int64)
+    ma = np.empty(64)
+    mb = np.empty(64)
     m = 0
     s1, s2 = shape[1] * shape[2], shape[2]
     for b in range(b0, b1):
@@ -143,7 +146,7 @@ def _scan(offset, extent, corner, shape, per, b0, b1):
                 for k in range(e2):
                     if not (crossing >> k) & 1:
                         continue
-                    ma = abs(np.float64(offset[b, i, j, k]))
+                    here = abs(np.float64(offset[b, i, j, k]))
                     for axis in range(3):
                         if axis == 0:
                             cross, o, step = cx, offset[b, i + 1, j, k], s1
@@ -151,14 +154,17 @@ def _scan(offset, extent, corner, shape, per, b0, b1):
                             cross, o, step = cy, offset[b, i, j + 1, k], s2
                         else:
                             cross, o, step = cz, offset[b, i, j, k + 1], 1
-                        if not (cross >> k) & 1 or not _tight(ma, o):
+                        if not (cross >> k) & 1 or not _tight(here, o):
                             continue
                         if m == ta.size:
                             ta = grown(ta, np.int64(m), _ONE)
                             tb = grown(tb, np.int64(m), _ONE)
+                            ma = grown(ma, np.int64(m), _ONE)
+                            mb = grown(mb, np.int64(m), _ONE)
                         ta[m], tb[m] = g0 + k, g0 + k + step
+                        ma[m], mb[m] = here, abs(np.float64(o))
                         m += 1
-    return ta[:m], tb[:m]
+    return ta[:m], tb[:m], ma[:m], mb[:m]
 
 
 @njit(**INLINE)
@@ -215,9 +221,10 @@ def _rehash(keys, mags):
 
 
 @njit(**KERNEL)
-def raise_bricks(ta, tb, offset, slot, block, shape):
+def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
     """:func:`~.marching._raise_magnitudes` on the bricks, in place, from the crossing edges
-    ``(ta, tb)`` that need a raise (:func:`scan_bricks`): the magnitudes in float64 end as
+    ``(ta, tb)`` that need a raise, with their samples' magnitudes ``(ma, mb)``
+    (:func:`scan_bricks`: the first pass over the edges reads no brick): the magnitudes in float64 end as
     the least solution of ``m[a] >= _RATIO m[b]`` on every crossing edge above the samples'
     own, the dense path's (its sweeps end on that solution whatever the edges' order).  An
     edge raises a sample that is short of it; a raised sample puts its crossing edges (the
@@ -235,10 +242,12 @@ def raise_bricks(ta, tb, offset, slot, block, shape):
     top = 0
     for e in range(2 * ta.size):
         # each edge both ways: a from b, then b from (the raised) a
-        x, y = (ta[e // 2], tb[e // 2]) if e % 2 == 0 else (tb[e // 2], ta[e // 2])
-        need = _RATIO * _magnitude(keys, mags, y, offset, slot, block, s1, s2)
+        q = e // 2
+        x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
+        hy = _find(keys, y)
+        need = _RATIO * (mags[hy] if keys[hy] == y else my)
         h = _find(keys, x)
-        if need <= (mags[h] if keys[h] == x else _sample(x, offset, slot, block, s1, s2)):
+        if need <= (mags[h] if keys[h] == x else mx):
             continue
         keys, mags, stack, top, n = _push(keys, mags, stack, top, n, h, x, need)
     while top > 0:
@@ -306,19 +315,6 @@ def _push(keys, mags, stack, top, n, h, x, need):
 def _sample_at(offset, slot, block, i, j, k):
     s, a, b, c = locate(slot, block, i, j, k)
     return offset[s, a, b, c]
-
-
-@njit(**KERNEL)
-def _sample(g, offset, slot, block, s1, s2):
-    """``|offset|`` in float64 of global sample ``g`` (a brick holds it)."""
-    return abs(np.float64(_sample_at(offset, slot, block, g // s1, (g % s1) // s2, g % s2)))
-
-
-@njit(**KERNEL)
-def _magnitude(keys, mags, g, offset, slot, block, s1, s2):
-    """The current magnitude of global sample ``g``: raised, or its own."""
-    h = _find(keys, g)
-    return mags[h] if keys[h] == g else _sample(g, offset, slot, block, s1, s2)
 
 
 @njit(**KERNEL)

@@ -106,7 +106,7 @@ def extract_sparse_with_edges(
     del values
     if release:  # then nothing else holds them: the cells take their memory (brick_cells)
         sf.release_samples()
-    per, ta, tb = scan_bricks(offset, extent, corner, shape, threads)
+    per, ta, tb, ma, mb = scan_bricks(offset, extent, corner, shape, threads)
     shift = 1 if cap else 0
     # the pad's cells by the samples' sides, which the raises keep (their corners after)
     pad_keys = np.unique(_pad_cells(offset, extent, corner, shape)) if cap else _NO_KEYS
@@ -115,7 +115,7 @@ def extract_sparse_with_edges(
     # beside all of it
     spare = [recycled(spare, (n_cells, 8), np.float32)]
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
-        raise_bricks(ta, tb, offset, slot, block, shape)
+        raise_bricks(ta, tb, ma, mb, offset, slot, block, shape)
     if cap:
         pad_corners = _pad_corners(pad_keys, offset, slot, block, shape)
     else:
