@@ -255,24 +255,29 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
         g = stack[top]
         i, j, k = g // s1, (g // s2) % shape[1], g % s2
         need = _RATIO * mags[_find(keys, g)]
-        neg = _sample_at(offset, slot, block, i, j, k) < 0
+        s0, l0, l1, l2 = locate(slot, block, i, j, k)
+        neg = offset[s0, l0, l1, l2] < 0
         for d in range(6):
             a, c, f = i, j, k
+            la, lc, lf = l0, l1, l2
             if d == 0:
-                a -= 1
+                a, la = a - 1, la - 1
             elif d == 1:
-                a += 1
+                a, la = a + 1, la + 1
             elif d == 2:
-                c -= 1
+                c, lc = c - 1, lc - 1
             elif d == 3:
-                c += 1
+                c, lc = c + 1, lc + 1
             elif d == 4:
-                f -= 1
+                f, lf = f - 1, lf - 1
             else:
-                f += 1
+                f, lf = f + 1, lf + 1
             if a < 0 or c < 0 or f < 0 or a >= shape[0] or c >= shape[1] or f >= shape[2]:
                 continue
-            s, la, lc, lf = locate(slot, block, a, c, f)
+            if min(la, lc, lf) >= 0 and max(la, lc, lf) <= block:
+                s = s0  # in the same brick (a point of the grid there: within its extent)
+            else:
+                s, la, lc, lf = locate(slot, block, a, c, f)
             if s < 0 or (offset[s, la, lc, lf] < 0) == neg:
                 continue
             x = a * s1 + c * s2 + f
