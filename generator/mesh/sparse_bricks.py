@@ -65,18 +65,27 @@ def brick_runs(n_bricks: int, threads: int) -> list[tuple[int, int]]:
 @njit(**KERNEL)
 def _offsets_of(values, extent, level, offset, b0, b1):
     """:func:`brick_offsets` of bricks ``b0:b1`` into ``offset``; returns their non-finite
-    samples."""
+    samples. A brick is one run of samples (which the compiler vectorises: 15 -> 10 ms a
+    thread for sculpture-1 at 512^3); a brick cut by the grid's end with a non-finite sample
+    counts them again within its extent."""
     _, m0, m1, m2 = values.shape
+    size = m0 * m1 * m2
     n_bad = 0
     for b in range(b0, b1):
+        run, out = values[b].reshape(size), offset[b].reshape(size)
+        bad = 0
+        for q in range(size):
+            x = run[q]
+            out[q] = offset_of(x, level)[0]
+            bad += np.int64(not abs(x) < np.inf)
         e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
-        for i in range(m0):
-            for j in range(m1):
-                for k in range(m2):
-                    x = values[b, i, j, k]
-                    offset[b, i, j, k] = offset_of(x, level)[0]
-                    if not np.isfinite(x) and i < e0 and j < e1 and k < e2:
-                        n_bad += 1
+        if bad and (e0 < m0 or e1 < m1 or e2 < m2):
+            bad = 0
+            for i in range(e0):
+                for j in range(e1):
+                    for k in range(e2):
+                        bad += np.int64(not np.isfinite(values[b, i, j, k]))
+        n_bad += bad
     return n_bad
 
 
