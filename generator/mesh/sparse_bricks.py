@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.allocator import recycled
 from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
@@ -356,7 +355,7 @@ def _write_sample(offset, slot, block, i, j, k, value):
 
 
 def brick_cells(
-    offset, extent, corner, shape, shift, per, pad_keys, pad_corners, threads=1, spare=None
+    offset, extent, corner, shape, shift, per, pad_keys, pad_corners, threads=1, corners=None
 ):
     """The mixed cells of the bricks (``per``: each brick's count, :func:`scan_bricks`) and the
     pad's cells ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's
@@ -367,9 +366,9 @@ def brick_cells(
     leaves) holds the cells of its own planes only, so the list is the slabs' cells one slab
     after the other, the pad's cells merged in by their numbers: a slab's cells start after
     the earlier slabs' and the pad's cells before its first plane. ``threads`` write runs of
-    slabs of about equal counts at once (:func:`_slab_cells`), the same list. ``spare``: a
-    list holding an array done with (the bricks' samples), whose memory the corners take
-    (:func:`~surfgen.generator.allocator.recycled`)."""
+    slabs of about equal counts at once (:func:`_slab_cells`), the same list. ``corners``:
+    the float32 ``(cells, 8)`` array they are written into (the caller's, on memory done with:
+    :func:`~surfgen.generator.allocator.recycled`), or None for a fresh one."""
     n_bricks, n_pad = len(per), len(pad_keys)
     if n_bricks == 0:  # the pad's cells alone
         return np.array(pad_keys, dtype=np.int64), np.array(pad_corners, dtype=np.float32)
@@ -386,7 +385,12 @@ def brick_cells(
     done = np.cumsum(slab_cells)  # the cells of the slabs up to each
     m = np.r_[0, done[:-1]] + q
     keys = np.empty(int(per.sum()) + n_pad, dtype=np.int64)
-    corners = recycled(spare or [], (len(keys), 8), np.float32)
+    if corners is None:
+        corners = np.empty((len(keys), 8), dtype=np.float32)
+    elif corners.shape != (len(keys), 8) or corners.dtype != np.float32:
+        raise ValueError(
+            f"corners: expected float32 {(len(keys), 8)}, got {corners.dtype} {corners.shape}"
+        )
     # runs of whole slabs of about equal cells (at least RUN_BRICKS bricks a thread)
     runs = max(1, min(int(threads), n_bricks // RUN_BRICKS))
     cut = np.searchsorted(done, done[-1] * np.arange(1, runs) / runs, side="right")

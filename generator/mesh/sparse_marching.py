@@ -104,16 +104,16 @@ def extract_sparse_with_edges(
         log.debug("sparse marching: non-finite samples mirrored")
     spare = [values]  # the last read of the samples: the offsets are all the steps below need
     del values
-    if release:  # then nothing else holds them: the cells take their memory (brick_cells)
+    if release:  # then nothing else holds them: the cells' corners take their memory
         sf.release_samples()
     per, ta, tb, ma, mb = scan_bricks(offset, extent, corner, shape, threads)
     shift = 1 if cap else 0
     # the pad's cells by the samples' sides, which the raises keep (their corners after)
     pad_keys = np.unique(_pad_cells(offset, extent, corner, shape)) if cap else _NO_KEYS
     n_cells = int(per.sum()) + len(pad_keys)
-    # the samples' memory shrunk to the cells' corners now: the raises' tables are not made
+    # the cells' corners on the samples' memory, made now: the raises' tables are not made
     # beside all of it
-    spare = [recycled(spare, (n_cells, 8), np.float32)]
+    corners = recycled(spare, (n_cells, 8), np.float32)
     if ta.size:  # some crossing too near a sample: raise magnitudes from there
         raise_bricks(ta, tb, ma, mb, offset, slot, block, shape)
     if cap:
@@ -125,7 +125,8 @@ def extract_sparse_with_edges(
             budget.mesh_bytes(n_cells), f"meshing the {n_cells:,} cells the surface crosses"
         )
     cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
-                             threads, spare))  # fmt: skip
+                             threads, corners))  # fmt: skip
+    del corners
     # each step's inputs given to the next as soon as it has what it needs (a third of the
     # memory a 512^3 surface adds, and their pages not faulted again: allocator.recycled):
     # the offsets to the marching's runs, the cells to their join, the runs to the placement

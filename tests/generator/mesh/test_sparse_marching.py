@@ -238,12 +238,12 @@ def test_groups_linked_across_the_halves_give_the_same_mesh(monkeypatch):
 
 def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
     # under the one-shot policy, with the samples released, each step's arrays take the
-    # memory of the step before's where they fit (allocator.recycled_many): the cells the
-    # bricks' (shrunk to them once counted), the runs the offsets', the joined vertices the
-    # cells', the placement's edges the runs'; bit for bit the dense mesh, each step on
-    # recycled memory
+    # memory of the step before's where they fit (allocator.recycled_many): the cells'
+    # corners the bricks' (once the scan counts them), the runs the offsets', the joined
+    # vertices the cells', the placement's edges the runs'; bit for bit the dense mesh, each
+    # step on recycled memory
     from surfgen.generator import allocator
-    from surfgen.generator.mesh import lewiner_chunks, placement, sparse_bricks, sparse_marching
+    from surfgen.generator.mesh import lewiner_chunks, placement, sparse_marching
 
     monkeypatch.setattr(allocator, "_giving_back", True)
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
@@ -265,14 +265,26 @@ def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
     tree = parse("sin(3*x)*cos(2*y)+sin(2*z)-0.2")
     grid = Grid(Box.from_bounds((-1.3, 0.7, -2.0, 1.1, -0.4, 1.9)), (31, 30, 29))
     dense = extract_with_edges(evaluate(tree, grid, {}), 0.0, True)  # (fresh arrays)
-    for module, name in [(sparse_marching, "recycled"), (sparse_bricks, "recycled"),
-                         (lewiner_chunks, "recycled_many"), (placement, "recycled_many")]:  # fmt: skip
+    for module, name in [(sparse_marching, "recycled"), (lewiner_chunks, "recycled_many"),
+                         (placement, "recycled_many")]:  # fmt: skip
         spy(module, name)
     sf = evaluate_sparse(tree, grid, {}, level=0.0, faces=True, block=4)
     assert_same(dense, extract_sparse_with_edges(sf, True, threads=2, release=True))
-    # the samples shrunk to the corners once counted, then taken by the cells
-    assert taken == [("sparse_marching", True), ("sparse_bricks", True),
-                     ("lewiner_chunks", True), ("lewiner_chunks", True), ("placement", True)]  # fmt: skip
+    # the cells' corners on the samples once counted, the runs, the join, the placement
+    assert taken == [("sparse_marching", True), ("lewiner_chunks", True),
+                     ("lewiner_chunks", True), ("placement", True)]  # fmt: skip
+
+
+def test_the_cells_refuse_corners_of_another_size(monkeypatch):
+    # the listing's kernel writes the corners unchecked: an array of another size is refused
+    from surfgen.generator.mesh import sparse_marching
+
+    monkeypatch.setattr(sparse_marching, "recycled", lambda held, shape, dtype: np.empty(
+        (shape[0] - 1, 8), dtype=dtype))  # fmt: skip
+    tree = parse("x^2+y^2+z^2-1")
+    sf = evaluate_sparse(tree, Grid(Box.cube(1.5), (20,) * 3), {}, level=0.0, block=4)
+    with pytest.raises(ValueError, match=r"corners: expected float32 \(\d+, 8\)"):
+        extract_sparse_with_edges(sf, False)
 
 
 @pytest.mark.parametrize("block", [1, 3, 4, 16])
