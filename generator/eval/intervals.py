@@ -115,6 +115,7 @@ def program_bounds(
     hi: np.ndarray,
     share: bool = True,
     samples: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    axis_points: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bounds of F over K closed boxes ``[lo[k], hi[k]]`` (float64 ``(K, 3)``, world coordinates).
 
@@ -134,7 +135,10 @@ def program_bounds(
     ``|y|^0.3``) is bounded by its values at that axis's coordinates in the box's range, each
     bounded over the point itself (a box of zero width), so a pole between two samples costs
     nothing; the other values are bounded from those as before. Every grid point's F is then
-    NaN or within the bounds; points between the samples are not covered.
+    NaN or within the bounds; points between the samples are not covered. ``axis_points``: a
+    dict, per program, of those one-axis bounds, kept for calls with the same ``samples``
+    (:func:`grid_point_bounds` keeps one: a sparse classification bounds every level of
+    blocks with the same program and axes; sculpture-1 at 512^3: four times 0.85 ms).
     """
     if not isinstance(program, Program):
         raise TypeError(f"expected a Program, got {type(program).__name__}")
@@ -147,7 +151,12 @@ def program_bounds(
         interpreter.load_interpreter()  # the elementary rows the rules call
         prog = _boxes_program(program)
         depth = max(1, int(np.max(program.rows)))
-        points = None if samples is None else _axis_points(prog, depth, samples)
+        points = None
+        if samples is not None:
+            kept = {} if axis_points is None else axis_points
+            if program not in kept:
+                kept[program] = _axis_points(prog, depth, samples)
+            points = kept[program]
         for k0 in range(0, K, BOXES_CHUNK):
             k1 = min(K, k0 + BOXES_CHUNK)
             _run_chunk(
@@ -168,11 +177,13 @@ def grid_point_bounds(
     samples: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> Callable[[Program, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """``program_bounds`` over the grid points of boxes of a grid with these coordinates along
-    x, y and z (sorted): what a sparse evaluator of that grid needs (:func:`program_bounds`)."""
-    axes = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in samples)
+    x, y and z (sorted, copied when it is made): what a sparse evaluator of that grid needs
+    (:func:`program_bounds`), each program's one-axis bounds made once."""
+    axes = tuple(np.array(a, dtype=np.float64) for a in samples)
+    made: dict = {}
 
     def bounds(program: Program, lo: np.ndarray, hi: np.ndarray):
-        return program_bounds(program, lo, hi, samples=axes)  # type: ignore[arg-type]
+        return program_bounds(program, lo, hi, samples=axes, axis_points=made)  # type: ignore[arg-type]
 
     return bounds
 
@@ -202,27 +213,9 @@ def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan, points=None) -> None
     run_boxes(prog, BOXES_TILE, levels, counts, offsets, item_map, SL, SH, SN, flo, fhi, nan)
 
 
-#: The last :func:`_axis_points` made, with the program (held, so that its id stays its own)
-#: and copies of the axes it was made from: a sparse classification bounds every level of
-#: blocks with the same program and axes (sculpture-1 at 512^3: four times 0.85 ms).
-_LAST_AXIS_POINTS: list = [None, None, None]
-
-
 def _axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
     """Per axis: its coordinates and the one-axis level's stores at each of them, bounded over
-    the point (a box of zero width): ``(axis, L, H, N)``, stores ``(depth, n)``; the last
-    result again for the same program (the same object) and equal axes."""
-    last_prog, last_axes, last = _LAST_AXIS_POINTS
-    if (last_prog is not None and last_prog[0] is prog and last_prog[1] == depth
-            and all(np.array_equal(a, b) for a, b in zip(samples, last_axes, strict=True))):  # fmt: skip
-        return last
-    points = _made_axis_points(prog, depth, samples)
-    _LAST_AXIS_POINTS[:] = [(prog, depth), [np.array(a) for a in samples], points]
-    return points
-
-
-def _made_axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
-    """:func:`_axis_points`, made."""
+    the point (a box of zero width): ``(axis, L, H, N)``, stores ``(depth, n)``."""
     n = [len(a) for a in samples]
     counts = np.array([0, n[0], n[1], 0, n[2], 0, 0, 0], dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)

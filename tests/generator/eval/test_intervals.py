@@ -370,14 +370,13 @@ def assert_grid_points_bounded(tree, params, grid: Grid, blocks: int, rng) -> No
 
 def test_the_axis_points_are_made_once_for_the_same_axes(monkeypatch) -> None:
     """Bounding several sets of boxes on one grid (a classification's levels) makes the axes'
-    one-axis bounds once; axes changed in place, or another program, make them again, and the
-    bounds are those of the axes then."""
+    one-axis bounds once per program; the bounds keep their own copy of the axes (changing
+    the caller's arrays changes nothing), and bounds made on other axes make them again."""
     from surfgen.generator.eval import intervals
 
     made = []
-    real = intervals._made_axis_points
-    monkeypatch.setattr(intervals, "_made_axis_points", lambda *a: made.append(1) or real(*a))
-    monkeypatch.setattr(intervals, "_LAST_AXIS_POINTS", [None, None, None])
+    real = intervals._axis_points
+    monkeypatch.setattr(intervals, "_axis_points", lambda *a: made.append(1) or real(*a))
     grid = Grid(Box.cube(2.0), (9,) * 3)
     axes = tuple(np.array(a, dtype=np.float64) for a in grid.axes())
     program = compile_tree(parse("abs(tan(0.9*x)) + y^2 + z - 1"), {})
@@ -385,8 +384,10 @@ def test_the_axis_points_are_made_once_for_the_same_axes(monkeypatch) -> None:
     bounds = grid_point_bounds(axes)
     first = bounds(program, blo, bhi)
     assert bounds(program, blo * 0.5, bhi * 0.5) and len(made) == 1
-    axes[0][:] *= 0.5  # the same arrays, other coordinates
-    changed = bounds(program, blo, bhi)
+    axes[0][:] *= 0.5  # the caller's arrays, other coordinates
+    again = bounds(program, blo, bhi)
+    assert len(made) == 1 and all(np.array_equal(a, b) for a, b in zip(again, first, strict=True))
+    changed = grid_point_bounds(axes)(program, blo, bhi)
     assert len(made) == 2 and changed[1][0] < first[1][0]  # tan at 1 is below tan at 2
     bounds(compile_tree(parse("x + y + z"), {}), blo, bhi)
     assert len(made) == 3
