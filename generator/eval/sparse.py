@@ -489,24 +489,32 @@ def _sides(values, extent, corner, slot, block, first, level, out, b0, b1):
     Counted without a branch, a whole brick as one run of samples (which the compiler
     vectorises); a brick with a non-finite sample is gone over again to find whose it is."""
     n_bad = 0
-    m0, m1, m2 = values.shape[1], values.shape[2], values.shape[3]
     for b in range(b0, b1):
-        e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
-        if e0 == m0 and e1 == m1 and e2 == m2:  # a whole brick: one run of samples
-            inside, bad = _counts(values[b].reshape(m0 * m1 * m2), level)
-        else:
-            inside = bad = 0
-            for i in range(e0):
-                for j in range(e1):
-                    got = _counts(values[b, i, j, :e2], level)
-                    inside, bad = inside + got[0], bad + got[1]
-        if inside == e0 * e1 * e2:
+        inside, bad = _brick_counts(values, extent, b, level)
+        if inside == extent[b, 0] * extent[b, 1] * extent[b, 2]:
             out[b] = _ALL_INSIDE
         else:
             out[b] = _MIXED if inside else _ALL_OUTSIDE
         if bad:
             n_bad += _bad_here(values, extent, corner, slot, block, first, b)
     return n_bad
+
+
+@njit(**INLINE)
+def _brick_counts(values, extent, b, level):
+    """Brick ``b``'s samples inside (finite, below ``level``) and non-finite, within its
+    extent: a whole brick as one run of samples (:func:`_counts`), a brick the grid's end cuts
+    row by row."""
+    _, m0, m1, m2 = values.shape
+    e0, e1, e2 = extent[b, 0], extent[b, 1], extent[b, 2]
+    if e0 == m0 and e1 == m1 and e2 == m2:
+        return _counts(values[b].reshape(m0 * m1 * m2), level)
+    inside = bad = 0
+    for i in range(e0):
+        for j in range(e1):
+            got = _counts(values[b, i, j, :e2], level)
+            inside, bad = inside + got[0], bad + got[1]
+    return inside, bad
 
 
 @njit(**INLINE)
@@ -576,7 +584,5 @@ def _bricks_count_inside(values, extent, level):
     """Inside samples of the bricks (a point shared by bricks once per brick)."""
     n = 0
     for b in range(values.shape[0]):
-        for i in range(extent[b, 0]):
-            for j in range(extent[b, 1]):
-                n += _counts(values[b, i, j, : extent[b, 2]], level)[0]
+        n += _brick_counts(values, extent, b, level)[0]
     return n

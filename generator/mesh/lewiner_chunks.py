@@ -113,8 +113,9 @@ def _join(parts, first_planes, spent) -> tuple[np.ndarray, np.ndarray]:
     :func:`~surfgen.generator.allocator.recycled_many`); ``parts`` is emptied once all are
     written. One run after the other, each freed once written, held one run less at the
     join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s); with the cells
-    freed before the join, its peak stays below the render's (sculpture-1: 301 MiB against
-    the offsets' 303; equation C: 510 against the vertex groups' 573)."""
+    not held beside it (their keys freed, their corners under the vertices), its peak stays
+    below the render's (sculpture-1: 301 MiB against the offsets' 303; equation C: 510
+    against the vertex groups' 573)."""
     numbers, starts, total = _numbering(parts, first_planes)
     out_v, out_f = recycled_many(
         spent, [((total, 3), np.float32), ((sum(len(p[1]) for p in parts), 3), np.int64)]
