@@ -355,7 +355,7 @@ class Surface:
         evaluator : {'auto', 'sparse', 'dense', 'fast', 'reference'}
             ``sparse`` evaluates only the blocks the surface may cross (interval arithmetic),
             ``dense`` or ``fast`` every grid point, ``reference`` in plain numpy; ``auto`` (default) is
-            sparse on large grids (from 192^3 points). All make the same mesh, bit for bit.
+            sparse on large grids (from 160^3 points). All make the same mesh, bit for bit.
 
         Returns
         -------

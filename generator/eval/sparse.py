@@ -223,20 +223,16 @@ def evaluate_sparse(
     faces: bool = False,
     block: int = BLOCK,
     bounds: Bounds | None = None,
-    max_share: float | None = None,
     budget: MemoryBudget | None = None,
     progress: Callable[[float], None] | None = None,
-) -> SparseField | None:
+) -> SparseField:
     """Sample ``tree`` on ``grid`` where ``F = level`` may pass (the module's docstring).
 
     ``faces``: also sample the inside leaves on the box's faces (for capped meshes);
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
     bounds (None: over the grid's points,
     :func:`~surfgen.generator.eval.intervals.grid_point_bounds`;
-    :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``max_share``:
-    return
-    None, having only bounded the blocks, when the leaves left to sample hold more than this
-    share of the grid's points (the dense grid is then cheaper); ``budget``: refuse (a
+    :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``budget``: refuse (a
     ``LimitError``) a run of leaves whose samples would take the command past its memory limit,
     before it is sampled; ``progress``: called with the share of the leaves sampled after each
     run of them.
@@ -250,7 +246,6 @@ def evaluate_sparse(
         faces,
         block,
         bounds,
-        max_share,
         budget,
         progress,
     )
@@ -264,10 +259,9 @@ def evaluate_sparse_program(
     faces: bool = False,
     block: int = BLOCK,
     bounds: Bounds | None = None,
-    max_share: float | None = None,
     budget: MemoryBudget | None = None,
     progress: Callable[[float], None] | None = None,
-) -> SparseField | None:
+) -> SparseField:
     """:func:`evaluate_sparse` of a compiled program."""
     if int(block) != block or not 1 <= block <= MAX_BLOCK:
         raise ValueError(f"block must be a whole number from 1 to {MAX_BLOCK}, got {block!r}")
@@ -281,11 +275,6 @@ def evaluate_sparse_program(
         sample_face_leaves(state)
     t1 = time.perf_counter()
     leaves, slot, corner, extent = brick_layout(state, grid, block)
-    if max_share is not None and np.prod(extent, axis=1).sum() > max_share * grid.size:
-        log.debug(
-            "sparse: %d of %d leaves to sample, over the share asked", len(leaves), state.size
-        )
-        return None
     sampled, points = len(leaves), int(np.prod(extent, axis=1).sum())
     values, sides, keep, nonfinite = _sample_and_decide(
         program, axes, state.shape, leaves, slot, corner, extent, block, float(level), faces,

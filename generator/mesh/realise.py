@@ -11,8 +11,8 @@ checks, calls the same steps (:func:`~surfgen.generator.mesh.mesh.extract_with_e
 (:mod:`surfgen.generator.eval.sparse`) and meshes them
 (:mod:`surfgen.generator.mesh.sparse_marching`): the same mesh as the dense path, bit for bit,
 in time and memory that grow with the surface rather than the grid.  ``"auto"`` picks it for
-grids of :data:`AUTO_SPARSE_FROM` points or more (:func:`resolve_evaluator`), unless the blocks'
-bounds leave most of the grid to sample (:data:`AUTO_MAX_SHARE`).
+grids of :data:`AUTO_SPARSE_FROM` points or more (:func:`resolve_evaluator`), whatever share of
+the grid its bounds leave to sample (``benchmarks/bench_auto.py``).
 """
 
 from __future__ import annotations
@@ -25,23 +25,19 @@ from surfgen.generator.errors import EmptySurface, FormulaError
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
-from surfgen.generator.formula.limits import MemoryBudget, check_step, estimate_memory
+from surfgen.generator.formula.limits import MemoryBudget
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_sparse_labelled
 from surfgen.generator.mesh.walls import WallReport, check_walls_mode, extract_labelled
 from surfgen.generator.model.spec import SurfaceSpec
 
-#: ``auto`` meshes grids of at least this many points sparsely (``benchmarks/bench_sparse.py``,
-#: docs/performance: at 128^3 the sparse path took 0.6-1.3x the dense time, at 256^3 it was
-#: 1.4-4.8x faster on five of six sampled shapes; at 64^3 it samples 77-96 % of the points).
-AUTO_SPARSE_FROM = 192**3
-
-#: ``auto`` meshes densely after all when the sparse path would sample more than this share of
-#: the grid's points (formulas whose bounds cannot exclude the level anywhere, e.g. the paper's
-#: equation A, which is -inf on planes through every block), where the dense field fits in
-#: memory (grids up to :data:`AUTO_DENSE_UP_TO` points).
-AUTO_MAX_SHARE = 0.5
-AUTO_DENSE_UP_TO = 640**3
+#: ``auto`` meshes grids of at least this many points sparsely, whatever share of them its
+#: bounds leave to sample (``benchmarks/bench_auto.py``, docs/performance: the sparse path was
+#: faster for 10 of 22 shapes at 96^3, 14 at 128^3, 20 at 160^3 and 21 at 192^3 and 256^3, the
+#: shapes whose bounds leave more than half of the grid to sample included: its meshing runs on
+#: every core and skips the leaves one side holds; the one slower at 256^3 is a formula costly
+#: to evaluate, of which it samples 1.16 times the grid's points).
+AUTO_SPARSE_FROM = 160**3
 
 #: The names :func:`realise` takes for ``evaluator``: ``dense`` is ``fast`` (every grid point).
 EVALUATOR_CHOICES = ("auto", "dense", *EVALUATORS)
@@ -136,7 +132,6 @@ def realise(
         grid = spec.to_grid() if grid is None else grid
         name = resolve_evaluator(evaluator, grid)
         if name == "sparse":
-            fallback = evaluator == "auto" and grid.size <= AUTO_DENSE_UP_TO
             _stage(progress, "bounding")
             field = evaluate_sparse(
                 tree,
@@ -145,16 +140,10 @@ def realise(
                 threads=threads,
                 level=spec.level,
                 faces=cap,
-                max_share=AUTO_MAX_SHARE if fallback else None,
                 budget=budget,
                 progress=None if progress is None else lambda done: progress("sampling", done),
             )
-            if field is None:  # the bounds leave most of the grid to sample: every point then
-                name = "fast"
-                dense = sum(estimate_memory(grid.size, mesh=True).values())
-                check_step(budget, dense, f"evaluating all {grid.size:,} points (the bounds "
-                           "leave more than half of them to sample)")  # fmt: skip
-        if name != "sparse":
+        else:
             _stage(progress, "evaluating")
             field = evaluate(tree, grid, spec.params, evaluator=name, threads=threads)
     elif isinstance(field, SparseField) and field.level != spec.level:

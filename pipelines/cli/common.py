@@ -32,7 +32,7 @@ MaxMemoryOption = Annotated[
 EvaluatorOption = Annotated[
     str,
     typer.Option(
-        help="auto (default: sparse from 192^3 points on, else dense), sparse (only the "
+        help="auto (default: sparse from 160^3 points on, else dense), sparse (only the "
         "blocks the surface may cross), dense or fast (every grid point) or reference; "
         "all make the same mesh."
     ),

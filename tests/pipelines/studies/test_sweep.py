@@ -113,8 +113,8 @@ def test_sweep_refusals_write_nothing(capsys, tmp_path) -> None:
 
 def test_sweep_memory_is_checked_before_and_as_each_step_learns_its_size(capsys, tmp_path):
     """The estimate of every step (the field, the mesh and a sparse field's dense sign proxy)
-    before anything runs; then equation B's foam, which the bounds cannot prune, falls back to
-    every point and is checked again there. Each refusal one line, nothing written."""
+    before anything runs; then equation B's foam, which the bounds cannot prune, is checked
+    again as its sparse mesh learns its size. Each refusal one line, nothing written."""
     out = tmp_path / "never"
     args = ["sweep", "--preset", "eqB", "--grid", "256", "--param", "d=0:0.1:0.05", "-o", out]
     rc, _, err = cli(capsys, *map(str, args), "--max-memory", "300M")
@@ -123,7 +123,6 @@ def test_sweep_memory_is_checked_before_and_as_each_step_learns_its_size(capsys,
     assert "sign proxy 128.0 MiB" in err and "limit of 300.0 MiB (--max-memory sets it)" in err
     rc, _, err = cli(capsys, *map(str, args), "--max-memory", "700M")
     assert rc == 1 and err.count("\n") == 1
-    assert err.startswith("error: sweep step on a 256x256x256 grid: evaluating all 16,777,216 "
-                          "points (the bounds leave more than half of them to sample) needs "
-                          "about 928.0 MiB more")  # fmt: skip
+    assert err.startswith("error: sweep step on a 256x256x256 grid: meshing the 4,730,018 cells "
+                          "the surface crosses needs about 1.8 GiB more")  # fmt: skip
     assert not out.exists()
