@@ -87,9 +87,7 @@ def main(argv: list[str] | None = None) -> None:
         meshed += 1
         identical += same(old, mesh_module.extract_with_edges(field, level, cap))
         values = np.ascontiguousarray(field.values, dtype=np.float64)
-        work = marching._offsets(values, level)[0]
-        if cap:
-            work = marching._pad_outside(work)
+        work = marching._offsets(values, level, pad=cap)[0]
         mask = skimage_mask(work)
         r = args.repeats
         t_old = best(r, reference_extract_with_edges, field, level, cap)

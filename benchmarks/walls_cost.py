@@ -64,7 +64,7 @@ def best(fn: Callable[[], object], repeat: int) -> float:
 
 def old_placement(field, level):
     keep = marching._separate
-    marching._separate = lambda offset, inside: None  # crossings where marching cubes puts them
+    marching._separate = lambda offset, p=0: None  # crossings where marching cubes puts them
     try:
         return mesh_module.extract_mesh(field, level, cap=True)
     finally:

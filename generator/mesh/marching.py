@@ -12,6 +12,8 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.raise_table import find, new_table, push
+from surfgen.generator.mesh.sparse_lewiner import grown
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
 # we have fixed ourselves; magnitudes are clipped to stay finite there.
@@ -25,55 +27,83 @@ _TINY = np.float32(np.finfo(np.float32).smallest_normal)
 # geometric error it allows is at most 1 % of a cell.
 SEPARATION = 0.01
 _RATIO = SEPARATION / (1.0 - SEPARATION) * 1.001  # |a| >= _RATIO |b| gives t >= SEPARATION
-_MAX_ROUNDS = 200
+_ONE = np.int64(1)  # room a growing list needs for its next entry (an int64, not a literal)
 
 
 _CLIP64 = float(_CLIP)  # np.clip of float64 values against the float32 bound compares in float64
 _TINY32 = np.float32(_TINY)
 
 
-def _offsets(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """float32 ``F - level`` with signs decided in float64, the boolean inside mask and its count.
+def _offsets(values: np.ndarray, level: float, pad: bool = False) -> tuple[np.ndarray, int]:
+    """float32 ``F - level`` with signs decided in float64, and the count of inside samples.
 
     Inside samples (``F < level``, finite) get a strictly negative offset, all others a strictly
-    positive one, so marching cubes never sees a sample on the level (where ``<`` vs ``<=``
-    would decide the topology): offsets rounded to 0 in float32 (below ~1e-45) and exact-level
-    samples get the smallest normal float32 with the sign decided in float64; magnitudes are
-    clipped to 1e30 to stay finite in float32.  A non-finite sample gets a positive value
-    mirroring the deepest inside sample in its 3x3x3 neighbourhood (at least the smallest
-    normal), so a crossing on an edge to it falls at mid-edge or nearer the inside sample (a
-    huge value would pile the crossings onto the inside samples, +inf exactly).  Magnitudes are
-    then raised where needed so every crossing lies at least SEPARATION of its edge from both
-    samples (:func:`_separate`).
+    positive one (or NaN until mirrored), so marching cubes never sees a sample on the level
+    (where ``<`` vs ``<=`` would decide the topology), and a sample is inside exactly when its
+    offset is negative (no inside mask is kept): offsets rounded to 0 in float32 (below
+    ~1e-45) and exact-level samples get the smallest normal float32 with the sign decided in
+    float64; magnitudes are clipped to 1e30 to stay finite in float32.  A non-finite sample
+    gets a positive value mirroring the deepest inside sample in its 3x3x3 neighbourhood (at
+    least the smallest normal), so a crossing on an edge to it falls at mid-edge or nearer the
+    inside sample (a huge value would pile the crossings onto the inside samples, +inf
+    exactly).  Magnitudes are then raised where needed so every crossing lies at least
+    SEPARATION of its edge from both samples (:func:`_separate`).
+
+    ``pad`` (the cap): the offsets come surrounded by one layer of outside samples, each
+    mirroring its box neighbour (``|w|`` next to ``w``: every crossing towards the pad lies
+    exactly half a cell outside the box, where it is told apart from the crossings inside and
+    clamped onto the box), written into one array of two more samples an axis.
     """
-    offset = np.empty(values.shape, dtype=np.float32)
-    inside = np.empty(values.shape, dtype=np.bool_)
-    n_inside, n_bad = _offsets_kernel(values, float(level), offset, inside)
+    p = 1 if pad else 0
+    n0, n1, n2 = values.shape
+    offset = np.empty((n0 + 2 * p, n1 + 2 * p, n2 + 2 * p), dtype=np.float32)
+    n_inside, n_bad = _offsets_kernel(values, float(level), offset, p)
     if n_bad:
-        _mirror_nonfinite(values, offset, inside)
-    _separate(offset, inside)
-    return offset, inside, int(n_inside)
+        _mirror_nonfinite(values, offset, p)
+    _separate(offset, p)
+    if p:
+        _pad_border(offset)
+    return offset, int(n_inside)
 
 
 @njit(**KERNEL)
-def _offsets_kernel(values, level, offset, inside):
-    """Fill ``offset`` and ``inside`` (see :func:`_offsets`; non-finite samples are left NaN or
-    clipped for :func:`_mirror_nonfinite`); returns the inside and non-finite counts."""
-    v = values.reshape(-1)
-    out = offset.reshape(-1)
-    ins = inside.reshape(-1)
+def _offsets_kernel(values, level, offset, p):
+    """Fill ``offset`` from ``p`` on along each axis (see :func:`_offsets`; non-finite samples
+    are left NaN or clipped for :func:`_mirror_nonfinite`); returns the inside and non-finite
+    counts."""
+    n0, n1, n2 = values.shape
     n_inside = 0
     n_bad = 0
-    for i in range(v.size):
-        x = v[i]
-        o, is_in = offset_of(x, level)
-        if is_in:
-            n_inside += 1
-        if not np.isfinite(x):
-            n_bad += 1
-        out[i] = o
-        ins[i] = is_in
+    for i in range(n0):
+        for j in range(n1):
+            v = values[i, j]
+            out = offset[i + p, j + p]
+            for k in range(n2):
+                x = v[k]
+                o, is_in = offset_of(x, level)
+                if is_in:
+                    n_inside += 1
+                if not np.isfinite(x):
+                    n_bad += 1
+                out[k + p] = o
     return n_inside, n_bad
+
+
+@njit(**KERNEL)
+def _pad_border(padded):
+    """The pad of :func:`_offsets`: each sample of ``padded``'s outer layer takes ``|w|`` of the
+    box sample it clamps to."""
+    m0, m1, m2 = padded.shape
+    for i in range(m0):
+        ci = min(max(i, 1), m0 - 2)
+        for j in range(m1):
+            cj = min(max(j, 1), m1 - 2)
+            if i == 0 or i == m0 - 1 or j == 0 or j == m1 - 1:
+                for k in range(m2):
+                    padded[i, j, k] = abs(padded[ci, cj, min(max(k, 1), m2 - 2)])
+            else:
+                padded[i, j, 0] = abs(padded[i, j, 1])
+                padded[i, j, m2 - 1] = abs(padded[i, j, m2 - 2])
 
 
 @njit(**INLINE)
@@ -94,9 +124,10 @@ def offset_of(x, level):
 
 
 @njit(**KERNEL)
-def _mirror_nonfinite(values, offset, inside):
-    """Each non-finite sample: the largest ``-offset`` of the inside samples in its 3x3x3
-    neighbourhood (inside the grid), at least the smallest normal float32."""
+def _mirror_nonfinite(values, offset, p):
+    """Each non-finite sample: the largest ``-offset`` of the inside samples (negative offsets)
+    in its 3x3x3 neighbourhood (inside the grid), at least the smallest normal float32
+    (``offset``'s samples from ``p`` on along each axis)."""
     nx, ny, nz = values.shape
     for i in range(nx):
         for j in range(ny):
@@ -107,113 +138,166 @@ def _mirror_nonfinite(values, offset, inside):
                 for a in range(max(i - 1, 0), min(i + 2, nx)):
                     for b in range(max(j - 1, 0), min(j + 2, ny)):
                         for c in range(max(k - 1, 0), min(k + 2, nz)):
-                            if inside[a, b, c] and -offset[a, b, c] > deepest:
-                                deepest = -offset[a, b, c]
-                offset[i, j, k] = max(deepest, _TINY32)
+                            if -offset[a + p, b + p, c + p] > deepest:
+                                deepest = -offset[a + p, b + p, c + p]
+                offset[i + p, j + p, k + p] = max(deepest, _TINY32)
 
 
-def _crossing_edges(inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices ``(a, b)`` of the samples of every grid edge whose samples are on opposite
-    sides (numpy's vectorised comparisons of the flat mask shifted by each axis's stride; pairs
-    that would wrap from one row or plane to the next are dropped)."""
-    nx, ny, nz = inside.shape
-    flat = inside.reshape(-1)
-    ends = []
-    for stride in (ny * nz, nz, 1):
-        a = np.flatnonzero(flat[:-stride] != flat[stride:])
-        if stride == nz:
-            a = a[(a // nz) % ny != ny - 1]
-        elif stride == 1:
-            a = a[a % nz != nz - 1]
-        ends.append(a)
-    ia = np.concatenate(ends)
-    strides = np.repeat(np.array([ny * nz, nz, 1]), [len(e) for e in ends])
-    return ia, ia + strides
-
-
-def _separate(offset: np.ndarray, inside: np.ndarray) -> None:
-    """Keep every crossing SEPARATION of its edge from both samples (:func:`_raise_magnitudes`),
-    in place."""
-    ia, ib = _crossing_edges(inside)
-    if ia.size:
-        _raise_magnitudes(offset.reshape(-1), inside.reshape(-1), ia, ib)
-
-
-@njit(**KERNEL)
-def _raise_magnitudes(flat, ins, ia, ib):
-    """Raise ``|offset|`` (``flat``) in place until ``|a| >= _RATIO |b|`` for both samples of
-    every crossing edge ``(ia, ib)`` (``ins``: the samples whose offset is negative).
+def _separate(offset: np.ndarray, p: int = 0) -> None:
+    """Keep every crossing SEPARATION of its edge from both samples of ``offset`` (the grid's
+    samples from ``p`` on along each axis: the pad around them comes after), in place: the crossing
+    edges that break it listed (:func:`_tight_edges`: usually few), and the magnitudes raised
+    from there (:func:`_raise_from`).
 
     Marching cubes puts the crossing of edge (a, b) at ``t = a / (a - b)``; a sample at or near
     the level next to a large opposite value (staircase plateaus at the level, exact zeros,
     samples beside a pole) would put it on the sample itself, and several crossings would
     coincide there once stored in float32.  Raising a magnitude never changes a sign, so the
     same edges cross; it moves a crossing at most SEPARATION of the edge (in a locally linear
-    field the distance to the true surface grows by at most _RATIO of a cell).
-
-    The magnitudes (in float64) end as the least solution of ``m[a] >= _RATIO * m[b]`` on every
-    crossing edge above the samples' own: whatever order the edges are raised in (here: sweeps
-    over the edges, updating in place), each raise is ``_RATIO`` times a value no larger than
-    that solution, so the sweeps end exactly on it.  A raise can require a raise of the
-    sample's own opposite neighbours, each _RATIO smaller, so this ends after a few sweeps
-    (float32's range bounds it by ~40).
+    field the distance to the true surface grows by at most _RATIO of a cell).  The magnitudes
+    (in float64) end as the least solution of ``m[a] >= _RATIO * m[b]`` on every crossing edge
+    above the samples' own, rounded to float32 once: the fixed point of sweeps over all the
+    crossing edges (``tests/support/mesh_reference.py``), whatever the order the raises come in.
     """
-    count = ia.size
-    mag = np.empty(flat.size)  # read only at the samples of crossing edges
-    for e in range(count):
-        mag[ia[e]] = abs(np.float64(flat[ia[e]]))
-        mag[ib[e]] = abs(np.float64(flat[ib[e]]))
-    changed = False
-    for _ in range(_MAX_ROUNDS):
-        grew = False
-        for e in range(count):
-            a, b = ia[e], ib[e]
-            need = _RATIO * mag[b]
-            if need > mag[a]:
-                mag[a] = need
-                grew = True
-            need = _RATIO * mag[a]
-            if need > mag[b]:
-                mag[b] = need
-                grew = True
-        if not grew:
-            break
-        changed = True
-    if changed:
-        for e in range(count):
-            a, b = ia[e], ib[e]
-            m = np.float32(mag[a])
-            flat[a] = -m if ins[a] else m
-            m = np.float32(mag[b])
-            flat[b] = -m if ins[b] else m
-
-
-def _pad_outside(work: np.ndarray) -> np.ndarray:
-    """Surround ``work`` with one layer of outside samples mirroring their box neighbour.
-
-    Mirroring (``|w|`` next to ``w``) puts every crossing towards the pad exactly half a cell
-    outside the box, where it is told apart from the crossings inside and clamped onto the box.
-    """
-    nx, ny, nz = work.shape
-    padded = np.empty((nx + 2, ny + 2, nz + 2), dtype=np.float32)
-    _pad_kernel(work, padded)
-    return padded
+    ta, tb, ma, mb = _tight_edges(offset, p)
+    if ta.size:
+        _raise_from(ta, tb, ma, mb, offset, p)
 
 
 @njit(**KERNEL)
-def _pad_kernel(work, padded):
-    nx, ny, nz = work.shape
-    for i in range(nx + 2):
-        ci = min(max(i - 1, 0), nx - 1)
-        for j in range(ny + 2):
-            cj = min(max(j - 1, 0), ny - 1)
-            border = i == 0 or i == nx + 1 or j == 0 or j == ny + 1
-            for k in range(nz + 2):
-                ck = min(max(k - 1, 0), nz - 1)
-                w = work[ci, cj, ck]
-                if border or k == 0 or k == nz + 1:
-                    w = abs(w)
-                padded[i, j, k] = w
+def _tight_edges(offset, p):
+    """The crossing edges ``(a, b)`` of the grid's samples (``offset``'s from ``p`` on along each
+    axis; ``a``, ``b`` their flat numbers in ``offset``, ``b`` one step after ``a`` along an
+    axis) that break ``|a| >= _RATIO |b|`` or ``|b| >= _RATIO |a|``, with those magnitudes in
+    float64. The edges from a row of samples along the last axis to the next sample, row and
+    plane are tested together (:func:`_tight`) in a run the compiler vectorises, and listed
+    edge by edge (:func:`_list_tight`) only where that run finds one (and on the grid's last
+    row and plane)."""
+    m0, m1, m2 = offset.shape
+    n0, n1, n2 = m0 - 2 * p, m1 - 2 * p, m2 - 2 * p
+    flat = offset.reshape(-1)
+    ta = np.empty(64, dtype=np.int64)
+    tb = np.empty(64, dtype=np.int64)
+    ma = np.empty(64)
+    mb = np.empty(64)
+    m = 0
+    for i in range(n0):
+        for j in range(n1):
+            if i + 1 < n0 and j + 1 < n1:
+                w = offset[i + p, j + p, p : p + n2]
+                u = offset[i + p, j + p + 1, p : p + n2]
+                v = offset[i + p + 1, j + p, p : p + n2]
+                # three flags, each its own run of tests: the form the compiler vectorises
+                along, across, down = 0, 0, 0
+                for k in range(n2 - 1):
+                    along |= np.int64(_tight(w[k], w[k + 1]))
+                    across |= np.int64(_tight(w[k], u[k]))
+                    down |= np.int64(_tight(w[k], v[k]))
+                found = along | across | down
+                found |= np.int64(_tight(w[n2 - 1], u[n2 - 1]) | _tight(w[n2 - 1], v[n2 - 1]))
+                if found == 0:
+                    continue
+            row = ((i + p) * m1 + j + p) * m2 + p
+            m, ta, tb, ma, mb = _list_tight(flat, row, n2, i + 1 < n0, j + 1 < n1, m1 * m2, m2,
+                                            m, ta, tb, ma, mb)  # fmt: skip
+    return ta[:m], tb[:m], ma[:m], mb[:m]
+
+
+@njit(**KERNEL)
+def _list_tight(flat, row, n2, next_plane, next_row, s0, s1, m, ta, tb, ma, mb):
+    """The tight edges from the row of ``n2`` samples starting at flat number ``row`` (to the
+    next sample; to the next row and plane where there is one, ``s1`` and ``s0`` samples on)
+    added to ``ta, tb, ma, mb`` (their first ``m`` entries used): counted, the arrays grown
+    once if need be, then written (an array reassigned inside the loops would cost numba
+    reference counting at every step: ten times the time); returns ``m`` and the arrays."""
+    count = _row_tight(flat, row, n2, next_plane, next_row, s0, s1, -1, ta, tb, ma, mb)
+    if m + count > ta.size:
+        ta = grown(ta, np.int64(m), np.int64(count))
+        tb = grown(tb, np.int64(m), np.int64(count))
+        ma = grown(ma, np.int64(m), np.int64(count))
+        mb = grown(mb, np.int64(m), np.int64(count))
+    _row_tight(flat, row, n2, next_plane, next_row, s0, s1, m, ta, tb, ma, mb)
+    return m + count, ta, tb, ma, mb
+
+
+@njit(**INLINE)
+def _row_tight(flat, row, n2, next_plane, next_row, s0, s1, m, ta, tb, ma, mb):
+    """:func:`_list_tight`'s passes: how many tight edges the row has, written from entry
+    ``m`` on unless ``m`` is -1."""
+    q = max(m, 0)
+    for d in range(3):
+        step = 1 if d == 0 else (s1 if d == 1 else s0)
+        n = n2 - 1 if d == 0 else (n2 if (next_row if d == 1 else next_plane) else 0)
+        for a in range(row, row + n):
+            x, y = flat[a], flat[a + step]
+            if _tight(x, y):
+                if m >= 0:
+                    ta[q], tb[q], ma[q], mb[q] = a, a + step, abs(np.float64(x)), abs(np.float64(y))
+                q += 1
+    return q - max(m, 0)
+
+
+@njit(**INLINE)
+def _tight(x, y):
+    """Whether the edge between offsets ``x`` and ``y`` crosses the level too near a sample
+    (``|x| < _RATIO |y|`` or ``|y| < _RATIO |x|``, in float64), without a branch."""
+    mx, my = abs(np.float64(x)), abs(np.float64(y))
+    return ((x < 0) ^ (y < 0)) & ((_RATIO * my > mx) | (_RATIO * mx > my))
+
+
+@njit(**KERNEL)
+def _raise_from(ta, tb, ma, mb, offset, p):
+    """Raise magnitudes of ``offset`` in place from the crossing edges ``(ta, tb)`` that need
+    it (:func:`_tight_edges`, with their magnitudes ``(ma, mb)``; the grid's samples from ``p`` on
+    along each axis): an edge raises a sample short
+    of it; a raised sample puts its crossing edges to the test again (a worklist, the raised
+    magnitudes in float64: :mod:`~.raise_table`). The raised samples are written once, rounded
+    to float32 with their sign. Returns how many were raised."""
+    m0, m1, m2 = offset.shape
+    flat = offset.reshape(-1)
+    s0 = m1 * m2
+    keys, mags, stack, top, n = new_table(ta.size)
+    for e in range(2 * ta.size):
+        # each edge both ways: a from b, then b from (the raised) a
+        q = e // 2
+        x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
+        hy = find(keys, y)
+        need = _RATIO * (mags[hy] if keys[hy] == y else my)
+        h = find(keys, x)
+        if need <= (mags[h] if keys[h] == x else mx):
+            continue
+        keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
+    while top > 0:
+        top -= 1
+        g = stack[top]
+        i, j, k = g // s0, (g // m2) % m1, g % m2  # in offset: the grid's first sample at p
+        need = _RATIO * mags[find(keys, g)]
+        neg = flat[g] < 0
+        for d in range(6):
+            if d == 0:
+                x = g - s0 if i > p else -1
+            elif d == 1:
+                x = g + s0 if i + 1 < m0 - p else -1
+            elif d == 2:
+                x = g - m2 if j > p else -1
+            elif d == 3:
+                x = g + m2 if j + 1 < m1 - p else -1
+            elif d == 4:
+                x = g - 1 if k > p else -1
+            else:
+                x = g + 1 if k + 1 < m2 - p else -1
+            if x < 0 or (flat[x] < 0) == neg:
+                continue
+            h = find(keys, x)
+            if need <= (mags[h] if keys[h] == x else abs(np.float64(flat[x]))):
+                continue
+            keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
+    for h in range(keys.size):
+        g = keys[h]
+        if g != -1:
+            m = np.float32(mags[h])
+            flat[g] = -m if flat[g] < 0 else m
+    return n
 
 
 @njit(**INLINE)
@@ -236,19 +320,23 @@ def mixed_cells(work):
     (:func:`surfgen.generator.mesh.lewiner_chunks.lewiner_cells`) takes them: their flat
     numbers ``(i * n1 + j) * n2 + k`` in order (skimage's visiting order, ``work`` read as
     ``im[z, y, x]``) and their corners (C, 8) float32 in skimage's order v0..v7. The other
-    cells make no triangle. One pass counts them, a second lists them into arrays of that
-    size (:func:`_list_mixed`)."""
-    count = _list_mixed(work, np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32))
+    cells make no triangle. One pass counts them in each column of cells along the last axis,
+    a second lists those of the columns that have some into arrays of that size
+    (:func:`_list_mixed`)."""
+    n0, n1, n2 = work.shape
+    per = np.zeros((max(n0 - 1, 0), max(n1 - 1, 0)), dtype=np.int64)
+    count = _list_mixed(work, per, np.empty(0, dtype=np.int64), np.empty((0, 8), dtype=np.float32))
     keys = np.empty(count, dtype=np.int64)
     corners = np.empty((count, 8), dtype=np.float32)
-    _list_mixed(work, keys, corners)
+    _list_mixed(work, per, keys, corners)
     return keys, corners
 
 
 @njit(**INLINE)
-def _list_mixed(work, keys, corners):
-    """The number of mixed cells of ``work``, listed into ``keys`` and ``corners`` unless they
-    are empty (the counting pass); the inside counts of a cell's corner columns by
+def _list_mixed(work, per, keys, corners):
+    """The number of mixed cells of ``work``: counted into ``per`` (a column of cells along
+    the last axis each) when ``keys`` is empty, else listed into ``keys`` and ``corners`` from
+    the columns ``per`` counts some in; the inside counts of a cell's corner columns by
     :func:`column_counts`."""
     n0, n1, n2 = work.shape
     one = work.reshape((1, n0, n1, n2))
@@ -257,7 +345,10 @@ def _list_mixed(work, keys, corners):
     q = 0
     for i in range(n0 - 1):
         for j in range(n1 - 1):
+            if write and per[i, j] == 0:
+                continue
             column_counts(one, 0, i, j, n2, col)
+            first = q
             for k in range(n2 - 1):
                 t = col[k] + col[k + 1]
                 mixed = (t != 0) & (t != 8)
@@ -272,4 +363,6 @@ def _list_mixed(work, keys, corners):
                     corners[q, 6] = work[i + 1, j + 1, k + 1]
                     corners[q, 7] = work[i + 1, j + 1, k]
                 q += mixed
+            if not write:
+                per[i, j] = q - first
     return q

@@ -9,7 +9,7 @@ size of the grid or of its crossing edges:
   per-sample rule); a sample is inside exactly when its offset is negative, so no inside mask
   is kept;
 - :func:`scan_bricks`: the mixed cells counted, and the crossing edges that need a raise
-  (:func:`~.marching._raise_magnitudes`' test) listed: usually few;
+  (:func:`~.marching._tight`'s test) listed: usually few;
 - :func:`raise_bricks`: the magnitudes raised from those edges only, sample by sample (a
   worklist), to the dense path's values: the least solution of ``m[a] >= _RATIO m[b]`` over
   the crossing edges, which does not depend on the order the edges are visited in;
@@ -30,6 +30,7 @@ from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, offset_of
+from surfgen.generator.mesh.raise_table import find, new_table, push
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
@@ -205,64 +206,34 @@ def _bits(x):
 # ----------------------------------------------------------------------------- raises
 
 
-@njit(**INLINE)
-def _find(keys, g):
-    """The slot of sample ``g`` in the open-addressing table ``keys`` (-1: empty)."""
-    mask = keys.size - 1
-    h = np.int64((np.uint64(g) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(17)) & mask
-    while keys[h] != -1 and keys[h] != g:
-        h = (h + 1) & mask
-    return h
-
-
-@njit(**KERNEL)
-def _rehash(keys, mags):
-    """The table twice as large, with the same entries."""
-    out_keys = np.full(2 * keys.size, -1, dtype=np.int64)
-    out_mags = np.empty(2 * keys.size)
-    for h in range(keys.size):
-        if keys[h] != -1:
-            q = _find(out_keys, keys[h])
-            out_keys[q] = keys[h]
-            out_mags[q] = mags[h]
-    return out_keys, out_mags
-
-
 @njit(**KERNEL)
 def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
-    """:func:`~.marching._raise_magnitudes` on the bricks, in place, from the crossing edges
+    """:func:`~.marching._raise_from` on the bricks, in place, from the crossing edges
     ``(ta, tb)`` that need a raise, with their samples' magnitudes ``(ma, mb)``
     (:func:`scan_bricks`: the first pass over the edges reads no brick): the magnitudes in float64 end as
     the least solution of ``m[a] >= _RATIO m[b]`` on every crossing edge above the samples'
-    own, the dense path's (its sweeps end on that solution whatever the edges' order).  An
+    own, the dense path's (the least solution, whatever the order the edges come in).  An
     edge raises a sample that is short of it; a raised sample puts its crossing edges (the
     neighbours on the other side that a brick holds: an edge no brick holds lies in an
     unsampled leaf, on one side) to the test again.  The raised samples, rounded to float32
     with their sign, are written to every brick holding them.  Returns how many were raised."""
     s1, s2 = shape[1] * shape[2], shape[2]
-    size = 64
-    while size < 4 * ta.size:
-        size *= 2
-    keys = np.full(size, -1, dtype=np.int64)  # raised samples -> their magnitude
-    mags = np.empty(size)
-    n = 0
-    stack = np.empty(64, dtype=np.int64)
-    top = 0
+    keys, mags, stack, top, n = new_table(ta.size)  # raised samples -> their magnitude
     for e in range(2 * ta.size):
         # each edge both ways: a from b, then b from (the raised) a
         q = e // 2
         x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
-        hy = _find(keys, y)
+        hy = find(keys, y)
         need = _RATIO * (mags[hy] if keys[hy] == y else my)
-        h = _find(keys, x)
+        h = find(keys, x)
         if need <= (mags[h] if keys[h] == x else mx):
             continue
-        keys, mags, stack, top, n = _push(keys, mags, stack, top, n, h, x, need)
+        keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
     while top > 0:
         top -= 1
         g = stack[top]
         i, j, k = g // s1, (g // s2) % shape[1], g % s2
-        need = _RATIO * mags[_find(keys, g)]
+        need = _RATIO * mags[find(keys, g)]
         s0, l0, l1, l2 = locate(slot, block, i, j, k)
         neg = offset[s0, l0, l1, l2] < 0
         for d in range(6):
@@ -289,10 +260,10 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
             if s < 0 or (offset[s, la, lc, lf] < 0) == neg:
                 continue
             x = a * s1 + c * s2 + f
-            h = _find(keys, x)
+            h = find(keys, x)
             if need <= (mags[h] if keys[h] == x else abs(np.float64(offset[s, la, lc, lf]))):
                 continue
-            keys, mags, stack, top, n = _push(keys, mags, stack, top, n, h, x, need)
+            keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
     for h in range(keys.size):
         g = keys[h]
         if g == -1:
@@ -302,23 +273,6 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
         neg = _sample_at(offset, slot, block, i, j, k) < 0
         _write_sample(offset, slot, block, i, j, k, -m if neg else m)
     return n
-
-
-@njit(**INLINE)
-def _push(keys, mags, stack, top, n, h, x, need):
-    """Raise sample ``x`` (slot ``h`` of the table) to ``need`` and put it on the worklist;
-    returns the table (grown when half full), the worklist, its top and the raised count."""
-    if keys[h] != x:
-        keys[h] = x
-        n += 1
-    mags[h] = need
-    if top == stack.size:
-        stack = grown(stack, np.int64(top), _ONE)
-    stack[top] = x
-    top += 1
-    if 2 * n > keys.size:
-        keys, mags = _rehash(keys, mags)
-    return keys, mags, stack, top, n
 
 
 # The raise's lookups (a worklist, nothing to vectorise) are functions of their own rather than

@@ -12,14 +12,14 @@ of the surface reads (the passes over the bricks are in
 2. non-finite samples mirror the deepest inside sample of their 3x3x3 neighbourhood: any two
    points at most one step apart share a leaf block, so that neighbourhood is in sampled bricks
    or in an *outside* leaf (no inside sample);
-3. crossings kept apart (:func:`~surfgen.generator.mesh.marching._raise_magnitudes`' values):
+3. crossings kept apart (:func:`~surfgen.generator.mesh.marching._separate`'s values):
    one pass counts the mixed cells and lists the crossing edges that need a raise, and the
    raises spread from those edges only, sample by sample, to the same least solution; raised
    samples are written to every brick holding them;
 4. the cells whose corners are not all on one side (in sampled leaves only), and with
    ``cap`` the cells of the pad around the box next to inside samples of the box's faces (the
    face leaves are sampled for that: ``evaluate_sparse(..., faces=True)``), with their corners
-   (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._pad_outside`),
+   (the pad mirroring its box neighbour, as :func:`~surfgen.generator.mesh.marching._offsets` pads),
    the pad's cells written among the bricks' where their numbers fall;
 5. skimage's marching cubes on those cells in skimage's order
    (:func:`~surfgen.generator.mesh.lewiner_chunks.lewiner_cells`: the vertices and faces
@@ -273,7 +273,7 @@ def _pad_cells(offset, extent, corner, shape):
 @njit(**KERNEL)
 def _pad_corners(keys, offset, slot, block, shape):
     """Corners (skimage's order) of pad cells: a padded point on the pad takes ``|w|`` of the
-    box sample it clamps to (:func:`~surfgen.generator.mesh.marching._pad_outside`)."""
+    box sample it clamps to (:func:`~surfgen.generator.mesh.marching._pad_border`)."""
     n = keys.size
     p1, p2 = shape[1] + 2, shape[2] + 2
     out = np.empty((n, 8), dtype=np.float32)

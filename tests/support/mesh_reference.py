@@ -13,8 +13,11 @@ from skimage.measure import marching_cubes
 
 from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.grid import Field
-from surfgen.generator.mesh.marching import _CLIP, _MAX_ROUNDS, _RATIO, _TINY, SEPARATION
+from surfgen.generator.mesh.marching import _CLIP, _RATIO, _TINY, SEPARATION
 from surfgen.generator.mesh.mesh import Mesh, _empty_message
+
+# the sweeps over the crossing edges at most (the fixed point is reached long before)
+_MAX_ROUNDS = 200
 
 
 def skimage_mask(work: np.ndarray) -> np.ndarray:

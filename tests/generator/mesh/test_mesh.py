@@ -398,5 +398,5 @@ def test_separation_sweeps_reach_the_numpy_rounds_fixed_point():
         offset *= rng.choice(np.array([-1, 1], dtype=np.float32), size=offset.shape)
         want = reference_separate(offset.copy())
         got = offset.copy()
-        _separate(got, got < 0)
+        _separate(got)
         assert got.tobytes() == want.tobytes()
