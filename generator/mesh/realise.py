@@ -33,10 +33,9 @@ from surfgen.generator.model.spec import SurfaceSpec
 
 #: ``auto`` meshes grids of at least this many points sparsely, whatever share of them its
 #: bounds leave to sample (``benchmarks/bench_auto.py``, docs/performance: the sparse path was
-#: faster for 10 of 22 shapes at 96^3, 14 at 128^3, 20 at 160^3 and 21 at 192^3 and 256^3, the
-#: shapes whose bounds leave more than half of the grid to sample included: its meshing runs on
-#: every core and skips the leaves one side holds; the one slower at 256^3 is a formula costly
-#: to evaluate, of which it samples 1.16 times the grid's points).
+#: faster for 2 of 22 shapes at 96^3, 8 at 128^3, 13 at 160^3, 16 at 192^3 and 19 at 256^3, and
+#: for each of seven shapes whose bounds leave more than half of a 512^3 grid to sample, by
+#: 1.3-3.6x: its meshing runs on every core and skips the leaves one side holds).
 AUTO_SPARSE_FROM = 160**3
 
 #: The names :func:`realise` takes for ``evaluator``: ``dense`` is ``fast`` (every grid point).
