@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.raise_table import find, new_table, push
+from surfgen.generator.mesh.raise_table import find, push, seeded
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
@@ -256,17 +256,7 @@ def _raise_from(ta, tb, ma, mb, offset, p):
     m0, m1, m2 = offset.shape
     flat = offset.reshape(-1)
     s0 = m1 * m2
-    keys, mags, stack, top, n = new_table(ta.size)
-    for e in range(2 * ta.size):
-        # each edge both ways: a from b, then b from (the raised) a
-        q = e // 2
-        x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
-        hy = find(keys, y)
-        need = _RATIO * (mags[hy] if keys[hy] == y else my)
-        h = find(keys, x)
-        if need <= (mags[h] if keys[h] == x else mx):
-            continue
-        keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
+    keys, mags, stack, top, n = seeded(ta, tb, ma, mb, _RATIO)  # raised samples -> magnitudes
     while top > 0:
         top -= 1
         g = stack[top]

@@ -20,7 +20,27 @@ _ONE = np.int64(1)  # room the worklist needs for its next entry (an int64, not 
 
 
 @njit(**INLINE)
-def new_table(count):
+def seeded(ta, tb, ma, mb, ratio):
+    """The table and worklist after the crossing edges ``(ta, tb)`` that need a raise, with
+    their samples' magnitudes ``(ma, mb)``, each tried both ways: a sample short of ``ratio``
+    times the other's magnitude (the other's raised one where it was raised) is raised to it.
+    Returns ``keys, mags, stack, top, n`` (:func:`push`)."""
+    keys, mags, stack, top, n = _new_table(ta.size)
+    for e in range(2 * ta.size):
+        # each edge both ways: a from b, then b from (the raised) a
+        q = e // 2
+        x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
+        hy = find(keys, y)
+        need = ratio * (mags[hy] if keys[hy] == y else my)
+        h = find(keys, x)
+        if need <= (mags[h] if keys[h] == x else mx):
+            continue
+        keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
+    return keys, mags, stack, top, n
+
+
+@njit(**INLINE)
+def _new_table(count):
     """An empty table with room for ``count`` entries at most a quarter full, and an empty
     worklist: ``keys, mags, stack, top, n`` (``n``: the entries)."""
     size = 64

@@ -30,7 +30,7 @@ from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, offset_of
-from surfgen.generator.mesh.raise_table import find, new_table, push
+from surfgen.generator.mesh.raise_table import find, push, seeded
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
@@ -218,17 +218,7 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
     unsampled leaf, on one side) to the test again.  The raised samples, rounded to float32
     with their sign, are written to every brick holding them.  Returns how many were raised."""
     s1, s2 = shape[1] * shape[2], shape[2]
-    keys, mags, stack, top, n = new_table(ta.size)  # raised samples -> their magnitude
-    for e in range(2 * ta.size):
-        # each edge both ways: a from b, then b from (the raised) a
-        q = e // 2
-        x, y, mx, my = (ta[q], tb[q], ma[q], mb[q]) if e % 2 == 0 else (tb[q], ta[q], mb[q], ma[q])
-        hy = find(keys, y)
-        need = _RATIO * (mags[hy] if keys[hy] == y else my)
-        h = find(keys, x)
-        if need <= (mags[h] if keys[h] == x else mx):
-            continue
-        keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
+    keys, mags, stack, top, n = seeded(ta, tb, ma, mb, _RATIO)  # raised samples -> magnitudes
     while top > 0:
         top -= 1
         g = stack[top]
