@@ -1,8 +1,10 @@
 """Marching cubes' kernels for :func:`surfgen.generator.mesh.mesh.extract_with_edges`.
 
-The signs fixed in float64 (:func:`_offsets`), the crossings kept apart (:func:`_separate`), the
-cap's pad and the cells marching cubes visits: each one numba pass (the placement and merging
-of its vertices are in :mod:`~surfgen.generator.mesh.placement`).
+The signs fixed in float64 and written into the cap's padded array (:func:`_offsets`), the
+crossings kept apart (:func:`_separate`: a pass over the edges, then a worklist from the few
+that need it) and the cells marching cubes visits: nothing the size of the grid beside the
+offsets (the placement and merging of its vertices are in
+:mod:`~surfgen.generator.mesh.placement`).
 :mod:`surfgen.generator.mesh.mesh` calls them in order.
 """
 
@@ -27,7 +29,6 @@ _TINY = np.float32(np.finfo(np.float32).smallest_normal)
 # geometric error it allows is at most 1 % of a cell.
 SEPARATION = 0.01
 _RATIO = SEPARATION / (1.0 - SEPARATION) * 1.001  # |a| >= _RATIO |b| gives t >= SEPARATION
-_ONE = np.int64(1)  # room a growing list needs for its next entry (an int64, not a literal)
 
 
 _CLIP64 = float(_CLIP)  # np.clip of float64 values against the float32 bound compares in float64
@@ -145,9 +146,9 @@ def _mirror_nonfinite(values, offset, p):
 
 def _separate(offset: np.ndarray, p: int = 0) -> None:
     """Keep every crossing SEPARATION of its edge from both samples of ``offset`` (the grid's
-    samples from ``p`` on along each axis: the pad around them comes after), in place: the crossing
-    edges that break it listed (:func:`_tight_edges`: usually few), and the magnitudes raised
-    from there (:func:`_raise_from`).
+    samples from ``p`` on along each axis: the pad around them comes after), in place: the
+    crossing edges that break it listed (:func:`_tight_edges`: usually few), and the
+    magnitudes raised from there (:func:`_raise_from`).
 
     Marching cubes puts the crossing of edge (a, b) at ``t = a / (a - b)``; a sample at or near
     the level next to a large opposite value (staircase plateaus at the level, exact zeros,
@@ -248,11 +249,11 @@ def _tight(x, y):
 @njit(**KERNEL)
 def _raise_from(ta, tb, ma, mb, offset, p):
     """Raise magnitudes of ``offset`` in place from the crossing edges ``(ta, tb)`` that need
-    it (:func:`_tight_edges`, with their magnitudes ``(ma, mb)``; the grid's samples from ``p`` on
-    along each axis): an edge raises a sample short
-    of it; a raised sample puts its crossing edges to the test again (a worklist, the raised
-    magnitudes in float64: :mod:`~.raise_table`). The raised samples are written once, rounded
-    to float32 with their sign. Returns how many were raised."""
+    it (:func:`_tight_edges`, with their magnitudes ``(ma, mb)``; the grid's samples from ``p``
+    on along each axis): an edge raises a sample short of it; a raised sample puts its
+    crossing edges to the test again (a worklist, the raised magnitudes in float64:
+    :mod:`~.raise_table`). The raised samples are written once, rounded to float32 with their
+    sign. Returns how many were raised."""
     m0, m1, m2 = offset.shape
     flat = offset.reshape(-1)
     s0 = m1 * m2

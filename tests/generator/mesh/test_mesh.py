@@ -387,6 +387,36 @@ def test_fast_path_on_random_fields_is_the_numpy_reference():
         assert_same_extraction(Field(grid, values), float(rng.choice([0.0, 0.5])), trial % 2 == 1)
 
 
+def test_tight_edges_are_every_crossing_edge_too_near_a_sample():
+    """The dense scan lists exactly the crossing edges that break the separation (compared to
+    numpy's shifted arrays), on the grid's samples only when the array has a pad around them,
+    the last row and plane included."""
+    from surfgen.generator.mesh.marching import _RATIO, _tight_edges
+
+    rng = np.random.default_rng(11)
+    for shape in [(2, 2, 2), (3, 5, 4), (7, 6, 9), (12, 3, 17)]:
+        offset = (10.0 ** rng.uniform(-6, 3, size=shape)).astype(np.float32)
+        offset *= rng.choice(np.array([-1, 1], dtype=np.float32), size=shape)
+        for p in (0, 1):
+            padded = np.full(tuple(n + 2 * p for n in shape), np.float32(-7.0))  # never listed
+            padded[tuple(slice(p, p + n) for n in shape)] = offset
+            want = set()
+            index = np.arange(padded.size).reshape(padded.shape)
+            inner = index[tuple(slice(p, p + n) for n in shape)]
+            for axis in range(3):
+                a = np.moveaxis(inner, axis, 0)[:-1].ravel()
+                b = np.moveaxis(inner, axis, 0)[1:].ravel()
+                x = np.abs(padded.ravel()[a].astype(np.float64))
+                y = np.abs(padded.ravel()[b].astype(np.float64))
+                crossing = (padded.ravel()[a] < 0) != (padded.ravel()[b] < 0)
+                tight = crossing & ((_RATIO * y > x) | (_RATIO * x > y))
+                want |= set(zip(a[tight].tolist(), b[tight].tolist(), strict=True))
+            ta, tb, ma, mb = _tight_edges(padded, p)
+            assert set(zip(ta.tolist(), tb.tolist(), strict=True)) == want and len(ta) == len(want)
+            flat = padded.ravel().astype(np.float64)
+            assert np.array_equal(ma, np.abs(flat[ta])) and np.array_equal(mb, np.abs(flat[tb]))
+
+
 def test_separation_sweeps_reach_the_numpy_rounds_fixed_point():
     # Chains of raises over many rounds: magnitudes spread over 60 decades along lines.
     from surfgen.generator.mesh.marching import _separate
