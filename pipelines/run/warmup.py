@@ -317,6 +317,18 @@ def _warm_mesh(field, tree, walls: str = "keep"):
     return mesh
 
 
+def _doctored(values: np.ndarray) -> np.ndarray:
+    """A copy of the tiny shape's samples with a crossing a hair from its sample (raised off
+    it: the crossings' raises) and a non-finite sample beside the surface (mirrored)."""
+    values = values.copy()
+    inside = values < 0
+    i, j, k = np.argwhere(inside[:, :, :-1] & ~inside[:, :, 1:])[0]
+    values[i, j, k + 1] = 1e-12  # a crossing a hair from its sample
+    i, j, k = np.argwhere(~inside[:, :, :-1] & inside[:, :, 1:])[-1]
+    values[i, j, k] = np.nan  # a non-finite sample beside the surface
+    return values
+
+
 def _warm_sparse_marching() -> None:
     """The resolution check's sparse marching (:mod:`surfgen.generator.mesh.sparse_marching`)
     on the tiny shape's field as one brick per leaf, with a non-finite sample beside the
@@ -334,12 +346,7 @@ def _warm_sparse_marching() -> None:
     from surfgen.generator.mesh.sparse_marching import extract_sparse
 
     _, _, field = _tiny_shape("reference")
-    values = field.values.copy()
-    inside = values < 0
-    i, j, k = np.argwhere(inside[:, :, :-1] & ~inside[:, :, 1:])[0]
-    values[i, j, k + 1] = 1e-12  # a crossing a hair from its sample
-    i, j, k = np.argwhere(~inside[:, :, :-1] & inside[:, :, 1:])[-1]
-    values[i, j, k] = np.nan  # a non-finite sample beside the surface
+    values = _doctored(field.values)
     state = np.full(leaf_counts(field.grid), SAMPLED, dtype=np.int8)
     _, slot, corner, extent = brick_layout(state, field.grid, BLOCK)
     bricks = np.full((len(corner),) + (BLOCK + 1,) * 3, np.nan)
@@ -410,8 +417,9 @@ def _warm_carving(field) -> None:
 
 def _warm_rare_mesh(field) -> None:
     """The mesh kernels only some shapes run: vertices of one grid edge given one index (a
-    crossing on a box edge of a capped shape, an ambiguous cell), and non-finite samples (a
-    pole on a sample) given an offset from their neighbours; the warm ball has neither."""
+    crossing on a box edge of a capped shape, an ambiguous cell), non-finite samples (a pole
+    on a sample) given an offset from their neighbours, and a crossing a hair from its sample
+    raised off it (the dense path's raises run only then); the warm ball has none of them."""
     from surfgen.generator.mesh.mesh import extract_with_edges
     from surfgen.generator.mesh.placement import merge_same
 
@@ -421,6 +429,6 @@ def _warm_rare_mesh(field) -> None:
         np.full((3, 4), -1, dtype=np.int64),
         np.arange(3),
     )
-    holed = field.values.copy()
+    holed = _doctored(field.values)
     holed[7, 7, 7] = np.nan
     extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's
