@@ -34,8 +34,9 @@ from surfgen.generator.model.spec import SurfaceSpec
 #: ``auto`` meshes grids of at least this many points sparsely, whatever share of them its
 #: bounds leave to sample (``benchmarks/bench_auto.py``, docs/performance: the sparse path was
 #: faster for 2 of 22 shapes at 96^3, 8 at 128^3, 13 at 160^3, 16 at 192^3 and 19 at 256^3, and
-#: for each of seven shapes whose bounds leave more than half of a 512^3 grid to sample, by
-#: 1.3-3.6x: its meshing runs on every core and skips the leaves one side holds).
+#: for 6 of 7 shapes whose bounds leave more than half of a 512^3 grid to sample, by 1.0-2.5x
+#: (the seventh, a long formula, 0.94x): its meshing runs on every core and skips the leaves
+#: one side holds).
 AUTO_SPARSE_FROM = 160**3
 
 #: The names :func:`realise` takes for ``evaluator``: ``dense`` is ``fast`` (every grid point).
