@@ -241,9 +241,16 @@ def _row_tight(flat, row, n2, next_plane, next_row, s0, s1, m, ta, tb, ma, mb):
 @njit(**INLINE)
 def _tight(x, y):
     """Whether the edge between offsets ``x`` and ``y`` crosses the level too near a sample
-    (``|x| < _RATIO |y|`` or ``|y| < _RATIO |x|``, in float64), without a branch."""
-    mx, my = abs(np.float64(x)), abs(np.float64(y))
-    return ((x < 0) ^ (y < 0)) & ((_RATIO * my > mx) | (_RATIO * mx > my))
+    (:func:`too_near`), without a branch."""
+    return ((x < 0) ^ (y < 0)) & too_near(abs(np.float64(x)), abs(np.float64(y)))
+
+
+@njit(**INLINE)
+def too_near(mx, my):
+    """Whether a crossing between samples of magnitudes ``mx`` and ``my`` (float64) lies too
+    near one of them: ``mx < _RATIO my`` or ``my < _RATIO mx`` (the raises' test, dense and
+    sparse)."""
+    return (_RATIO * my > mx) | (_RATIO * mx > my)
 
 
 @njit(**KERNEL)

@@ -9,7 +9,7 @@ size of the grid or of its crossing edges:
   per-sample rule); a sample is inside exactly when its offset is negative, so no inside mask
   is kept;
 - :func:`scan_bricks`: the mixed cells counted, and the crossing edges that need a raise
-  (:func:`~.marching._tight`'s test) listed: usually few;
+  (:func:`~.marching.too_near`) listed: usually few;
 - :func:`raise_bricks`: the magnitudes raised from those edges only, sample by sample (a
   worklist), to the dense path's values: the least solution of ``m[a] >= _RATIO m[b]`` over
   the crossing edges, which does not depend on the order the edges are visited in;
@@ -29,7 +29,7 @@ from numba import njit
 from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.marching import _RATIO, offset_of
+from surfgen.generator.mesh.marching import _RATIO, offset_of, too_near
 from surfgen.generator.mesh.raise_table import find, push, seeded
 from surfgen.generator.mesh.sparse_lewiner import grown
 
@@ -87,13 +87,6 @@ def _offsets_of(values, extent, level, offset, b0, b1):
                         bad += np.int64(not np.isfinite(values[b, i, j, k]))
         n_bad += bad
     return n_bad
-
-
-@njit(**INLINE)
-def _tight(ma, b):
-    """Whether an edge with magnitudes ``ma`` and ``|b|`` needs a raise."""
-    mb = abs(np.float64(b))
-    return _RATIO * mb > ma or _RATIO * ma > mb
 
 
 def scan_bricks(offset, extent, corner, shape, threads: int = 1):
@@ -163,7 +156,7 @@ def _scan(offset, extent, corner, shape, per, b0, b1):
                             cross, o, step = cy, offset[b, i, j + 1, k], s2
                         else:
                             cross, o, step = cz, offset[b, i, j, k + 1], 1
-                        if not (cross >> k) & 1 or not _tight(here, o):
+                        if not (cross >> k) & 1 or not too_near(here, abs(np.float64(o))):
                             continue
                         if m == ta.size:
                             ta = grown(ta, np.int64(m), _ONE)
