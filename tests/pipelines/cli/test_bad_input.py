@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import builtins
 import errno
 import hashlib
 import json
@@ -11,74 +12,17 @@ from pathlib import Path
 
 import pytest
 
-from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator import files
 from surfgen.generator.formula import limits
-from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import extract_mesh
-from surfgen.generator.model.spec import SurfaceSpec
-from surfgen.pipelines.catalogue.store import open_catalogue
+from surfgen.pipelines.catalogue.store import SCHEMA
 from surfgen.pipelines.cli.main import main
-from tests.support.catalogues import catalogue_shapes
-
-SHAPES = {"sphere": ("x^2+y^2+z^2-1", 1.5), "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6)}
-
-
-def snapshot(root: Path) -> dict[str, str]:
-    """Every file under ``root`` and the hash of its bytes."""
-    return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*"))
-        if p.is_file()
-    }
-
-
-def refused(args: list[str], capsys, message: str, watch: Path | None = None) -> str:
-    """Run ``surfgen args``: non-zero, one line naming ``message``, nothing written in ``watch``."""
-    before = snapshot(watch) if watch is not None else None
-    rc = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    lines = err.strip().splitlines()
-    assert rc != 0, (out, err)
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    assert "Traceback" not in err and message in lines[0], lines[0]
-    assert len(lines[0]) < 2100
-    if watch is not None:
-        assert snapshot(watch) == before
-    return lines[0]
+from tests.support.bad_input import bad_input_catalogue, corrupt, refused, snapshot
 
 
 @pytest.fixture(scope="module")
 def template(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     """Two accepted shapes, one draw the filters rejected and one whose worker crashed."""
-    root = tmp_path_factory.mktemp("bad") / "cat"
-    specs = {
-        name: SurfaceSpec(f, (-h, h) * 3, (24,) * 3, provenance={"index": i})
-        for i, (name, (f, h)) in enumerate(SHAPES.items())
-    }
-    items = [
-        (s, extract_mesh(evaluate_reference(parse(s.formula), s.to_grid()), 0.0))
-        for s in specs.values()
-    ]
-    keys = dict(zip(specs, catalogue_shapes(root, items, seed=3, grid=24), strict=True))
-    rejected = SurfaceSpec("x^2+y^2+z^2-0.5", (-1, 1) * 3, (24,) * 3, provenance={"index": 2})
-    crashed = SurfaceSpec(
-        "x+y+z", (-1, 1) * 3, (24,) * 3, provenance={"index": 3, "failed": "crashed"}
-    )
-    with open_catalogue(root) as cat:
-        for i, (spec, reason) in enumerate([(rejected, "blob"), (crashed, "crashed")], start=2):
-            row = {
-                "key": spec.key,
-                "spec": spec.to_json(),
-                "formula": spec.formula,
-                "identity": spec.identity,
-                "verdict": "rejected",
-                "reasons": json.dumps([reason]),
-                "metrics": "{}",
-            }
-            cat.record_shape(1, i, row, False, {reason: 1})
-            keys[reason] = spec.key
-        cat.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
-    return root, keys
+    return bad_input_catalogue(tmp_path_factory.mktemp("bad") / "cat")
 
 
 # ----------------------------------------------------------------------------- 1. depth and size
@@ -285,10 +229,6 @@ def test_config_field_types(toml: str, message: str, tmp_path: Path, capsys) -> 
 
 def fail_writes(monkeypatch, fragment: str, code: int, text: str) -> None:
     """Make writing any file whose name contains ``fragment`` fail with ``code``."""
-    import builtins
-
-    import surfgen.generator.files as files
-
     real = builtins.open
 
     def fake_open(file, mode="r", *args, **kwargs):
@@ -367,17 +307,6 @@ def test_a_foreign_sqlite_file_is_never_modified(command, wal, tmp_path: Path, c
     args = [*command, root] if command[-1] == "--out" else [*command, "-C", root]
     refused(args, capsys, "is not a surfgen catalogue", root)
     assert sorted(p.name for p in root.iterdir()) == ["catalogue.sqlite"]  # no -wal, no -shm
-
-
-def corrupt(root: Path) -> None:
-    """Overwrite every page but the first with noise (a disk that lost sectors)."""
-    db = root / "catalogue.sqlite"
-    data = bytearray(db.read_bytes())
-    page = int.from_bytes(data[16:18], "big")
-    noise = hashlib.sha256(b"noise").digest() * (page // 32)
-    for start in range(page, len(data), page):
-        data[start : start + page] = noise
-    db.write_bytes(bytes(data))
 
 
 @pytest.mark.parametrize(
@@ -539,94 +468,10 @@ def test_render_from_a_rejected_or_failed_draw(template, tmp_path, capsys) -> No
     assert out.is_file()
 
 
-# ----------------------------------------------------------------------------- the web API
-
-
-def curation_rows(root: Path) -> list[tuple]:
-    con = sqlite3.connect(f"file:{root / 'catalogue.sqlite'}?mode=ro", uri=True)
-    rows = con.execute("SELECT key, action, value FROM curation").fetchall()
-    rows += con.execute("SELECT key, stars, note, user_rejected FROM shapes").fetchall()
-    con.close()
-    return rows
-
-
-@pytest.mark.parametrize(
-    ("action", "body", "status", "message"),
-    [
-        ("tag", {"tags": 5}, 400, "'tags' must be a text or a list"),
-        ("tag", {"tags": {"a": 1}}, 400, "'tags' must be"),
-        ("tag", {"tags": [None]}, 400, "'tags' must be"),
-        ("tag", {"tags": ["ok"] * 500}, 400, "at most 50"),
-        ("note", {"note": {"text": "x"}}, 400, "'note' must be text"),
-        ("note", {"note": "x" * 20_000}, 400, "too long"),
-        ("reject", {"why": ["x"]}, 400, "'why' must be text"),
-        ("reject", {"why": None}, 400, "'why' must be given"),
-        ("star", {"stars": "3"}, 400, "'stars' must be a whole number from 0 to 5"),
-        ("star", {"stars": 2.5}, 400, "'stars' must be"),
-        ("star", {"stars": True}, 400, "'stars' must be"),
-        ("star", {"stars": 10**30}, 400, "'stars' must be"),
-        ("star", {"stars": 1, "extra": 2}, 400, "unknown field 'extra'"),
-        ("note", {"note": [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[["x"]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]}, 400, "nests more than"),
-        ("note", {"note": "x" * (2 << 20)}, 413, "larger than"),
-    ],
-)  # fmt: skip
-def test_api_validates_bodies(cat_dir, template, action, body, status, message) -> None:
-    from surfgen.pipelines.web.app import create_app
-
-    key = template[1]["torus"]
-    before = curation_rows(cat_dir)
-    client = create_app(cat_dir).test_client()
-    res = client.post(f"/api/shapes/{key}/{action}", json=body)
-    assert res.status_code == status, res.get_data(as_text=True)[:200]
-    assert message in res.get_json()["error"]
-    assert curation_rows(cat_dir) == before  # nothing stored
-
-
-def test_api_query_and_export_limits(cat_dir, template) -> None:
-    import io
-    import zipfile
-
-    from surfgen.pipelines.web.app import create_app
-
-    keys = template[1]
-    client = create_app(cat_dir).test_client()
-    for query, message in [
-        ({"limit": str(10**30)}, "'limit' must be a whole number"),
-        ({"limit": "-1"}, "'limit' must be"),
-        ({"limit": "x"}, "'limit' must be"),
-        ({"where": "genus = 1 or " * 2000 + "genus = 1"}, "too long"),
-        ({"where": "(" * 60 + "genus = 1" + ")" * 60}, "nested"),
-        ({"sort": "genus," * 100}, "at most"),
-        ({"all": "maybe"}, "'all' must be 1 or 0"),
-    ]:
-        res = client.get("/api/shapes", query_string=query)
-        assert res.status_code == 400 and message in res.get_json()["error"], query
-    # a key repeated 2,000 times is one shape; too many distinct keys are refused
-    res = client.post("/api/export", data={"keys": ",".join([keys["torus"]] * 2000)})
-    assert res.status_code == 200
-    names = zipfile.ZipFile(io.BytesIO(res.data)).namelist()
-    assert names.count(f"meshes/{keys['torus']}.ply") == 1
-    many = ",".join(f"{i:016x}" for i in range(600))
-    res = client.post("/api/export", data={"keys": many})
-    assert res.status_code == 400 and "at most 500" in res.get_json()["error"]
-    res = client.post("/api/export", data={"keys": "../../etc/passwd"})
-    assert res.status_code == 400 and "not a shape key" in res.get_json()["error"]
-    res = client.post("/api/export", data={"keys": "x" * (1 << 20)})
-    assert res.status_code == 413
-
-
-def test_api_on_a_corrupted_catalogue_refuses_to_start(cat_dir) -> None:
-    from surfgen.pipelines.catalogue.store import CatalogueError
-    from surfgen.pipelines.web.app import create_app
-
-    corrupt(cat_dir)
-    with pytest.raises(CatalogueError, match="catalogue check"):
-        create_app(cat_dir)
+# ----------------------------------------------------------------------------- 9. old catalogues
 
 
 def test_a_catalogue_from_before_the_schema_row_is_recognised(tmp_path: Path, capsys) -> None:
-    from surfgen.pipelines.catalogue.store import SCHEMA
-
     root = tmp_path / "old"
     root.mkdir()
     con = sqlite3.connect(root / "catalogue.sqlite")
