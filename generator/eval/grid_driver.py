@@ -415,45 +415,128 @@ def tile_for(n, tile_max):
     return max(1, -(-n // pieces))
 
 
+#: What a column's grid costs beside its points, in points: its x, y, z and yz blocks and, per x
+#: index, the xy and xz rows and a dispatch of the xyz block's code (about 14 us against 2.3 ns
+#: a point for sculpture-1's program on a Zen 5). 4096 measured best or near it at 512^3 over
+#: the presets and draws of every family (against 0, 1024, 2048 and 8192: the performance log,
+#: 2026-12-06 (20)).
+COLUMN_COST_POINTS = 4096
+#: The most points a group's grid takes (its values: 512 KiB a thread, beside its yz store):
+#: as fast as groups without a bound at 512^3 (larger ones only where every leaf is sampled,
+#: where a column's cost is small beside its points anyway).
+GROUP_POINTS = 1 << 16
+
+
+@njit(**KERNEL)
+def column_groups(members, corner, extent, cost_points, max_points):
+    """The runs of ``members`` (ordered by corner, x then y then z) that :func:`run_columns`
+    evaluates as one grid each, ``(G, 2)`` member ranges: a run of columns (members with the
+    same x and y corner) with the same x points, each starting at most one point past the y
+    points of the ones before, merged while the grid of their union (their x points, the y
+    points from the first to the last, the union of their z points) costs less than the grids
+    apart, each ``cost_points`` beside its points."""
+    n = members.size
+    groups = np.empty((n, 2), dtype=np.int64)
+    top = 0
+    for q in range(n):
+        top = max(top, corner[members[q], 2] + extent[members[q], 2])
+    in_group = np.zeros(top, dtype=np.int64)  # the group (+1) a z point was taken by
+    in_column = np.zeros(top, dtype=np.int64)  # the column (its first member, +1)
+    g = 0
+    q = 0
+    while q < n:
+        b = members[q]
+        x0, y0, nx = corner[b, 0], corner[b, 1], extent[b, 0]
+        y1 = y0 + extent[b, 1]
+        start = q
+        nz = 0  # the group's z points
+        while q < n and corner[members[q], 0] == x0 and corner[members[q], 1] == y0:
+            m = members[q]
+            for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
+                if in_group[k] != g + 1:
+                    in_group[k] = g + 1
+                    nz += 1
+            q += 1
+        cost = cost_points + nx * (y1 - y0) * nz  # of the group's columns, each apart
+        while q < n:  # the next column, merged where that costs less
+            c = members[q]
+            if corner[c, 0] != x0 or extent[c, 0] != nx or corner[c, 1] > y1:
+                break
+            cy, cy1 = corner[c, 1], corner[c, 1] + extent[c, 1]
+            r = q
+            own = new = 0  # its z points, and those the group does not have yet
+            while r < n and corner[members[r], 0] == x0 and corner[members[r], 1] == cy:
+                m = members[r]
+                for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
+                    if in_column[k] != q + 1:
+                        in_column[k] = q + 1
+                        own += 1
+                        new += in_group[k] != g + 1
+                r += 1
+            apart = cost + cost_points + nx * (cy1 - cy) * own
+            merged = cost_points + nx * (max(y1, cy1) - y0) * (nz + new)
+            if merged > apart or merged - cost_points > max_points:
+                break
+            for p in range(q, r):
+                m = members[p]
+                for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
+                    in_group[k] = g + 1
+            cost, y1, nz, q = merged, max(y1, cy1), nz + new, r
+        groups[g, 0] = start
+        groups[g, 1] = q
+        g += 1
+    return groups[:g].copy()
+
+
 @njit(**KERNEL)
 def run_columns(prog, prog_rows, tile_max, ax, ay, az, cols, members, corner, extent, values):
-    """Evaluate bricks column by column, each column as a grid of its own: the bricks
-    ``members[cols[c, 0]:cols[c, 1]]`` share their x and y points (``corner``, ``extent``) and
-    are ordered by their first z index; the grid runs once on the union of their z points (with ``prog_rows``, the program for tiles of several rows, where
-    the tile holds two runs), and each brick's points are copied to ``values[brick]``. One
-    call for many columns: no Python between them (the sparse evaluator's bricks)."""
+    """Evaluate bricks group by group, each group as a grid of its own: the bricks
+    ``members[cols[c, 0]:cols[c, 1]]`` (:func:`column_groups`) share their x points and are
+    ordered by y then z corner; the grid runs once on their x points, the y points from the
+    first brick's to the last one's, and the union of their z points (with ``prog_rows``, the
+    program for tiles of several rows, where the tile holds two runs), and each brick's points
+    are copied to ``values[brick]``. One call for many groups: no Python between them (the
+    sparse evaluator's bricks)."""
     zs = np.empty(az.size, dtype=np.int64)
+    at = np.full(az.size, -1, dtype=np.int64)  # a z index's place in zs, or -1
     no_profile = np.empty(0)
     # int64 values, not literal constants: run_grid is then the grid evaluator's own compile
     # (literal arguments would make numba compile it a second time for them)
     whole, unused = np.int64(GRID_ALL), np.int64(0)
     for c in range(cols.shape[0]):
         m0, m1 = cols[c, 0], cols[c, 1]
-        nz = 0
-        end = 0  # one past the last z index taken
-        for q in range(m0, m1):
-            b = members[q]
-            for k in range(max(corner[b, 2], end), corner[b, 2] + extent[b, 2]):
-                zs[nz] = k
-                nz += 1
-            end = max(end, corner[b, 2] + extent[b, 2])
         first = members[m0]
         i0, j0 = corner[first, 0], corner[first, 1]
-        ni, nj = extent[first, 0], extent[first, 1]
+        ni = extent[first, 0]
+        j1, lo, hi = j0, az.size, 0
+        for q in range(m0, m1):  # the union of the members' z points (marked), their y span
+            b = members[q]
+            j1 = max(j1, corner[b, 1] + extent[b, 1])
+            lo, hi = min(lo, corner[b, 2]), max(hi, corner[b, 2] + extent[b, 2])
+            for k in range(corner[b, 2], corner[b, 2] + extent[b, 2]):
+                at[k] = 0
+        nz = 0
+        for k in range(lo, hi):  # in order, each with its place
+            if at[k] == 0:
+                zs[nz] = k
+                at[k] = nz
+                nz += 1
+        nj = j1 - j0
         cz = np.empty(nz)
         for q in range(nz):
             cz[q] = az[zs[q]]
         tile = tile_for(nz, tile_max)
         prog_c = prog_rows if tile >= 2 * nz else prog
-        sx, sy, sz, syz = grid_stores(prog_c[5], ax[i0 : i0 + ni], ay[j0 : j0 + nj], cz)
+        sx, sy, sz, syz = grid_stores(prog_c[5], ax[i0 : i0 + ni], ay[j0:j1], cz)
         out = np.empty((ni, nj, nz))
         run_grid(prog_c, tile, sx, sy, sz, syz, out, no_profile, whole, unused, unused)
-        w = 0
         for q in range(m0, m1):
             b = members[q]
-            while zs[w] < corner[b, 2]:
-                w += 1
+            w = at[corner[b, 2]]
+            jo = corner[b, 1] - j0
             for i in range(ni):
-                for j in range(nj):
+                for j in range(extent[b, 1]):
                     for k in range(extent[b, 2]):
-                        values[b, i, j, k] = out[i, j, w + k]
+                        values[b, i, j, k] = out[i, jo + j, w + k]
+        for q in range(nz):
+            at[zs[q]] = -1

@@ -72,11 +72,14 @@ def test_the_tile_length_follows_the_cpu():
 
 @pytest.mark.parametrize("tile_max", [8, 24, 1024])
 @pytest.mark.parametrize("threads", [1, 2])
-def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
-    # The sparse evaluator's bricks, column by column in one kernel call per thread
-    # (tape.evaluate_columns): each brick holds the dense grid's values, bit for bit, whether
-    # its column's z run fits a tile twice (several rows to a tile) or not, with gaps in z.
+@pytest.mark.parametrize("cost", [0, 4096, 10**12], ids=["grouped", "default", "apart"])
+def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads, cost):
+    # The sparse evaluator's bricks, a group of columns at a time in one kernel call per
+    # thread (tape.evaluate_columns): each brick holds the dense grid's values, bit for bit,
+    # whether its group's z run fits a tile twice (several rows to a tile) or not, with gaps
+    # in z, whether the columns are grouped (as many as lose no point, the default's, or none)
     monkeypatch.setattr(fast, "TILE_MAX", tile_max)
+    monkeypatch.setattr(grid_driver, "COLUMN_COST_POINTS", cost)
     tree = parse("sin(x*y)*z+cos(y)*z^2+atan2(x*y,z)+tan(x*z+y*z)")
     program = compile_tree(tree)
     grid = Grid(Box((-2.0, -1.5, -2.5), (2.0, 1.0, 3.0)), (17, 13, 45))
@@ -93,6 +96,53 @@ def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads):
         got = values[b, : e[0], : e[1], : e[2]]
         assert_identical(got, want[c[0] : c[0] + e[0], c[1] : c[1] + e[1], c[2] : c[2] + e[2]])
     assert np.isnan(values[extent[:, 2] < block + 1][..., block]).all()  # past the grid: untouched
+
+
+def groups_of(leaves: np.ndarray, block: int, shape: tuple[int, ...], cost: int) -> np.ndarray:
+    corner = leaves * block
+    extent = np.minimum(block + 1, np.asarray(shape)[None, :] - corner)
+    members = np.arange(len(leaves), dtype=np.int64)
+    return grid_driver.column_groups(members, corner, extent, cost, grid_driver.GROUP_POINTS)
+
+
+def test_column_groups_merge_neighbouring_columns_where_one_grid_costs_less():
+    # Columns (x, y) of 4-cell bricks: (0,0) z 0-1, (0,1) z 0-1, (0,2) z 6, (1,0) z 0: the
+    # first two share their z points (one grid of 5x9x9 points < two of 5x5x9 and a cost
+    # each); (0,2)'s z points are new, so it joins only where a grid costs more than its
+    # points would add; (1,0) has other x points: never with them.
+    leaves = np.array([[0, 0, 0], [0, 0, 1], [0, 1, 0], [0, 1, 1], [0, 2, 6], [1, 0, 0]])
+    shape = (9, 13, 29)
+    assert groups_of(leaves, 4, shape, 0).tolist() == [[0, 4], [4, 5], [5, 6]]
+    # (0,2) alone: 5*5*5 points + cost; with the group: 5*13*14 - 5*9*9 more points
+    assert groups_of(leaves, 4, shape, 5 * 13 * 14 - 5 * 9 * 9 - 125 - 1).tolist() == [
+        [0, 4], [4, 5], [5, 6]
+    ]  # fmt: skip
+    assert groups_of(leaves, 4, shape, 5 * 13 * 14 - 5 * 9 * 9 - 125).tolist() == [[0, 5], [5, 6]]
+    assert groups_of(leaves, 4, shape, 10**12).tolist() == [[0, 5], [5, 6]]
+    # no merge past max_points (a group of one column may have more)
+    corner, members = leaves * 4, np.arange(len(leaves), dtype=np.int64)
+    extent = np.minimum(5, np.asarray(shape)[None, :] - corner)
+    capped = grid_driver.column_groups(members, corner, extent, 10**12, 5 * 9 * 9 - 1)
+    assert capped.tolist() == [[0, 2], [2, 4], [4, 5], [5, 6]]
+    # a gap along y (column (0,3) missing before (0,4)) is never bridged
+    gap = np.array([[0, 0, 0], [0, 4, 0]])
+    assert groups_of(gap, 4, (9, 21, 5), 10**12).tolist() == [[0, 1], [1, 2]]
+
+
+def test_column_groups_cover_every_member_once_in_order():
+    rng = np.random.default_rng(5)
+    leaves = np.argwhere(rng.random((6, 7, 9)) < 0.3).astype(np.int64)
+    for cost in (0, 100, 4096, 10**12):
+        groups = groups_of(leaves, 4, (25, 29, 37), cost)
+        assert groups[0, 0] == 0 and groups[-1, 1] == len(leaves)
+        assert (groups[1:, 0] == groups[:-1, 1]).all() and (groups[:, 1] > groups[:, 0]).all()
+        for a, b in groups:  # one x block, and its columns' y blocks without a gap
+            assert len(set(leaves[a:b, 0])) == 1
+            ys = np.unique(leaves[a:b, 1])
+            assert (np.diff(ys) == 1).all()
+    apart = groups_of(leaves, 4, (25, 29, 37), 0)
+    merged = groups_of(leaves, 4, (25, 29, 37), 10**12)
+    assert len(merged) < len(apart)
 
 
 @pytest.mark.parametrize("threads", [1, 2, 3])

@@ -259,7 +259,9 @@ def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():
 def test_sampling_holds_no_second_copy_of_the_bricks_kept():
     import tracemalloc
 
-    grid = Grid(Box.cube(1.5), (97, 97, 97))
+    # 161^3: the bricks kept (824) outweigh the threads' grids of groups of columns (at most
+    # GROUP_POINTS values each, with their stores: 1.75 MB in all here) twice over
+    grid = Grid(Box.cube(1.5), (161, 161, 161))
     n_leaves = int(np.prod(leaf_counts(grid)))
     brick = 9**3 * 8
     evaluate_sparse(SPHERE, grid, bounds=_no_bounds)  # compiled, warm
