@@ -29,7 +29,8 @@ def test_the_warm_up_leaves_no_kernel_to_the_timed_run(shape: str, grid: int) ->
     assert sparse is not None and dense is not None
     for run in (sparse, dense):
         assert run["first_called"] == []
-        assert run["rss0"] <= run["peak"]
+        assert run["rss0"] + run["mesh_bytes"] <= run["peak"]  # the floor memory_bound uses
+        assert run["mesh_bytes"] > run["faces"] * 3 * 8  # int64 faces, and the vertices
     if shape == "eqA":  # 96^3 adds a few MiB; the warm-up's 256^3 peaked 75-300 MiB higher
         assert sparse["peak"] - sparse["rss0"] < 40 << 20
         assert dense["peak"] - dense["rss0"] < 40 << 20
@@ -43,3 +44,13 @@ def test_the_kernels_are_found_with_their_signatures() -> None:
     key = f"{marching.mixed_cells.py_func.__module__}.mixed_cells"
     assert key in found and found[key] == len(marching.mixed_cells.overloads)
     assert all(name.startswith("surfgen.") for name in found)
+
+
+def test_the_memory_bound_is_the_dense_peak_over_the_process_and_its_mesh() -> None:
+    """No run that returns a mesh can peak below the process it runs in plus that mesh: the
+    bound is what the ratio of the peaks could reach at best."""
+    mib = 1 << 20
+    dense = {"peak": 1800 * mib}
+    sparse = {"rss0": 200 * mib, "mesh_bytes": 25 * mib, "peak": 260 * mib}
+    assert bench_sparse.memory_bound(dense, sparse) == pytest.approx(8.0)
+    assert bench_sparse.memory_bound(dense, sparse) >= dense["peak"] / sparse["peak"]
