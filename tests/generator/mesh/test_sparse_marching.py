@@ -25,6 +25,7 @@ from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.formula.parser import parse
+from surfgen.generator.mesh import lewiner_chunks, placement, sparse_marching
 from surfgen.generator.mesh.mesh import extract_with_edges
 from surfgen.generator.mesh.realise import realise
 from surfgen.generator.mesh.sparse_marching import (
@@ -243,7 +244,6 @@ def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
     # vertices the cells', the placement's edges the runs'; bit for bit the dense mesh, each
     # step on recycled memory
     from surfgen.generator import allocator
-    from surfgen.generator.mesh import lewiner_chunks, placement, sparse_marching
 
     monkeypatch.setattr(allocator, "_giving_back", True)
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
@@ -277,8 +277,6 @@ def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
 
 def test_the_cells_refuse_corners_of_another_size(monkeypatch):
     # the listing's kernel writes the corners unchecked: an array of another size is refused
-    from surfgen.generator.mesh import sparse_marching
-
     monkeypatch.setattr(sparse_marching, "recycled", lambda held, shape, dtype: np.empty(
         (shape[0] - 1, 8), dtype=dtype))  # fmt: skip
     tree = parse("x^2+y^2+z^2-1")
@@ -369,20 +367,25 @@ def test_realise_sparse_is_realise_dense(walls):
     assert a.walls == b.walls
 
 
-def test_edge_lines_are_the_dense_fields_samples():
+@pytest.mark.parametrize("threads", [1, 3])
+def test_edge_lines_are_the_dense_fields_samples(monkeypatch, threads):
     """``sparse_edge_lines`` reads each edge's line (the sample before, its two, the one after;
     the edge's own at the grid's ends) as the dense field holds it, samples no brick holds
-    included (evaluated: here some rows have them)."""
+    included (evaluated: here some rows have them), on one thread or in runs of rows on
+    several."""
+    monkeypatch.setattr(sparse_marching, "_LINE_ROWS", 50)
     tree = parse("tan(3*x)+0.3*y-z")
     grid = Grid(Box.cube(1.0), (41, 41, 41))
     field = evaluate(tree, grid)
     sf = evaluate_sparse(tree, grid, bounds=sample_bounds(field), block=4)
     _, edges = extract_sparse_with_edges(sf)
-    lines = sparse_edge_lines(sf, edges, tree, {})
+    lines = sparse_edge_lines(sf, edges, tree, {}, threads)
     shape = np.asarray(grid.shape, dtype=np.int64)
     slot, corner, values, block = sf.lookup()
-    rows = _edge_lines(np.ascontiguousarray(edges), shape, slot, corner, sf.extent, values, block)
-    assert rows[1].size > 0
+    line, short = np.zeros((4, len(edges))), np.zeros(len(edges), dtype=np.bool_)
+    edges = np.ascontiguousarray(edges)
+    _edge_lines(edges, shape, slot, corner, sf.extent, values, block, line, short, 0, len(edges))
+    assert short.any()
     want = np.zeros_like(lines)
     for v, (axis, *at) in enumerate(edges.tolist()):
         if axis < 0 or at[axis] + 1 >= shape[axis]:
