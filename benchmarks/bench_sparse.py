@@ -1,11 +1,12 @@
 """Sparse against dense meshing: time, peak memory, share of points evaluated, op-evaluations/s.
 
     python -m benchmarks.bench_sparse [--grids 128,256,512,1024] [--shapes eqA,eqB,eqC,...]
-        [--repeats N]
+        [--repeats N] [--walls keep]
 
 Each shape is meshed as ``surfgen render`` meshes it (``realise``, caps as the shape has them,
 the sparse samples freed once read: ``keep_samples=False``; the allocator giving freed memory
-back, :func:`~surfgen.generator.allocator.one_shot_memory_policy`; the walls not classified) with
+back, :func:`~surfgen.generator.allocator.one_shot_memory_policy`; the walls not classified, or
+as ``--walls`` says: ``keep``, render's default, classifies every crossing) with
 ``--evaluator fast`` (every grid point) and ``--evaluator sparse``, each run in a fresh
 process after a warm-up that calls every kernel the run will (:func:`warm_up`; the table is
 followed by any kernel first called inside a timed run, which would time its compile or its
@@ -108,7 +109,7 @@ def kernel_signatures() -> dict[str, int]:
     return {f"{k.py_func.__module__}.{k.py_func.__name__}": len(k.overloads) for k in kernels}
 
 
-def warm_up(spec: SurfaceSpec, cap: bool, evaluator: str) -> None:
+def warm_up(spec: SurfaceSpec, cap: bool, evaluator: str, walls: str | None = None) -> None:
     """Compile (or load from numba's cache) every kernel the timed run calls: equation C,
     capped as the job is, on WARM_UP_GRIDS (a small mesh, and one large enough that the
     marching runs on every thread and its vertices are grouped plane by plane), then the job's
@@ -117,9 +118,10 @@ def warm_up(spec: SurfaceSpec, cap: bool, evaluator: str) -> None:
     warm = PRESETS["eqC"].spec()
     for n in WARM_UP_GRIDS:
         realise(warm, grid=Grid(Box.from_bounds(warm.box), (n,) * 3), evaluator=evaluator,
-                cap=cap, keep_samples=False)  # fmt: skip
+                cap=cap, walls=walls, keep_samples=False)  # fmt: skip
     box = Box.from_bounds(spec.box)
-    realise(spec, grid=Grid(box, (24,) * 3), evaluator=evaluator, cap=cap, allow_empty=True)
+    realise(spec, grid=Grid(box, (24,) * 3), evaluator=evaluator, cap=cap, walls=walls,
+            allow_empty=True)  # fmt: skip
 
 
 def child(job: dict[str, Any]) -> dict[str, Any]:
@@ -129,7 +131,8 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
     kernels numba compiled inside the timed run (0 when the warm-up did its job)."""
     one_shot_memory_policy()  # the allocator's policy of `render` and `export`
     spec, cap = SurfaceSpec.from_json(job["spec"]), job["cap"]
-    warm_up(spec, cap, job["evaluator"])
+    walls = job.get("walls")
+    warm_up(spec, cap, job["evaluator"], walls)
     reset_peak()
     rss0 = vm_rss()
     n = job["grid"]
@@ -137,8 +140,8 @@ def child(job: dict[str, Any]) -> dict[str, Any]:
     grid = Grid(Box.from_bounds(spec.box), (n,) * 3)
     t0 = time.perf_counter()
     budget = MemoryBudget.begin(None, f"{job['shape']} at {n}^3")  # as render refuses
-    made = realise(spec, grid=grid, evaluator=job["evaluator"], cap=cap, allow_empty=True,
-                   keep_samples=False, budget=budget)  # fmt: skip
+    made = realise(spec, grid=grid, evaluator=job["evaluator"], cap=cap, walls=walls,
+                   allow_empty=True, keep_samples=False, budget=budget)  # fmt: skip
     seconds = time.perf_counter() - t0
     after = kernel_signatures()
     first_called = sorted(k for k, count in after.items() if count > before.get(k, 0))
@@ -222,6 +225,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--grids", default="128,256,512,1024")
     ap.add_argument("--shapes", default=DEFAULT_SHAPES)
     ap.add_argument("--dense-max", type=int, default=1024, help="largest grid run densely")
+    ap.add_argument("--walls", choices=["keep", "mark", "remove"],
+                    help="classify the walls as render does (default: not classified)")  # fmt: skip
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -231,6 +236,8 @@ def main(argv: list[str] | None = None) -> None:
     grids = [int(g) for g in args.grids.split(",")]
     shapes = args.shapes.split(",")
     rows = []
+    if args.walls:
+        run.say(f"walls: {args.walls} (every crossing classified, as render does)")
     run.say(
         "| shape | grid | dense s | sparse s | speed-up | dense peak MiB | sparse peak MiB "
         "| memory ratio | bound | added ratio | share | faces | same mesh | sparse ops/s |"
@@ -238,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
     run.say("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for shape in shapes:
         spec, cap = spec_of(shape)
-        job = {"shape": shape, "spec": spec.to_json(), "cap": cap}
+        job = {"shape": shape, "spec": spec.to_json(), "cap": cap, "walls": args.walls}
         for n in grids:
             sparses, denses = [], []
             for _ in range(max(1, args.repeats)):

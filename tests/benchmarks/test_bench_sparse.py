@@ -10,22 +10,23 @@ from surfgen.generator.mesh import marching
 from surfgen.generator.model.presets import PRESETS
 
 
-def job(shape: str, grid: int, evaluator: str) -> dict:
+def job(shape: str, grid: int, evaluator: str, walls: str | None = None) -> dict:
     preset = PRESETS[shape]
     return {"shape": shape, "spec": preset.spec().to_json(), "cap": preset.cap, "grid": grid,
-            "evaluator": evaluator}  # fmt: skip
+            "evaluator": evaluator, "walls": walls}  # fmt: skip
 
 
 @pytest.mark.parametrize(
-    ("shape", "grid"),
-    [("eqA", 96), ("eqB", 128)],  # a small capped mesh; a large uncapped one, on every thread
+    ("shape", "grid", "walls"),
+    # a small capped mesh; a large uncapped one, on every thread; render's walls
+    [("eqA", 96, None), ("eqB", 128, None), ("eqC", 96, "keep")],
 )
-def test_the_warm_up_leaves_no_kernel_to_the_timed_run(shape: str, grid: int) -> None:
+def test_the_warm_up_leaves_no_kernel_to_the_timed_run(shape: str, grid: int, walls) -> None:
     """A kernel first called inside the timed run is timed with its compile or its load from
     numba's cache (a 24^3 warm-up left seven to a 512^3 render); the peak is the run's, not
     the warm-up's (which compiles on an empty cache)."""
-    sparse = bench_sparse.run_job(job(shape, grid, "sparse"))
-    dense = bench_sparse.run_job(job(shape, grid, "fast"))
+    sparse = bench_sparse.run_job(job(shape, grid, "sparse", walls))
+    dense = bench_sparse.run_job(job(shape, grid, "fast", walls))
     assert sparse is not None and dense is not None
     for run in (sparse, dense):
         assert run["first_called"] == []
