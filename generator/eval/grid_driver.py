@@ -449,43 +449,46 @@ def column_groups(members, corner, extent, cost_points, max_points):
         x0, y0, nx = corner[b, 0], corner[b, 1], extent[b, 0]
         y1 = y0 + extent[b, 1]
         start = q
-        nz = 0  # the group's z points
-        while q < n and corner[members[q], 0] == x0 and corner[members[q], 1] == y0:
-            m = members[q]
-            for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
-                if in_group[k] != g + 1:
-                    in_group[k] = g + 1
-                    nz += 1
-            q += 1
+        q, nz, _ = _column_points(members, corner, extent, q, in_group, g + 1, in_group, g + 1)
         cost = cost_points + nx * (y1 - y0) * nz  # of the group's columns, each apart
         while q < n:  # the next column, merged where that costs less
             c = members[q]
             if corner[c, 0] != x0 or extent[c, 0] != nx or corner[c, 1] > y1:
                 break
             cy, cy1 = corner[c, 1], corner[c, 1] + extent[c, 1]
-            r = q
-            own = new = 0  # its z points, and those the group does not have yet
-            while r < n and corner[members[r], 0] == x0 and corner[members[r], 1] == cy:
-                m = members[r]
-                for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
-                    if in_column[k] != q + 1:
-                        in_column[k] = q + 1
-                        own += 1
-                        new += in_group[k] != g + 1
-                r += 1
+            # its z points, and those the group does not have yet
+            r, own, new = _column_points(members, corner, extent, q, in_column, q + 1, in_group,
+                                         g + 1)  # fmt: skip
             apart = cost + cost_points + nx * (cy1 - cy) * own
             merged = cost_points + nx * (max(y1, cy1) - y0) * (nz + new)
             if merged > apart or merged - cost_points > max_points:
                 break
-            for p in range(q, r):
-                m = members[p]
-                for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
-                    in_group[k] = g + 1
+            _column_points(members, corner, extent, q, in_group, g + 1, in_group, g + 1)
             cost, y1, nz, q = merged, max(y1, cy1), nz + new, r
         groups[g, 0] = start
         groups[g, 1] = q
         g += 1
     return groups[:g].copy()
+
+
+@njit(**INLINE)
+def _column_points(members, corner, extent, q, mark, stamp, group, g):
+    """The column of members from ``q`` (those with its x and y corner): one past its last
+    member, its z points (each counted once: marked ``stamp`` in ``mark``), and how many of
+    them ``group`` does not mark ``g``."""
+    n = members.size
+    x0, y0 = corner[members[q], 0], corner[members[q], 1]
+    own = new = 0
+    r = q
+    while r < n and corner[members[r], 0] == x0 and corner[members[r], 1] == y0:
+        m = members[r]
+        for k in range(corner[m, 2], corner[m, 2] + extent[m, 2]):
+            if mark[k] != stamp:
+                mark[k] = stamp
+                own += 1
+                new += group[k] != g
+        r += 1
+    return r, own, new
 
 
 @njit(**KERNEL)

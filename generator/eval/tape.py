@@ -359,7 +359,7 @@ def evaluate_columns(
     and neighbouring columns along y are grouped where one grid for them costs less than a
     grid each (:func:`.grid_driver.column_groups`: a grid's fixed cost is that of
     :data:`~.grid_driver.COLUMN_COST_POINTS` points; sculpture-1's 2187 columns at 512^3 in
-    245 groups, 48 -> 15 ms on 2 threads). A group is run as a grid of its own
+    343 groups, 48 -> 15 ms on 2 threads). A group is run as a grid of its own
     (:func:`.grid_driver.run_columns`) on its x points, its y points and the union of its
     bricks' z points: each point's value is the one a grid with the same coordinates gives,
     bit for bit (every operation is elementwise). ``threads`` take contiguous runs of groups
