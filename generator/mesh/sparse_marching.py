@@ -381,7 +381,7 @@ def _edge_lines(edges, shape, slot, corner, extent, values, block, line, short, 
                 continue
             # across a brick's face: the brick holding the last sample holds those past the
             # face, the one holding the first those before it (the face's in both)
-            t, a, b, c = locate(slot, block, i + 3 * di, j + 3 * dj, k + 3 * dk)
+            t, _, _, _ = locate(slot, block, i + 3 * di, j + 3 * dj, k + 3 * dk)
             u, _, _, _ = locate(slot, block, i, j, k)
             if t >= 0 and u >= 0:
                 ta, tb, tc = corner[t, 0], corner[t, 1], corner[t, 2]
