@@ -7,15 +7,10 @@ import hashlib
 import json
 from pathlib import Path
 
-from surfgen.generator.eval.reference import evaluate_reference
-from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 from surfgen.pipelines.cli.main import main
-from tests.support.catalogues import catalogue_shapes
-
-SHAPES = {"sphere": ("x^2+y^2+z^2-1", 1.5), "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6)}
+from tests.support.catalogues import SPHERE_AND_TORUS, catalogue_formulas
 
 
 def snapshot(root: Path) -> dict[str, str]:
@@ -45,15 +40,7 @@ def refused(args: list[str], capsys, message: str, watch: Path | None = None) ->
 def bad_input_catalogue(root: Path) -> tuple[Path, dict[str, str]]:
     """A catalogue at ``root`` of two accepted shapes (sphere, torus), one draw the filters
     rejected (``blob``) and one whose worker crashed (``crashed``): ``(root, keys)``."""
-    specs = {
-        name: SurfaceSpec(f, (-h, h) * 3, (24,) * 3, provenance={"index": i})
-        for i, (name, (f, h)) in enumerate(SHAPES.items())
-    }
-    items = [
-        (s, extract_mesh(evaluate_reference(parse(s.formula), s.to_grid()), 0.0))
-        for s in specs.values()
-    ]
-    keys = dict(zip(specs, catalogue_shapes(root, items, seed=3, grid=24), strict=True))
+    keys = catalogue_formulas(root, SPHERE_AND_TORUS, seed=3, grid=24)
     rejected = SurfaceSpec("x^2+y^2+z^2-0.5", (-1, 1) * 3, (24,) * 3, provenance={"index": 2})
     crashed = SurfaceSpec(
         "x+y+z", (-1, 1) * 3, (24,) * 3, provenance={"index": 3, "failed": "crashed"}

@@ -10,12 +10,8 @@ import urllib.request
 from collections.abc import Callable
 from pathlib import Path
 
-from surfgen.generator.eval.reference import evaluate_reference
-from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import extract_mesh
-from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
-from tests.support.catalogues import catalogue_shapes
+from tests.support.catalogues import catalogue_formulas
 
 SHAPES = {
     "sphere": ("x^2+y^2+z^2-1", 1.5),
@@ -39,15 +35,7 @@ ARTEFACTS = Path(__file__).resolve().parents[2] / "out" / "test-artefacts"
 
 def build_catalogue(root: Path) -> dict[str, str]:
     """The four canonical shapes as accepted rows with meshes (no pictures yet): {name: key}."""
-    specs = {
-        name: SurfaceSpec(formula, (-half, half) * 3, (GRID,) * 3, provenance={"index": i})
-        for i, (name, (formula, half)) in enumerate(SHAPES.items())
-    }
-    items = [
-        (spec, extract_mesh(evaluate_reference(parse(spec.formula), spec.to_grid()), 0.0))
-        for spec in specs.values()
-    ]
-    return dict(zip(specs, catalogue_shapes(root, items, seed=7, grid=GRID), strict=True))
+    return catalogue_formulas(root, SHAPES, seed=7, grid=GRID)
 
 
 def free_port() -> int:

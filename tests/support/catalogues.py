@@ -7,8 +7,10 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from surfgen.filters.verdict import shape_metrics
+from surfgen.generator.eval.reference import evaluate_reference
+from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.exchange import save_mesh
-from surfgen.generator.mesh.mesh import Mesh
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.catalogue.store import open_catalogue
 
@@ -40,3 +42,27 @@ def catalogue_shapes(
             cat.record_shape(run.id, i, row, True, {})
             keys.append(spec.key)
     return keys
+
+
+#: Two shapes many catalogue tests start from: ``{name: (formula, half-width of the box)}``.
+SPHERE_AND_TORUS = {
+    "sphere": ("x^2+y^2+z^2-1", 1.5),
+    "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6),
+}
+
+
+def catalogue_formulas(
+    root: Path, shapes: dict[str, tuple[str, float]], *, seed: int = 0, grid: int = 24
+) -> dict[str, str]:
+    """Catalogue ``shapes`` (``{name: (formula, half-width of its cubic box)}``), each meshed
+    from the reference field on ``grid``^3 points, its draw index its place, as the accepted
+    shapes of one run (:func:`catalogue_shapes`). Returns ``{name: key}``."""
+    specs = {
+        name: SurfaceSpec(f, (-h, h) * 3, (grid,) * 3, provenance={"index": i})
+        for i, (name, (f, h)) in enumerate(shapes.items())
+    }
+    items = [
+        (s, extract_mesh(evaluate_reference(parse(s.formula), s.to_grid()), 0.0))
+        for s in specs.values()
+    ]
+    return dict(zip(specs, catalogue_shapes(root, items, seed=seed, grid=grid), strict=True))

@@ -22,15 +22,10 @@ from pathlib import Path
 
 import pytest
 
-from surfgen.generator.eval.reference import evaluate_reference
-from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.mesh import extract_mesh
-from surfgen.generator.model.spec import SurfaceSpec
 from surfgen.pipelines.cli.main import main
 from surfgen.pipelines.run.warmup import COMPILE_NOTICE
-from tests.support.catalogues import catalogue_shapes
+from tests.support.catalogues import SPHERE_AND_TORUS, catalogue_formulas
 
-SHAPES = {"sphere": ("x^2+y^2+z^2-1", 1.5), "torus": ("(sqrt(x^2+y^2)-1)^2+z^2-0.16", 1.6)}
 NOBODY = 65534
 
 
@@ -82,15 +77,7 @@ def fail_nth_rename(monkeypatch, under: Path, nth: int = 2) -> list[str]:
 def template(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     """Two accepted shapes with thumbnails and turntables."""
     root = tmp_path_factory.mktemp("outputs") / "cat"
-    specs = {
-        name: SurfaceSpec(f, (-h, h) * 3, (20,) * 3, provenance={"index": i})
-        for i, (name, (f, h)) in enumerate(SHAPES.items())
-    }
-    items = [
-        (s, extract_mesh(evaluate_reference(parse(s.formula), s.to_grid()), 0.0))
-        for s in specs.values()
-    ]
-    keys = dict(zip(specs, catalogue_shapes(root, items, seed=5, grid=20), strict=True))
+    keys = catalogue_formulas(root, SPHERE_AND_TORUS, seed=5, grid=20)
     assert main(["thumbnails", "-C", str(root)]) == 0
     return root, keys
 
