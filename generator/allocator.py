@@ -100,10 +100,11 @@ def scratch_kept() -> Iterator[None]:
     that policy is in force (elsewhere nothing changes).
 
     For a loop that makes and frees the same temporaries again and again: the sparse
-    evaluator's columns, whose output, stores and scratch (0.1-0.4 MiB each at 512^3) the
-    one-shot policy maps and unmaps afresh for every column — 13,000 page faults, 15-30 ms of a
-    0.37 s render of a sculpture at 512^3 (sampling 0.14-0.15 s -> 0.12 s; the same peak: the
-    heap grows by a column's temporaries per thread, and is trimmed after). Blocks allocated
+    evaluator's groups of columns, whose output, stores and scratch (up to about 1 MiB each at
+    512^3) the one-shot policy maps and unmaps afresh for every group — measured when each
+    column was its own grid: 13,000 page faults, 15-30 ms of a 0.37 s render of a sculpture at
+    512^3 (sampling 0.14-0.15 s -> 0.12 s; the same peak: the heap grows by a group's
+    temporaries per thread, and is trimmed after). Blocks allocated
     before the window (the bricks' array) are not affected; what is allocated within and
     outlives it stays in the heap (keep such arrays out of the window)."""
     if not _giving_back:
