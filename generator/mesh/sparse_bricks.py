@@ -54,10 +54,10 @@ def brick_offsets(values, extent, level, threads: int = 1) -> tuple[np.ndarray, 
     return offset, sum(bad)
 
 
-def brick_runs(n_bricks: int, threads: int) -> list[tuple[int, int]]:
-    """``threads`` runs of about equal numbers of bricks (one with fewer than
-    :data:`RUN_BRICKS` per thread), as ``(first, end)``."""
-    n = max(1, min(int(threads), n_bricks // RUN_BRICKS))
+def brick_runs(n_bricks: int, threads: int, least: int = RUN_BRICKS) -> list[tuple[int, int]]:
+    """``threads`` runs of about equal numbers of bricks (or of other items: one run where
+    there are fewer than ``least`` per thread), as ``(first, end)``."""
+    n = max(1, min(int(threads), n_bricks // least))
     bounds = [n_bricks * r // n for r in range(n + 1)]
     return list(zip(bounds[:-1], bounds[1:], strict=True))
 

@@ -52,6 +52,7 @@ from surfgen.generator.mesh.mesh import Mesh, finish_marching
 from surfgen.generator.mesh.sparse_bricks import (
     brick_cells,
     brick_offsets,
+    brick_runs,
     raise_bricks,
     scan_bricks,
 )
@@ -182,14 +183,12 @@ def sparse_edge_lines(
     n = len(edges)
     line = np.zeros((4, n))
     short = np.zeros(n, dtype=np.bool_)
-    parts = max(1, min(thread_count(threads), n // _LINE_ROWS))
-    bounds = [n * r // parts for r in range(parts + 1)]
     run_at_once(
         [
             lambda a=a, b=b: _edge_lines(
                 edges, shape, slot, corner, sf.extent, values, block, line, short, a, b
             )  # fmt: skip
-            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+            for a, b in brick_runs(n, thread_count(threads), _LINE_ROWS)
         ]
     )
     rows = np.flatnonzero(short)
@@ -367,14 +366,16 @@ def _edge_lines(edges, shape, slot, corner, extent, values, block, line, short, 
             # a whole line: the samples before the edge, its two, after it
             di, dj, dk = np.int64(axis == 0), np.int64(axis == 1), np.int64(axis == 2)
             i, j, k = i - di, j - dj, k - dk
-            if not _holds_line(s, c0, c1, c2, e0, e1, e2, i, j, k, di, dj, dk):
+            held = _holds_line(s, c0, c1, c2, e0, e1, e2, i, j, k, di, dj, dk)
+            if not held:
                 t, _, _, _ = locate(slot, block, i, j, k)
                 if t >= 0:
                     d0, d1, d2 = corner[t, 0], corner[t, 1], corner[t, 2]
                     f0, f1, f2 = extent[t, 0], extent[t, 1], extent[t, 2]
-                    if _holds_line(t, d0, d1, d2, f0, f1, f2, i, j, k, di, dj, dk):
+                    held = _holds_line(t, d0, d1, d2, f0, f1, f2, i, j, k, di, dj, dk)
+                    if held:
                         s, c0, c1, c2, e0, e1, e2 = t, d0, d1, d2, f0, f1, f2
-            if _holds_line(s, c0, c1, c2, e0, e1, e2, i, j, k, di, dj, dk):
+            if held:
                 a, b, c = i - c0, j - c1, k - c2
                 for q in range(4):
                     line[q, v] = values[s, a + q * di, b + q * dj, c + q * dk]

@@ -98,11 +98,17 @@ def test_columns_of_bricks_are_the_grids_values(monkeypatch, tile_max, threads, 
     assert np.isnan(values[extent[:, 2] < block + 1][..., block]).all()  # past the grid: untouched
 
 
-def groups_of(leaves: np.ndarray, block: int, shape: tuple[int, ...], cost: int) -> np.ndarray:
+def groups_of(
+    leaves: np.ndarray,
+    block: int,
+    shape: tuple[int, ...],
+    cost: int,
+    max_points: int = grid_driver.GROUP_POINTS,
+) -> np.ndarray:
     corner = leaves * block
     extent = np.minimum(block + 1, np.asarray(shape)[None, :] - corner)
     members = np.arange(len(leaves), dtype=np.int64)
-    return grid_driver.column_groups(members, corner, extent, cost, grid_driver.GROUP_POINTS)
+    return grid_driver.column_groups(members, corner, extent, cost, max_points)
 
 
 def test_column_groups_merge_neighbouring_columns_where_one_grid_costs_less():
@@ -120,9 +126,7 @@ def test_column_groups_merge_neighbouring_columns_where_one_grid_costs_less():
     assert groups_of(leaves, 4, shape, 5 * 13 * 14 - 5 * 9 * 9 - 125).tolist() == [[0, 5], [5, 6]]
     assert groups_of(leaves, 4, shape, 10**12).tolist() == [[0, 5], [5, 6]]
     # no merge past max_points (a group of one column may have more)
-    corner, members = leaves * 4, np.arange(len(leaves), dtype=np.int64)
-    extent = np.minimum(5, np.asarray(shape)[None, :] - corner)
-    capped = grid_driver.column_groups(members, corner, extent, 10**12, 5 * 9 * 9 - 1)
+    capped = groups_of(leaves, 4, shape, 10**12, 5 * 9 * 9 - 1)
     assert capped.tolist() == [[0, 2], [2, 4], [4, 5], [5, 6]]
     # a gap along y (column (0,3) missing before (0,4)) is never bridged
     gap = np.array([[0, 0, 0], [0, 4, 0]])
