@@ -13,7 +13,11 @@ Add new canonical shapes to :data:`SHAPES`, new fixtures below the existing ones
 
 from __future__ import annotations
 
+import fcntl
 import math
+import os
+import sys
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -142,22 +146,49 @@ def pytest_collection_modifyitems(config, items) -> None:
     """On a cold numba cache, compile the kernels on both CPUs first (``kernel_warmup``); then
     start the slow background parts of the selected tests (a test module's
     ``start_in_background``, for the tests it names in ``BACKGROUND_TESTS``), so they overlap
-    the rest of the suite."""
+    the rest of the suite.
+
+    Under pytest-xdist every worker collects every test: one worker compiles while the other
+    waits for it (a lock), and a worker starts the background parts when the first of them
+    runs there (``xdist_group`` keeps a module's on one worker), not at collection, where it
+    cannot know which worker will run them."""
     _warm_kernels(config, len(items))
+    worker = hasattr(config, "workerinput")
     for item in items:
         module = getattr(item, "module", None)
         if item.name in getattr(module, "BACKGROUND_TESTS", ()):
-            module.start_in_background(item.name)  # once however often it is called
+            if worker:
+                _BACKGROUND_LATER.setdefault(module, []).append(item.name)
+            else:
+                module.start_in_background(item.name)  # once however often it is called
+
+
+#: An xdist worker's background parts to start (module -> the selected tests it names).
+_BACKGROUND_LATER: dict = {}
 
 
 def _warm_kernels(config, selected: int) -> None:
-    import os
-
     from tests.support import kernel_warmup
 
     switch = os.environ.get("SURFGEN_TEST_WARMUP", "")
     if switch == "0" or (switch != "1" and selected < kernel_warmup.MIN_TESTS):
         return
+    run = getattr(config, "workerinput", {}).get("testrunuid")
+    if run is None:
+        _warm_now(config)
+        return
+    # xdist's workers: the first to take the lock compiles, the others find the cache warm
+    with open(os.path.join(tempfile.gettempdir(), f"surfgen-warmup-{run}.lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            _warm_now(config)
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def _warm_now(config) -> None:
+    from tests.support import kernel_warmup
+
     if not kernel_warmup.needed():
         return
     say = config.pluginmanager.get_plugin("terminalreporter")
@@ -174,7 +205,12 @@ _SPARSE_CHILD = None
 
 
 def pytest_runtest_setup(item) -> None:
-    """The first test past the folders that mesh densely waits for the sparse kernels' child."""
+    """An xdist worker's background parts start with the first of them; the first test past
+    the folders that mesh densely waits for the sparse kernels' child."""
+    module = getattr(item, "module", None)
+    if item.name in _BACKGROUND_LATER.get(module, ()):
+        for name in _BACKGROUND_LATER.pop(module):
+            module.start_in_background(name)
     global _SPARSE_CHILD
     if _SPARSE_CHILD is None:
         return
@@ -187,8 +223,6 @@ def pytest_runtest_setup(item) -> None:
 
 def pytest_sessionfinish(session, exitstatus) -> None:
     """Stop background parts no test collected (an interrupted or failed-early session)."""
-    import sys
-
     if _SPARSE_CHILD is not None:  # a session that never got past the first folders
         _SPARSE_CHILD.kill()
         _SPARSE_CHILD.wait()

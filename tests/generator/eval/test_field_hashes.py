@@ -27,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.reference import evaluate_reference
@@ -212,6 +213,7 @@ def _no_contraction(result: dict) -> None:
     assert (result["fma_interpreter"] > 0) == result["row_division"]
 
 
+@pytest.mark.xdist_group("field-hashes-background")  # one worker starts both
 def test_same_hashes_with_vectorisation_disabled():
     result = _background_result("test_same_hashes_with_vectorisation_disabled")
     assert result["switch"] is True
@@ -222,6 +224,7 @@ def test_same_hashes_with_vectorisation_disabled():
     assert not bad, f"{len(bad)} fields differ without vectorisation: {bad[:5]}"
 
 
+@pytest.mark.xdist_group("field-hashes-background")  # one worker starts both
 def test_same_hashes_with_intel_code_generation():
     """The machines of this project are AMD EPYCs and Intel Xeons; the fields must not depend
     on which.  What differs between them is the code: LLVM's instruction selection and vector
