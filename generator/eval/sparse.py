@@ -268,7 +268,7 @@ def evaluate_sparse_program(
     t0 = time.perf_counter()
     axes = grid.axes()
     if bounds is None:
-        bounds = grid_point_bounds(axes)
+        bounds = grid_point_bounds(axes, thread_count(threads))
     with scratch_kept():
         state, boxes = classify_blocks(program, grid, axes, float(level), block, bounds)
     if faces:

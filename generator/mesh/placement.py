@@ -26,6 +26,10 @@ _RUN = 9  # the vertex groups' table keeps runs of 512 keys (128 samples of a ro
 #: Vertices from which a mesh's groups are found plane by plane (:func:`same_targets`): one
 #: table for the whole mesh would take 16-32 MiB.
 PLANE_TABLES_FROM = 1 << 19
+#: Vertices from which, on more than one thread, a mesh's groups are found plane by plane in
+#: two halves at once: sculpture-5 at 512^3 (490 000 vertices) 8.1 ms in one table, 3.6 ms in
+#: halves; below about 200 000 the two are within a thread's wake-up of each other.
+HALVES_FROM = 1 << 18
 
 
 #: Vertices a thread of :func:`place_vertices` takes at least (a run of 100,000 takes about 3
@@ -131,10 +135,12 @@ def same_targets(
     vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place_range`). A large
     mesh's groups are found plane by plane (:func:`_targets_by_plane`: its table would hold
     tens of MiB at the end of a fine render, more than a gigabyte for equation B at 512^3), with
-    ``threads`` > 1 in two halves at once (:func:`_targets_in_halves`); a small one's in one
-    table (:func:`_targets_kernel`: the sampler's meshes, 11 % faster)."""
-    if len(verts) >= PLANE_TABLES_FROM:
-        found = _targets_in_halves(verts, shift, edges, moved, shape) if threads > 1 else None
+    ``threads`` > 1 in two halves at once (:func:`_targets_in_halves`, from :data:`HALVES_FROM`
+    vertices); a small one's in one table (:func:`_targets_kernel`: the sampler's meshes, 11 %
+    faster)."""
+    halves = threads > 1 and len(verts) >= min(HALVES_FROM, PLANE_TABLES_FROM)
+    if halves or len(verts) >= PLANE_TABLES_FROM:
+        found = _targets_in_halves(verts, shift, edges, moved, shape) if halves else None
         if found is None:
             target, any_merge, ordered = _targets_by_plane(verts, shift, edges, moved, shape)
             found = (target, any_merge) if ordered else None

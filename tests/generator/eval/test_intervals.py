@@ -316,6 +316,16 @@ def test_boxes_run_in_chunks_give_the_same_bounds(monkeypatch) -> None:
     monkeypatch.setattr(intervals, "BOXES_CHUNK", 7)
     for a, b in zip(whole, program_bounds(program, blo, bhi), strict=True):
         assert np.array_equal(a, b)
+    # on threads, each a run of the chunks (three runs of four chunks, two of five)
+    monkeypatch.setattr(intervals, "THREAD_BOXES", 20)
+    calls = []
+    real = intervals._run_chunk
+    monkeypatch.setattr(intervals, "_run_chunk", lambda *a: calls.append(len(a[2])) or real(*a))
+    for threads in (3, 2):
+        calls.clear()
+        for a, b in zip(whole, program_bounds(program, blo, bhi, threads=threads), strict=True):
+            assert np.array_equal(a, b)
+        assert sum(calls) == len(blo) and max(calls) <= 7 and len(calls) % threads == 0
 
 
 def test_params_constants_and_many_boxes() -> None:

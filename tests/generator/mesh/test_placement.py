@@ -46,6 +46,32 @@ def test_vertices_placed_in_runs_are_one_pass(threads, monkeypatch):
     assert not placement.place_vertices(verts, 1.0, shape, lo, hi, spacing, threads)[3]
 
 
+@pytest.mark.parametrize("threads, halves", [(1, False), (2, True)])
+def test_halves_from_their_own_count_on_threads(threads, halves, monkeypatch):
+    # below the plane tables' count, a mesh of HALVES_FROM vertices or more is grouped in two
+    # halves on more than one thread, in one table on one: the same targets
+    # the box cuts the sphere through its edges: the cap's vertices there group
+    sphere = evaluate_reference(parse("x^2+y^2+z^2-1"), Grid(Box.cube(0.6), (20, 21, 22)))
+    args = []
+    monkeypatch.setattr(
+        mesh_module, "same_targets", lambda *a: args.append(a[:5]) or placement.same_targets(*a)
+    )
+    extract_mesh(sphere, cap=True)
+    seen = []
+    real = placement._targets_in_halves
+    monkeypatch.setattr(
+        placement, "_targets_in_halves", lambda *a: seen.append(real(*a)) or seen[-1]
+    )
+    monkeypatch.setattr(placement, "HALVES_FROM", 100)
+    monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 1 << 40)
+    verts, shift, edges, moved, shape = args[0]
+    assert len(verts) > 100
+    got = placement.same_targets(verts, shift, edges, moved, shape, threads)
+    assert (len(seen) == 1 and seen[0] is not None) == halves
+    whole, merged = placement._targets_kernel(verts, shift, edges, moved, shape)
+    assert merged and got is not None and np.array_equal(got, whole)
+
+
 def test_plane_tables_reused_as_they_are_group_as_one_table():
     # Many planes, each table reused every second plane with the keys of its earlier plane
     # left in it (counted as free slots): the groups are those of one table for the mesh.
