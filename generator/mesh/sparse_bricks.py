@@ -356,7 +356,18 @@ def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, key
     for r in range(r0, r1):
         s0, s1 = slab[r], ends[r]
         m, q, q1 = m_at[r], q_at[r], q_end[r]
+        # the slab's row masks of planes i and i + 1, each made once (made for each pair of
+        # rows they were four times, a third of the listing: 12.5 -> 8.1 ms for sculpture-1)
+        here = np.empty((s1 - s0, offset.shape[2]), dtype=np.int64)
+        above = np.empty((s1 - s0, offset.shape[2]), dtype=np.int64)
+        for b in range(s0, s1):
+            for j in range(extent[b, 1]):
+                above[b - s0, j] = _row_mask(offset, b, 0, j, extent[b, 2])
         for i in range(extent[s0, 0] - 1):
+            here, above = above, here
+            for b in range(s0, s1):
+                for j in range(extent[b, 1]):
+                    above[b - s0, j] = _row_mask(offset, b, i + 1, j, extent[b, 2])
             c0 = s0
             while c0 < s1:  # a column: the slab's bricks of one leaf y
                 c1 = c0
@@ -365,13 +376,8 @@ def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, key
                 for j in range(extent[c0, 1] - 1):
                     for b in range(c0, c1):
                         e2 = extent[b, 2]
-                        mixed = _mixed(
-                            _row_mask(offset, b, i, j, e2),
-                            _row_mask(offset, b, i, j + 1, e2),
-                            _row_mask(offset, b, i + 1, j, e2),
-                            _row_mask(offset, b, i + 1, j + 1, e2),
-                            e2,
-                        )
+                        t = b - s0
+                        mixed = _mixed(here[t, j], here[t, j + 1], above[t, j], above[t, j + 1], e2)
                         if mixed == 0:
                             continue
                         gi = corner[b, 0] + i + shift
