@@ -13,6 +13,7 @@ Add new canonical shapes to :data:`SHAPES`, new fixtures below the existing ones
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import math
 import os
@@ -27,6 +28,7 @@ from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
+from tests.support import kernel_warmup
 
 # fixtures shared by the picture and gallery tests (template, keys, renders)
 pytest_plugins = ["tests.support.gallery"]
@@ -141,6 +143,10 @@ def cat_dir(template, tmp_path):
     return root
 
 
+#: An xdist worker's background parts to start (module -> the selected tests it names).
+_BACKGROUND_LATER: dict = {}
+
+
 @pytest.hookimpl(trylast=True)  # after -k/-m deselection: only tests that will run
 def pytest_collection_modifyitems(config, items) -> None:
     """On a cold numba cache, compile the kernels on both CPUs first (``kernel_warmup``); then
@@ -163,13 +169,7 @@ def pytest_collection_modifyitems(config, items) -> None:
                 module.start_in_background(item.name)  # once however often it is called
 
 
-#: An xdist worker's background parts to start (module -> the selected tests it names).
-_BACKGROUND_LATER: dict = {}
-
-
 def _warm_kernels(config, selected: int) -> None:
-    from tests.support import kernel_warmup
-
     switch = os.environ.get("SURFGEN_TEST_WARMUP", "")
     if switch == "0" or (switch != "1" and selected < kernel_warmup.MIN_TESTS):
         return
@@ -177,18 +177,20 @@ def _warm_kernels(config, selected: int) -> None:
     if run is None:
         _warm_now(config)
         return
-    # xdist's workers: the first to take the lock compiles, the others find the cache warm
-    with open(os.path.join(tempfile.gettempdir(), f"surfgen-warmup-{run}.lock"), "w") as lock:
+    # xdist's workers: the first to take the lock compiles, the others then find the cache
+    # warm (a worker that comes after the file is gone makes another: it finds it warm too)
+    path = os.path.join(tempfile.gettempdir(), f"surfgen-warmup-{run}.lock")
+    with open(path, "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             _warm_now(config)
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+    with contextlib.suppress(OSError):
+        os.unlink(path)
 
 
 def _warm_now(config) -> None:
-    from tests.support import kernel_warmup
-
     if not kernel_warmup.needed():
         return
     say = config.pluginmanager.get_plugin("terminalreporter")
@@ -214,9 +216,7 @@ def pytest_runtest_setup(item) -> None:
     global _SPARSE_CHILD
     if _SPARSE_CHILD is None:
         return
-    from tests.support.kernel_warmup import BEFORE_SPARSE
-
-    if not item.nodeid.startswith(BEFORE_SPARSE):
+    if not item.nodeid.startswith(kernel_warmup.BEFORE_SPARSE):
         child, _SPARSE_CHILD = _SPARSE_CHILD, None
         child.wait()
 
