@@ -382,7 +382,7 @@ def test_edge_lines_are_the_dense_fields_samples(monkeypatch, threads):
     lines = sparse_edge_lines(sf, edges, tree, {}, threads)
     shape = np.asarray(grid.shape, dtype=np.int64)
     slot, corner, values, block = sf.lookup()
-    line, short = np.zeros((4, len(edges))), np.zeros(len(edges), dtype=np.bool_)
+    line, short = np.zeros((4, len(edges))), np.zeros(len(edges), dtype=np.uint8)
     edges = np.ascontiguousarray(edges)
     _edge_lines(edges, shape, slot, corner, sf.extent, values, block, line, short, 0, len(edges))
     assert short.any()
