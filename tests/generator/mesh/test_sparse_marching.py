@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from surfgen.generator.errors import EmptySurface
+from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.sparse import evaluate_sparse
@@ -386,6 +387,10 @@ def test_edge_lines_are_the_dense_fields_samples(monkeypatch, threads):
     edges = np.ascontiguousarray(edges)
     _edge_lines(edges, shape, slot, corner, sf.extent, values, block, line, short, 0, len(edges))
     assert short.any()
+    for v in np.flatnonzero(edges[:, 0] >= 0):  # bit q: sample q of the row is in no brick
+        for q in range(4):
+            at = sparse_marching._line_position(edges, v, q, shape)
+            assert bool(short[v] >> q & 1) == (locate(slot, block, *at)[0] < 0)
     want = np.zeros_like(lines)
     for v, (axis, *at) in enumerate(edges.tolist()):
         if axis < 0 or at[axis] + 1 >= shape[axis]:
