@@ -179,6 +179,15 @@ def _row_mask(offset, b, i, j, n):
 
 
 @njit(**INLINE)
+def _plane_masks(offset, extent, b0, b1, i, out):
+    """The row masks (:func:`_row_mask`) of plane ``i`` of bricks ``b0:b1`` into ``out[b - b0,
+    j]``."""
+    for b in range(b0, b1):
+        for j in range(extent[b, 1]):
+            out[b - b0, j] = _row_mask(offset, b, i, j, extent[b, 2])
+
+
+@njit(**INLINE)
 def _mixed(r0, r1, r2, r3, n):
     """Bit ``k`` set where cell ``k`` between four neighbouring rows (their masks, ``n``
     samples each) is mixed: it is all inside when bits ``k`` and ``k + 1`` are set in every
@@ -360,14 +369,10 @@ def _slab_cells(offset, extent, corner, shift, shape, pad_keys, pad_corners, key
         # rows they were four times, a third of the listing: 12.5 -> 8.1 ms for sculpture-1)
         here = np.empty((s1 - s0, offset.shape[2]), dtype=np.int64)
         above = np.empty((s1 - s0, offset.shape[2]), dtype=np.int64)
-        for b in range(s0, s1):
-            for j in range(extent[b, 1]):
-                above[b - s0, j] = _row_mask(offset, b, 0, j, extent[b, 2])
+        _plane_masks(offset, extent, s0, s1, 0, above)
         for i in range(extent[s0, 0] - 1):
             here, above = above, here
-            for b in range(s0, s1):
-                for j in range(extent[b, 1]):
-                    above[b - s0, j] = _row_mask(offset, b, i + 1, j, extent[b, 2])
+            _plane_masks(offset, extent, s0, s1, i + 1, above)
             c0 = s0
             while c0 < s1:  # a column: the slab's bricks of one leaf y
                 c1 = c0
