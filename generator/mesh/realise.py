@@ -24,7 +24,7 @@ from collections.abc import Callable
 from surfgen.generator.errors import EmptySurface, FormulaError
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate
 from surfgen.generator.eval.grid import Field, Grid
-from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
+from surfgen.generator.eval.sparse import SparseField, evaluate_sparse, thread_count
 from surfgen.generator.formula.limits import MemoryBudget
 from surfgen.generator.mesh.mesh import Mesh, extract_mesh
 from surfgen.generator.mesh.sparse_marching import extract_sparse, extract_sparse_labelled
@@ -164,7 +164,9 @@ def realise(
         elif walls is None:
             mesh = extract_mesh(field, spec.level, cap=cap)
         else:
-            mesh, report = extract_labelled(field, tree, spec.params, spec.level, cap, walls)
+            mesh, report = extract_labelled(
+                field, tree, spec.params, spec.level, cap, walls, thread_count(threads)
+            )
     except EmptySurface as exc:
         if not allow_empty:
             raise

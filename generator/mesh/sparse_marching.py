@@ -162,7 +162,8 @@ def extract_sparse_labelled(
     lines = sparse_edge_lines(sf, edges, tree, params, threads)
     if release:
         sf.release_samples()
-    return label_walls(mesh, edges, sf, tree, params, sf.level, cap, walls, lines=lines)
+    return label_walls(mesh, edges, sf, tree, params, sf.level, cap, walls, lines=lines,
+                       threads=thread_count(threads))  # fmt: skip
 
 
 def sparse_edge_lines(

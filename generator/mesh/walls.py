@@ -88,7 +88,7 @@ from surfgen.generator.mesh.mesh import (
     extract_with_edges,
     face_areas,
 )
-from surfgen.generator.mesh.refine import _bisect_kernel
+from surfgen.generator.mesh.refine import refine_suspects
 
 log = logging.getLogger(__name__)
 
@@ -144,6 +144,7 @@ def extract_labelled(
     level: float = 0.0,
     cap: bool = False,
     walls: str = "mark",
+    threads: int = 1,
 ) -> tuple[Mesh, WallReport]:
     """Mesh ``F = level`` and classify its faces (see the module's docstring).
 
@@ -151,13 +152,14 @@ def extract_labelled(
     ``remove`` returns only the faces on roots, without caps (the zero set is open where the box
     cuts it).  ``tree``/``params`` must be the formula ``field`` was sampled from.
     The report's ``wall_fraction`` is measured on the mesh extracted (with its caps, except
-    for ``remove``, which extracts without them).
+    for ``remove``, which extracts without them).  ``threads``: the suspect crossings are
+    refined on that many (:func:`classify_edges`; the same result on any number).
     Raises :class:`EmptySurface` when there is no crossing, or with ``remove`` when no
     crossing is a root.
     """
     check_walls_mode(walls)
     mesh, edges = extract_with_edges(field, level, cap and walls != "remove")
-    return label_walls(mesh, edges, field, tree, params, level, cap, walls)
+    return label_walls(mesh, edges, field, tree, params, level, cap, walls, threads=threads)
 
 
 def label_walls(
@@ -171,6 +173,7 @@ def label_walls(
     walls: str = "mark",
     areas: np.ndarray | None = None,
     lines: np.ndarray | None = None,
+    threads: int = 1,
 ) -> tuple[Mesh, WallReport]:
     """The second half of :func:`extract_labelled`, for a mesh and edges that
     :func:`~surfgen.generator.mesh.mesh.extract_with_edges` made (with ``cap`` off for ``remove``):
@@ -179,11 +182,11 @@ def label_walls(
     (the sampler's filters need them too: computed once); else computed here.  ``lines``: F
     at the four samples of each edge's grid line (a sparse field's,
     :func:`~surfgen.generator.mesh.sparse_marching.sparse_edge_lines`); ``field`` is then only
-    read for its grid."""
+    read for its grid.  ``threads``: as :func:`extract_labelled`'s."""
     check_walls_mode(walls)
     if areas is not None and len(areas) != mesh.n_faces:
         raise ValueError(f"{len(areas)} face areas for {mesh.n_faces} faces")
-    kinds, refined, points = _classify(field, tree, params, level, edges, lines)
+    kinds, refined, points = _classify(field, tree, params, level, edges, lines, threads)
     roots, poles, jumps = _count_kinds(kinds)
     any_wall = bool(poles + jumps)
     if walls == "keep" and not any_wall:  # no face can be a wall: no faces to label
@@ -231,15 +234,18 @@ def classify_edges(
     params: Mapping[str, float] | None,
     level: float,
     edges: np.ndarray,
+    threads: int = 1,
 ) -> tuple[np.ndarray, int]:
     """Kind (ROOT, POLE, JUMP, or UNKNOWN) of each ``(axis, i, j, k)`` edge of ``edges`` (V, 4).
 
     Rows with axis -1, or whose samples are on the same side, are UNKNOWN.  Returns uint8
     ``(V,)`` kinds and the number of edges looked at with the formula (the suspects).
-    One numba call for the suspects (:func:`_bisect_kernel`: the midpoint, the secant step,
-    the bisections and the decision, the formula through :func:`points.eval_edges`).
+    The suspects are refined with the formula
+    (:func:`~surfgen.generator.mesh.refine.refine_suspects`: the midpoint, the secant step, the
+    bisections and the decision, the formula through :func:`points.eval_edges`), on
+    ``threads`` threads (the same kinds on any number).
     """
-    kinds, refined, _points = _classify(field, tree, params, level, edges)
+    kinds, refined, _points = _classify(field, tree, params, level, edges, threads=threads)
     return kinds, refined
 
 
@@ -250,10 +256,12 @@ def _classify(
     level: float,
     edges: np.ndarray,
     lines: np.ndarray | None = None,
+    threads: int = 1,
 ) -> tuple[np.ndarray, int, int]:
     """:func:`classify_edges`, and how many points the formula was evaluated at.  ``lines``: F
     at the four samples of each row's grid line, ``(4, V)``, instead of reading them in
-    ``field.values`` (a sparse field's, :func:`~.sparse_marching.sparse_edge_lines`)."""
+    ``field.values`` (a sparse field's, :func:`~.sparse_marching.sparse_edge_lines`);
+    ``threads``: the suspects' refinement's."""
     shape = np.asarray(field.grid.shape, dtype=np.int64)
     edges = np.ascontiguousarray(edges, dtype=np.int64)
     if lines is None:
@@ -275,7 +283,7 @@ def _classify(
         return kinds, 0, 0
     prog, tile, active, rows = points_evaluator(tree, params).kernel_args()
     ax, ay, az = (np.ascontiguousarray(a, dtype=np.float64) for a in field.grid.axes())
-    points = _bisect_kernel(
+    points = refine_suspects(
         prog,
         tile,
         active,
@@ -290,6 +298,7 @@ def _classify(
         fa,
         fb,
         kinds,
+        threads,
     )
     return kinds, int(idx.size), int(points)
 

@@ -104,9 +104,9 @@ def warm_in_child() -> None:
     which calls the interpreter, is compiled for the tiny shape's argument types, not run
     (:func:`surfgen.generator.eval.evaluate.compiled_not_run`); the mesh and filter kernels run
     on the field the reference evaluator samples (the same values)."""
-    from surfgen.generator.mesh import walls
+    from surfgen.generator.mesh import refine
 
-    with _collector_paused(collect=False), compiled_not_run((walls, "_bisect_kernel")):
+    with _collector_paused(collect=False), compiled_not_run((refine, "_bisect_kernel")):
         _warm_sparse_marching()
         tree, box, field = _tiny_shape("reference")
         # "mark": the faces labelled, as the sampler's "keep" labels them where it finds walls
@@ -183,10 +183,10 @@ def _kernels_cached() -> bool:
     """:func:`shape_kernels_cached` but the interpreter."""
     from surfgen.filters import fine_band, geometry
     from surfgen.generator.eval import grid_driver
-    from surfgen.generator.mesh import marching, sparse_lewiner, walls
+    from surfgen.generator.mesh import marching, refine, sparse_lewiner
     from surfgen.pipelines.pictures import raster as pictures
 
-    stages = (grid_kernel(), walls._bisect_kernel, marching._offsets_kernel)
+    stages = (grid_kernel(), refine._bisect_kernel, marching._offsets_kernel)
     stages += (geometry.corner_angle_sums, pictures._rasterise)
     stages += (grid_driver.run_columns, fine_band._fill_bricks, sparse_lewiner.lewiner_range)
     return all(kernel_cached(d) for d in stages)

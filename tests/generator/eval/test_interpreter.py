@@ -21,7 +21,7 @@ from surfgen.generator.eval import row_functions as row_table
 from surfgen.generator.eval.evaluate import evaluate
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh import walls
+from surfgen.generator.mesh import refine
 
 # Poles inside the box: the walls' classification runs its kernel too.
 FORMULA = "x^2 + y^2 + z^2 - 1 + 0.02*tan(2*x + 0.3)"
@@ -62,7 +62,7 @@ def test_the_kernels_call_the_interpreter_and_do_not_contain_it() -> None:
     assert len(own) < 0.25 * rows, (len(own), rows)
     inside = len(own) + rows
     symbol = interpreter._CELL_SYMBOL.encode()
-    for kernel in (kernels.run_grid, points.eval_edges, walls._bisect_kernel):
+    for kernel in (kernels.run_grid, points.eval_edges, refine._bisect_kernel):
         for code in _cached_code(kernel._cache):
             assert symbol in code, kernel  # the call through the cell
             # with the interpreter linked in, each was bigger than the interpreter (1.0-1.4x

@@ -12,15 +12,15 @@ import pytest
 
 def test_every_cached_caller_is_stamped_with_the_numba_sources(tmp_path, monkeypatch):
     # A cached function carries the code of the jitted functions it calls from other files
-    # (walls -> kernels -> trig): its cache must go stale when any of them changes, not only
+    # (refine -> kernels -> trig): its cache must go stale when any of them changes, not only
     # when its own file does.
     from surfgen.generator.elementary import trig
     from surfgen.generator.eval import grid_driver as kernels
     from surfgen.generator.jit import cache as numba_cache
-    from surfgen.generator.mesh import walls
+    from surfgen.generator.mesh import refine
 
     digest = numba_cache.package_digest()
-    for fn in (walls._bisect_kernel, kernels.run_grid, trig.atan_row):
+    for fn in (refine._bisect_kernel, kernels.run_grid, trig.atan_row):
         locator = fn._cache._impl._locator
         assert getattr(locator, "_surfgen", False), fn
         assert locator.get_source_stamp()[1] == digest, fn
@@ -39,11 +39,11 @@ def test_every_cached_caller_is_stamped_with_the_numba_sources(tmp_path, monkeyp
     assert numba_cache.package_digest() != before
     # surfgen's files are stamped; other packages' are not, even in a virtual environment that
     # lives inside a checkout
-    stamped = type(walls._bisect_kernel._cache._impl._locator)
+    stamped = type(refine._bisect_kernel._cache._impl._locator)
     venv = tmp_path / ".venv" / "lib" / "site-packages"
     venv.mkdir(parents=True)
     (venv / "other.py").write_text("x = 1\n")
-    py_func = walls._bisect_kernel.py_func
+    py_func = refine._bisect_kernel.py_func
     kernels_py = str(tmp_path / "generator" / "eval" / "kernels.py")
     assert stamped.from_function(py_func, kernels_py) is not None
     assert stamped.from_function(py_func, str(venv / "other.py")) is None

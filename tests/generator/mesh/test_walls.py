@@ -277,6 +277,29 @@ def test_fused_classification_is_the_stepwise_reference(formula, half, cap):
     assert np.array_equal(kinds, want)
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_suspects_refined_in_runs_on_threads_give_the_same_kinds(monkeypatch, threads):
+    # refine_suspects calls the kernel on runs of SUSPECTS_A_CALL suspects, each thread taking
+    # the next run: with runs of 5 (hundreds of them, ending mid-axis) the kinds are still the
+    # stepwise reference's and the points evaluated those of one call over all the suspects
+    from surfgen.generator.mesh import refine
+    from surfgen.generator.mesh.mesh import extract_with_edges
+    from surfgen.generator.mesh.walls import _classify
+
+    tree = parse("sqrt(1-x^2-y^2)-abs(z)-0.2+0.1/(x-0.3)+0.05*tan(4*y)")
+    field = evaluate_reference(tree, Grid(Box.cube(1.2), (27, 30, 25)))
+    _mesh, edges = extract_with_edges(field, 0.0, True)
+    edges = np.ascontiguousarray(edges)
+    _kinds, refined, whole_points = _classify(field, tree, None, 0.0, edges)
+    assert refined > 100 * 5  # a hundred runs and more
+    monkeypatch.setattr(refine, "SUSPECTS_A_CALL", 5)
+    kinds, refined_runs, points = _classify(field, tree, None, 0.0, edges, threads=threads)
+    want, want_refined = reference_kinds(field, tree, 0.0, edges)
+    assert refined_runs == refined == want_refined
+    assert np.array_equal(kinds, want)
+    assert points == whole_points
+
+
 @pytest.mark.parametrize("walls", ["keep", "mark"])
 def test_label_walls_takes_the_face_areas_a_caller_has(walls):
     # the sampler's filters need the faces' areas too: it computes them once and passes them

@@ -289,7 +289,7 @@ CHILD_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, mesh, placement, sparse_bricks, walls
+from surfgen.generator.mesh import marching, mesh, placement, refine, sparse_bricks, walls
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_in_child
 
@@ -299,7 +299,7 @@ ran = {k: len(v.signatures) for m in (mesh, marching, placement) for k, v in var
 print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "grid": len(kernels.run_grid.signatures),
                   "columns": len(kernels.run_columns.signatures),
-                  "walls": len(walls._bisect_kernel.signatures), "mesh": sum(ran.values()),
+                  "walls": len(refine._bisect_kernel.signatures), "mesh": sum(ran.values()),
                   "labels": len(walls._label_faces.signatures),
                   "sparse": len(sparse_bricks.raise_bricks.signatures),
                   "pictures": len(pictures._rasterise.signatures)}))
@@ -324,7 +324,7 @@ FIRST_ONLY = """
 import json
 from numba.core.registry import CPUDispatcher
 from surfgen.generator.eval import interpreter, grid_driver as kernels
-from surfgen.generator.mesh import marching, placement, sparse_bricks, sparse_lewiner, walls
+from surfgen.generator.mesh import marching, placement, refine, sparse_bricks, sparse_lewiner
 from surfgen.pipelines.pictures import kernels as pictures
 from surfgen.pipelines.run.warmup import warm_first_in_child
 
@@ -337,7 +337,7 @@ print(json.dumps({"interpreter": interpreter.interpreter_loaded(),
                   "pictures": len(pictures._rasterise.signatures),
                   "mesh": sum(ran.values()),
                   "sparse": len(sparse_bricks.raise_bricks.signatures),
-                  "walls": len(walls._bisect_kernel.signatures)}))
+                  "walls": len(refine._bisect_kernel.signatures)}))
 """
 
 
