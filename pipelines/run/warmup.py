@@ -392,15 +392,13 @@ def _warm_measures(
 
 def _warm_extras(field, mesh) -> None:
     """The pictures' and the infill's struts' kernels on the tiny shape (``mesh``: its
-    surface), and the mesh files' writer (trimesh, which the writer imports when first used:
-    loaded here, the forked workers inherit it)."""
-    from surfgen.generator.mesh.exchange import encode_mesh
+    surface). The workers' mesh files are PLY, which surfgen writes without trimesh
+    (:func:`~surfgen.generator.mesh.exchange.ply_bytes`): nothing to load for them."""
     from surfgen.generator.model.ridges import ridge_distances
     from surfgen.pipelines.pictures.raster import render_image
 
     render_image(mesh, size=16)
     ridge_distances(field.values < 0.0, 2, 8)  # the infill's struts
-    encode_mesh(mesh, "ply")
 
 
 def _warm_carving(field) -> None:

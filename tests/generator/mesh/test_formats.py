@@ -11,7 +11,13 @@ import pytest
 import trimesh
 
 from surfgen.generator.errors import MeshError
-from surfgen.generator.mesh.exchange import encode_mesh, glb_bytes, load_mesh, mesh_format
+from surfgen.generator.mesh.exchange import (
+    encode_mesh,
+    glb_bytes,
+    load_mesh,
+    mesh_format,
+    ply_bytes,
+)
 from surfgen.generator.mesh.formats import (
     DATASET_FORMATS,
     EXPORT_FORMATS,
@@ -75,6 +81,40 @@ def test_file_glb_is_trimeshs_and_marks_walls(torus_mesh: Mesh) -> None:
         glb_bytes(None)
 
 
+def _trimesh_ply(mesh: Mesh) -> bytes:
+    """What encode_mesh gave through trimesh before it wrote PLY itself."""
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    if mesh.face_kinds is not None:
+        tm.face_attributes["kind"] = mesh.face_kinds.astype(np.uint8)
+        if mesh.n_faces:
+            rank = np.array([0, 2, 1, 0])[mesh.face_kinds]
+            best = np.zeros(mesh.n_vertices, dtype=np.int64)
+            np.maximum.at(best, mesh.faces.reshape(-1), np.repeat(rank, 3))
+            colours = np.array([[200, 200, 200, 255], [214, 39, 40, 255], [255, 127, 14, 255]])
+            tm.visual = trimesh.visual.ColorVisuals(
+                tm,
+                face_colors=colours[np.minimum(mesh.face_kinds, 2)],
+                vertex_colors=colours[np.array([0, 2, 1])[best]],
+            )
+    return tm.export(file_type="ply", encoding="binary")
+
+
+def test_ply_is_written_byte_for_byte_as_trimesh_writes_it(torus_mesh: Mesh) -> None:
+    # surfgen writes binary PLY itself (importing trimesh took longer than meshing a 512^3
+    # sculpture): the same bytes, plain and marked (every kind, the vertices painted by their
+    # most wall-like face), with no face, and with indices past 2**16
+    rng = np.random.default_rng(3)
+    kinds = rng.integers(0, 4, torus_mesh.n_faces).astype(np.uint8)
+    big = Mesh(rng.normal(size=(70_000, 3)) * 1e3, rng.integers(0, 70_000, (90_000, 3)))
+    no_face = Mesh(torus_mesh.vertices, np.zeros((0, 3), dtype=np.int64))
+    meshes = [torus_mesh, Mesh(torus_mesh.vertices, torus_mesh.faces, kinds), big, no_face]
+    meshes.append(Mesh(no_face.vertices, no_face.faces, np.zeros(0, dtype=np.uint8)))
+    for mesh in meshes:
+        want = _trimesh_ply(mesh)
+        assert ply_bytes(mesh) == want
+        assert encode_mesh(mesh, "ply") == want
+
+
 @pytest.mark.parametrize("name", [n for n, f in FORMATS.items() if f.mesh_file])
 def test_every_mesh_file_format_round_trips(name: str, tmp_path, torus_mesh: Mesh) -> None:
     path = tmp_path / f"t.{name}"
@@ -100,10 +140,11 @@ def test_only_markable_formats_carry_kinds(tmp_path, torus_mesh: Mesh) -> None:
     assert np.array_equal(load_mesh(path).face_kinds, kinds)
 
 
-def test_trimesh_is_loaded_when_a_file_is_first_written():
+def test_trimesh_is_loaded_when_a_file_other_than_ply_is_first_written():
     """``render``'s path evaluates and meshes without trimesh (60 MiB with scipy, which the
-    command would hold through its meshing); the first file written loads it; the sampler's
-    warm-up loads it before its workers fork."""
+    command would hold through its meshing, and 0.7 s to import); a PLY file (the sampler's
+    workers' only format) is written without it, the first file in another format loads it;
+    the sampler's warm-up does not."""
     import subprocess
     import sys
 
@@ -117,9 +158,13 @@ def test_trimesh_is_loaded_when_a_file_is_first_written():
     )
     written = "from surfgen.generator.mesh.exchange import encode_mesh\n"
     written += "encode_mesh(made.mesh, 'ply')\nprint('trimesh' in sys.modules)\n"
+    written += "encode_mesh(made.mesh, 'stl')\nprint('trimesh' in sys.modules)\n"
     warmed = "from surfgen.pipelines.run.warmup import _warm_extras\n"
     warmed += "_warm_extras(made.field, made.mesh)\nprint('trimesh' in sys.modules)\n"
-    for code, want in ((made + written, ["False", "True"]), (made + warmed, ["False", "True"])):
+    for code, want in (
+        (made + written, ["False", "False", "True"]),
+        (made + warmed, ["False", "False"]),
+    ):
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
         assert done.returncode == 0, done.stderr
         assert done.stdout.split() == want
