@@ -2,11 +2,11 @@
 :func:`save_mesh` / :func:`load_mesh`, for the formats of
 :data:`~surfgen.generator.mesh.formats.FORMATS`.
 
-trimesh writes and reads the files, but for binary PLY, which :func:`ply_bytes` writes
-itself, byte for byte as trimesh does (the tests compare them): importing trimesh (with scipy
-and networkx) took 0.65-0.73 s of a ``render -o x.ply`` on the Zen 4, more than meshing a
-512^3 sculpture, and its writer hashed the arrays it was given (0.14 s of 0.32 s for 5.8
-million faces).
+trimesh reads the files and writes them, but for the formats surfgen writes itself
+(:data:`OWN_WRITERS`: binary PLY, byte for byte as trimesh writes it; the tests compare
+them): importing trimesh (with scipy and networkx) took 0.65-0.73 s of a ``render -o x.ply``
+on the Zen 4, more than meshing a 512^3 sculpture, and its writer hashed the arrays it was
+given (0.14 s of 0.32 s for 5.8 million faces).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import json
 import logging
 import os
 import struct
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -70,8 +71,9 @@ def encode_mesh(mesh: Mesh, fmt: Format | str) -> bytes:
     (:data:`KIND_COLOURS`; a vertex takes the colour of a wall if any face around it is one).
     """
     fmt = FORMATS[fmt] if isinstance(fmt, str) else fmt
-    if fmt.name == "ply" and dict(fmt.options).get("encoding") == "binary":
-        return ply_bytes(mesh)
+    own = OWN_WRITERS.get(fmt.name)
+    if own is not None:
+        return own(mesh)
     tm = _trimesh().Trimesh(mesh.vertices, mesh.faces, process=False)
     if mesh.face_kinds is not None and fmt.marks_walls:
         _add_kinds(tm, mesh)
@@ -185,6 +187,10 @@ def _vertex_colours(mesh: Mesh) -> np.ndarray:
     best = np.zeros(mesh.n_vertices, dtype=np.int64)
     np.maximum.at(best, mesh.faces.reshape(-1), np.repeat(rank, 3))
     return KIND_COLOURS[np.array([ROOT, JUMP, POLE])[best]]
+
+
+#: The formats surfgen writes itself, by name (:func:`encode_mesh`; the others are trimesh's).
+OWN_WRITERS: dict[str, Callable[[Mesh], bytes]] = {"ply": ply_bytes}
 
 
 def _add_kinds(tm: trimesh.Trimesh, mesh: Mesh) -> None:

@@ -1,7 +1,8 @@
 """Mesh file formats: one table of what each can do (:data:`FORMATS`).
 
-A new format is one :class:`Format` entry (its writer and reader are trimesh's, chosen by
-``trimesh_type``, in :mod:`surfgen.generator.mesh.exchange`): every list of formats (the
+A new format is one :class:`Format` entry (its reader is trimesh's, chosen by
+``trimesh_type``, and so is its writer unless :mod:`surfgen.generator.mesh.exchange` has its
+own in ``OWN_WRITERS``: binary PLY): every list of formats (the
 suffixes ``save_mesh`` accepts, ``export --format``, ``dataset --format``, the help texts and
 messages naming them) is read from the table.  Plain data: the CLI reads it without loading
 the mesh modules.
@@ -17,7 +18,8 @@ from typing import Any
 class Format:
     """One mesh format and what it can do.
 
-    ``trimesh_type``/``options``: how trimesh writes (and reads) it; ``binary``: a binary file;
+    ``trimesh_type``/``options``: how trimesh reads (and, but for PLY, writes) it; ``binary``:
+    a binary file;
     ``printable``: meant for printing (must hold a closed solid; ``export`` writes it in
     millimetres); ``marks_walls``: carries the face kinds of ``--walls mark`` (and their
     colours); ``mesh_file``: ``save_mesh`` writes it and ``load_mesh`` reads it;
@@ -46,8 +48,7 @@ class Format:
 FORMATS: dict[str, Format] = {
     f.name: f
     for f in (
-        Format("ply", "ply", True, marks_walls=True, export_order=2, dataset=True,
-               options=(("encoding", "binary"),)),
+        Format("ply", "ply", True, marks_walls=True, export_order=2, dataset=True),
         Format("obj", "obj", False, export_order=1,
                options=(("include_normals", False), ("include_texture", False))),
         Format("stl", "stl", True, printable=True, export_order=0),

@@ -90,10 +90,17 @@ def _trimesh_ply(mesh: Mesh) -> bytes:
             rank = np.array([0, 2, 1, 0])[mesh.face_kinds]
             best = np.zeros(mesh.n_vertices, dtype=np.int64)
             np.maximum.at(best, mesh.faces.reshape(-1), np.repeat(rank, 3))
-            colours = np.array([[200, 200, 200, 255], [214, 39, 40, 255], [255, 127, 14, 255]])
+            colours = np.array(
+                [
+                    [200, 200, 200, 255],
+                    [214, 39, 40, 255],
+                    [255, 127, 14, 255],
+                    [160, 160, 160, 255],
+                ]
+            )
             tm.visual = trimesh.visual.ColorVisuals(
                 tm,
-                face_colors=colours[np.minimum(mesh.face_kinds, 2)],
+                face_colors=colours[mesh.face_kinds],
                 vertex_colors=colours[np.array([0, 2, 1])[best]],
             )
     return tm.export(file_type="ply", encoding="binary")
