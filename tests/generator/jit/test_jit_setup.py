@@ -7,6 +7,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from surfgen.generator.jit import setup as numba_setup
 
 # What a process reports: is numba loaded, are surfgen's settings in (the stamped cache locator
@@ -71,8 +73,54 @@ def test_numba_imported_before_surfgen_gets_the_settings_at_once():
     assert out == [SET_UP]
 
 
-def test_the_finder_leaves_once_numba_is_in():
-    import numba  # noqa: F401  (the suite has it already; the finder is gone either way)
+def test_the_finder_leaves_once_numba_and_its_array_math_are_in():
+    import numba.np.arraymath  # noqa: F401  (loaded with the first kernel; the finder is gone)
 
     assert numba_setup.installed()
     assert not any(isinstance(f, numba_setup._Finder) for f in sys.meta_path)
+
+
+# A process's first kernel: numba's array math imported, its BLAS check answered without
+# scipy.linalg, numba's own check back in place; then a kernel that does call BLAS.
+_BLAS = """
+import numpy as np, numba
+@numba.njit
+def total(a):
+    return a.sum()
+total(np.ones(3))
+import numba.np.arraymath as arraymath, numba.np.linalg as linalg
+from surfgen.generator.jit import setup as numba_setup
+out = [report(), "scipy.linalg" in sys.modules, arraymath._HAVE_BLAS,
+       arraymath.ensure_blas is linalg.ensure_blas,
+       linalg.ensure_blas is not numba_setup._scipy_installed,
+       any(isinstance(f, numba_setup._Finder) for f in sys.meta_path)]
+@numba.njit
+def dot(a, b):
+    return np.dot(a, b)
+out += [dot(np.ones(4), np.arange(4.0)), "scipy.linalg" in sys.modules]
+"""
+
+
+def test_a_first_kernel_loads_without_scipy_linalg_and_blas_is_there_when_asked():
+    assert _run("import surfgen.generator\n" + _BLAS) == [
+        SET_UP,
+        False,
+        True,
+        True,
+        True,
+        False,
+        6.0,
+        True,
+    ]
+
+
+def test_numba_imported_before_surfgen_still_loads_its_first_kernel_without_scipy_linalg():
+    out = _run("import numba\nimport surfgen.generator\n" + _BLAS)
+    assert out == [SET_UP, False, True, True, True, False, 6.0, True]
+
+
+def test_the_stand_in_blas_check_answers_as_numba_where_scipy_is_missing(monkeypatch):
+    numba_setup._scipy_installed()  # scipy is installed: no error
+    monkeypatch.setattr(numba_setup.importlib.util, "find_spec", lambda name: None)
+    with pytest.raises(ImportError, match="scipy"):
+        numba_setup._scipy_installed()
