@@ -13,8 +13,8 @@ followed by any kernel first called inside a timed run, which would time its com
 load from numba's cache). Numba's allocations are invisible to tracemalloc: the peak is the
 process's VmHWM from ``/proc/self/status``, started afresh after the warm-up
 (:func:`reset_peak`), and ``rss0`` the process's size then, so ``peak - rss0`` is what the run
-added: the table's *added ratio*, beside the ratio of the peaks, which the process's own two
-hundred MiB bound: *bound* is the highest ratio of the peaks any run returning the same mesh
+added: the table's *added ratio*, beside the ratio of the peaks, which the process's own
+170-200 MiB bound: *bound* is the highest ratio of the peaks any run returning the same mesh
 could reach, the dense peak over the warmed-up process plus the mesh's arrays
 (:func:`memory_bound`). Both runs hash their mesh (vertices and faces bytes): the table says
 whether they are the same mesh, bit for bit. Dense runs are skipped where the dense estimate
