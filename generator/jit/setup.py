@@ -106,7 +106,7 @@ def _defer_blas_check() -> Callable[[ModuleType, bool], None]:
     whenever a kernel that uses it is compiled, so nothing that needs scipy.linalg goes without
     it. A process that loads surfgen's kernels (none uses BLAS) no longer imports it: 15 MiB
     less and 0.15-0.2 s sooner (a cached kernel's first load 0.33 -> 0.14 s, measured on a
-    2-core AMD EPYC)."""
+    2-core AMD EPYC Zen 2)."""
     try:
         from numba.np import linalg
     except ImportError:  # pragma: no cover (a numba without the module: nothing to defer)
