@@ -149,3 +149,34 @@ def test_bad_input():
         points_evaluator(parse("m*x", ["m"]))
     program = compile_program(parse("m*x+y", ["m"]), {"m": 2.0})
     assert PointsEvaluator(program)(np.array([1.0]), np.array([0.5]), np.array([0.0]))[0] == 2.5
+
+
+def _first_appearance(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """numpy's account of :func:`point_driver.dedupe`: each key's rank among the distinct
+    keys in order of first appearance, and where each first appears."""
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return rank[inverse.ravel()], first[order]
+
+
+@pytest.mark.parametrize(
+    "n, distinct",
+    [(1, 1), (8, 8), (9, 2), (17, 5), (1000, 3), (16384, 64), (20000, 4000), (5000, 5000)],
+)
+def test_dedupe_numbers_keys_in_order_of_first_appearance(n, distinct):
+    # few distinct keys among many (the boxes' ranges of a level), and as many as keys:
+    # the table grows past every power of two on the way, its ids and firsts unchanged
+    from surfgen.generator.eval import point_driver as points
+
+    rng = np.random.default_rng(n + distinct)
+    pool = rng.integers(-(2**62), 2**62, size=distinct, dtype=np.int64)
+    keys = pool[rng.integers(0, distinct, size=n)]
+    ids, first = points.dedupe(keys)
+    want_ids, want_first = _first_appearance(keys)
+    np.testing.assert_array_equal(ids, want_ids)
+    np.testing.assert_array_equal(first, want_first)
+    assert np.array_equal(keys[first][ids], keys)
+    empty_ids, empty_first = points.dedupe(np.empty(0, dtype=np.int64))
+    assert empty_ids.size == 0 and empty_first.size == 0
