@@ -56,7 +56,7 @@ from surfgen.generator.eval.evaluate import evaluate, points_evaluator
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_areas, face_cross
+from surfgen.generator.mesh.mesh import Mesh, extract_mesh, face_area, face_areas
 from surfgen.generator.mesh.sparse_marching import extract_sparse
 
 SAMPLES = 4000  # points drawn on each mesh for the distances
@@ -353,10 +353,8 @@ def _in_cells(v, f, lo, spacing, dims):
     ids = np.empty(n, dtype=np.int64)
     origin = np.zeros(3)
     for t in range(n):
-        x, y, z = face_cross(w, f[t, 0], f[t, 1], f[t, 2])
-        areas[t] = 0.5 * math.sqrt(x * x + y * y + z * z)
-        x, y, z = face_cross(v, f[t, 0], f[t, 1], f[t, 2])
-        world[t] = 0.5 * math.sqrt(x * x + y * y + z * z)
+        areas[t] = face_area(w, f[t, 0], f[t, 1], f[t, 2])
+        world[t] = face_area(v, f[t, 0], f[t, 1], f[t, 2])
         _bucket_one(w, f, t, origin, 1.0, dims, centres, radii, ids)
     return w, areas, world, centres, radii, ids
 

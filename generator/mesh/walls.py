@@ -64,7 +64,6 @@ side changes), bisection follows one of them, so kinds there are a guess.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -87,7 +86,7 @@ from surfgen.generator.mesh.mesh import (
     Mesh,
     compact_mesh,
     extract_with_edges,
-    face_cross,
+    face_area,
 )
 from surfgen.generator.mesh.refine import refine_suspects
 
@@ -450,9 +449,10 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
     """uint8 ``(F,)`` kind of each face from its vertices' edge ``kinds``; with ``sums``, also
     the area on wall faces and in all from the faces' ``areas``
     (:func:`~surfgen.generator.mesh.mesh.wall_share`'s sums: the same operations in face order),
-    or, where ``areas`` is not one a face, from each face's area made here as
-    :func:`~surfgen.generator.mesh.mesh.face_areas` makes it (the same bits, without an array
-    of them: equation C's 5.8 million faces at 512^3, 47 MB faulted in and 50 ms).
+    or, where ``areas`` is empty, from each face's area made here
+    (:func:`~surfgen.generator.mesh.mesh.face_area`, as ``face_areas`` makes it: the same bits,
+    without an array of them: equation C's 5.8 million faces at 512^3, 47 MB faulted in and
+    50 ms).
 
     With ``cap``, faces lying on a box face (``lo``, ``hi``) are CAP.  Otherwise a face is a wall
     when most of its labelled vertices are walls (a pole if any of those is a pole, else a
@@ -476,7 +476,7 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
                 b |= np.int32(v[i, k] == hi[k]) << (2 * k + 1)
         code[i] = table[kinds[i]] | (b << 8)
     n_faces = f.shape[0]
-    own_areas = areas.shape[0] != n_faces
+    own_areas = areas.shape[0] == 0  # none given (label_walls checked any given)
     out = np.empty(n_faces, dtype=np.uint8)
     wall_area = 0.0
     total = 0.0
@@ -491,11 +491,7 @@ def _label_faces(v, f, kinds, cap, lo, hi, sums, areas):
             kind = CAP
         out[n] = kind
         if sums:
-            if own_areas:
-                x, y, z = face_cross(v, i0, i1, i2)
-                a = 0.5 * math.sqrt(x * x + y * y + z * z)
-            else:
-                a = areas[n]
+            a = face_area(v, i0, i1, i2) if own_areas else areas[n]
             total += a
             if kind == POLE or kind == JUMP:  # noqa: SIM109 (numba)
                 wall_area += a
