@@ -27,9 +27,9 @@ from surfgen.generator.errors import GridError
 from surfgen.generator.eval import interpreter
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.interval_kernels import run_boxes
+from surfgen.generator.eval.interval_plan import plan_kernel, range_reduce_into, range_tables
 from surfgen.generator.eval.interval_rules import EMPTY_HI, EMPTY_LO
 from surfgen.generator.eval.opcodes import LEVEL_ORDER
-from surfgen.generator.eval.point_driver import dedupe
 from surfgen.generator.eval.tape import COMPILED_CACHE, points_program, run_at_once
 from surfgen.generator.formula.expr import Expr
 
@@ -55,32 +55,13 @@ def plan_levels(
     ranges on those axes (boxes on a grid share them: the x level of a 32^3 grid of boxes runs
     32 times, not 32768), told apart by their bits; level xyz keeps one item per box. Without,
     every level has one item per box (the check of the sharing). ``firsts[lv]``: a box of each
-    item of level lv. Distinct values are found by hashing (:func:`.point_driver.dedupe`)."""
-    K = blo.shape[0]
-    every = np.arange(K, dtype=np.int64)
-    axis_ids = []
-    if share:
-        for a in range(3):
-            lo_ids, lo_first = dedupe(np.ascontiguousarray(blo[:, a]).view(np.int64))
-            hi_ids, hi_first = dedupe(np.ascontiguousarray(bhi[:, a]).view(np.int64))
-            axis_ids.append(dedupe(lo_ids * len(hi_first) + hi_ids))
-    inverse: list[np.ndarray] = [every] * 8
-    firsts: list[np.ndarray] = [every] * 8
-    for lv in range(1, 7 if share else 1):
-        key = np.zeros(K, np.int64)
-        for a in range(3):
-            if lv >> a & 1:
-                ids, first = axis_ids[a]
-                key = key * len(first) + ids
-        inverse[lv], firsts[lv] = dedupe(key)
-    counts = np.array([0] + [len(firsts[lv]) for lv in range(1, 8)], dtype=np.int64)
-    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    item_map = np.zeros((8, int(counts.sum())), dtype=np.int64)
-    for lv in range(1, 8):
-        cols = slice(offsets[lv], offsets[lv] + counts[lv])
-        for sub in range(1, 8):
-            if sub & ~lv == 0:  # the levels of lv's axes (lv itself too)
-                item_map[sub, cols] = offsets[sub] + inverse[sub][firsts[lv]]
+    item of level lv. Distinct values are found by hashing (:func:`.point_driver.dedupe`), in
+    one compiled pass (:func:`.interval_plan.plan_kernel`)."""
+    blo = np.ascontiguousarray(blo, dtype=np.float64)
+    bhi = np.ascontiguousarray(bhi, dtype=np.float64)
+    counts, offsets, item_map, first_rows = plan_kernel(blo, bhi, bool(share))
+    firsts = [np.arange(blo.shape[0], dtype=np.int64)]
+    firsts += [first_rows[lv, : counts[lv]] for lv in range(1, 8)]
     return counts, offsets, item_map, firsts
 
 
@@ -213,10 +194,10 @@ def _run_chunk(prog, depth, blo, bhi, share, flo, fhi, nan, points=None) -> None
             axis, lows, highs, nans = points[a]
             first = np.searchsorted(axis, blo[firsts[lv], a], side="left")
             last = np.searchsorted(axis, bhi[firsts[lv], a], side="right")
-            cols = slice(offsets[lv], offsets[lv] + counts[lv])
-            SL[:, cols] = _range_reduce(lows, first, last, np.minimum, EMPTY_LO)
-            SH[:, cols] = _range_reduce(highs, first, last, np.maximum, EMPTY_HI)
-            SN[:, cols] = _range_reduce(nans, first, last, np.maximum, 0)
+            c0 = int(offsets[lv])
+            range_reduce_into(lows, first, last, False, EMPTY_LO, SL, c0)
+            range_reduce_into(highs, first, last, True, EMPTY_HI, SH, c0)
+            range_reduce_into(nans, first, last, True, 0, SN, c0)
         levels = _MIXED_LEVELS
     run_boxes(prog, BOXES_TILE, levels, counts, offsets, item_map, SL, SH, SN, flo, fhi, nan)
 
@@ -259,41 +240,11 @@ def _axis_points(prog, depth, samples) -> list[tuple[np.ndarray, ...]]:
         out.append(
             (
                 samples[a],
-                _range_tables(SL[:, cols], np.minimum),
-                _range_tables(SH[:, cols], np.maximum),
-                _range_tables(SN[:, cols], np.maximum),
+                range_tables(np.ascontiguousarray(SL[:, cols]), False),
+                range_tables(np.ascontiguousarray(SH[:, cols]), True),
+                range_tables(np.ascontiguousarray(SN[:, cols]), True),
             )
         )
-    return out
-
-
-def _range_tables(rows: np.ndarray, op) -> list[np.ndarray]:
-    """A sparse table of ``rows`` ``(depth, n)``: entry j holds ``op`` over the windows of
-    ``2**j`` samples starting at each column (so any range is ``op`` of two windows)."""
-    tables = [np.ascontiguousarray(rows)]
-    width = 1
-    while 2 * width <= rows.shape[1]:
-        prev = tables[-1]
-        tables.append(op(prev[:, : prev.shape[1] - width], prev[:, width:]))
-        width *= 2
-    return tables
-
-
-def _range_reduce(tables: list[np.ndarray], first, last, op, empty) -> np.ndarray:
-    """``op`` over columns ``first[i]:last[i]`` of the table's rows, per range ``i``
-    (``empty`` for a range without a column)."""
-    length = np.maximum(last - first, 1)
-    j = np.floor(np.log2(length)).astype(np.int64)
-    j = np.where((1 << (j + 1)) <= length, j + 1, j)  # log2 rounding at powers of two
-    j = np.where((1 << j) > length, j - 1, j)
-    out = np.empty((tables[0].shape[0], len(first)), dtype=tables[0].dtype)
-    for level in np.unique(j):
-        pick = np.flatnonzero(j == level)
-        table = tables[level]
-        a = first[pick]
-        b = np.minimum(last[pick] - (1 << level), table.shape[1] - 1)
-        out[:, pick] = op(table[:, np.minimum(a, table.shape[1] - 1)], table[:, b])
-    out[:, last <= first] = empty
     return out
 
 

@@ -1,10 +1,11 @@
 """Sparse evaluation: sample a formula only in the blocks of the grid the surface may cross.
 
 The grid's cells are split into cubic *leaf blocks* of :data:`BLOCK` cells a side.  Coarse to
-fine, blocks of ``BLOCK * 2**l`` cells are bounded with interval arithmetic over the block's
-grid points (:func:`~surfgen.generator.eval.intervals.grid_point_bounds`: a value of one axis,
-such as ``tan(m x)``, by its values at the block's coordinates on that axis, so a pole between
-two samples does not make the block's bounds infinite): a block whose bounds lie above the
+fine (:func:`~surfgen.generator.eval.leaf_states.classify_blocks`), blocks of ``BLOCK * 2**l``
+cells are bounded with interval arithmetic over the block's grid points
+(:func:`~surfgen.generator.eval.intervals.grid_point_bounds`: a value of one axis, such as
+``tan(m x)``, by its values at the block's coordinates on that axis, so a pole between two
+samples does not make the block's bounds infinite): a block whose bounds lie above the
 level is *outside* (every sample is above the level or non-finite, which meshing counts as
 outside), one whose bounds are finite and below the level is *inside*; the others are split
 in eight and bounded again, down to the leaves.  Only the leaves left uncertain are *sampled*:
@@ -44,6 +45,7 @@ from surfgen.generator.eval.brick_lookup import locate, sampled_at, values_at
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import grid_point_bounds
+from surfgen.generator.eval.leaf_states import INSIDE, OUTSIDE, SAMPLED, Bounds, classify_blocks
 from surfgen.generator.eval.tape import evaluate_columns, evaluate_points
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.limits import MemoryBudget, check_step
@@ -58,13 +60,10 @@ BLOCK = 8
 #: The largest leaf: the meshing reads a brick's rows of ``block + 1`` samples as the bits
 #: of an int64 (:func:`surfgen.generator.mesh.sparse_bricks._row_mask`).
 MAX_BLOCK = 62
-#: Blocks per side at the coarsest level (at most): the first bounding pass.
-TOP_BLOCKS = 8
 #: Bricks sampled at a time (23 MiB of samples at ``BLOCK`` 8) before the one-sided ones are
 #: dropped: a bound that leaves many leaves to sample costs their time, not their memory.
 CHUNK_BRICKS = 4096
 
-OUTSIDE, INSIDE, SAMPLED = np.int8(0), np.int8(1), np.int8(2)
 # A brick's samples (:func:`_sides`): all outside, all inside, or both sides.
 _ALL_OUTSIDE, _ALL_INSIDE, _MIXED = 0, 1, 2
 
@@ -74,9 +73,6 @@ __all__ = [
     "evaluate_sparse",
     "evaluate_sparse_program",
 ]
-
-#: ``(program, lo, hi) -> (flo, fhi, finite)``: what bounds F over boxes.
-Bounds = Callable[[Program, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -325,59 +321,7 @@ def thread_count(threads: int | None) -> int:
     return max(1, int(threads))
 
 
-# ----------------------------------------------------------------------------- coarse to fine
-
-
-def classify_blocks(
-    program: Program,
-    grid: Grid,
-    axes: tuple[np.ndarray, np.ndarray, np.ndarray],
-    level: float,
-    block: int,
-    bounds: Bounds,
-) -> tuple[np.ndarray, int]:
-    """The leaves' states (int8 array of :func:`leaf_counts`) and the number of boxes bounded.
-
-    Levels of blocks ``block * 2**l`` cells a side, from the coarsest (at most
-    :data:`TOP_BLOCKS` a side) to the leaves: every block of the coarsest level is bounded; at
-    each finer level the children of the uncertain blocks are.  A state is inherited from the
-    parent where the parent was decided.
-    """
-    n_leaf = np.asarray(leaf_counts(grid, block), dtype=np.int64)
-    cells = np.asarray(grid.shape, dtype=np.int64) - 1
-    top = 0
-    while np.any(-(-n_leaf // (1 << top)) > TOP_BLOCKS):
-        top += 1
-    boxes = 0
-    state = None  # states at the current level
-    for lv in range(top, -1, -1):
-        size = block << lv
-        counts = -(-cells // size)
-        if state is None:
-            todo = np.argwhere(np.ones(tuple(counts), dtype=bool)).astype(np.int64)
-            state = np.full(tuple(counts), SAMPLED, dtype=np.int8)
-        else:
-            parent = state
-            state = np.repeat(np.repeat(np.repeat(parent, 2, 0), 2, 1), 2, 2)
-            state = np.ascontiguousarray(state[: counts[0], : counts[1], : counts[2]])
-            todo = np.argwhere(state == SAMPLED).astype(np.int64)
-        if len(todo) == 0:
-            continue
-        first = todo * size
-        last = np.minimum(first + size, cells[None, :])
-        lo = np.stack([axes[a][first[:, a]] for a in range(3)], axis=1)
-        hi = np.stack([axes[a][last[:, a]] for a in range(3)], axis=1)
-        flo, fhi, finite = bounds(program, lo, hi)
-        boxes += len(todo)
-        flo = np.asarray(flo, dtype=np.float64)
-        fhi = np.asarray(fhi, dtype=np.float64)
-        finite = np.asarray(finite, dtype=bool)
-        decided = np.full(len(todo), SAMPLED, dtype=np.int8)
-        decided[flo > level] = OUTSIDE
-        decided[finite & (fhi < level)] = INSIDE
-        state[tuple(todo.T)] = decided
-    assert state is not None
-    return state, boxes
+# ----------------------------------------------------------------------------- the leaves
 
 
 def brick_layout(

@@ -465,19 +465,43 @@ def test_grid_point_bounds_fail_when_a_sample_is_left_out(monkeypatch) -> None:
         )
 
 
-def test_range_reductions_are_the_minimum_and_maximum_over_the_range() -> None:
-    rng = np.random.default_rng(4)
-    for n in (1, 2, 5, 16, 17, 100):
-        rows = rng.normal(size=(3, n))
-        first = rng.integers(0, n + 1, 200)
-        last = rng.integers(0, n + 1, 200)
-        low = intervals._range_reduce(
-            intervals._range_tables(rows, np.minimum), first, last, np.minimum, np.inf
-        )
-        high = intervals._range_reduce(
-            intervals._range_tables(rows, np.maximum), first, last, np.maximum, -np.inf
-        )
-        for i, (a, b) in enumerate(zip(first, last, strict=True)):
-            want_lo = rows[:, a:b].min(axis=1) if b > a else np.full(3, np.inf)
-            want_hi = rows[:, a:b].max(axis=1) if b > a else np.full(3, -np.inf)
-            assert np.array_equal(low[:, i], want_lo) and np.array_equal(high[:, i], want_hi)
+def _plan_reference(blo, bhi, share):
+    """The levels' items as the planning's docstring describes them (ranges told apart by their
+    bits), with Python dicts."""
+    K = len(blo)
+    inverse, firsts = {0: list(range(K)), 7: list(range(K))}, {0: list(range(K)), 7: list(range(K))}
+    for lv in range(1, 7):
+        seen: dict = {}
+        inv = []
+        for k in range(K):
+            key = [(blo[k, a].tobytes(), bhi[k, a].tobytes()) for a in range(3) if lv >> a & 1]
+            key = tuple(key) if share else k
+            inv.append(seen.setdefault(key, len(seen)))
+        inverse[lv] = inv
+        firsts[lv] = [inv.index(i) for i in range(len(seen))]
+    counts = [0] + [len(firsts[lv]) for lv in range(1, 8)]
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    item_map = np.zeros((8, sum(counts)), dtype=np.int64)
+    for lv in range(1, 8):
+        for i, box in enumerate(firsts[lv]):
+            for sub in range(1, 8):
+                if sub & ~lv == 0:
+                    item_map[sub, offsets[lv] + i] = offsets[sub] + inverse[sub][box]
+    return counts, offsets, item_map, firsts
+
+
+@pytest.mark.parametrize("share", [True, False])
+def test_the_levels_items_are_the_distinct_ranges_in_order_of_first_appearance(share) -> None:
+    rng = np.random.default_rng(8)
+    for size in (1, 2, 50, 400):
+        values = rng.normal(size=5)
+        blo = rng.choice(values, size=(size, 3))
+        bhi = blo + rng.choice([0.0, 0.25, 1.0], size=(size, 3))
+        if size > 1:  # -0 told apart from +0 by its bits: another item, never a wrong one
+            blo[:2, 1], bhi[:2, 1] = (-0.0, 0.0), 1.0
+        counts, offsets, item_map, firsts = intervals.plan_levels(blo, bhi, share)
+        want = _plan_reference(blo, bhi, share)
+        assert counts.tolist() == list(want[0]) and offsets.tolist() == want[1].tolist()
+        assert np.array_equal(item_map, want[2])
+        for lv in range(1, 8):
+            assert firsts[lv].tolist() == want[3][lv]
