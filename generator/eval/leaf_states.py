@@ -32,7 +32,15 @@ OUTSIDE, INSIDE, SAMPLED = np.int8(0), np.int8(1), np.int8(2)
 #: ``(program, lo, hi) -> (flo, fhi, finite)``: what bounds F over boxes.
 Bounds = Callable[[Program, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
-__all__ = ["INSIDE", "OUTSIDE", "SAMPLED", "TOP_BLOCKS", "Bounds", "classify_blocks"]
+__all__ = [
+    "INSIDE",
+    "OUTSIDE",
+    "SAMPLED",
+    "TOP_BLOCKS",
+    "Bounds",
+    "classify_blocks",
+    "sampled_blocks",
+]
 
 
 def classify_blocks(
@@ -99,6 +107,21 @@ def _children(parent, c0, c1, c2):
                 state[i, j, k] = s
                 n += s == SAMPLED
     return state, _sampled_in(state, n)
+
+
+@njit(**KERNEL)
+def sampled_blocks(state):
+    """The uncertain (sampled) blocks of ``state``, ``(n, 3)`` in C order (``np.argwhere``'s,
+    always C-contiguous), and each block's number among them (-1 for the others)."""
+    number = np.full(state.shape, -1, dtype=np.int32)
+    n = 0
+    for i in range(state.shape[0]):
+        for j in range(state.shape[1]):
+            for k in range(state.shape[2]):
+                if state[i, j, k] == SAMPLED:
+                    number[i, j, k] = n
+                    n += 1
+    return _sampled_in(state, n), number
 
 
 @njit(**KERNEL)

@@ -45,7 +45,14 @@ from surfgen.generator.eval.brick_lookup import locate, sampled_at, values_at
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
 from surfgen.generator.eval.intervals import grid_point_bounds
-from surfgen.generator.eval.leaf_states import INSIDE, OUTSIDE, SAMPLED, Bounds, classify_blocks
+from surfgen.generator.eval.leaf_states import (
+    INSIDE,
+    OUTSIDE,
+    SAMPLED,
+    Bounds,
+    classify_blocks,
+    sampled_blocks,
+)
 from surfgen.generator.eval.tape import evaluate_columns, evaluate_points
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.limits import MemoryBudget, check_step
@@ -330,11 +337,9 @@ def brick_layout(
     """Where the sampled leaves' bricks go: the leaves in C order ``(K, 3)``, each leaf's
     brick number (``slot``, -1 where not sampled), the bricks' first grid indices
     (``corner``) and their points per axis (``extent``), as :class:`SparseField` holds them.
-    All C-contiguous, whatever the count (``np.argwhere`` gives a transposed array), so the
-    kernels that read them are compiled for one layout."""
-    leaves = np.ascontiguousarray(np.argwhere(state == SAMPLED), dtype=np.int64)
-    slot = np.full(state.shape, -1, dtype=np.int32)
-    slot[tuple(leaves.T)] = np.arange(len(leaves), dtype=np.int32)
+    All C-contiguous, whatever the count (``np.argwhere`` gives a transposed array for two
+    leaves or more), so the kernels that read them are compiled for one layout."""
+    leaves, slot = sampled_blocks(state)
     corner = leaves * block
     extent = np.minimum(block + 1, np.asarray(grid.shape, dtype=np.int64)[None, :] - corner)
     return leaves, slot, corner, extent

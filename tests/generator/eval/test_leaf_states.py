@@ -1,7 +1,8 @@
 """The leaves' states coarse to fine (:mod:`surfgen.generator.eval.leaf_states`): the compiled
 levels give the states and the box count of the plain algorithm (numpy, level by level), on
 odd, even and uneven grids and with bounds that decide much, little or nothing; a leaf's state
-is its blocks' at every level; and the bounds' answers are checked."""
+is its blocks' at every level; the bounds' answers are checked; the sampled blocks are listed
+and numbered as ``np.argwhere`` lists them."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from surfgen.generator.eval.leaf_states import (
     SAMPLED,
     TOP_BLOCKS,
     classify_blocks,
+    sampled_blocks,
 )
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.presets import PRESETS
@@ -112,3 +114,17 @@ def test_bounds_of_the_wrong_length_are_refused() -> None:
 
     with pytest.raises(ValueError, match="expected 64 bounds"):
         classify_blocks(program, grid, grid.axes(), 0.0, 8, short)
+
+
+@pytest.mark.parametrize("count", [0, 1, 2, 37, 60])
+def test_sampled_blocks_are_argwhere_s_and_numbered_in_order(count) -> None:
+    rng = np.random.default_rng(count)
+    state = rng.choice([OUTSIDE, INSIDE], size=(3, 4, 5)).astype(np.int8)
+    state.flat[rng.choice(60, count, replace=False)] = SAMPLED
+    blocks, number = sampled_blocks(state)
+    want = np.argwhere(state == SAMPLED)
+    assert blocks.shape == (count, 3) and blocks.dtype == np.int64 and blocks.flags.c_contiguous
+    assert np.array_equal(blocks, want)
+    assert number.dtype == np.int32 and number.shape == state.shape
+    assert np.array_equal(number[tuple(want.T)], np.arange(count))
+    assert np.all(number[state != SAMPLED] == -1)
