@@ -9,7 +9,7 @@ the others are bounded at the next level, down to the leaves.
 
 The levels' bookkeeping (children of the uncertain blocks, their boxes, the states written
 back) is compiled, as is the bounds' planning (:mod:`~surfgen.generator.eval.interval_plan`):
-in numpy the two took three times as long as the bounds' kernel (sculpture-1 at 512^3: 13.3
+in numpy the two took four times as long as the bounds' kernel (sculpture-1 at 512^3: 13.3
 ms in all, now 5.8).
 """
 
