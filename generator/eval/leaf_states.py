@@ -66,7 +66,7 @@ def classify_blocks(
     level = float(level)
     boxes = 0
     state = np.full(tuple(-(-cells // (block << top))), SAMPLED, dtype=np.int8)
-    todo = np.ascontiguousarray(np.argwhere(state == SAMPLED), dtype=np.int64)
+    todo = sampled_blocks(state)[0]  # every block of the coarsest level
     for lv in range(top, -1, -1):
         size = block << lv
         if lv < top:

@@ -337,8 +337,9 @@ def brick_layout(
     """Where the sampled leaves' bricks go: the leaves in C order ``(K, 3)``, each leaf's
     brick number (``slot``, -1 where not sampled), the bricks' first grid indices
     (``corner``) and their points per axis (``extent``), as :class:`SparseField` holds them.
-    All C-contiguous, whatever the count (``np.argwhere`` gives a transposed array for two
-    leaves or more), so the kernels that read them are compiled for one layout."""
+    All C-contiguous whatever the count (:func:`~.leaf_states.sampled_blocks`; ``np.argwhere``
+    gives a transposed array for two leaves or more), so the kernels that read them are
+    compiled for one layout."""
     leaves, slot = sampled_blocks(state)
     corner = leaves * block
     extent = np.minimum(block + 1, np.asarray(grid.shape, dtype=np.int64)[None, :] - corner)
