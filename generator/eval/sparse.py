@@ -53,7 +53,7 @@ from surfgen.generator.eval.leaf_states import (
     classify_blocks,
     sampled_blocks,
 )
-from surfgen.generator.eval.tape import evaluate_columns, evaluate_points
+from surfgen.generator.eval.tape import evaluate_columns, evaluate_points, run_at_once
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.limits import MemoryBudget, check_step
 from surfgen.generator.jit.options import INLINE, KERNEL
@@ -412,7 +412,7 @@ def _sample_and_decide(
             if faces:  # a cap's vertices need the inside samples on the box's faces
                 kept |= (sides[c0:c1] == _ALL_INSIDE) & on_face[c0:c1]
             keep[c0:c1] = kept
-            rows += _move_down(run, np.flatnonzero(kept))
+            rows += moved_down(run, np.flatnonzero(kept), workers)
             if progress is not None:
                 progress(c1 / n)
     held = [values]
@@ -507,11 +507,35 @@ def _fill_proxy(values, state, block, below, samples, corner, extent):
                     ]
 
 
-@njit(**KERNEL)
-def _move_down(values, kept):
+#: Bricks kept in a run at least for :func:`moved_down` to move them on two threads.
+MOVE_APART = 256
+
+
+def moved_down(values: np.ndarray, kept: np.ndarray, threads: int = 1) -> int:
     """Bricks ``kept`` (ascending) to rows ``0, 1, ...`` of ``values``, in place; returns how
-    many."""
-    for r in range(kept.size):
+    many. With ``threads`` > 1, the first half of the rows and the second at once: the second
+    half writes rows at or past ``h``, its own sources lie past them, and the first half's
+    sources below ``h`` are rows it never writes; the first half's bricks read from ``h`` on
+    (as many as the bricks dropped before them: few) are kept aside first and written last.
+    A memory-bound copy of most of the run (a run drops a few bricks, and every brick after
+    the first dropped moves): sculpture-1 at 512^3, 3 ms a run of 4096 bricks on one thread,
+    with the other idle."""
+    k = kept.size
+    if threads < 2 or k < MOVE_APART:
+        return _move_down(values, kept, 0, k)
+    h = k // 2
+    r0 = int(np.searchsorted(kept[:h], h))  # the first row below h whose brick is past it
+    aside = values[kept[r0:h]]  # a copy (fancy indexing)
+    run_at_once([lambda: _move_down(values, kept, 0, r0), lambda: _move_down(values, kept, h, k)])
+    values[r0:h] = aside
+    return k
+
+
+@njit(**KERNEL)
+def _move_down(values, kept, r0, r1):
+    """Bricks ``kept[r0:r1]`` (ascending, ``kept[r] >= r``) to rows ``r0:r1`` of ``values``,
+    in place, in order; returns how many there are in all."""
+    for r in range(r0, r1):
         b = kept[r]
         if b != r:
             values[r] = values[b]

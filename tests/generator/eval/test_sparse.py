@@ -256,6 +256,26 @@ def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():
     assert kept.tobytes() == want.tobytes()
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_bricks_kept_move_down_as_numpy_selects_them(threads):
+    # drops before, within and after the halves, none, all but one, long runs of either: the
+    # rows numpy's selection gives (two threads move the halves at once, the first half's
+    # bricks read from the second's rows kept aside)
+    from surfgen.generator.eval.sparse import MOVE_APART, moved_down
+
+    rng = np.random.default_rng(7)
+    n = 3 * MOVE_APART
+    patterns = [np.ones(n, bool), np.arange(n) != 0, np.arange(n) == n - 1,
+                np.arange(n) >= n // 3, np.arange(n) % 2 == 0, (np.arange(n) // 40) % 3 != 1]  # fmt: skip
+    patterns += [rng.random(n) < p for p in (0.02, 0.1, 0.5, 0.97)]
+    for keep in patterns:
+        values = rng.standard_normal((n, 3, 3, 3))
+        before = values.copy()
+        kept = np.flatnonzero(keep)
+        assert moved_down(values, kept, threads) == kept.size
+        assert values[: kept.size].tobytes() == before[kept].tobytes()
+
+
 def test_sampling_holds_no_second_copy_of_the_bricks_kept():
     import tracemalloc
 

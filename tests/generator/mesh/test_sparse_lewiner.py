@@ -195,6 +195,38 @@ def test_the_joined_mesh_takes_the_cells_memory(monkeypatch, giving_back):
         assert alive[0]() is None and alive[1]() is None
 
 
+@pytest.mark.parametrize("giving_back", [True, False])
+def test_the_runs_share_the_spare_memory_kind_by_kind(monkeypatch, giving_back):
+    # a spare block too small for every run's arrays holds every run's faces and vertices
+    # (the arrays the runs write most) and no run's layers: the runs fault in about as many
+    # fresh pages each; the mesh is the one pass's either way
+    from surfgen.generator import allocator
+    from surfgen.generator.mesh.lewiner_chunks import _shared_out
+
+    monkeypatch.setattr(allocator, "_giving_back", giving_back)
+    specs = [spec for n in (400, 300) for spec in lw.run_buffers(n, 100, True)]
+    # each run's layers, vertices, faces and heads; room for both runs' vertices and faces
+    writes = [specs[i] for i in (1, 2, 5, 6)]
+    size = sum(int(np.prod(s)) * np.dtype(t).itemsize + allocator.ALIGN for s, t in writes)
+    spare = [np.empty(size // 8)]
+    made = _shared_out(spare, specs, 2)
+    assert [(m.shape, m.dtype) for m in made] == [(s, np.dtype(t)) for s, t in specs]
+    on_spare = [m.base is not None for m in made]
+    if giving_back:  # faces and vertices of both runs, then what still fits: not the layers
+        assert on_spare[1] and on_spare[2] and on_spare[5] and on_spare[6]
+        assert not on_spare[0] and not on_spare[4]
+    else:
+        assert not any(on_spare)
+    rng = np.random.default_rng(8)
+    w = volume(2, (14, 11, 9), rng)
+    mask = skimage_mask(w)
+    one = run_port(w, mask, threads=1)
+    keys, corners = cells_of(w, mask)
+    spare = [np.empty(keys.size * 6, dtype=np.float32)]
+    v, f = lewiner_cells([keys, corners], w.shape[2], w.shape[1], 2, 1, spare=spare)
+    assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
+
+
 def test_every_case_is_met():
     """The noise volumes above reach every Lewiner case (1-14) and the centre vertex."""
     rng = np.random.default_rng(3)
