@@ -104,7 +104,9 @@ def _shared_out(spare: list[np.ndarray], specs: list, n_runs: int) -> list[np.nd
     cannot hold them all, each run writes about as many fresh pages as the others (run after
     run, the first took it all and the last faulted in every page of its own: sculpture-1 at
     512^3, 32 and 37 ms), since the runs wait for the slowest."""
-    order = [4 * r + kind for kind in _BY_WRITES for r in range(n_runs)]
+    kinds = len(specs) // n_runs
+    assert kinds == len(_BY_WRITES), "run_buffers and _BY_WRITES name the same arrays"
+    order = [kinds * r + kind for kind in _BY_WRITES for r in range(n_runs)]
     made = recycled_many(spare, [specs[i] for i in order])
     buffers: list[np.ndarray] = [np.empty(0)] * len(specs)
     for i, array in zip(order, made, strict=True):
