@@ -507,26 +507,30 @@ def _fill_proxy(values, state, block, below, samples, corner, extent):
                     ]
 
 
-#: Bricks kept in a run at least for :func:`moved_down` to move them on two threads.
+#: Bricks to move in a run at least for :func:`moved_down` to move them on two threads.
 MOVE_APART = 256
 
 
 def moved_down(values: np.ndarray, kept: np.ndarray, threads: int = 1) -> int:
     """Bricks ``kept`` (ascending) to rows ``0, 1, ...`` of ``values``, in place; returns how
-    many. With ``threads`` > 1, the first half of the rows and the second at once: the second
-    half writes rows at or past ``h``, its own sources lie past them, and the first half's
-    sources below ``h`` are rows it never writes; the first half's bricks read from ``h`` on
-    (as many as the bricks dropped before them: few) are kept aside first and written last.
-    A memory-bound copy of most of the run (a run drops a few bricks, and every brick after
-    the first dropped moves): sculpture-1 at 512^3, 3 ms a run of 4096 bricks on one thread,
-    with the other idle."""
+    many. Only the rows from the first dropped brick on move; with ``threads`` > 1, the first
+    half of those rows and the second at once: the second half writes rows at or past ``h``,
+    its own sources lie past them, and the first half's sources below ``h`` are rows it never
+    writes; the first half's bricks read from ``h`` on (as many as the bricks dropped before
+    them: few) are kept aside first and written last. A memory-bound copy of most of the run
+    (a run drops a few bricks, and every brick after the first dropped moves): sculpture-1 at
+    512^3, 3 ms a run of 4096 bricks on one thread, with the other idle."""
     k = kept.size
-    if threads < 2 or k < MOVE_APART:
-        return _move_down(values, kept, 0, k)
-    h = k // 2
+    # kept[r] - r counts the bricks dropped before row r's: rows before the first drop stay
+    d = int(np.searchsorted(kept - np.arange(k), 0, side="right"))
+    if d == k:
+        return k
+    if threads < 2 or k - d < MOVE_APART:
+        return _move_down(values, kept, d, k)
+    h = (d + k) // 2
     r0 = int(np.searchsorted(kept[:h], h))  # the first row below h whose brick is past it
     aside = values[kept[r0:h]]  # a copy (fancy indexing)
-    run_at_once([lambda: _move_down(values, kept, 0, r0), lambda: _move_down(values, kept, h, k)])
+    run_at_once([lambda: _move_down(values, kept, d, r0), lambda: _move_down(values, kept, h, k)])
     values[r0:h] = aside
     return k
 

@@ -258,7 +258,8 @@ def test_the_bricks_kept_shrink_in_place_unless_held_elsewhere():
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_bricks_kept_move_down_as_numpy_selects_them(threads):
-    # drops before, within and after the halves, none, all but one, long runs of either: the
+    # drops before, within and after the halves, none, all but one, long runs of either, the
+    # first drop a third of the way in (only the rows after it move, in halves): the
     # rows numpy's selection gives (two threads move the halves at once, the first half's
     # bricks read from the second's rows kept aside)
     from surfgen.generator.eval.sparse import MOVE_APART, moved_down
@@ -266,7 +267,8 @@ def test_bricks_kept_move_down_as_numpy_selects_them(threads):
     rng = np.random.default_rng(7)
     n = 3 * MOVE_APART
     patterns = [np.ones(n, bool), np.arange(n) != 0, np.arange(n) == n - 1,
-                np.arange(n) >= n // 3, np.arange(n) % 2 == 0, (np.arange(n) // 40) % 3 != 1]  # fmt: skip
+                np.arange(n) >= n // 3, np.arange(n) % 2 == 0, (np.arange(n) // 40) % 3 != 1,
+                np.abs(np.arange(n) - n // 3 - 3) > 2]  # fmt: skip
     patterns += [rng.random(n) < p for p in (0.02, 0.1, 0.5, 0.97)]
     for keep in patterns:
         values = rng.standard_normal((n, 3, 3, 3))
