@@ -185,12 +185,13 @@ class SparseField:
         return bool(_bricks_count_inside(self.samples(), self.extent, self.level) > 0)
 
     def all_inside(self) -> bool:
-        """Whether every sample is inside."""
+        """Whether every sample is inside: no leaf outside, and every sample of the bricks kept
+        (not :attr:`points_evaluated`, which counts the one-sided bricks dropped after
+        sampling too: their leaves' states tell their side)."""
         if np.any(self.state == OUTSIDE):
             return False
-        return bool(
-            _bricks_count_inside(self.samples(), self.extent, self.level) == self.points_evaluated
-        )
+        kept = int(np.prod(self.extent, axis=1).sum()) if self.n_bricks else 0
+        return bool(_bricks_count_inside(self.samples(), self.extent, self.level) == kept)
 
     def lookup(self) -> tuple:
         """What :func:`sample_at` takes after the index: ``(slot, corner, values, block)``."""

@@ -125,6 +125,27 @@ def test_one_sided_bricks_are_decided_after_sampling(cap):
     assert dense[1].tobytes() == sparse[1].tobytes()
 
 
+@pytest.mark.parametrize("cap", [False, True])
+def test_a_field_all_inside_is_no_surface_once_its_bricks_are_dropped(cap):
+    # every leaf sampled (bounds deciding nothing) and found all inside: dropped, or kept on
+    # the box's faces for the caps; the field is still all inside, no surface either way (a
+    # draw of the fuzz, capped, once meshed the box's caps sparsely where dense had no surface)
+    from surfgen.generator.errors import EmptySurface
+
+    grid = Grid(Box.cube(1.0), (41, 37, 30))
+    tree = parse("x^2+y^2+z^2-10")
+    sf = evaluate_sparse(tree, grid, faces=cap, bounds=_no_bounds)
+    assert sf.stats["sampled_leaves"] == int(np.prod(leaf_counts(grid)))
+    assert (sf.n_bricks > 0) == cap and np.all(sf.state != OUTSIDE)
+    assert sf.any_inside() and sf.all_inside()
+    with pytest.raises(EmptySurface, match="inside"):
+        extract_with_edges(evaluate(tree, grid), 0.0, cap)
+    with pytest.raises(EmptySurface, match="inside"):
+        extract_sparse_with_edges(sf, cap)
+    outside = evaluate_sparse(parse("x^2+y^2+z^2+1"), grid, faces=cap, bounds=_no_bounds)
+    assert not outside.any_inside() and not outside.all_inside()
+
+
 def test_values_at_and_sampled_at():
     grid = Grid(Box.cube(1.5), (40, 40, 40))
     sf = evaluate_sparse(SPHERE, grid)
