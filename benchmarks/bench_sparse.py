@@ -59,7 +59,9 @@ from surfgen.generator.model.spec import SurfaceSpec
 
 FIDGET_OPS = {"fidget VM (brute force)": 7866 * 1024**2 / 5.8, "fidget JIT": 7866 * 1024**2 / 0.182}
 WARM_UP_GRIDS = (64, 256)
-DEFAULT_SHAPES = "eqA,eqB,eqC,sculpture-1,sculpture-3,sculpture-5,lattice-0,free-0"
+DEFAULT_SHAPES = (
+    "eqA,eqB,eqC,sculpture-1,sculpture-3,sculpture-5,lattice-0,infill-0,assembly-0,twist-0,free-0"
+)
 
 
 def spec_of(name: str):
