@@ -44,6 +44,7 @@ from surfgen.generator.allocator import scratch_kept
 from surfgen.generator.eval.brick_lookup import locate, sampled_at, values_at
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.grid import Field, Grid
+from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
 from surfgen.generator.eval.interval_regroup import regroup, regrouped_bounds
 from surfgen.generator.eval.intervals import grid_point_bounds
 from surfgen.generator.eval.leaf_states import (
@@ -237,7 +238,8 @@ def evaluate_sparse(
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
     bounds (None: over the grid's points,
     :func:`~surfgen.generator.eval.intervals.grid_point_bounds`, tightened where the formula
-    holds a power of a sum multiplied out, :mod:`~.interval_regroup`;
+    holds a power of a sum multiplied out, :mod:`~.interval_regroup`, or else expanded
+    polynomials, :mod:`~.interval_poly`;
     :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``budget``: refuse (a
     ``LimitError``) a run of leaves whose samples would take the command past its memory limit,
     before it is sampled; ``progress``: called with the share of the leaves sampled after each
@@ -248,8 +250,13 @@ def evaluate_sparse(
     if bounds is None:
         bounds = grid_point_bounds(grid.axes(), thread_count(threads))
         regrouped = regroup(tree)
+        structure = None if regrouped is not None else polynomial_structure(tree)
         if regrouped is not None:
             bounds = regrouped_bounds(bounds, program, regrouped, params)
+        elif structure is not None:
+            bounds = polynomial_bounds(
+                bounds, program, structure, float(level), params, thread_count(threads)
+            )
     return evaluate_sparse_program(
         program, grid, threads, level, faces, block, bounds, budget, progress
     )
