@@ -1,13 +1,19 @@
 """Checks of interval bounds shared by the tests of :mod:`surfgen.generator.eval.intervals`
 and of :mod:`surfgen.generator.eval.interval_regroup`: random boxes, points in them, and the
-soundness of bounds against the fast evaluator at those points."""
+soundness of bounds against the fast evaluator at those points, and the sparse path's leaves
+and mesh with tightened bounds."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from surfgen.generator.eval.intervals import tree_bounds
+from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.intervals import grid_point_bounds, tree_bounds
+from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.eval.tape import points_evaluator
+from surfgen.generator.formula.expr import Expr
+from surfgen.generator.mesh.realise import realise
+from surfgen.generator.model.spec import SurfaceSpec
 
 
 def random_boxes(rng: np.random.Generator, lo, hi, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -49,3 +55,43 @@ def assert_sound(tree, params, blo, bhi, rng, bounds=None) -> np.ndarray:
                 f"{bhi[k].tolist()}, bounds [{flo[k]!r}, {fhi[k]!r}], finite {finite[k]}"
             )
     return v
+
+
+def assert_fewer_leaves_same_mesh(tree: Expr, box: Box, shape: tuple[int, int, int]) -> None:
+    """The sparse path's default bounds sample fewer leaves of ``tree`` on this grid than the
+    plain grid-point bounds, keep the same, and the capped mesh is the dense path's, bit for
+    bit."""
+    grid = Grid(box, shape)
+    plain = evaluate_sparse(tree, grid, bounds=grid_point_bounds(grid.axes(), 1), faces=True)
+    tight = evaluate_sparse(tree, grid, faces=True)
+    assert tight.stats["sampled_leaves"] < plain.stats["sampled_leaves"]
+    assert tight.n_bricks == plain.n_bricks
+    bounds = (box.lo[0], box.hi[0], box.lo[1], box.hi[1], box.lo[2], box.hi[2])
+    spec = SurfaceSpec.from_tree(tree, bounds, shape)
+    meshes = [realise(spec, evaluator=e, cap=True).mesh for e in ("fast", "sparse")]
+    assert meshes[0].faces.shape[0] > 1000
+    for a in ("vertices", "faces"):
+        assert np.array_equal(getattr(meshes[0], a), getattr(meshes[1], a))
+
+
+def grid_blocks(grid: Grid, step: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The grid's blocks of ``step`` cells a side (the last ones cut at the grid's end): their
+    first and last grid indices and their boxes, ``(idx, top, lo, hi)``."""
+    axes = grid.axes()
+    idx = np.stack(np.meshgrid(*[np.arange(0, n - 1, step) for n in grid.shape], indexing="ij"), -1)
+    idx = idx.reshape(-1, 3)
+    top = np.minimum(idx + step, np.array(grid.shape) - 1)
+    lo = np.stack([axes[a][idx[:, a]] for a in range(3)], 1)
+    hi = np.stack([axes[a][top[:, a]] for a in range(3)], 1)
+    return idx, top, lo, hi
+
+
+def assert_grid_points_within(tree: Expr, grid: Grid, idx, top, flo, fhi, every: int = 1) -> None:
+    """Every grid point of every ``every``-th block (:func:`grid_blocks`) has its value within
+    the block's bounds."""
+    axes, f = grid.axes(), points_evaluator(tree, {})
+    for k in range(0, len(idx), every):
+        pts = np.stack(np.meshgrid(*[axes[a][idx[k, a] : top[k, a] + 1] for a in range(3)],
+                                   indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
+        v = f(*pts.T)
+        assert np.all((v >= flo[k]) & (v <= fhi[k])), k

@@ -15,12 +15,15 @@ from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
 from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds
-from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
-from surfgen.generator.model.spec import SurfaceSpec
-from tests.support.interval_checks import assert_sound, random_boxes
+from tests.support.interval_checks import (
+    assert_fewer_leaves_same_mesh,
+    assert_grid_points_within,
+    assert_sound,
+    grid_blocks,
+    random_boxes,
+)
 
 TORUS = "(x^2+y^2+z^2+0.6^2-0.25^2)^2-4*0.6^2*(x^2+y^2)"
 TORUS_OUT = (
@@ -135,26 +138,14 @@ def test_the_taylor_form_is_far_tighter_on_a_torus_written_out() -> None:
     grid = Grid(Box((-1.6,) * 3, (1.6,) * 3), (65, 61, 67))
     base = grid_point_bounds(grid.axes(), 1)
     bounds = polynomial_bounds(base, program, polynomial_structure(tree), None)
-    axes = grid.axes()
-    idx = np.stack(np.meshgrid(*[np.arange(0, n - 1, 4) for n in grid.shape], indexing="ij"), -1)
-    idx = idx.reshape(-1, 3)
-    top = np.minimum(idx + 4, np.array(grid.shape) - 1)
-    blo = np.stack([axes[a][idx[:, a]] for a in range(3)], 1)
-    bhi = np.stack([axes[a][top[:, a]] for a in range(3)], 1)
+    idx, top, blo, bhi = grid_blocks(grid, 4)
     plo, phi, _ = base(program, blo, bhi)
     flo, fhi, fin = bounds(program, blo, bhi)
     near = (plo < 0) & (phi > 0)  # the blocks the plain bounds leave to sample
     assert fin.all() and near.sum() > 100
     assert np.median((phi - plo)[near] / (fhi - flo)[near]) > 5
     assert np.mean((flo > 0) | (fhi < 0)) > np.mean((plo > 0) | (phi < 0)) + 0.1
-    from surfgen.generator.eval.tape import points_evaluator
-
-    f = points_evaluator(tree, {})
-    for k in range(0, len(idx), 7):
-        pts = np.stack(np.meshgrid(*[axes[a][idx[k, a] : top[k, a] + 1] for a in range(3)],
-                                   indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
-        v = f(*pts.T)
-        assert np.all((v >= flo[k]) & (v <= fhi[k])), k
+    assert_grid_points_within(tree, grid, idx, top, flo, fhi, every=7)
 
 
 def test_a_structure_that_decides_nothing_is_given_up(monkeypatch) -> None:
@@ -201,14 +192,4 @@ def test_the_sparse_path_samples_fewer_leaves_for_the_same_mesh(family: str) -> 
         pytest.fail(f"no {family} draw with a polynomial")
     lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
     box = Box(tuple(lo * 1.03 + 0.02), tuple(hi * 0.98 + 0.02))
-    grid = Grid(box, (121, 113, 127))
-    plain = evaluate_sparse(tree, grid, bounds=grid_point_bounds(grid.axes(), 1), faces=True)
-    taylor = evaluate_sparse(tree, grid, faces=True)
-    assert taylor.stats["sampled_leaves"] < plain.stats["sampled_leaves"]
-    assert taylor.n_bricks == plain.n_bricks
-    spec = SurfaceSpec.from_tree(tree, (box.lo[0], box.hi[0], box.lo[1], box.hi[1], box.lo[2],
-                                        box.hi[2]), grid.shape)  # fmt: skip
-    meshes = [realise(spec, evaluator=e, cap=True).mesh for e in ("fast", "sparse")]
-    assert meshes[0].faces.shape[0] > 1000
-    for a in ("vertices", "faces"):
-        assert np.array_equal(getattr(meshes[0], a), getattr(meshes[1], a))
+    assert_fewer_leaves_same_mesh(tree, box, (121, 113, 127))

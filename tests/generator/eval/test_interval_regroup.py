@@ -17,14 +17,17 @@ from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_regroup import regroup, regrouped_bounds
 from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds
-from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.expr import to_string
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
-from surfgen.generator.model.spec import SurfaceSpec
-from tests.support.interval_checks import assert_sound, random_boxes
+from tests.support.interval_checks import (
+    assert_fewer_leaves_same_mesh,
+    assert_grid_points_within,
+    assert_sound,
+    grid_blocks,
+    random_boxes,
+)
 
 # Factors of the random expansions: of one, two or three axes, with poles and jumps.
 FACTORS = [
@@ -212,24 +215,14 @@ def test_the_terms_of_one_axis_are_summed_together(monkeypatch) -> None:
     program = compile_tree(tree)
     grid = Grid(Box((-1.3,) * 3, (1.3,) * 3), (41, 37, 45))
     base = grid_point_bounds(grid.axes(), 1)
-    idx = np.stack(np.meshgrid(*[np.arange(0, n - 1, 4) for n in grid.shape], indexing="ij"), -1)
-    idx = idx.reshape(-1, 3)
-    axes = grid.axes()
-    top = np.minimum(idx + 4, np.array(grid.shape) - 1)
-    blo = np.stack([axes[a][idx[:, a]] for a in range(3)], 1)
-    bhi = np.stack([axes[a][top[:, a]] for a in range(3)], 1)
+    idx, top, blo, bhi = grid_blocks(grid, 4)
     flo, fhi, fin = regrouped_bounds(base, program, regroup(tree))(program, blo, bhi)
     with monkeypatch.context() as m:
         m.setattr(interval_regroup, "_by_axis", lambda terms, _: terms)
         alo, ahi, _ = regrouped_bounds(base, program, regroup(tree))(program, blo, bhi)
     ratio = (fhi - flo) / (ahi - alo)
     assert fin.all() and np.median(ratio) < 0.85 and ratio.max() < 1 + 1e-9
-    f = points_evaluator(tree, {})
-    for k in range(len(idx)):
-        pts = np.stack(np.meshgrid(*[axes[a][idx[k, a] : top[k, a] + 1] for a in range(3)],
-                                   indexing="ij"), -1).reshape(-1, 3)  # fmt: skip
-        v = f(*pts.T)
-        assert np.all((v >= flo[k]) & (v <= fhi[k])), k
+    assert_grid_points_within(tree, grid, idx, top, flo, fhi)
 
 
 def test_the_sparse_path_samples_fewer_leaves_for_the_same_mesh() -> None:
@@ -245,14 +238,4 @@ def test_the_sparse_path_samples_fewer_leaves_for_the_same_mesh() -> None:
     tree = draw.equation.with_d(choose_d(draw, cfg, threads=1)).to_tree()
     lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
     box = Box(tuple(lo * 1.05 + 0.03), tuple(hi * 0.97 + 0.03))
-    grid = Grid(box, (97, 90, 103))
-    plain = evaluate_sparse(tree, grid, bounds=grid_point_bounds(grid.axes(), 1), faces=True)
-    folded = evaluate_sparse(tree, grid, faces=True)
-    assert folded.stats["sampled_leaves"] < plain.stats["sampled_leaves"]
-    assert folded.n_bricks == plain.n_bricks
-    spec = SurfaceSpec.from_tree(tree, (box.lo[0], box.hi[0], box.lo[1], box.hi[1], box.lo[2],
-                                        box.hi[2]), grid.shape)  # fmt: skip
-    meshes = [realise(spec, evaluator=e, cap=True).mesh for e in ("fast", "sparse")]
-    assert meshes[0].faces.shape[0] > 1000
-    for a in ("vertices", "faces"):
-        assert np.array_equal(getattr(meshes[0], a), getattr(meshes[1], a))
+    assert_fewer_leaves_same_mesh(tree, box, (97, 90, 103))
