@@ -138,14 +138,15 @@ def polynomial_bounds(
     params: Mapping[str, float] | None = None,
     threads: int = 1,
 ) -> Bounds:
-    """``base`` for ``program``, and where that leaves a box undecided at ``level``, the bounds
-    through ``structure`` too (the module's docstring), the two intersected (``level`` None:
-    every box); other programs by
-    ``base`` alone. Once a call of :data:`TRIAL_BOXES` boxes or more finds the structure
-    deciding fewer than :data:`MIN_DECIDED` of them, later calls (the finer levels) use
-    ``base`` alone: the structure costs about a microsecond a box, a leaf it decides saves its
+    """``base`` for ``program``, and where that leaves a box undecided at ``level`` (None: every
+    box), the bounds through ``structure`` too (the module's docstring), the two intersected;
+    other programs by ``base`` alone. ``threads``: the polynomials' boxes in that many runs.
+
+    Once a call of :data:`TRIAL_BOXES` boxes or more finds the structure deciding fewer than
+    :data:`MIN_DECIDED` of them, later calls (the finer levels) use ``base`` alone: the
+    structure costs about a microsecond a box, and a leaf it decides saves that leaf's
     sampling, a few (assembly-1 at 512^3: 176 ms for 1 % of 260 000 boxes; infill-2 41 ms
-    for 20 % of 39 000). ``threads``: the polynomials' boxes in that many runs at once."""
+    for 20 % of 39 000)."""
     used = _used(structure)
     programs = {
         i: compile_tree(payload, dict(params or {}))
