@@ -249,11 +249,9 @@ def evaluate_sparse(
     program = compile_tree(tree, dict(params or {}))
     if bounds is None:
         bounds = grid_point_bounds(grid.axes(), thread_count(threads))
-        regrouped = regroup(tree)
-        structure = None if regrouped is not None else polynomial_structure(tree)
-        if regrouped is not None:
+        if (regrouped := regroup(tree)) is not None:
             bounds = regrouped_bounds(bounds, program, regrouped, params)
-        elif structure is not None:
+        elif (structure := polynomial_structure(tree)) is not None:
             bounds = polynomial_bounds(
                 bounds, program, structure, float(level), params, thread_count(threads)
             )
