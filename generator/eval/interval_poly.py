@@ -99,21 +99,28 @@ class Structure:
 def polynomial_structure(tree: Expr) -> Structure | None:
     """``tree`` split into polynomials, other parts and the operations joining them; None when
     it has no polynomial worth its Taylor form (module docstring). Kept for recent trees (a
-    sweep or the viewer bounds one formula many times; twist-0's takes 48 ms)."""
+    sweep or the viewer bounds one formula many times; twist-0's takes 19 ms)."""
     polys = _polynomials(tree)
-    made = {k: _polynomial(p) for k, p in polys.items() if p is not None and _worth(p)}
-    worth = {k for k, p in made.items() if p is not None}
-    if not worth:
+    made: dict[int, Polynomial] = {}  # the largest polynomials worth it, from the root down
+    stack, seen = [tree], set()
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        p = polys[id(node)]
+        if p is not None and _worth(p) and (poly := _polynomial(p)) is not None:
+            made[id(node)] = poly
+        else:
+            stack.extend(node.args)
+    if not made:
         return None
-    inside: dict[int, bool] = {}  # whether a sub-tree holds a polynomial worth it
-    for node in postorder(tree):
-        inside[id(node)] = id(node) in worth or any(inside[id(a)] for a in node.args)
+    inside: dict[int, bool] = {}  # whether a sub-tree holds one
     nodes: list[tuple[str, object, tuple[int, ...]]] = []
     index: dict[int, int] = {}
-    for node in postorder(tree):
-        if id(node) in index:
-            continue
-        if id(node) in worth:
+    for node in postorder(tree):  # each node once, children first
+        inside[id(node)] = id(node) in made or any(inside[id(a)] for a in node.args)
+        if id(node) in made:
             nodes.append(("poly", made[id(node)], ()))
         elif node.op == "num":
             nodes.append(("num", float(node.value), ()))
@@ -122,9 +129,7 @@ def polynomial_structure(tree: Expr) -> Structure | None:
         else:  # a part: bounded as a program of its own where a joining node reads it
             nodes.append(("part", node, ()))
         index[id(node)] = len(nodes) - 1
-    if id(tree) not in index:
-        return None
-    keep = sorted(_used(Structure(tuple(nodes))))  # the nodes the formula reads, in order
+    keep = sorted(_used(nodes))  # the nodes the formula reads, in order
     new = {old: i for i, old in enumerate(keep)}
     return Structure(tuple((k, p, tuple(new[c] for c in kids)) for k, p, kids in
                            (nodes[i] for i in keep)))  # fmt: skip
@@ -147,11 +152,10 @@ def polynomial_bounds(
     structure costs about a microsecond a box, and a leaf it decides saves that leaf's
     sampling, a few (assembly-1 at 512^3: 176 ms for 1 % of 260 000 boxes; infill-2 41 ms
     for 20 % of 39 000)."""
-    used = _used(structure)
     programs = {
         i: compile_tree(payload, dict(params or {}))
         for i, (kind, payload, _) in enumerate(structure.nodes)
-        if kind == "part" and i in used
+        if kind == "part"
     }
 
     active = [True]
@@ -168,7 +172,7 @@ def polynomial_bounds(
             return flo, fhi, finite
         lo_t = np.ascontiguousarray(np.asarray(lo, dtype=np.float64)[todo])
         hi_t = np.ascontiguousarray(np.asarray(hi, dtype=np.float64)[todo])
-        slo, shi, ok = _structure_bounds(structure, used, programs, base, lo_t, hi_t, threads)
+        slo, shi, ok = _structure_bounds(structure, programs, base, lo_t, hi_t, threads)
         decided = ok & ((slo > level) | (shi < level)) if level is not None else ok
         if len(todo) >= TRIAL_BOXES and decided.mean() < MIN_DECIDED:
             active[0] = False  # it decides next to nothing more: not worth its cost below
@@ -182,15 +186,13 @@ def polynomial_bounds(
     return bounds
 
 
-def _structure_bounds(structure, used, programs, base, lo, hi, threads):
+def _structure_bounds(structure, programs, base, lo, hi, threads):
     """The bounds through ``structure`` of the boxes ``lo``, ``hi``, and where they hold (every
     part's and polynomial's bounds finite, the divisors' without 0)."""
     ok = np.ones(len(lo), dtype=np.bool_)
     vals: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     with np.errstate(all="ignore"):
         for i, (kind, payload, kids) in enumerate(structure.nodes):
-            if i not in used:
-                continue
             if kind == "poly":
                 vlo, vhi = _poly_bounds(payload, lo, hi, threads)
             elif kind == "part":
@@ -207,14 +209,14 @@ def _structure_bounds(structure, used, programs, base, lo, hi, threads):
     return flo, fhi, ok
 
 
-def _used(structure: Structure) -> set[int]:
-    """The nodes the formula reads (from the last one down)."""
-    used, todo = set(), [len(structure.nodes) - 1]
+def _used(nodes: list[tuple[str, object, tuple[int, ...]]]) -> set[int]:
+    """The nodes the formula (the last one) reads."""
+    used, todo = set(), [len(nodes) - 1]
     while todo:
         i = todo.pop()
         if i not in used:
             used.add(i)
-            todo.extend(structure.nodes[i][2])
+            todo.extend(nodes[i][2])
     return used
 
 
@@ -283,11 +285,8 @@ def _expand(node: Expr, done: dict[int, dict | None]):
         return {"p": {e: -c for e, c in k["p"].items()}, "a": k["a"], "ops": k["ops"]}
     a, b = kids
     if op in ("+", "-"):
-        sign = 1 if op == "+" else -1
-        p = dict(a["p"])
-        for e, c in b["p"].items():
-            p[e] = p.get(e, 0) + sign * c
-        return _checked(p, _sum(a["a"], b["a"]), max(a["ops"], b["ops"]) + 1)
+        p = _add(a["p"], b["p"], 1 if op == "+" else -1)
+        return _checked(p, _add(a["a"], b["a"]), max(a["ops"], b["ops"]) + 1)
     if op == "*":
         if len(a["a"]) * len(b["a"]) > 4 * MAX_MONOMIALS or _degree(a) + _degree(b) > MAX_DEGREE:
             return None  # too long a product: left a product of two (not multiplied out)
@@ -312,11 +311,12 @@ def _degree(p: dict) -> int:
     return max((max(e) for e in p["a"]), default=0)
 
 
-def _sum(a: dict, b: dict) -> dict:
+def _add(a: dict, b: dict, sign: int = 1) -> dict:
+    """``a + sign * b`` (``P~``'s, whose coefficients are all >= 0, with sign 1)."""
     out = dict(a)
     for e, c in b.items():
-        out[e] = out.get(e, 0) + abs(c)
-    return {e: abs(c) for e, c in out.items()}
+        out[e] = out.get(e, 0) + sign * c
+    return out
 
 
 def _mul(a: dict, b: dict) -> dict:

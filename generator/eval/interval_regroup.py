@@ -96,13 +96,13 @@ def regroup(tree: Expr) -> Regrouped | None:
     none (then interval bounds of ``tree`` are as tight as folding back would make them)."""
     axes = _axes_of(tree)
     terms = _terms(tree, axes)
-    products: dict[int, list[tuple[int, Expr, float, tuple[Expr, ...]]]] = defaultdict(list)
+    products: dict[int, list[tuple[int, float, tuple[Expr, ...]]]] = defaultdict(list)
     one: dict[Expr, Expr] = {}  # equal factors as one object: later lookups compare identities
     for j, term in enumerate(terms):
         coefficient, factors = _product(term)
         if len(factors) >= 2 and coefficient != 0.0:
             factors = tuple(one.setdefault(f, f) for f in factors)
-            products[len(factors)].append((j, term, coefficient, factors))
+            products[len(factors)].append((j, coefficient, factors))
     found: list[tuple[Expansion, list[int], Expr]] = []
     for k, group in sorted(products.items()):
         if k > MAX_POWER:
@@ -110,16 +110,15 @@ def regroup(tree: Expr) -> Regrouped | None:
         # The candidates: factors with a pure power term (``c O^k``), and the terms made of
         # them alone, in sets linked by their factors.
         pure = {fs[0] for *_, fs in group if all(f is fs[0] for f in fs)}
-        group = [g for g in group if all(f in pure for f in g[3])]
+        group = [g for g in group if all(f in pure for f in g[2])]
         for members in _linked(group):
             made = _expansion(k, [group[i] for i in members])
             if made is not None:
                 found.append(made)
-    folded = {j for _, js, _ in found for j in js}
-    rest = [t for j, t in enumerate(terms) if j not in folded]
     if not found:
         return None
-    rest = _by_axis(rest, axes)
+    folded = {j for _, js, _ in found for j in js}
+    rest = _by_axis([t for j, t in enumerate(terms) if j not in folded], axes)
     powers = [
         _times(e.a, Expr("^", (add_all(list(e.factors)), as_expr(float(e.power)))))
         for e, _, _ in found
@@ -264,7 +263,7 @@ def _product(term: Expr) -> tuple[float, tuple[Expr, ...]]:
     return sign * coefficient, tuple(reversed(factors))
 
 
-def _linked(group: list[tuple[int, Expr, float, tuple[Expr, ...]]]) -> list[list[int]]:
+def _linked(group: list[tuple[int, float, tuple[Expr, ...]]]) -> list[list[int]]:
     """The product terms of ``group`` in sets linked by shared factors (union-find)."""
     parent: dict[Expr, Expr] = {}
 
@@ -274,7 +273,7 @@ def _linked(group: list[tuple[int, Expr, float, tuple[Expr, ...]]]) -> list[list
             f = parent[f]
         return f
 
-    for _, _, _, factors in group:
+    for _, _, factors in group:
         for f in factors:
             parent.setdefault(f, f)
         for f in factors[1:]:
@@ -282,24 +281,24 @@ def _linked(group: list[tuple[int, Expr, float, tuple[Expr, ...]]]) -> list[list
             if a is not b:
                 parent[b] = a
     sets: dict[int, list[int]] = defaultdict(list)
-    for i, (_, _, _, factors) in enumerate(group):
+    for i, (_, _, factors) in enumerate(group):
         sets[id(root(factors[0]))].append(i)
     return list(sets.values())
 
 
 def _expansion(
-    k: int, members: list[tuple[int, Expr, float, tuple[Expr, ...]]]
+    k: int, members: list[tuple[int, float, tuple[Expr, ...]]]
 ) -> tuple[Expansion, list[int], Expr | None] | None:
     """The power of a sum these product terms of k factors multiply out, its terms' indices
     and the bound on its coefficients' residuals (None when they are exact); None when they
     are not every multiset of their factors once, with coefficients in proportion."""
-    factors = sorted({f for *_, fs in members for f in fs}, key=_order(members))
+    factors = list(dict.fromkeys(f for *_, fs in members for f in fs))  # as they first appear
     n = len(factors)
     if n > MAX_FACTORS or (n == 1 and k < 3) or len(members) != math.comb(n + k - 1, k):
         return None
     index = {f: i for i, f in enumerate(factors)}
     by_key: dict[tuple[int, ...], float] = {}
-    for _, _, c, fs in members:
+    for _, c, fs in members:
         by_key[tuple(sorted(index[f] for f in fs))] = c
     combos = list(combinations_with_replacement(range(n), k))
     if set(by_key) != set(combos):
@@ -316,15 +315,6 @@ def _expansion(
             residuals.append(_times(size, call("abs", mul_all([factors[i] for i in combo]))))
     expansion = Expansion(tuple(factors), k, a, len(members))
     return expansion, [j for j, *_ in members], add_all(residuals) if residuals else None
-
-
-def _order(members) -> callable:
-    """Factors in the order they first appear (so the power's sum reads as the formula)."""
-    first: dict[Expr, int] = {}
-    for _, _, _, fs in members:
-        for f in fs:
-            first.setdefault(f, len(first))
-    return first.__getitem__
 
 
 def _multinomial(combo: tuple[int, ...]) -> int:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from surfgen.filters.compare import inside_samples
+from surfgen.generator.errors import EmptySurface
 from surfgen.generator.eval.evaluate import EVALUATORS, evaluate, evaluate_points
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.sparse import (
@@ -130,8 +131,6 @@ def test_a_field_all_inside_is_no_surface_once_its_bricks_are_dropped(cap):
     # every leaf sampled (bounds deciding nothing) and found all inside: dropped, or kept on
     # the box's faces for the caps; the field is still all inside, no surface either way (a
     # draw of the fuzz, capped, once meshed the box's caps sparsely where dense had no surface)
-    from surfgen.generator.errors import EmptySurface
-
     grid = Grid(Box.cube(1.0), (41, 37, 30))
     tree = parse("x^2+y^2+z^2-10")
     sf = evaluate_sparse(tree, grid, faces=cap, bounds=_no_bounds)
