@@ -68,7 +68,7 @@ LIMIT = 1e150
 
 __all__ = ["Structure", "polynomial_bounds", "polynomial_structure"]
 
-_JOINS = ("+", "-", "*", "/", "neg", "abs")
+_JOINS = ("+", "-", "*", "/", "neg", "abs", "max", "min")
 
 
 @dataclass(frozen=True)
@@ -242,6 +242,9 @@ def _join(op: str, args: list[tuple[np.ndarray, np.ndarray]], ok: np.ndarray):
         lo = np.where(a0 > 0, a0, np.where(a1 < 0, -a1, 0.0))
         return lo, np.maximum(np.abs(a0), np.abs(a1))
     (a0, a1), (b0, b1) = args
+    if op in ("max", "min"):  # exact: no rounding
+        f = np.maximum if op == "max" else np.minimum
+        return f(a0, b0), f(a1, b1)
     if op == "+":
         return _down(a0 + b0), _up(a1 + b1)
     if op == "-":

@@ -37,6 +37,11 @@ every ``o_i`` and ``t_j`` is, and F too) gets ``[lo(compact) - hi(spread), hi(co
 hi(spread)]`` and is finite; the others, near a pole, the program's own bounds. The sampled
 points are the same; only fewer blocks are left to sample (figures: the intervals reference,
 docs/reference/intervals.md).
+
+The same ``compact ± spread`` holds a maximum or minimum written through ``|·|`` among the
+terms (``c A + c B + c |A - B|`` as ``2 max(c A, c B)``: :mod:`~.interval_extrema`, whose
+groups add their own residuals and roundings to ``spread``); ``compact``'s polynomials are
+bounded by their Taylor forms (:mod:`~.interval_poly`).
 """
 
 from __future__ import annotations
@@ -44,13 +49,15 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from itertools import combinations_with_replacement
 
 import numpy as np
 
 from surfgen.generator.eval.compiler import Program, compile_tree
+from surfgen.generator.eval.interval_extrema import Extremum, extrema
+from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
 from surfgen.generator.eval.leaf_states import Bounds
 from surfgen.generator.formula.expr import Expr, add_all, as_expr, call, mul_all, postorder
 
@@ -88,12 +95,15 @@ class Regrouped:
     spread: Expr
     expansions: tuple[Expansion, ...]
     gamma: float  # the factor of ``Σ |t_j|`` in ``spread``
+    extrema: tuple[Extremum, ...] = ()
 
 
 def regroup(tree: Expr) -> Regrouped | None:
     """The formula ``tree`` with every multiplied-out power of a sum among its top-level terms
-    folded back, and the bound on the difference (the module's docstring); None when it has
-    none (then interval bounds of ``tree`` are as tight as folding back would make them)."""
+    folded back and every maximum or minimum written through ``|·|`` as one
+    (:mod:`~.interval_extrema`), and the bound on the difference (the module's docstring); None
+    when it has neither (then interval bounds of ``tree`` are as tight as regrouping would make
+    them)."""
     axes = _axes_of(tree)
     terms = _terms(tree, axes)
     products: dict[int, list[tuple[int, float, tuple[Expr, ...]]]] = defaultdict(list)
@@ -115,9 +125,15 @@ def regroup(tree: Expr) -> Regrouped | None:
             made = _expansion(k, [group[i] for i in members])
             if made is not None:
                 found.append(made)
-    if not found:
-        return None
     folded = {j for _, js, _ in found for j in js}
+    others = [j for j in range(len(terms)) if j not in folded]
+    groups = [  # their terms numbered among all the terms
+        replace(g, terms=tuple(None if j is None else others[j] for j in g.terms))
+        for g in extrema([terms[j] for j in others])
+    ]
+    if not found and not groups:
+        return None
+    folded.update(j for g in groups for j in g.terms if j is not None)
     rest = _by_axis([t for j, t in enumerate(terms) if j not in folded], axes)
     powers = [
         _times(e.a, Expr("^", (add_all(list(e.factors)), as_expr(float(e.power)))))
@@ -127,11 +143,13 @@ def regroup(tree: Expr) -> Regrouped | None:
     gamma = 4.0 * gamma / (1.0 - gamma)
     spread = [_times(gamma, add_all([call("abs", t) for t in terms]))]
     spread += [residual for _, _, residual in found if residual is not None]
+    spread += [g.spread for g in groups]
     return Regrouped(
-        compact=add_all(rest + powers),
+        compact=add_all(rest + powers + [g.compact for g in groups]),
         spread=add_all(spread),
         expansions=tuple(e for e, _, _ in found),
         gamma=gamma,
+        extrema=tuple(groups),
     )
 
 
@@ -140,10 +158,14 @@ def regrouped_bounds(
     program: Program,
     regrouped: Regrouped,
     params: Mapping[str, float] | None = None,
+    level: float | None = None,
+    threads: int = 1,
 ) -> Bounds:
     """``base`` with ``program`` bounded as ``compact ± spread`` (the module's docstring);
     other programs, and the boxes where ``compact`` or ``spread`` may not be finite, by
-    ``base`` itself.
+    ``base`` itself. ``compact`` is bounded through its polynomials' Taylor forms where it has
+    some worth them (:mod:`~.interval_poly`, with ``level`` and ``threads``): a maximum's
+    operands are often such polynomials.
 
     ``spread`` is a rounding error (``γ Σ |t_j|``, about ``1e-15 Σ |t_j|``) plus the
     coefficients' residuals: its bound over the hull of the boxes serves every box where it is
@@ -151,12 +173,15 @@ def regrouped_bounds(
     compact = compile_tree(regrouped.compact, dict(params or {}))
     spread = compile_tree(regrouped.spread, dict(params or {}))
     limit = regrouped.gamma * SPREAD_LIMIT  # so that no sum of the terms can overflow
+    compact_bounds = base
+    if (structure := polynomial_structure(regrouped.compact)) is not None:
+        compact_bounds = polynomial_bounds(base, compact, structure, level, params, threads)
 
     def bounds(prog: Program, lo: np.ndarray, hi: np.ndarray):
         if prog is not program or len(lo) == 0:
             return base(prog, lo, hi)
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-        glo, ghi, gfinite = base(compact, lo, hi)
+        glo, ghi, gfinite = compact_bounds(compact, lo, hi)
         margin = np.full(len(glo), np.inf)
         _, whole, wfinite = base(spread, lo.min(axis=0)[None], hi.max(axis=0)[None])
         if wfinite[0] and whole[0] <= limit:

@@ -238,8 +238,8 @@ def evaluate_sparse(
     ``threads``: threads evaluating bricks (None: numba's count); ``bounds``: the interval
     bounds (None: over the grid's points,
     :func:`~surfgen.generator.eval.intervals.grid_point_bounds`, tightened where the formula
-    holds a power of a sum multiplied out, :mod:`~.interval_regroup`, or else expanded
-    polynomials, :mod:`~.interval_poly`;
+    holds a power of a sum multiplied out or a maximum written through ``|·|``,
+    :mod:`~.interval_regroup`, or else expanded polynomials, :mod:`~.interval_poly`;
     :func:`~surfgen.generator.eval.intervals.program_bounds` bounds whole boxes); ``budget``: refuse (a
     ``LimitError``) a run of leaves whose samples would take the command past its memory limit,
     before it is sampled; ``progress``: called with the share of the leaves sampled after each
@@ -250,7 +250,9 @@ def evaluate_sparse(
     if bounds is None:
         bounds = grid_point_bounds(grid.axes(), thread_count(threads))
         if (regrouped := regroup(tree)) is not None:
-            bounds = regrouped_bounds(bounds, program, regrouped, params)
+            bounds = regrouped_bounds(
+                bounds, program, regrouped, params, float(level), thread_count(threads)
+            )
         elif (structure := polynomial_structure(tree)) is not None:
             bounds = polynomial_bounds(
                 bounds, program, structure, float(level), params, thread_count(threads)
