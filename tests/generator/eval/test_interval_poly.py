@@ -47,6 +47,10 @@ def test_polynomials_that_mix_their_variables_are_found() -> None:
     product = kinds(f"({TORUS_OUT})*({TORUS_OUT.replace('x', 'z')})")
     assert product is not None and product.count("poly") >= 1
     assert kinds(f"({TORUS_OUT})*sin(x*y)/(x^2+y^2+1)") is not None
+    # a real power of a polynomial joins it (a twist's lobes: P / Q^1.5), a whole one of a
+    # part is a part
+    assert kinds(f"x*y/({TORUS_OUT})^1.5") == ["part", "poly", "num", "^", "/"]
+    assert "^" not in kinds(f"({TORUS_OUT})+sin(x)^3")
     for text in [
         "32*x^6-48*x^4+18*x^2-1+(32*y^6-48*y^4+18*y^2-1)",  # one variable a term
         "x^2+y^2+z^2-1",  # no monomial of two variables
@@ -91,7 +95,9 @@ def compositions(draw) -> str:
     a, b = draw(polynomials()), draw(polynomials())
     part = draw(st.sampled_from(PARTS))
     form = draw(st.sampled_from(["{a}*{b}", "{a}+{p}", "abs({a})-{b}", "{a}/({b})",
-                                 "-{a}*{p}+0.5", "{a}*{b}*{p}", "({a})^2+{p}"]))  # fmt: skip
+                                 "-{a}*{p}+0.5", "{a}*{b}*{p}", "({a})^2+{p}",
+                                 "{b}/(({a})^2+0.01)^1.5*{p}", "({a})^0.5-{b}",
+                                 "(abs({a})+0.1)^-1.3+{p}", "abs({b})^2.7*{a}"]))  # fmt: skip
     return form.format(a=a, b=b, p=part)
 
 
@@ -102,7 +108,8 @@ PROPERTY = settings(max_examples=80, deadline=None, suppress_health_check=list(H
 @given(compositions(), st.integers(0, 2**32 - 1))
 def test_taylor_bounds_are_sound(text: str, seed: int) -> None:
     """Property: for random polynomials (coefficients up to 1e8, so terms of 1e16 that cancel)
-    joined by ``+ - * / abs`` and powers, with parts that have poles and jumps, and random
+    joined by ``+ - * / abs`` and powers (whole, and real: of bases that may be negative),
+    with parts that have poles and jumps, and random
     boxes, every value of F at the boxes' corners and random points is NaN or within the
     bounds, and finite where they say so (``level`` None: every box bounded through the
     structure)."""
