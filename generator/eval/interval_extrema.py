@@ -45,6 +45,9 @@ MAX_PRODUCTS = 256
 #: ``A - B`` with its coefficients rounded to twelve digits: 2.4e-6 of them in assembly-18 of
 #: seed 5); beyond, no group (its spread would be as wide as the terms' own bounds).
 MAX_RESIDUAL = 1e-4
+#: Pairs of partners are looked for among at most this many terms sharing an atom with ``Z``
+#: (the families': 2-3; a formula of many such terms is looked at for single partners only).
+MAX_PAIRED = 64
 #: Roundings added to a group's count: an atom met in two terms is one node of the program,
 #: but a margin of a few units costs nothing (the spread is about 1e-15 of the terms).
 EXTRA_ROUNDINGS = 4
@@ -124,7 +127,8 @@ def _partners(near: list[int], linear: dict[int, _Linear], l3: Form):
     size = sum(abs(c) for c in l3.values())
     keys = set(l3)
     singles = [(a, None) for a in near if keys <= set(linear[a].form)]
-    pairs = [(a, b) for i, a in enumerate(near) for b in near[i + 1 :]
+    paired = near if len(near) <= MAX_PAIRED else []
+    pairs = [(a, b) for i, a in enumerate(paired) for b in paired[i + 1 :]
              if keys <= set(linear[a].form) | set(linear[b].form)]  # fmt: skip
     best = None
     for j1, j2 in singles + pairs:

@@ -422,12 +422,27 @@ def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1
     return out_lo, out_hi
 
 
+#: Boxes a Taylor kernel's inner loops run over at once (the compiler vectorises them).
+CHUNK = 32
+
+
 @njit(**KERNEL)
-def _powers_of(v, n, out):
-    """``out[j] = v^j`` for j < n by repeated products (j roundings each)."""
-    out[0] = 1.0
-    for j in range(1, n):
-        out[j] = out[j - 1] * v
+def _powers_of(lo, hi, k0, m, cp, hp, tp):
+    """Boxes ``k0:k0+m``'s powers ``j < MAX_DEGREE + 1`` (by repeated products: j roundings
+    each) of their centre ``c`` (``cp[a, j, k]``), half-width ``h`` (rounded up: ``hp``) and
+    largest ``|x|`` (``tp``), per axis a."""
+    for a in range(3):
+        for k in range(m):
+            c = (lo[k0 + k, a] + hi[k0 + k, a]) / 2
+            h = max(
+                np.nextafter(hi[k0 + k, a] - c, np.inf), np.nextafter(c - lo[k0 + k, a], np.inf)
+            )
+            t = max(abs(lo[k0 + k, a]), abs(hi[k0 + k, a]))
+            cp[a, 0, k] = hp[a, 0, k] = tp[a, 0, k] = 1.0
+            for j in range(1, MAX_DEGREE + 1):
+                cp[a, j, k] = cp[a, j - 1, k] * c
+                hp[a, j, k] = hp[a, j - 1, k] * h
+                tp[a, j, k] = tp[a, j - 1, k] * t
 
 
 @njit(**KERNEL)
@@ -435,54 +450,55 @@ def _taylor_kernel(coef, expo, starts, betas, abs_exps, abs_coefs, ops, u, lo, h
     """Per box: ``Σ_β d_β t^β`` over ``|t| <= h`` around ``c``, plus the roundings of the
     ``d_β`` (``4 (P + 56) u`` of their terms' magnitudes: each term ``3 MAX_DEGREE + 3``
     roundings at most, each sum P), of the reach ``h^β`` and of the sums (``slack``), and the
-    evaluator's rounding of P (``2 (ops + 2) u P~(|x|)``)."""
+    evaluator's rounding of P (``2 (ops + 2) u P~(|x|)``). The boxes are taken :data:`CHUNK` at
+    a time, each pair's term computed for all of them in one loop (the same operations, in
+    the same order, for each box: twist-0's 636 pairs 5 -> 0.8 microseconds a box)."""
     n_pairs, n_betas = coef.shape[0], betas.shape[0]
-    deg = MAX_DEGREE + 1
-    cp = np.empty((3, deg))
-    hp = np.empty((3, deg))
-    tp = np.empty((3, deg))
-    c = np.empty(3)
-    h = np.empty(3)
+    cp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    hp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    tp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    sums = np.empty((6, CHUNK))  # the sums' low and high ends, magnitude, d, size, P~
+    sum_lo, sum_hi, mag, d, size, p_abs = sums[0], sums[1], sums[2], sums[3], sums[4], sums[5]
     rel = 4.0 * (n_pairs + 3 * MAX_DEGREE + 8) * u
-    for k in range(lo.shape[0]):
-        for a in range(3):
-            c[a] = (lo[k, a] + hi[k, a]) / 2
-            h[a] = max(np.nextafter(hi[k, a] - c[a], np.inf), np.nextafter(c[a] - lo[k, a], np.inf))
-            _powers_of(c[a], deg, cp[a])
-            _powers_of(h[a], deg, hp[a])
-            _powers_of(max(abs(lo[k, a]), abs(hi[k, a])), deg, tp[a])
-        sum_lo = 0.0
-        sum_hi = 0.0
-        mag = 0.0
+    for k0 in range(0, lo.shape[0], CHUNK):
+        m = min(CHUNK, lo.shape[0] - k0)
+        _powers_of(lo, hi, k0, m, cp, hp, tp)
+        sums[:3] = 0.0
         for b in range(n_betas):
-            first = starts[b]
-            last = starts[b + 1] if b + 1 < n_betas else n_pairs
-            d = 0.0
-            size = 0.0
-            for q in range(first, last):
-                t = coef[q] * cp[0, expo[q, 0]] * cp[1, expo[q, 1]] * cp[2, expo[q, 2]]
-                d += t
-                size += abs(t)
-            err = rel * size
+            d[:] = 0.0
+            size[:] = 0.0
+            for q in range(starts[b], starts[b + 1] if b + 1 < n_betas else n_pairs):
+                cq, c0, c1, c2 = coef[q], cp[0, expo[q, 0]], cp[1, expo[q, 1]], cp[2, expo[q, 2]]
+                for k in range(m):
+                    t = cq * c0[k] * c1[k] * c2[k]
+                    d[k] += t
+                    size[k] += abs(t)
             b0, b1, b2 = betas[b, 0], betas[b, 1], betas[b, 2]
-            if b0 == 0 and b1 == 0 and b2 == 0:
-                tlo, thi = d - err, d + err
-            else:
-                reach = hp[0, b0] * hp[1, b1] * hp[2, b2] * (1.0 + 64.0 * u)
-                low = 0.0 if (b0 % 2 == 0 and b1 % 2 == 0 and b2 % 2 == 0) else -reach
-                if d >= 0:
-                    tlo, thi = d * low - err * reach, d * reach + err * reach
+            centre = b0 == 0 and b1 == 0 and b2 == 0
+            even = b0 % 2 == 0 and b1 % 2 == 0 and b2 % 2 == 0
+            h0, h1, h2 = hp[0, b0], hp[1, b1], hp[2, b2]
+            for k in range(m):
+                err = rel * size[k]
+                if centre:
+                    tlo, thi = d[k] - err, d[k] + err
                 else:
-                    tlo, thi = d * reach - err * reach, d * low + err * reach
-            sum_lo += tlo
-            sum_hi += thi
-            mag += abs(tlo) + abs(thi)
-        slack = 4.0 * (n_betas + 4) * u * mag
-        p_abs = 0.0
-        for m in range(abs_exps.shape[0]):
-            p_abs += (
-                abs_coefs[m] * tp[0, abs_exps[m, 0]] * tp[1, abs_exps[m, 1]] * tp[2, abs_exps[m, 2]]
-            )
-        err_p = 2.0 * (ops + 2.0) * u * p_abs * (1.0 + 4.0 * (abs_exps.shape[0] + 56) * u)
-        out_lo[k] = np.nextafter(sum_lo - slack - err_p, -np.inf)
-        out_hi[k] = np.nextafter(sum_hi + slack + err_p, np.inf)
+                    reach = h0[k] * h1[k] * h2[k] * (1.0 + 64.0 * u)
+                    low = 0.0 if even else -reach
+                    if d[k] >= 0:
+                        tlo, thi = d[k] * low - err * reach, d[k] * reach + err * reach
+                    else:
+                        tlo, thi = d[k] * reach - err * reach, d[k] * low + err * reach
+                sum_lo[k] += tlo
+                sum_hi[k] += thi
+                mag[k] += abs(tlo) + abs(thi)
+        p_abs[:] = 0.0
+        for q in range(abs_exps.shape[0]):
+            ac = abs_coefs[q]
+            t0, t1, t2 = tp[0, abs_exps[q, 0]], tp[1, abs_exps[q, 1]], tp[2, abs_exps[q, 2]]
+            for k in range(m):
+                p_abs[k] += ac * t0[k] * t1[k] * t2[k]
+        for k in range(m):
+            slack = 4.0 * (n_betas + 4) * u * mag[k]
+            err_p = 2.0 * (ops + 2.0) * u * p_abs[k] * (1.0 + 4.0 * (abs_exps.shape[0] + 56) * u)
+            out_lo[k0 + k] = np.nextafter(sum_lo[k] - slack - err_p, -np.inf)
+            out_hi[k0 + k] = np.nextafter(sum_hi[k] + slack + err_p, np.inf)
