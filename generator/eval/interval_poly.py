@@ -151,11 +151,11 @@ def polynomial_bounds(
 
     Once a call of :data:`TRIAL_BOXES` boxes or more finds the structure deciding fewer than
     :data:`MIN_DECIDED` of them, later calls (the finer levels) use ``base`` alone: the
-    structure costs 1-7 microseconds a box, and a leaf it decides saves that leaf's sampling,
-    10-30. A Taylor form tightens as the boxes shrink, so a coarse level's share says little
-    of the finer ones' (twist-2 at 512^3: 7 %, 11 %, then 47 % and 67 % at the leaves; given
-    up from the second, 124 000 leaves were sampled to keep 5 500, 3.1 s; now 24 000, 1.5 s),
-    and the threshold is low: next to nothing decided."""
+    structure costs 0.5-2 microseconds a box, and a leaf it decides saves that leaf's
+    sampling, 10-30. A Taylor form tightens as the boxes shrink, so a coarse level's share
+    says little of the finer ones' (twist-2 at 512^3: 7 %, 11 %, then 47 % and 67 % at the
+    leaves; given up from the second, 124 000 leaves were sampled to keep 5 500, 3.1 s; now
+    24 000), and the threshold is low: next to nothing decided."""
     programs = {
         i: compile_tree(payload, dict(params or {}))
         for i, (kind, payload, _) in enumerate(structure.nodes)
