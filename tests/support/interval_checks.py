@@ -1,17 +1,21 @@
-"""Checks of interval bounds shared by the tests of :mod:`surfgen.generator.eval.intervals`
-and of :mod:`surfgen.generator.eval.interval_regroup`: random boxes, points in them, and the
-soundness of bounds against the fast evaluator at those points, and the sparse path's leaves
-and mesh with tightened bounds."""
+"""Checks of interval bounds shared by the tests of :mod:`surfgen.generator.eval.intervals`,
+:mod:`~surfgen.generator.eval.interval_regroup`, :mod:`~surfgen.generator.eval.interval_extrema`
+and :mod:`~surfgen.generator.eval.interval_poly`: random boxes, points in them, and the
+soundness of bounds against the fast evaluator at those points, a formula's regrouped bounds
+and spread, and the sparse path's leaves and mesh with tightened bounds."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
-from surfgen.generator.eval.intervals import grid_point_bounds, tree_bounds
+from surfgen.generator.eval.interval_regroup import Regrouped, regroup, regrouped_bounds
+from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds, tree_bounds
 from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.expr import Expr
+from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.realise import realise
 from surfgen.generator.model.spec import SurfaceSpec
 
@@ -55,6 +59,46 @@ def assert_sound(tree, params, blo, bhi, rng, bounds=None) -> np.ndarray:
                 f"{bhi[k].tolist()}, bounds [{flo[k]!r}, {fhi[k]!r}], finite {finite[k]}"
             )
     return v
+
+
+def regrouped(text: str):
+    """``text``'s tree, program and bounds: the regrouped ones where :func:`regroup` finds
+    something, else the program's own (:func:`program_bounds` over whole boxes)."""
+    tree = parse(text)
+    program = compile_tree(tree)
+
+    def base(prog, lo, hi):
+        return program_bounds(prog, lo, hi)
+
+    found = regroup(tree)
+    return tree, program, base if found is None else regrouped_bounds(base, program, found)
+
+
+def assert_margin_needed(text: str, module, monkeypatch, seed: int = 3) -> None:
+    """``text``'s regrouped bounds hold at 200 random boxes' points, and no longer once
+    ``module``'s unit roundoff (its ``_UNIT``: the rounding margins) is zeroed."""
+    rng = np.random.default_rng(seed)
+    blo, bhi = random_boxes(rng, [-2.0] * 3, [2.0] * 3, 200)
+    tree, program, bounds = regrouped(text)
+    assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
+    monkeypatch.setattr(module, "_UNIT", 0.0)
+    tree, program, bounds = regrouped(text)
+    try:
+        assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
+    except AssertionError as e:
+        assert "outside its bounds" in str(e)
+    else:
+        raise AssertionError(f"{text}: sound without {module.__name__}'s margins")
+
+
+def assert_within_spread(text: str, found: Regrouped, rng: np.random.Generator) -> None:
+    """At random points of ``[-1.5, 1.5]^3``, ``|F - compact| <= spread`` wherever both are
+    finite (at least half of them)."""
+    pts = rng.uniform(-1.5, 1.5, (4000, 3))
+    f, g, s = (points_evaluator(t, {})(*pts.T) for t in (parse(text), found.compact, found.spread))
+    ok = np.isfinite(g) & np.isfinite(s)
+    assert ok.mean() > 0.5
+    assert np.all(np.abs(f[ok] - g[ok]) <= s[ok]), text
 
 
 def assert_fewer_leaves_same_mesh(tree: Expr, box: Box, shape: tuple[int, int, int]) -> None:

@@ -15,17 +15,19 @@ from surfgen.generator.eval import interval_extrema
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_regroup import regroup, regrouped_bounds
-from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds
-from surfgen.generator.eval.tape import points_evaluator
+from surfgen.generator.eval.intervals import grid_point_bounds
 from surfgen.generator.formula.expr import to_string
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
 from tests.support.interval_checks import (
     assert_fewer_leaves_same_mesh,
     assert_grid_points_within,
+    assert_margin_needed,
     assert_sound,
+    assert_within_spread,
     grid_blocks,
     random_boxes,
+    regrouped,
 )
 
 # Operands of the random groups: sums over atoms with poles and jumps, polynomials whose terms
@@ -132,10 +134,6 @@ def test_the_groups_their_kinds_and_signs() -> None:
     assert "sin(x)" in to_string(found.compact)
 
 
-def values(text, pts) -> np.ndarray:
-    return points_evaluator(parse(text) if isinstance(text, str) else text, {})(*pts.T)
-
-
 def test_f_lies_within_the_spread_of_the_compact_formula() -> None:
     """At random points, |F - compact| <= spread for groups of every kind of operand, with
     differences off by up to 1e-5 and cancellations of 1e8."""
@@ -150,22 +148,7 @@ def test_f_lies_within_the_spread_of_the_compact_formula() -> None:
     for text in cases:
         found = regroup(parse(text))
         assert found is not None and len(found.extrema) == 1, text
-        pts = rng.uniform(-1.5, 1.5, (4000, 3))
-        f, g, s = values(text, pts), values(found.compact, pts), values(found.spread, pts)
-        ok = np.isfinite(g) & np.isfinite(s)
-        assert ok.mean() > 0.5
-        assert np.all(np.abs(f[ok] - g[ok]) <= s[ok]), text
-
-
-def tightened(text: str):
-    tree = parse(text)
-    program = compile_tree(tree)
-
-    def base(prog, lo, hi):
-        return program_bounds(prog, lo, hi)
-
-    found = regroup(tree)
-    return tree, program, base if found is None else regrouped_bounds(base, program, found)
+        assert_within_spread(text, found, rng)
 
 
 PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
@@ -189,7 +172,7 @@ def test_tightened_bounds_are_sound(a, b, c, sigma, wobble, rest, seed) -> None:
     rng = np.random.default_rng(seed)
     second = None if b is None or b == a else OPERANDS[b]
     text = group(OPERANDS[a], second, c, sigma, wobble) + rest
-    tree, program, bounds = tightened(text)
+    tree, program, bounds = regrouped(text)
     for half in (0.2, 2.0):
         blo, bhi = random_boxes(rng, [-half] * 3, [half] * 3, 24)
         assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
@@ -200,14 +183,7 @@ def test_without_the_rounding_margin_the_bounds_fail(monkeypatch) -> None:
     last place of 1e8, so with the rounding margin zeroed some point falls outside its
     bounds."""
     text = "0.5*x+0.5*y+0.5*abs(x-y+1e8-1e8)"
-    rng = np.random.default_rng(3)
-    blo, bhi = random_boxes(rng, [-2.0] * 3, [2.0] * 3, 200)
-    tree, program, bounds = tightened(text)
-    assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
-    monkeypatch.setattr(interval_extrema, "_UNIT", 0.0)
-    tree, program, bounds = tightened(text)
-    with pytest.raises(AssertionError, match="outside its bounds"):
-        assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
+    assert_margin_needed(text, interval_extrema, monkeypatch)
 
 
 def test_the_bounds_are_tighter_on_a_grid_and_hold_its_points() -> None:

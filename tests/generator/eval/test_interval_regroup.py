@@ -17,16 +17,18 @@ from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_regroup import regroup, regrouped_bounds
 from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds
-from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.expr import to_string
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
 from tests.support.interval_checks import (
     assert_fewer_leaves_same_mesh,
     assert_grid_points_within,
+    assert_margin_needed,
     assert_sound,
+    assert_within_spread,
     grid_blocks,
     random_boxes,
+    regrouped,
 )
 
 # Factors of the random expansions: of one, two or three axes, with poles and jumps.
@@ -106,10 +108,6 @@ def test_the_terms_and_their_coefficients_are_read_with_their_signs() -> None:
     assert to_string(found.compact).count("^") == 3  # x^2 and the two powers
 
 
-def values(text, pts) -> np.ndarray:
-    return points_evaluator(parse(text) if isinstance(text, str) else text, {})(*pts.T)
-
-
 def test_f_lies_within_the_spread_of_the_folded_formula() -> None:
     """At random points, |F - compact| <= spread for expansions of every kind of factor,
     with coefficients off their proportion by up to 1e-3, and cancellations of 1e8."""
@@ -124,22 +122,7 @@ def test_f_lies_within_the_spread_of_the_folded_formula() -> None:
     for text in cases:
         found = regroup(parse(text))
         assert found is not None, text
-        pts = rng.uniform(-1.5, 1.5, (4000, 3))
-        f, g, s = values(text, pts), values(found.compact, pts), values(found.spread, pts)
-        ok = np.isfinite(g) & np.isfinite(s)
-        assert ok.mean() > 0.5
-        assert np.all(np.abs(f[ok] - g[ok]) <= s[ok]), text
-
-
-def tightened(text: str):
-    tree = parse(text)
-    program = compile_tree(tree)
-
-    def base(prog, lo, hi):
-        return program_bounds(prog, lo, hi)
-
-    found = regroup(tree)
-    return tree, program, base if found is None else regrouped_bounds(base, program, found)
+        assert_within_spread(text, found, rng)
 
 
 PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
@@ -164,7 +147,7 @@ def test_tightened_bounds_are_sound(factors, k, a, rest, seed) -> None:
         k = 3
     rng = np.random.default_rng(seed)
     text = multinomial(factors, k, a, 1e-3 * rng.integers(0, 2), rng) + rest
-    tree, program, bounds = tightened(text)
+    tree, program, bounds = regrouped(text)
     for half in (0.2, 2.0):
         blo, bhi = random_boxes(rng, [-half] * 3, [half] * 3, 24)
         assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
@@ -174,14 +157,7 @@ def test_without_the_rounding_margin_the_bounds_fail(monkeypatch) -> None:
     """The spread is needed: (x + y)^2 multiplied out from terms of 1e16 is off by units in
     the last place of 1e16, so with the spread zeroed some point falls outside its bounds."""
     text = multinomial(["x+1e8", "y-1e8"], 2, 1.0)
-    rng = np.random.default_rng(3)
-    blo, bhi = random_boxes(rng, [-2.0] * 3, [2.0] * 3, 200)
-    tree, program, bounds = tightened(text)
-    assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
-    monkeypatch.setattr(interval_regroup, "_UNIT", 0.0)
-    tree, program, bounds = tightened(text)
-    with pytest.raises(AssertionError, match="outside its bounds"):
-        assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
+    assert_margin_needed(text, interval_regroup, monkeypatch)
 
 
 def test_the_bounds_are_tighter_and_the_plain_ones_where_they_cannot_be() -> None:
@@ -189,7 +165,7 @@ def test_the_bounds_are_tighter_and_the_plain_ones_where_they_cannot_be() -> Non
     than the plain one by more than the spread; boxes where a term can be infinite (a pole of
     tan) get the plain bounds; other programs are bounded as they were."""
     text = multinomial(FACTORS[:3], 2, 0.411) + "+abs(x)^4.5-0.58*x^3-1.9+tan(1.1*y)"
-    tree, program, bounds = tightened(text)
+    tree, program, bounds = regrouped(text)
     rng = np.random.default_rng(4)
     blo, bhi = random_boxes(rng, [-2.0] * 3, [2.0] * 3, 400)
     plo, phi, pfin = program_bounds(program, blo, bhi)
