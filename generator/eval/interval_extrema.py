@@ -82,15 +82,14 @@ def extrema(terms: list[Expr]) -> list[Extremum]:
     if not absolute:
         return []
     linear = {j: forms.linear(t) for j, t in enumerate(terms)}
+    keys = {j: set(lin.form) for j, lin in linear.items()}  # each term's products of atoms
     used: set[int] = set()
     found: list[Extremum] = []
     for j3, (sigma, l3) in absolute.items():
         if j3 in used:
             continue
-        keys = set(l3.form)
-        near = [j for j, lin in linear.items()
-                if j != j3 and j not in used and keys & set(lin.form)]  # fmt: skip
-        match = _partners(near, linear, l3.form)
+        near = [j for j in linear if j != j3 and j not in used and not keys[j].isdisjoint(l3.form)]
+        match = _partners(near, linear, keys, l3.form)
         if match is None:
             continue
         j1, j2, residual = match
@@ -120,16 +119,17 @@ class _Linear:
     ops: int
 
 
-def _partners(near: list[int], linear: dict[int, _Linear], l3: Form):
+def _partners(near: list[int], linear: dict[int, _Linear], keys: dict[int, set], l3: Form):
     """``(j1, j2, R)`` with ``l3 = ±(L_j1 - L_j2) + R`` (``j2`` None: ``l3 = ±L_j1 + R``), R
-    within :data:`MAX_RESIDUAL` of ``l3``: of the pairs and single terms, the one with the
-    least residual (a single term on a tie); None where there is none."""
+    within :data:`MAX_RESIDUAL` of ``l3``: of the pairs and single terms (``keys``: their
+    products of atoms), the one with the least residual (a single term on a tie); None where
+    there is none."""
     size = sum(abs(c) for c in l3.values())
-    keys = set(l3)
-    singles = [(a, None) for a in near if keys <= set(linear[a].form)]
+    need = l3.keys()
+    singles = [(a, None) for a in near if need <= keys[a]]
     paired = near if len(near) <= MAX_PAIRED else []
     pairs = [(a, b) for i, a in enumerate(paired) for b in paired[i + 1 :]
-             if keys <= set(linear[a].form) | set(linear[b].form)]  # fmt: skip
+             if need <= keys[a] | keys[b]]  # fmt: skip
     best = None
     for j1, j2 in singles + pairs:
         diff = linear[j1].form if j2 is None else _add(linear[j1].form, linear[j2].form, -1)
