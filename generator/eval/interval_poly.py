@@ -20,6 +20,8 @@ joining them** (``+ - * / neg abs max min``, a power with a real exponent, and n
   ``-`` a ``+``: the forward error bound of a sum of products whatever the order and
   contractions, Higham 2002, §3.1), ``P~`` at the box's largest ``|x|, |y|, |z|``;
 - a part by the base bounds (over the grid's points: a value of one axis exactly);
+- a sum holding ``U cos θ + V sin θ`` (a twist's lobes) by its terms' bounds with each such
+  pair bounded as one wave (:mod:`~surfgen.generator.eval.interval_harmonic`);
 - the joining operations as intervals, each end moved one place outward (so each holds the
   exact and the rounded result of any values within its operands); a real power by its ends'
   powers (monotone over a base >= 0, which it needs), four units in the last place outward.
@@ -46,6 +48,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.eval.compiler import Program, compile_tree
+from surfgen.generator.eval.interval_harmonic import in_chains, sum_bounds, sum_terms
 from surfgen.generator.eval.leaf_states import Bounds
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.formula.expr import Expr, postorder
@@ -120,10 +123,17 @@ def polynomial_structure(tree: Expr) -> Structure | None:
     inside: dict[int, bool] = {}  # whether a sub-tree holds one
     nodes: list[tuple[str, object, tuple[int, ...]]] = []
     index: dict[int, int] = {}
-    for node in postorder(tree):  # each node once, children first
+    order = postorder(tree)  # each node once, children first
+    terms = in_chains(order)
+    for node in order:
         inside[id(node)] = id(node) in made or any(inside[id(a)] for a in node.args)
+        wave = None
+        if inside[id(node)] and id(node) not in terms and node.op in ("+", "-"):
+            wave = sum_terms(node, made.keys())  # a whole sum holding U cos θ + V sin θ
         if id(node) in made:
             nodes.append(("poly", made[id(node)], ()))
+        elif wave is not None:
+            nodes.append(("sum", wave[0], tuple(index[id(a)] for a in wave[1])))
         elif node.op == "num":
             nodes.append(("num", float(node.value), ()))
         elif inside[id(node)] and (node.op in _JOINS or _real_power(node)):
@@ -204,6 +214,8 @@ def _structure_bounds(structure, programs, base, lo, hi, threads):
                 ok &= finite
             elif kind == "num":
                 vlo = vhi = np.full(len(lo), payload)
+            elif kind == "sum":
+                vlo, vhi = sum_bounds(payload, [vals[k] for k in kids])
             else:
                 vlo, vhi = _join(kind, [vals[k] for k in kids], ok)
             ok &= np.isfinite(vlo) & np.isfinite(vhi) & (vlo <= vhi)

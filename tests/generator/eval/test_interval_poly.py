@@ -97,7 +97,8 @@ def compositions(draw) -> str:
     form = draw(st.sampled_from(["{a}*{b}", "{a}+{p}", "abs({a})-{b}", "{a}/({b})",
                                  "-{a}*{p}+0.5", "{a}*{b}*{p}", "({a})^2+{p}",
                                  "{b}/(({a})^2+0.01)^1.5*{p}", "({a})^0.5-{b}",
-                                 "(abs({a})+0.1)^-1.3+{p}", "abs({b})^2.7*{a}"]))  # fmt: skip
+                                 "(abs({a})+0.1)^-1.3+{p}", "abs({b})^2.7*{a}",
+                                 "{a}+{b}*cos({p})-sin({p})*{a}"]))  # fmt: skip
     return form.format(a=a, b=b, p=part)
 
 
