@@ -30,7 +30,7 @@ Every value the evaluator computes at a point of the box is then within the boun
 part's and polynomial's bound is finite, the divisors' exclude 0 and the real powers' bases
 are not negative (and positive below a negative exponent); there F is finite too. A box where
 that fails keeps the formula's own bounds. The polynomials' Taylor shifts are
-bounded in :data:`MAX_PAIRS` pairs (a product of polynomials longer than that stays a product
+bounded in :data:`~.interval_taylor.MAX_PAIRS` pairs (a product of polynomials longer than that stays a product
 of two); the structure is used only on boxes the base bounds leave undecided, and given up
 where it decides next to none. The points sampled are the same; only fewer blocks are left to
 sample.
@@ -39,26 +39,25 @@ sample.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
-from numba import njit
 
 from surfgen.generator.eval.compiler import Program, compile_tree
 from surfgen.generator.eval.interval_harmonic import in_chains, sum_bounds, sum_terms
+from surfgen.generator.eval.interval_taylor import (
+    MAX_DEGREE,
+    centre_values,
+    taylor_bounds,
+    taylor_pairs,
+)
 from surfgen.generator.eval.leaf_states import Bounds
-from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.formula.expr import Expr, postorder
-from surfgen.generator.jit.options import KERNEL
 
-#: The largest power of one variable in a polynomial, and the most monomials it may have.
-MAX_DEGREE = 16
+#: The most monomials a polynomial may have (its largest power of one variable: MAX_DEGREE).
 MAX_MONOMIALS = 200
-#: The most pairs of a polynomial's Taylor shift (monomial α, β <= α): its cost a box.
-MAX_PAIRS = 1024
 #: A polynomial is worth its Taylor form from this many monomials of degree 2 or more.
 MIN_MONOMIALS = 3
 _UNIT = 2.0**-53
@@ -66,8 +65,6 @@ _UNIT = 2.0**-53
 #: than this share of those its base bounds leave undecided.
 TRIAL_BOXES = 2048
 MIN_DECIDED = 0.05
-#: Boxes a thread takes at least in a polynomial's bounds.
-THREAD_BOXES = 4096
 #: Parts' bounds at or beyond this are not used (no operation on them overflows).
 LIMIT = 1e150
 
@@ -88,6 +85,20 @@ class Polynomial:
     absolute: tuple[np.ndarray, np.ndarray]
     ops: int
     taylor: tuple[np.ndarray, ...]  # :func:`_taylor`
+
+
+@dataclass(frozen=True)
+class Quotient:
+    """A quotient ``P / D`` of two polynomials, bounded in its centred form too (the module's
+    docstring): ``taylor`` the pairs of P and D together (D's in group 1), ``absolute`` the
+    monomials of their ``P~`` with their groups, ``ops`` the larger count of roundings."""
+
+    num: Polynomial
+    den: Polynomial
+    taylor: tuple[np.ndarray, ...]
+    absolute: tuple[np.ndarray, ...]
+    ops: int
+    power: float = 1.0  # the divisor is D to this power (a real one: P / D^k)
 
 
 @dataclass(frozen=True)
@@ -137,7 +148,9 @@ def polynomial_structure(tree: Expr) -> Structure | None:
         elif node.op == "num":
             nodes.append(("num", float(node.value), ()))
         elif inside[id(node)] and (node.op in _JOINS or _real_power(node)):
-            nodes.append((node.op, None, tuple(index[id(a)] for a in node.args)))
+            quotient = _quotient_of(node, made, polys) if node.op == "/" else None
+            kids = () if quotient is not None else tuple(index[id(a)] for a in node.args)
+            nodes.append((node.op, quotient, kids))  # a quotient bounds P and D itself
         else:  # a part: bounded as a program of its own where a joining node reads it
             nodes.append(("part", node, ()))
         index[id(node)] = len(nodes) - 1
@@ -216,6 +229,8 @@ def _structure_bounds(structure, programs, base, lo, hi, threads):
                 vlo = vhi = np.full(len(lo), payload)
             elif kind == "sum":
                 vlo, vhi = sum_bounds(payload, [vals[k] for k in kids])
+            elif kind == "/" and payload is not None:  # a quotient of polynomials
+                vlo, vhi = _quotient_bounds(payload, lo, hi, ok, threads)
             else:
                 vlo, vhi = _join(kind, [vals[k] for k in kids], ok)
             ok &= np.isfinite(vlo) & np.isfinite(vhi) & (vlo <= vhi)
@@ -223,6 +238,79 @@ def _structure_bounds(structure, programs, base, lo, hi, threads):
             vals[i] = (vlo, vhi)
     flo, fhi = vals[len(structure.nodes) - 1]
     return flo, fhi, ok
+
+
+def _quotient_of(node: Expr, made: dict[int, Polynomial], polys: dict) -> Quotient | None:
+    """A ``/`` node as a :class:`Quotient` where it is ``P / D`` or ``P / D^k`` (k a real
+    number), P a polynomial found and D any polynomial (a twist's radius ``x^2 + y^2 + δ`` is
+    too short to be one of its own)."""
+    num, den = node.args
+    power = 1.0
+    if _real_power(den):
+        den, power = den.args[0], float(den.args[1].value)
+    if id(num) not in made or polys.get(id(den)) is None:
+        return None
+    divisor = made.get(id(den)) or _polynomial(polys[id(den)])
+    return None if divisor is None else _quotient(made[id(num)], divisor, power)
+
+
+def _quotient(num: Polynomial, den: Polynomial, power: float = 1.0) -> Quotient | None:
+    """``num / den^power`` as a :class:`Quotient`; None beyond :data:`~.interval_taylor.MAX_PAIRS` pairs
+    together."""
+    tags = [0] * len(num.exps) + [1] * len(den.exps)
+    taylor = taylor_pairs(
+        np.vstack([num.exps, den.exps]), np.concatenate([num.coefs, den.coefs]), tags
+    )
+    if taylor is None:
+        return None
+    (e0, c0), (e1, c1) = num.absolute, den.absolute
+    absolute = (np.vstack([e0, e1]), np.abs(np.concatenate([c0, c1])),
+                np.array([0] * len(e0) + [1] * len(e1), dtype=np.int64))  # fmt: skip
+    return Quotient(num, den, taylor, absolute, max(num.ops, den.ops), power)
+
+
+def _quotient_bounds(q: Quotient, lo: np.ndarray, hi: np.ndarray, ok: np.ndarray, threads: int):
+    """A quotient's bounds in its centred form (:func:`_centred`), and where that fails (D's
+    bound reaching 0 or below) P's bound over D's (``ok`` cleared where that fails too)."""
+    den = _poly_bounds(q.den, lo, hi, threads)
+    vlo, vhi = _centred(q, lo, hi, den, threads)
+    bad = np.flatnonzero(~(np.isfinite(vlo) & np.isfinite(vhi)))
+    if len(bad):
+        held = np.ones(len(bad), dtype=np.bool_)
+        num = _poly_bounds(q.num, lo[bad], hi[bad], threads)
+        d = (den[0][bad], den[1][bad])
+        if q.power != 1.0:
+            d = _join("^", [d, (np.full(len(bad), q.power),) * 2], held)
+        vlo[bad], vhi[bad] = _join("/", [num, d], held)
+        ok[bad] &= held
+    return vlo, vhi
+
+
+def _centred(q: Quotient, lo: np.ndarray, hi: np.ndarray, den, threads: int):
+    """Bounds of the evaluator's ``P / D`` over the boxes as ``r + (P - r D) / D``, ``r`` its
+    value at each box's centre (any number would do: the form is exact), the numerator bounded
+    by its Taylor form (with the evaluator's roundings of P and of ``r D``), ``den`` D's
+    bounds (NaN where they hold 0), the quotient's rounding four units outward; ``P / D^k`` as that times ``D^(1 - k)`` (a
+    base > 0: elsewhere not finite), the power's, the quotient's and the product's roundings
+    eight units outward."""
+    r = centre_values(q.num.exps, q.num.coefs, lo, hi) / centre_values(
+        q.den.exps, q.den.coefs, lo, hi
+    )
+    r = np.where(np.isfinite(r), r, 0.0)
+    w = np.stack([np.ones(len(lo)), -r])
+    num = taylor_bounds(q.taylor, q.absolute, q.ops, _UNIT, lo, hi, w, threads)
+    held = np.ones(len(lo), dtype=np.bool_)  # cleared where D's bound holds 0
+    qlo, qhi = _join("/", [num, den], held)
+    vlo, vhi = _down(np.where(held, r + qlo, np.nan)), _up(np.where(held, r + qhi, np.nan))
+    room = 4.0
+    if q.power != 1.0:
+        d0, d1 = den
+        base0, base1 = np.where(d0 > 0, d0, np.nan), np.where(d0 > 0, d1, np.nan)
+        f = (np.power(base0, 1.0 - q.power), np.power(base1, 1.0 - q.power))
+        f0, f1 = _down(np.fmin(*f) * (1 - 4 * _UNIT)), _up(np.fmax(*f) * (1 + 4 * _UNIT))
+        corners = np.stack([vlo * f0, vlo * f1, vhi * f0, vhi * f1])
+        vlo, vhi, room = _down(corners.min(axis=0)), _up(corners.max(axis=0)), 8.0
+    return _down(vlo - room * _UNIT * np.abs(vlo)), _up(vhi + room * _UNIT * np.abs(vhi))
 
 
 def _real_power(node: Expr) -> bool:
@@ -385,132 +473,17 @@ def _polynomial(p: dict) -> Polynomial | None:
         return exps, np.array([float(d[e]) for e in keys])
 
     exps, coefs = arrays(p["p"])
-    taylor = _taylor(exps, coefs)
+    taylor = taylor_pairs(exps, coefs)
     if taylor is None:
         return None
     return Polynomial(exps, coefs, arrays(p["a"]), p["ops"] + 1, taylor)
 
 
-def _taylor(exps: np.ndarray, coefs: np.ndarray) -> tuple[np.ndarray, ...] | None:
-    """The Taylor shift's pairs: for each monomial α and β <= α, the coefficient
-    ``c_α · Π binom(α_i, β_i)`` (P,), the power ``α - β`` of the centre (P, 3), where each β's
-    pairs start (B,) and the β's (B, 3); None beyond :data:`MAX_PAIRS`."""
-    if int(np.prod(exps + 1, axis=1).sum()) > MAX_PAIRS:
-        return None
-    coef, expo, into, betas = [], [], [], {}
-    for e, c in zip(exps.tolist(), coefs.tolist(), strict=True):
-        for b0 in range(e[0] + 1):
-            for b1 in range(e[1] + 1):
-                for b2 in range(e[2] + 1):
-                    k = math.comb(e[0], b0) * math.comb(e[1], b1) * math.comb(e[2], b2)
-                    coef.append(c * k)
-                    expo.append((e[0] - b0, e[1] - b1, e[2] - b2))
-                    into.append(betas.setdefault((b0, b1, b2), len(betas)))
-    order = np.argsort(np.array(into), kind="stable")  # each β's pairs together
-    into_arr = np.array(into, dtype=np.int64)[order]
-    starts = np.flatnonzero(np.r_[True, into_arr[1:] != into_arr[:-1]])
-    return (np.array(coef)[order], np.array(expo, dtype=np.int64).reshape(-1, 3)[order],
-            starts, np.array(list(betas), dtype=np.int64).reshape(-1, 3))  # fmt: skip
-
-
 def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1):
     """The bounds of the evaluator's value of ``p`` over each box (the module's docstring):
     its Taylor form at the box's centre c, ``Σ_β d_β t^β`` with ``|t_i| <= h_i``, each
-    ``d_β`` computed with a bound on its rounding (:func:`_taylor_kernel`), in ``threads`` runs
+    ``d_β`` computed with a bound on its rounding (:func:`~surfgen.generator.eval.interval_taylor.taylor_bounds`), in ``threads`` runs
     of boxes at once."""
-    coef, expo, starts, betas = p.taylor
-    out_lo, out_hi = np.empty(len(lo)), np.empty(len(lo))
     abs_exps, abs_coefs = p.absolute
-    abs_coefs = np.abs(abs_coefs)
-    runs = max(1, min(int(threads), len(lo) // THREAD_BOXES))
-    cuts = [len(lo) * r // runs for r in range(runs + 1)]
-
-    def run(r: int) -> None:
-        v = slice(cuts[r], cuts[r + 1])
-        _taylor_kernel(coef, expo, starts, betas, abs_exps, abs_coefs, float(p.ops), _UNIT, lo[v],
-                       hi[v], out_lo[v], out_hi[v])  # fmt: skip
-
-    run_at_once([functools.partial(run, r) for r in range(runs)])
-    return out_lo, out_hi
-
-
-#: Boxes a Taylor kernel's inner loops run over at once (the compiler vectorises them).
-CHUNK = 32
-
-
-@njit(**KERNEL)
-def _powers_of(lo, hi, k0, m, cp, hp, tp):
-    """Boxes ``k0:k0+m``'s powers ``j < MAX_DEGREE + 1`` (by repeated products: j roundings
-    each) of their centre ``c`` (``cp[a, j, k]``), half-width ``h`` (rounded up: ``hp``) and
-    largest ``|x|`` (``tp``), per axis a."""
-    for a in range(3):
-        for k in range(m):
-            c = (lo[k0 + k, a] + hi[k0 + k, a]) / 2
-            h = max(
-                np.nextafter(hi[k0 + k, a] - c, np.inf), np.nextafter(c - lo[k0 + k, a], np.inf)
-            )
-            t = max(abs(lo[k0 + k, a]), abs(hi[k0 + k, a]))
-            cp[a, 0, k] = hp[a, 0, k] = tp[a, 0, k] = 1.0
-            for j in range(1, MAX_DEGREE + 1):
-                cp[a, j, k] = cp[a, j - 1, k] * c
-                hp[a, j, k] = hp[a, j - 1, k] * h
-                tp[a, j, k] = tp[a, j - 1, k] * t
-
-
-@njit(**KERNEL)
-def _taylor_kernel(coef, expo, starts, betas, abs_exps, abs_coefs, ops, u, lo, hi, out_lo, out_hi):
-    """Per box: ``Σ_β d_β t^β`` over ``|t| <= h`` around ``c``, plus the roundings of the
-    ``d_β`` (``4 (P + 56) u`` of their terms' magnitudes: each term ``3 MAX_DEGREE + 3``
-    roundings at most, each sum P), of the reach ``h^β`` and of the sums (``slack``), and the
-    evaluator's rounding of P (``2 (ops + 2) u P~(|x|)``). The boxes are taken :data:`CHUNK` at
-    a time, each pair's term computed for all of them in one loop (the same operations, in
-    the same order, for each box: twist-0's 636 pairs 5 -> 0.8 microseconds a box)."""
-    n_pairs, n_betas = coef.shape[0], betas.shape[0]
-    cp = np.empty((3, MAX_DEGREE + 1, CHUNK))
-    hp = np.empty((3, MAX_DEGREE + 1, CHUNK))
-    tp = np.empty((3, MAX_DEGREE + 1, CHUNK))
-    sums = np.empty((6, CHUNK))  # the sums' low and high ends, magnitude, d, size, P~
-    sum_lo, sum_hi, mag, d, size, p_abs = sums[0], sums[1], sums[2], sums[3], sums[4], sums[5]
-    rel = 4.0 * (n_pairs + 3 * MAX_DEGREE + 8) * u
-    for k0 in range(0, lo.shape[0], CHUNK):
-        m = min(CHUNK, lo.shape[0] - k0)
-        _powers_of(lo, hi, k0, m, cp, hp, tp)
-        sums[:3] = 0.0
-        for b in range(n_betas):
-            d[:] = 0.0
-            size[:] = 0.0
-            for q in range(starts[b], starts[b + 1] if b + 1 < n_betas else n_pairs):
-                cq, c0, c1, c2 = coef[q], cp[0, expo[q, 0]], cp[1, expo[q, 1]], cp[2, expo[q, 2]]
-                for k in range(m):
-                    t = cq * c0[k] * c1[k] * c2[k]
-                    d[k] += t
-                    size[k] += abs(t)
-            b0, b1, b2 = betas[b, 0], betas[b, 1], betas[b, 2]
-            centre = b0 == 0 and b1 == 0 and b2 == 0
-            even = b0 % 2 == 0 and b1 % 2 == 0 and b2 % 2 == 0
-            h0, h1, h2 = hp[0, b0], hp[1, b1], hp[2, b2]
-            for k in range(m):
-                err = rel * size[k]
-                if centre:
-                    tlo, thi = d[k] - err, d[k] + err
-                else:
-                    reach = h0[k] * h1[k] * h2[k] * (1.0 + 64.0 * u)
-                    low = 0.0 if even else -reach
-                    if d[k] >= 0:
-                        tlo, thi = d[k] * low - err * reach, d[k] * reach + err * reach
-                    else:
-                        tlo, thi = d[k] * reach - err * reach, d[k] * low + err * reach
-                sum_lo[k] += tlo
-                sum_hi[k] += thi
-                mag[k] += abs(tlo) + abs(thi)
-        p_abs[:] = 0.0
-        for q in range(abs_exps.shape[0]):
-            ac = abs_coefs[q]
-            t0, t1, t2 = tp[0, abs_exps[q, 0]], tp[1, abs_exps[q, 1]], tp[2, abs_exps[q, 2]]
-            for k in range(m):
-                p_abs[k] += ac * t0[k] * t1[k] * t2[k]
-        for k in range(m):
-            slack = 4.0 * (n_betas + 4) * u * mag[k]
-            err_p = 2.0 * (ops + 2.0) * u * p_abs[k] * (1.0 + 4.0 * (abs_exps.shape[0] + 56) * u)
-            out_lo[k0 + k] = np.nextafter(sum_lo[k] - slack - err_p, -np.inf)
-            out_hi[k0 + k] = np.nextafter(sum_hi[k] + slack + err_p, np.inf)
+    absolute = (abs_exps, np.abs(abs_coefs), np.zeros(len(abs_exps), np.int64))
+    return taylor_bounds(p.taylor, absolute, p.ops, _UNIT, lo, hi, np.ones((2, len(lo))), threads)
