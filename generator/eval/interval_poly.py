@@ -10,7 +10,8 @@ polynomial varies: assembly-0 at 512^3 samples 79 287 leaves to keep 1 963.
 ``+ - * neg`` and whole powers over numbers and x, y, z, with three or more monomials of
 degree two or more, one of them of two variables), **parts** (the sub-trees without such a
 polynomial, each bounded by the base bounds as a program of its own) and the **operations
-joining them** (``+ - * / neg abs max min``, a power with a real exponent, and numbers). :func:`polynomial_bounds` bounds a box:
+joining them** (``+ - * / neg abs max min``, a power with a real exponent, and numbers).
+:func:`polynomial_bounds` bounds a box:
 
 - a polynomial P by its Taylor form at the box's centre c: ``P(c + t) = Σ_β d_β t^β`` with
   ``|t_i| <= h_i`` (a ``t^β`` of even powers only is ``>= 0``), each ``d_β`` (a sum of
@@ -20,6 +21,9 @@ joining them** (``+ - * / neg abs max min``, a power with a real exponent, and n
   ``-`` a ``+``: the forward error bound of a sum of products whatever the order and
   contractions, Higham 2002, §3.1), ``P~`` at the box's largest ``|x|, |y|, |z|``;
 - a part by the base bounds (over the grid's points: a value of one axis exactly);
+- a quotient ``P / D`` or ``P / D^k`` (k real) of a polynomial P and any polynomial D in its
+  centred form ``r + (P - r D) / D``, r its value at the box's centre (:func:`_centred`): a
+  twist's lobe and its radius grow together, which the quotient of their bounds misses;
 - a sum holding ``U cos θ + V sin θ`` (a twist's lobes) by its terms' bounds with each such
   pair bounded as one wave (:mod:`~surfgen.generator.eval.interval_harmonic`);
 - the joining operations as intervals, each end moved one place outward (so each holds the
@@ -29,9 +33,9 @@ joining them** (``+ - * / neg abs max min``, a power with a real exponent, and n
 Every value the evaluator computes at a point of the box is then within the bound where every
 part's and polynomial's bound is finite, the divisors' exclude 0 and the real powers' bases
 are not negative (and positive below a negative exponent); there F is finite too. A box where
-that fails keeps the formula's own bounds. The polynomials' Taylor shifts are
-bounded in :data:`~.interval_taylor.MAX_PAIRS` pairs (a product of polynomials longer than that stays a product
-of two); the structure is used only on boxes the base bounds leave undecided, and given up
+that fails keeps the formula's own bounds. The polynomials' Taylor shifts are bounded in
+:data:`~.interval_taylor.MAX_PAIRS` pairs (a product of polynomials longer than that stays a
+product of two); the structure is used only on boxes the base bounds leave undecided, and given up
 where it decides next to none. The points sampled are the same; only fewer blocks are left to
 sample.
 """
@@ -84,14 +88,15 @@ class Polynomial:
     coefs: np.ndarray
     absolute: tuple[np.ndarray, np.ndarray]
     ops: int
-    taylor: tuple[np.ndarray, ...]  # :func:`_taylor`
+    taylor: tuple[np.ndarray, ...]  # :func:`~.interval_taylor.taylor_pairs`
 
 
 @dataclass(frozen=True)
 class Quotient:
-    """A quotient ``P / D`` of two polynomials, bounded in its centred form too (the module's
-    docstring): ``taylor`` the pairs of P and D together (D's in group 1), ``absolute`` the
-    monomials of their ``P~`` with their groups, ``ops`` the larger count of roundings."""
+    """A quotient ``P / D^power`` of two polynomials, bounded in its centred form
+    (:func:`_centred`): ``taylor`` the pairs of P and D together (D's in group 1),
+    ``absolute`` the monomials of their ``P~`` with their groups, ``ops`` the larger count of
+    roundings."""
 
     num: Polynomial
     den: Polynomial
@@ -255,8 +260,8 @@ def _quotient_of(node: Expr, made: dict[int, Polynomial], polys: dict) -> Quotie
 
 
 def _quotient(num: Polynomial, den: Polynomial, power: float = 1.0) -> Quotient | None:
-    """``num / den^power`` as a :class:`Quotient`; None beyond :data:`~.interval_taylor.MAX_PAIRS` pairs
-    together."""
+    """``num / den^power`` as a :class:`Quotient`; None beyond
+    :data:`~.interval_taylor.MAX_PAIRS` pairs together."""
     tags = [0] * len(num.exps) + [1] * len(den.exps)
     taylor = taylor_pairs(
         np.vstack([num.exps, den.exps]), np.concatenate([num.coefs, den.coefs]), tags
@@ -290,9 +295,9 @@ def _centred(q: Quotient, lo: np.ndarray, hi: np.ndarray, den, threads: int):
     """Bounds of the evaluator's ``P / D`` over the boxes as ``r + (P - r D) / D``, ``r`` its
     value at each box's centre (any number would do: the form is exact), the numerator bounded
     by its Taylor form (with the evaluator's roundings of P and of ``r D``), ``den`` D's
-    bounds (NaN where they hold 0), the quotient's rounding four units outward; ``P / D^k`` as that times ``D^(1 - k)`` (a
-    base > 0: elsewhere not finite), the power's, the quotient's and the product's roundings
-    eight units outward."""
+    bounds (NaN where they hold 0), the quotient's rounding four units outward; ``P / D^k``
+    as that times ``D^(1 - k)`` (a base > 0: elsewhere NaN), the power's, the quotient's and
+    the product's roundings eight units outward."""
     r = centre_values(q.num.exps, q.num.coefs, lo, hi) / centre_values(
         q.den.exps, q.den.coefs, lo, hi
     )
@@ -482,8 +487,8 @@ def _polynomial(p: dict) -> Polynomial | None:
 def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1):
     """The bounds of the evaluator's value of ``p`` over each box (the module's docstring):
     its Taylor form at the box's centre c, ``Σ_β d_β t^β`` with ``|t_i| <= h_i``, each
-    ``d_β`` computed with a bound on its rounding (:func:`~surfgen.generator.eval.interval_taylor.taylor_bounds`), in ``threads`` runs
-    of boxes at once."""
+    ``d_β`` computed with a bound on its rounding (:func:`~.interval_taylor.taylor_bounds`),
+    in ``threads`` runs of boxes at once."""
     abs_exps, abs_coefs = p.absolute
     absolute = (abs_exps, np.abs(abs_coefs), np.zeros(len(abs_exps), np.int64))
     return taylor_bounds(p.taylor, absolute, p.ops, _UNIT, lo, hi, np.ones((2, len(lo))), threads)

@@ -1,5 +1,5 @@
-"""A sum's ``U cos θ + V sin θ`` bounded as one wave (:mod:`surfgen.generator.eval.interval_harmonic`):
-the pairs found, the pair's range exact and sound, the rounding margin needed, fewer leaves
+"""A sum's ``U cos θ + V sin θ`` bounded as one wave
+(:mod:`surfgen.generator.eval.interval_harmonic`): the pairs found, the pair's range exact and sound, the rounding margin needed, fewer leaves
 sampled for a twist with the same mesh."""
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ def test_the_pairs_are_grouped_by_beta_with_their_groups() -> None:
 
 def exact(mono, x) -> Fraction:
     exps, coefs = mono
-    return sum(Fraction(c) * Fraction(x[0]) ** e[0] * Fraction(x[1]) ** e[1] * Fraction(x[2]) ** e[2]
+    x0, x1, x2 = (Fraction(v) for v in x)
+    return sum(Fraction(c) * x0 ** e[0] * x1 ** e[1] * x2 ** e[2]
                for e, c in zip(exps.tolist(), coefs.tolist(), strict=True))  # fmt: skip
 
 
