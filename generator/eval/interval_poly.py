@@ -140,11 +140,11 @@ def polynomial_structure(tree: Expr) -> Structure | None:
     nodes: list[tuple[str, object, tuple[int, ...]]] = []
     index: dict[int, int] = {}
     order = postorder(tree)  # each node once, children first
-    terms = in_chains(order)
+    inner = in_chains(order) | made.keys()  # a term of a larger sum, or a polynomial
     for node in order:
         inside[id(node)] = id(node) in made or any(inside[id(a)] for a in node.args)
         wave = None
-        if inside[id(node)] and id(node) not in terms and node.op in ("+", "-"):
+        if inside[id(node)] and id(node) not in inner and node.op in ("+", "-"):
             wave = sum_terms(node, made.keys())  # a whole sum holding U cos θ + V sin θ
         if id(node) in made:
             nodes.append(("poly", made[id(node)], ()))
@@ -303,7 +303,7 @@ def _centred(q: Quotient, lo: np.ndarray, hi: np.ndarray, den, threads: int):
     )
     r = np.where(np.isfinite(r), r, 0.0)
     w = np.stack([np.ones(len(lo)), -r])
-    num = taylor_bounds(q.taylor, q.absolute, q.ops, _UNIT, lo, hi, w, threads)
+    num = taylor_bounds(q.taylor, q.absolute, q.ops, _UNIT, lo, hi, threads, w)
     held = np.ones(len(lo), dtype=np.bool_)  # cleared where D's bound holds 0
     qlo, qhi = _join("/", [num, den], held)
     vlo, vhi = _down(np.where(held, r + qlo, np.nan)), _up(np.where(held, r + qhi, np.nan))
@@ -491,4 +491,4 @@ def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1
     in ``threads`` runs of boxes at once."""
     abs_exps, abs_coefs = p.absolute
     absolute = (abs_exps, np.abs(abs_coefs), np.zeros(len(abs_exps), np.int64))
-    return taylor_bounds(p.taylor, absolute, p.ops, _UNIT, lo, hi, np.ones((2, len(lo))), threads)
+    return taylor_bounds(p.taylor, absolute, p.ops, _UNIT, lo, hi, threads)

@@ -54,21 +54,24 @@ def taylor_pairs(exps: np.ndarray, coefs: np.ndarray, tags=None) -> tuple[np.nda
             np.array(list(betas), dtype=np.int64).reshape(-1, 3))  # fmt: skip
 
 
-def taylor_bounds(taylor, absolute, ops: int, u: float, lo, hi, w, threads: int):
+def taylor_bounds(taylor, absolute, ops: int, u: float, lo, hi, threads: int, w=None):
     """:func:`_taylor_kernel` over the boxes in ``threads`` runs at once; ``w`` (2, boxes):
-    each box's factors of the pairs of either group (``taylor``'s ``which``); ``u`` the unit
+    each box's factors of the pairs of either group (``taylor``'s ``which``), None for a
+    polynomial's own (its terms not multiplied: 5-6 % of its time, measured); ``u`` the unit
     roundoff (the caller's: its margin test zeroes it)."""
     coef, expo, which, starts, betas = taylor
     abs_exps, abs_coefs, abs_which = absolute
     out_lo, out_hi = np.empty(len(lo)), np.empty(len(lo))
     runs = max(1, min(int(threads), len(lo) // THREAD_BOXES))
     cuts = [len(lo) * r // runs for r in range(runs + 1)]
+    unweighted = np.ones((2, 1))
 
     def run(r: int) -> None:
         v = slice(cuts[r], cuts[r + 1])
+        wv = unweighted if w is None else np.ascontiguousarray(w[:, v])
         _taylor_kernel(coef, expo, which, starts, betas, abs_exps, abs_coefs, abs_which,
-                       float(ops), u, lo[v], hi[v], np.ascontiguousarray(w[:, v]),
-                       out_lo[v], out_hi[v])  # fmt: skip
+                       float(ops), u, lo[v], hi[v], wv, w is not None, out_lo[v],
+                       out_hi[v])  # fmt: skip
 
     run_at_once([functools.partial(run, r) for r in range(runs)])
     return out_lo, out_hi
@@ -95,16 +98,16 @@ def _powers_of(lo, hi, k0, m, cp, hp, tp):
 
 @njit(**KERNEL)
 def _taylor_kernel(coef, expo, which, starts, betas, abs_exps, abs_coefs, abs_which, ops, u, lo,
-                   hi, w, out_lo, out_hi):  # fmt: skip
+                   hi, w, weighted, out_lo, out_hi):  # fmt: skip
     """Per box: ``Σ_β d_β t^β`` over ``|t| <= h`` around ``c``, plus the roundings of the
     ``d_β`` (``4 (P + 57) u`` of their terms' magnitudes: each term ``3 MAX_DEGREE + 4``
     roundings at most, each sum P), of the reach ``h^β`` and of the sums (``slack``), and the
     evaluator's rounding of P (``2 (ops + 2) u P~(|x|)``). Each pair's term (and ``P~``'s) is
-    multiplied by its box's factor of its group (``w[which[q], k]``: 1 for a polynomial, 1
-    and ``-r`` for a quotient's centred numerator ``P - r D``). The boxes are taken
-    :data:`CHUNK` at a time, each pair's term computed for all of them in one loop (the same
-    operations, in the same order, for each box: twist-0's 636 pairs 5 -> 0.8 microseconds a
-    box)."""
+    multiplied by its box's factor of its group where ``weighted`` (``w[which[q], k]``: 1 and
+    ``-r`` for a quotient's centred numerator ``P - r D``; a polynomial's own are not). The
+    boxes are taken :data:`CHUNK` at a time, each pair's term computed for all of them in one
+    loop (the same operations, in the same order, for each box: twist-0's 636 pairs 5 -> 0.8
+    microseconds a box)."""
     n_pairs, n_betas = coef.shape[0], betas.shape[0]
     cp = np.empty((3, MAX_DEGREE + 1, CHUNK))
     hp = np.empty((3, MAX_DEGREE + 1, CHUNK))
@@ -121,11 +124,17 @@ def _taylor_kernel(coef, expo, which, starts, betas, abs_exps, abs_coefs, abs_wh
             size[:] = 0.0
             for q in range(starts[b], starts[b + 1] if b + 1 < n_betas else n_pairs):
                 cq, c0, c1, c2 = coef[q], cp[0, expo[q, 0]], cp[1, expo[q, 1]], cp[2, expo[q, 2]]
-                wq = w[which[q], k0:]
-                for k in range(m):
-                    t = cq * c0[k] * c1[k] * c2[k] * wq[k]
-                    d[k] += t
-                    size[k] += abs(t)
+                if weighted:
+                    wq = w[which[q], k0:]
+                    for k in range(m):
+                        t = cq * c0[k] * c1[k] * c2[k] * wq[k]
+                        d[k] += t
+                        size[k] += abs(t)
+                else:
+                    for k in range(m):
+                        t = cq * c0[k] * c1[k] * c2[k]
+                        d[k] += t
+                        size[k] += abs(t)
             b0, b1, b2 = betas[b, 0], betas[b, 1], betas[b, 2]
             centre = b0 == 0 and b1 == 0 and b2 == 0
             even = b0 % 2 == 0 and b1 % 2 == 0 and b2 % 2 == 0
@@ -148,9 +157,13 @@ def _taylor_kernel(coef, expo, which, starts, betas, abs_exps, abs_coefs, abs_wh
         for q in range(abs_exps.shape[0]):
             ac = abs_coefs[q]
             t0, t1, t2 = tp[0, abs_exps[q, 0]], tp[1, abs_exps[q, 1]], tp[2, abs_exps[q, 2]]
-            wq = w[abs_which[q], k0:]
-            for k in range(m):
-                p_abs[k] += ac * t0[k] * t1[k] * t2[k] * abs(wq[k])
+            if weighted:
+                wq = w[abs_which[q], k0:]
+                for k in range(m):
+                    p_abs[k] += ac * t0[k] * t1[k] * t2[k] * abs(wq[k])
+            else:
+                for k in range(m):
+                    p_abs[k] += ac * t0[k] * t1[k] * t2[k]
         for k in range(m):
             slack = 4.0 * (n_betas + 4) * u * mag[k]
             err_p = 2.0 * (ops + 2.0) * u * p_abs[k] * (1.0 + 4.0 * (abs_exps.shape[0] + 57) * u)
@@ -161,18 +174,17 @@ def _taylor_kernel(coef, expo, which, starts, betas, abs_exps, abs_coefs, abs_wh
 @njit(**KERNEL)
 def centre_values(exps, coefs, lo, hi):
     """The polynomial ``Σ coefs[m] x^exps[m]`` at each box's centre, in floats (a quotient's
-    centre value ``r``: any number keeps the centred form exact, so no bound on its rounding)."""
-    n = lo.shape[0]
-    out = np.zeros(n)
-    powers = np.empty((3, MAX_DEGREE + 1))
-    for k in range(n):
-        for a in range(3):
-            c = (lo[k, a] + hi[k, a]) / 2
-            powers[a, 0] = 1.0
-            for j in range(1, MAX_DEGREE + 1):
-                powers[a, j] = powers[a, j - 1] * c
-        s = 0.0
-        for m in range(exps.shape[0]):
-            s += coefs[m] * powers[0, exps[m, 0]] * powers[1, exps[m, 1]] * powers[2, exps[m, 2]]
-        out[k] = s
+    centre value ``r``: any number keeps the centred form exact, so no bound on its rounding),
+    from the centre's powers :func:`_powers_of` makes, :data:`CHUNK` boxes at a time."""
+    out = np.zeros(lo.shape[0])
+    cp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    hp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    tp = np.empty((3, MAX_DEGREE + 1, CHUNK))
+    for k0 in range(0, lo.shape[0], CHUNK):
+        m = min(CHUNK, lo.shape[0] - k0)
+        _powers_of(lo, hi, k0, m, cp, hp, tp)
+        for q in range(exps.shape[0]):
+            cq, c0, c1, c2 = coefs[q], cp[0, exps[q, 0]], cp[1, exps[q, 1]], cp[2, exps[q, 2]]
+            for k in range(m):
+                out[k0 + k] += cq * c0[k] * c1[k] * c2[k]
     return out

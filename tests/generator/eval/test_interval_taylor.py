@@ -47,7 +47,7 @@ def test_two_groups_bound_p_minus_r_d() -> None:
     pairs = taylor_pairs(exps, coefs, [0] * 4 + [1] * 3)
     absolute = (exps, np.abs(coefs), np.array([0] * 4 + [1] * 3))
     r = rng.uniform(-50, 50, len(blo))
-    lo, hi = taylor_bounds(pairs, absolute, 2, _U, blo, bhi, np.stack([np.ones(len(r)), -r]), 1)
+    lo, hi = taylor_bounds(pairs, absolute, 2, _U, blo, bhi, 1, np.stack([np.ones(len(r)), -r]))
     for k in range(len(blo)):
         for u in rng.uniform(0, 1, (6, 3)):
             x = blo[k] + u * (bhi[k] - blo[k])
