@@ -1,8 +1,8 @@
 """Checks of interval bounds shared by the tests of :mod:`surfgen.generator.eval.intervals`,
 :mod:`~surfgen.generator.eval.interval_regroup`, :mod:`~surfgen.generator.eval.interval_extrema`
 and :mod:`~surfgen.generator.eval.interval_poly`: random boxes, points in them, and the
-soundness of bounds against the fast evaluator at those points, a formula's regrouped bounds
-and spread, and the sparse path's leaves and mesh with tightened bounds."""
+soundness of bounds against the fast evaluator at those points, a formula's regrouped or
+structured bounds and spread, and the sparse path's leaves and mesh with tightened bounds."""
 
 from __future__ import annotations
 
@@ -10,13 +10,15 @@ import numpy as np
 
 from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
 from surfgen.generator.eval.interval_regroup import Regrouped, regroup, regrouped_bounds
 from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds, tree_bounds
-from surfgen.generator.eval.sparse import evaluate_sparse
+from surfgen.generator.eval.sparse import SparseField, evaluate_sparse
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.expr import Expr
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh.realise import realise
+from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
 from surfgen.generator.model.spec import SurfaceSpec
 
 
@@ -101,15 +103,68 @@ def assert_within_spread(text: str, found: Regrouped, rng: np.random.Generator) 
     assert np.all(np.abs(f[ok] - g[ok]) <= s[ok]), text
 
 
+def structure_bounds(text: str, level: float | None = None):
+    """``text``'s tree, program and bounds: through its polynomial structure where it has one
+    (:func:`polynomial_bounds`), else the program's own (:func:`program_bounds`)."""
+    tree = parse(text)
+    program = compile_tree(tree)
+
+    def base(prog, lo, hi):
+        return program_bounds(prog, lo, hi)
+
+    found = polynomial_structure(tree)
+    if found is None:
+        return tree, program, base
+    return tree, program, polynomial_bounds(base, program, found, level)
+
+
+def twist_case() -> tuple[Expr, Box, tuple[int, int, int]]:
+    """The first twist draw of seed 5 (its lobes ``P/D cos + P/D sin``, D a polynomial), its
+    box shifted and stretched, and an odd grid."""
+    cfg = SamplerConfig(family="twist")
+    draw = draw_equation(5, 0, cfg)
+    tree = draw.equation.with_d(choose_d(draw, cfg, threads=1)).to_tree()
+    lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
+    return tree, Box(tuple(lo * 1.03 + 0.02), tuple(hi * 0.98 + 0.02)), (121, 113, 127)
+
+
+def assert_fewer_leaves_than_without(tree: Expr, box: Box, shape, monkeypatch, module, name,
+                                     off) -> None:  # fmt: skip
+    """Fewer leaves of ``tree`` sampled on this grid than with ``module.name`` replaced by
+    ``off`` (a bounding step switched off) and than with the plain grid-point bounds, the
+    same kept, and the capped mesh the dense path's, bit for bit."""
+    grid = Grid(box, shape)
+    polynomial_structure.cache_clear()
+    with monkeypatch.context() as m:
+        m.setattr(module, name, off)
+        loose = evaluate_sparse(tree, grid, faces=True)
+    polynomial_structure.cache_clear()
+    tight = _fewer_leaves_than_plain(tree, grid)
+    assert tight.stats["sampled_leaves"] < loose.stats["sampled_leaves"]
+    assert tight.n_bricks == loose.n_bricks
+    assert_same_mesh(tree, box, shape)
+
+
 def assert_fewer_leaves_same_mesh(tree: Expr, box: Box, shape: tuple[int, int, int]) -> None:
     """The sparse path's default bounds sample fewer leaves of ``tree`` on this grid than the
     plain grid-point bounds, keep the same, and the capped mesh is the dense path's, bit for
     bit."""
-    grid = Grid(box, shape)
+    _fewer_leaves_than_plain(tree, Grid(box, shape))
+    assert_same_mesh(tree, box, shape)
+
+
+def _fewer_leaves_than_plain(tree: Expr, grid: Grid) -> SparseField:
+    """The default bounds sample fewer leaves than the plain grid-point bounds and keep the
+    same; returns their field."""
     plain = evaluate_sparse(tree, grid, bounds=grid_point_bounds(grid.axes(), 1), faces=True)
     tight = evaluate_sparse(tree, grid, faces=True)
     assert tight.stats["sampled_leaves"] < plain.stats["sampled_leaves"]
     assert tight.n_bricks == plain.n_bricks
+    return tight
+
+
+def assert_same_mesh(tree: Expr, box: Box, shape: tuple[int, int, int]) -> None:
+    """The capped sparse mesh of ``tree`` is the dense path's, bit for bit (and not small)."""
     bounds = (box.lo[0], box.hi[0], box.lo[1], box.hi[1], box.lo[2], box.hi[2])
     spec = SurfaceSpec.from_tree(tree, bounds, shape)
     meshes = [realise(spec, evaluator=e, cap=True).mesh for e in ("fast", "sparse")]

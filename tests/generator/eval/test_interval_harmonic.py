@@ -10,18 +10,18 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from surfgen.generator.eval import interval_harmonic, interval_poly
-from surfgen.generator.eval.compiler import compile_tree
-from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_harmonic import pair_range, sum_bounds, sum_terms
-from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
-from surfgen.generator.eval.intervals import program_bounds
-from surfgen.generator.eval.sparse import evaluate_sparse
+from surfgen.generator.eval.interval_poly import polynomial_structure
 from surfgen.generator.eval.tape import points_evaluator
 from surfgen.generator.formula.parser import parse
-from surfgen.generator.mesh.realise import realise
-from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
-from surfgen.generator.model.spec import SurfaceSpec
-from tests.support.interval_checks import assert_sound, random_boxes
+from surfgen.generator.model.sampler import SamplerConfig, draw_equation
+from tests.support.interval_checks import (
+    assert_fewer_leaves_than_without,
+    assert_sound,
+    random_boxes,
+    structure_bounds,
+    twist_case,
+)
 
 LOBES = "(x^2*y+x*y^2+y^3)"
 BODY = "(x^2+y^2+x*y*z+z^2-1)"
@@ -97,15 +97,10 @@ def test_the_pair_range_is_sound_and_exact(u0, du, v0, dv, t0, dt, seed) -> None
 
 
 def sum_bounds_of(text: str):
-    tree = parse(text)
-    program = compile_tree(tree)
-
-    def base(prog, lo, hi):
-        return program_bounds(prog, lo, hi)
-
-    structure = polynomial_structure(tree)
-    assert structure is not None and structure.nodes[-1][0] == "sum"
-    return tree, program, polynomial_bounds(base, program, structure, None)
+    """``text``'s structured bounds (:func:`structure_bounds`), its last node a sum of waves."""
+    tree, program, bounds = structure_bounds(text)
+    assert polynomial_structure(tree).nodes[-1][0] == "sum"
+    return tree, program, bounds
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -145,24 +140,6 @@ def test_without_the_rounding_margin_the_bounds_fail(monkeypatch) -> None:
 def test_a_twist_samples_fewer_leaves_for_the_same_mesh(monkeypatch) -> None:
     """A twist draw at an odd grid in a shifted box: fewer leaves sampled with its pairs than
     with its terms bounded apart, the same kept, and the mesh the dense path's, bit for bit."""
-    cfg = SamplerConfig(family="twist")
-    draw = draw_equation(5, 0, cfg)
-    d = choose_d(draw, cfg, threads=1)
-    tree = draw.equation.with_d(d).to_tree()
-    lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
-    box = Box(tuple(lo * 1.03 + 0.02), tuple(hi * 0.98 + 0.02))
-    grid = Grid(box, (121, 113, 127))
-    paired = evaluate_sparse(tree, grid, faces=True)
-    polynomial_structure.cache_clear()
-    with monkeypatch.context() as m:
-        m.setattr(interval_poly, "sum_terms", lambda node, whole=(): None)
-        apart = evaluate_sparse(tree, grid, faces=True)
-    polynomial_structure.cache_clear()
-    assert paired.stats["sampled_leaves"] < apart.stats["sampled_leaves"]
-    assert paired.n_bricks == apart.n_bricks
-    bounds = (box.lo[0], box.hi[0], box.lo[1], box.hi[1], box.lo[2], box.hi[2])
-    spec = SurfaceSpec.from_tree(tree, bounds, grid.shape)
-    meshes = [realise(spec, evaluator=e, cap=True).mesh for e in ("fast", "sparse")]
-    assert meshes[0].faces.shape[0] > 1000
-    for a in ("vertices", "faces"):
-        assert np.array_equal(getattr(meshes[0], a), getattr(meshes[1], a))
+    tree, box, shape = twist_case()
+    assert_fewer_leaves_than_without(tree, box, shape, monkeypatch, interval_poly, "sum_terms",
+                                     lambda node, whole=(): None)  # fmt: skip

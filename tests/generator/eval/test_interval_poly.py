@@ -15,15 +15,17 @@ from surfgen.generator.eval.compiler import compile_tree
 from surfgen.generator.eval.grid import Box, Grid
 from surfgen.generator.eval.interval_poly import polynomial_bounds, polynomial_structure
 from surfgen.generator.eval.intervals import grid_point_bounds, program_bounds
-from surfgen.generator.eval.sparse import evaluate_sparse
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.model.sampler import SamplerConfig, choose_d, draw_equation
 from tests.support.interval_checks import (
     assert_fewer_leaves_same_mesh,
+    assert_fewer_leaves_than_without,
     assert_grid_points_within,
     assert_sound,
     grid_blocks,
     random_boxes,
+    structure_bounds,
+    twist_case,
 )
 
 TORUS = "(x^2+y^2+z^2+0.6^2-0.25^2)^2-4*0.6^2*(x^2+y^2)"
@@ -59,19 +61,6 @@ def test_polynomials_that_mix_their_variables_are_found() -> None:
         "sin(x)*cos(y)+abs(z)^2.5",
     ]:
         assert kinds(text) is None, text
-
-
-def poly_bounds(text: str, level: float | None = None):
-    tree = parse(text)
-    program = compile_tree(tree)
-
-    def base(prog, lo, hi):
-        return program_bounds(prog, lo, hi)
-
-    found = polynomial_structure(tree)
-    if found is None:
-        return tree, program, base
-    return tree, program, polynomial_bounds(base, program, found, level)
 
 
 TERMS = ["x^2*y", "x*y*z", "y^2*z^2", "x^3", "z^2", "x*y", "y", "x^4*z"]
@@ -116,7 +105,7 @@ def test_taylor_bounds_are_sound(text: str, seed: int) -> None:
     bounds, and finite where they say so (``level`` None: every box bounded through the
     structure)."""
     rng = np.random.default_rng(seed)
-    tree, program, bounds = poly_bounds(text)
+    tree, program, bounds = structure_bounds(text)
     for half in (0.05, 0.5, 3.0):
         blo, bhi = random_boxes(rng, [-half] * 3, [half] * 3, 24)
         assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
@@ -129,11 +118,11 @@ def test_without_the_rounding_margins_the_bounds_fail(monkeypatch) -> None:
     text = "x^2+y^2+x*y+2e8*x+1e16-2e8*x-1e16+3e8*y*z-3e8*y*z"
     rng = np.random.default_rng(2)
     blo, bhi = random_boxes(rng, [-1.5] * 3, [1.5] * 3, 300)
-    tree, program, bounds = poly_bounds(text)
+    tree, program, bounds = structure_bounds(text)
     assert kinds(text) == ["poly"]
     assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
     monkeypatch.setattr(interval_poly, "_UNIT", 0.0)
-    tree, program, bounds = poly_bounds(text)
+    tree, program, bounds = structure_bounds(text)
     with pytest.raises(AssertionError, match="outside its bounds"):
         assert_sound(tree, {}, blo, bhi, rng, bounds(program, blo, bhi))
 
@@ -274,19 +263,6 @@ def test_without_the_rounding_margins_the_centred_form_fails(monkeypatch) -> Non
 def test_a_twist_samples_fewer_leaves_with_its_quotients_centred(monkeypatch) -> None:
     """A twist draw at an odd grid in a shifted box: fewer leaves sampled with its quotients
     centred than without, the same kept, and the mesh the dense path's, bit for bit."""
-    cfg = SamplerConfig(family="twist")
-    draw = draw_equation(5, 0, cfg)
-    tree = draw.equation.with_d(choose_d(draw, cfg, threads=1)).to_tree()
-    lo, hi = np.array(draw.box.lo), np.array(draw.box.hi)
-    box = Box(tuple(lo * 1.03 + 0.02), tuple(hi * 0.98 + 0.02))
-    grid = Grid(box, (121, 113, 127))
-    polynomial_structure.cache_clear()
-    centred = evaluate_sparse(tree, grid, faces=True)
-    polynomial_structure.cache_clear()
-    with monkeypatch.context() as m:
-        m.setattr(interval_poly, "_quotient_of", lambda node, made, polys: None)
-        plain = evaluate_sparse(tree, grid, faces=True)
-    polynomial_structure.cache_clear()
-    assert centred.stats["sampled_leaves"] < plain.stats["sampled_leaves"]
-    assert centred.n_bricks == plain.n_bricks
-    assert_fewer_leaves_same_mesh(tree, box, grid.shape)
+    tree, box, shape = twist_case()
+    assert_fewer_leaves_than_without(tree, box, shape, monkeypatch, interval_poly, "_quotient_of",
+                                     lambda node, made, polys: None)  # fmt: skip
