@@ -39,11 +39,12 @@ def lewiner_cells(
     threads: int = 1,
     min_cells: int | None = None,
     spare: list[np.ndarray] | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """skimage's ``marching_cubes(..., gradient_direction="descent")`` over the cells
     ``[keys, corners]`` taken out of the list ``cells``
-    (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`): float32 vertices (V, 3)
-    and int64 faces (F, 3) (the runs' own int32 numbers widened). With ``threads`` > 1, in
+    (:func:`~surfgen.generator.mesh.sparse_lewiner.lewiner_range`): float32 vertices (V, 3),
+    int64 faces (F, 3) (the runs' own int32 numbers widened) and the numbers of the vertices
+    made at a cell's centre (int64, ascending). With ``threads`` > 1, in
     runs of whole planes of at least ``min_cells`` cells (None: :data:`CHUNK_CELLS`), one per
     thread, joined into the same arrays. Once the runs are made, the cells are done with (a
     list, not the arrays, is passed so that nothing else holds them): the keys are freed and
@@ -71,8 +72,8 @@ def lewiner_cells(
             spare.clear()
         a, b = pairs[0]
         buffers = [np.empty(shape, dtype=dtype) for shape, dtype in specs]
-        verts, faces, _, _, _ = lewiner_range(keys, corners, a, b, nx, ny, False, *buffers)
-        return verts, faces.astype(np.int64)
+        verts, faces, _, _, _, centres = lewiner_range(keys, corners, a, b, nx, ny, False, *buffers)
+        return verts, faces.astype(np.int64), centres
     buffers = _shared_out(spare if spare is not None else [], specs, len(pairs))
     taken = [b for b in buffers if b.base is not None]
     if spare is not None and taken:  # a view of the block under those that took it
@@ -127,16 +128,16 @@ def _runs(keys: np.ndarray, plane: int, n: int) -> list[int]:
     return [*bounds, size] if size > bounds[-1] else bounds
 
 
-def _join(parts, first_planes, spent) -> tuple[np.ndarray, np.ndarray]:
+def _join(parts, first_planes, spent) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The runs' vertices and faces numbered as one pass numbers them, each run written by a
     thread of its own (its new vertices and its faces are rows of their own), on the memory
     of the array in ``spent`` where they fit (the cells' corners: the vertices;
     :func:`~surfgen.generator.allocator.recycled_many`); ``parts`` is emptied once all are
-    written. One run after the other, each freed once written, held one run less at the
-    join's peak and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s); with the cells
-    not held beside it (their keys freed, their corners under the vertices), its peak stays
-    below the render's (sculpture-1: 301 MiB against the offsets' 303; equation C: 510
-    against the vertex groups' 573)."""
+    written; with them, the numbers of the centre vertices (each a new vertex of its run).
+    One run after the other, each freed once written, held one run less at the join's peak
+    and took longer (sculpture-2 at 512^3: 0.020 s, now 0.014 s); with the cells not held
+    beside it (their keys freed, their corners under the vertices), its peak stays below the
+    render's (sculpture-1: 301 MiB against the offsets' 303)."""
     numbers, starts, total = _numbering(parts, first_planes)
     out_v, out_f = recycled_many(
         spent, [((total, 3), np.float32), ((sum(len(p[1]) for p in parts), 3), np.int64)]
@@ -150,8 +151,9 @@ def _join(parts, first_planes, spent) -> tuple[np.ndarray, np.ndarray]:
             for r in range(len(parts))
         ]
     )
+    centres = np.concatenate([numbers[r][p[5]] for r, p in enumerate(parts)])
     parts.clear()
-    return out_v, out_f
+    return out_v, out_f, centres
 
 
 def _numbering(parts, first_planes) -> tuple[list[np.ndarray], list[int], int]:
@@ -159,7 +161,7 @@ def _numbering(parts, first_planes) -> tuple[list[np.ndarray], list[int], int]:
     the number of vertices in all."""
     numbers, starts = [], []
     total = 0
-    for r, (verts, _, head, _, _) in enumerate(parts):
+    for r, (verts, _, head, _, _, _) in enumerate(parts):
         starts.append(total)
         if r == 0:
             numbers.append(np.arange(len(verts), dtype=np.int64))

@@ -207,13 +207,14 @@ def extract_with_edges(
     # skimage's marching cubes ('descent': "values grow outward", normals towards F > level)
     # on the cells with both signs: the Lewiner pass the sparse path runs too
     keys, corners = mixed_cells(work)
-    verts, faces = lewiner_cells([keys, corners], work.shape[2], work.shape[1])
-    return finish_marching(verts, faces, field.grid, level, cap)
+    verts, faces, centres = lewiner_cells([keys, corners], work.shape[2], work.shape[1])
+    return finish_marching(verts, faces, centres, field.grid, level, cap)
 
 
 def finish_marching(
     verts: np.ndarray,
     faces: np.ndarray,
+    centres: np.ndarray,
     grid: Grid,
     level: float,
     cap: bool,
@@ -222,7 +223,7 @@ def finish_marching(
 ) -> tuple[Mesh, np.ndarray]:
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
     skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
-    ``cap``): vertices placed on the box, interior vertices kept off their cell's faces, one
+    ``cap``; ``centres``: the vertices it made at a cell's centre): vertices placed on the box, interior vertices kept off their cell's faces, one
     vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place and
     group a large mesh's vertices in runs at once; ``spare``: memory done with, for the
     placement's arrays). The sparse path (:mod:`~surfgen.generator.mesh.sparse_marching`)
@@ -245,10 +246,10 @@ def finish_marching(
             vertices[rows] = lo + index_rows * spacing
     # One point, one vertex: crossings towards the pad (cap) sit half a cell outside the box
     # and clamping put them on the box sample they came from, so a sample on a box edge
-    # (corner) has two (three) copies; and skimage's Lewiner tables occasionally emit two
-    # vertices for one crossing edge in ambiguous cells, joined by a zero-area triangle.
-    # Give each such group one index and drop the triangles that collapse.
-    target = same_targets(verts, shift, edges, moved, shape, threads)
+    # (corner) has two (three) copies; and the centre vertex of an ambiguous cell, drawn to a
+    # corner near the level, can land on a crossing edge's vertex, joined to it by a
+    # zero-area triangle. Give each such group one index and drop the triangles that collapse.
+    target = same_targets(verts, shift, edges, moved, centres, shape)
     if target is not None:
         vertices, faces, edges = merge_same(vertices, faces, edges, target)
     logger.debug(

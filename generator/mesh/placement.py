@@ -23,15 +23,6 @@ _EDGE_HI = 1.0 - 0.25 * SEPARATION
 _FACE_HI = 1.0 - SEPARATION
 _HASH_U = 0x9E3779B97F4A7C15  # Fibonacci hashing
 _RUN = 9  # the vertex groups' table keeps runs of 512 keys (128 samples of a row) together
-#: Vertices from which a mesh's groups are found plane by plane (:func:`same_targets`): one
-#: table for the whole mesh would take 16-32 MiB.
-PLANE_TABLES_FROM = 1 << 19
-#: Vertices from which, on more than one thread, a mesh's groups are found plane by plane in
-#: two halves at once: sculpture-5 at 512^3 (490 000 vertices) 8.1 ms in one table, 3.6 ms in
-#: halves; below about 200 000 the two are within a thread's wake-up of each other.
-HALVES_FROM = 1 << 18
-
-
 #: Vertices a thread of :func:`place_vertices` takes at least (a run of 100,000 takes about 3
 #: ms, a thread's wake-up up to a millisecond).
 PLACE_RUN = 100_000
@@ -128,59 +119,39 @@ def same_targets(
     shift: float,
     edges: np.ndarray,
     moved: np.ndarray,
+    centres: np.ndarray,
     shape: np.ndarray,
-    threads: int = 1,
 ) -> np.ndarray | None:
     """For each vertex, the first vertex of its group (:func:`merge_same`), or None when every
-    vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place_range`). A large
-    mesh's groups are found plane by plane (:func:`_targets_by_plane`: its table would hold
-    tens of MiB at the end of a fine render, more than a gigabyte for equation B at 512^3), with
-    ``threads`` > 1 in two halves at once (:func:`_targets_in_halves`, from :data:`HALVES_FROM`
-    vertices); a small one's in one table (:func:`_targets_kernel`: the sampler's meshes, 11 %
-    faster)."""
-    halves = threads > 1 and len(verts) >= min(HALVES_FROM, PLANE_TABLES_FROM)
-    if halves or len(verts) >= PLANE_TABLES_FROM:
-        found = _targets_in_halves(verts, shift, edges, moved, shape) if halves else None
-        if found is None:
-            target, any_merge, ordered = _targets_by_plane(verts, shift, edges, moved, shape)
-            found = (target, any_merge) if ordered else None
-        if found is not None:
-            return found[0] if found[1] else None
-    # a small mesh, or not marching cubes' plane order: one table for the whole mesh
-    target, any_merge = _targets_kernel(verts, shift, edges, moved, shape)
-    return target if any_merge else None
+    vertex is alone (``verts - shift``: the vertices' grid indices, :func:`_place_range`;
+    ``centres``: the vertices marching cubes made at a cell's centre, ascending).
 
+    Marching cubes makes one vertex per crossing edge (its face layers hand an edge's vertex
+    to every cell of the edge, plane after plane: :mod:`~surfgen.generator.mesh.sparse_lewiner`),
+    so two vertices are one point only where one of them is
 
-def _targets_in_halves(
-    verts: np.ndarray,
-    shift: float,
-    edges: np.ndarray,
-    moved: np.ndarray,
-    shape: np.ndarray,
-    mid: int | None = None,
-) -> tuple[np.ndarray, bool] | None:
-    """:func:`_targets_by_plane`'s targets and whether any vertex merges, the two halves of the
-    vertices grouped at once (:func:`_plane_groups`), then the second half's vertices on the
-    first half's last planes given the first half's first vertex of their key
-    (:func:`_link_halves`). None where either half is out of plane order, or the second half
-    reaches further down than the first's last two planes (:func:`_targets_by_plane` decides).
-    ``mid``: the second half's first vertex (None: the middle one)."""
-    n = len(verts)
-    mid = n // 2 if mid is None else int(mid)
-    target = np.empty(n, dtype=np.int64)
-    first, second = run_at_once(
-        [
-            lambda a=a, b=b: _plane_groups(verts, shift, edges, moved, shape, target, a, b)
-            for a, b in ((0, mid), (mid, n))
-        ]
-    )
-    tables, down, mask, merged, ordered, _, top = first
-    _, _, _, merged_second, ordered_second, low_second, _ = second
-    del first, second  # the second half's tables
-    if not (ordered and ordered_second and low_second >= top - 1):
+    - moved: a cap's crossing towards the pad, clamped onto the box sample it came from (a
+      sample on a box edge or corner gets two or three): these group among themselves, in a
+      table of the moved vertices alone (:func:`_targets_kernel`);
+    - a cell's centre drawn onto a grid edge (its weights dominated by a corner close to the
+      level): its edge's group is found in one pass over the vertices, looking each up in a
+      table of those edges alone (:func:`_edge_groups`; rare).
+
+    ``tests/generator/mesh/test_placement.py`` checks on meshes full of ambiguous cells that a
+    table of every vertex finds the same groups. Sculpture-1 at 512^3 (790,000 vertices, none
+    moved, no centre on an edge): 16 ms -> 0.2 ms, where that table found nothing to merge."""
+    rows = np.flatnonzero(moved)
+    on_edge = centres[edges[centres, 0] >= 0]
+    if rows.size == 0 and on_edge.size == 0:
         return None
-    linked = _link_halves(verts, shift, edges, moved, shape, target, mid, tables, down, mask, top)
-    return target, bool(merged or merged_second or linked)
+    target = np.arange(len(verts), dtype=np.int64)
+    merged = False
+    if rows.size:
+        first, merged = _targets_kernel(verts[rows], shift, edges[rows], moved[rows], shape)
+        target[rows] = rows[first]
+    if on_edge.size:
+        merged |= _edge_groups(edges, on_edge, shape, target)
+    return target if merged else None
 
 
 @njit(**INLINE)
@@ -204,7 +175,7 @@ def _vertex_key(axis, e1, e2, e3, moved, x, y, z, shift, nx, ny, nz):
 @njit(**INLINE)
 def _table_size(n):
     """Slots of a vertex-group table for ``n`` keys (a power of two, at least ``2 n + 2`` and
-    two runs), and the shift that keeps a run number's top bits (:func:`_probe`)."""
+    two runs), and the shift that keeps a run number's top bits (:func:`_find_or_add`)."""
     bits = _RUN + 1
     while (1 << bits) < 2 * n + 2:
         bits += 1
@@ -212,139 +183,28 @@ def _table_size(n):
 
 
 @njit(**INLINE)
-def _probe(tables, t, key, down, mask, plane):
-    """The slot of ``key`` in the open-addressing table ``tables[t]`` of ``(key, vertex)``
-    slots, or the free slot where it would go. The probe starts at the key's run of
-    ``2**_RUN`` slots, placed by Fibonacci hashing of the run's number (its top ``64 - down``
-    bits), at the key's place in the run. With ``plane`` (keys per plane, > 0) a slot holding
-    a key of another plane than ``key``'s counts as free (:func:`_plane_groups` reuses a table
-    without clearing it: a current key is never overwritten, so the probes of the plane's keys
-    meet the same keys as in a cleared table); ``plane`` 0: only -1 is free. Given the tables
-    and the row (not a view of the row) and with one exit, it leaves no reference count in the
-    callers' loops (their tests)."""
+def _slot(table, key, down, mask):
+    """The slot of ``key`` in the open-addressing ``table`` of ``(key, vertex)`` slots, or the
+    free slot where it would go. The probe starts at the key's run of ``2**_RUN`` slots,
+    placed by Fibonacci hashing of the run's number (its top ``64 - down`` bits), at the key's
+    place in the run. Given the table (not a view of it) and with one exit, it leaves no
+    reference count in the callers' loops (their test)."""
     run = (np.uint64(key >> _RUN) * np.uint64(_HASH_U)) >> down
     h = np.int64(run) << _RUN | (key & ((1 << _RUN) - 1))
-    q = key // plane if plane > 0 else np.int64(0)
-    while True:
-        held = tables[t, 2 * h]
-        if held == key or held == -1 or (plane > 0 and held // plane != q):
-            break
+    while table[2 * h] != key and table[2 * h] != -1:
         h = (h + 1) & mask
     return h
 
 
 @njit(**INLINE)
-def _find_or_add(tables, t, key, v, down, mask, plane):
-    """The first vertex of ``key`` in ``tables[t]`` (:func:`_probe`); ``v`` where the key is
-    new (then added)."""
-    h = _probe(tables, t, key, down, mask, plane)
-    if tables[t, 2 * h] != key:  # a free slot: the key is new
-        tables[t, 2 * h] = key
-        tables[t, 2 * h + 1] = v
-    return tables[t, 2 * h + 1]
-
-
-@njit(**INLINE)
-def _find(tables, t, key, down, mask, plane):
-    """The first vertex of ``key`` in ``tables[t]`` (:func:`_probe`), or -1."""
-    h = _probe(tables, t, key, down, mask, plane)
-    return tables[t, 2 * h + 1] if tables[t, 2 * h] == key else np.int64(-1)
-
-
-@njit(**KERNEL)
-def _targets_by_plane(verts, shift, edges, moved, shape):
-    """:func:`_targets_kernel`'s groups with a table per plane of samples along the first axis,
-    two at a time (:func:`_plane_groups` over every vertex). Returns ``(target, any_merge,
-    ordered)``; ``ordered`` False (and nothing else meaningful) where a key lies two planes
-    below one already seen."""
-    n = verts.shape[0]
-    target = np.empty(n, dtype=np.int64)
-    _, _, _, any_merge, ordered, _, _ = _plane_groups(
-        verts, shift, edges, moved, shape, target, 0, n
-    )
-    return target, any_merge, ordered
-
-
-@njit(**KERNEL)
-def _plane_groups(verts, shift, edges, moved, shape, target, v0, v1):
-    """The groups of vertices ``v0:v1`` (among themselves: their targets into ``target``) with
-    a table per plane of samples along the first axis, two at a time: marching cubes visits
-    the cells plane by plane and numbers vertices as it makes them, and a cell of plane ``c``
-    makes vertices whose keys lie on plane ``c`` or ``c + 1`` (an edge, or a box sample, is in
-    the cells of at most two neighbouring planes), so the vertices of one group come while the
-    planes of its key and the one below are visited, and once a key of plane ``c + 2`` comes,
-    none of plane ``c`` does (else the keys are out of order: ``ordered`` False). A plane's
-    table is reused two planes on as it is: the keys of the plane it held count as free slots
-    (:func:`_probe`; clearing the tables took 40 % of the time for equation C at 512^3,
-    0.20 -> 0.12 s; a third table, which the order never needs, held 8 of equation C's 24
-    MiB). A few tables of a plane's vertices in place of one of the mesh's (16 bytes a slot,
-    twice the vertices): the same targets in a sliver of the memory.
-
-    Returns ``(tables, down, mask, any_merge, ordered, low, top)``: the tables as they end and
-    their hashing, whether any vertex merged, whether the keys came in plane order (False,
-    and nothing else meaningful, where a key lies two planes below one already seen), and the
-    lowest and highest planes of their keys."""
-    nx, ny, nz = shape[0], shape[1], shape[2]
-    plane = (ny * nz) << 2
-    counts = np.zeros(nx, dtype=np.int64)
-    for v in range(v0, v1):
-        key = _vertex_key(
-            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
-            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
-        )  # fmt: skip
-        if key >= 0:
-            counts[key // plane] += 1
-    size, down = _table_size(counts.max())
-    mask = size - 1
-    tables = np.full((2, 2 * size), -1, dtype=np.int64)
-    any_merge = False
-    low = nx
-    top = np.int64(-1)
-    for v in range(v0, v1):
-        target[v] = v
-        key = _vertex_key(
-            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
-            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
-        )  # fmt: skip
-        if key < 0:
-            continue
-        q = key // plane
-        if q < top - 1:
-            return tables, down, mask, False, False, low, top
-        top = max(top, q)
-        low = min(low, q)
-        first = _find_or_add(tables, q % 2, key, v, down, mask, plane)
-        if first != v:
-            target[v] = first
-            any_merge = True
-    return tables, down, mask, any_merge, True, low, top
-
-
-@njit(**KERNEL)
-def _link_halves(verts, shift, edges, moved, shape, target, mid, tables, down, mask, top):
-    """The vertices from ``mid`` on whose key the first half has too (on its last plane
-    ``top`` or the one below, whose tables ``tables`` still holds) take the first half's first
-    vertex of the key (:func:`_targets_in_halves`); they come before any key two planes above
-    ``top`` (the second half is in plane order). Returns whether any did."""
-    nx, ny, nz = shape[0], shape[1], shape[2]
-    plane = (ny * nz) << 2
-    linked = False
-    for v in range(mid, verts.shape[0]):
-        key = _vertex_key(
-            edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], moved[v],
-            verts[v, 0], verts[v, 1], verts[v, 2], shift, nx, ny, nz,
-        )  # fmt: skip
-        if key < 0:
-            continue
-        q = key // plane
-        if q >= top + 2:
-            break
-        if q <= top:
-            first = _find(tables, q % 2, key, down, mask, plane)
-            if first >= 0:
-                target[v] = first
-                linked = True
-    return linked
+def _find_or_add(table, key, v, down, mask):
+    """The first vertex of ``key`` in ``table`` (:func:`_slot`); ``v`` where the key is new
+    (then added)."""
+    h = _slot(table, key, down, mask)
+    if table[2 * h] != key:  # a free slot: the key is new
+        table[2 * h] = key
+        table[2 * h + 1] = v
+    return table[2 * h + 1]
 
 
 @njit(**KERNEL)
@@ -357,12 +217,12 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     the keys of one sample's edges and of a row's samples are close; runs of ``2**_RUN`` keys
     keep their order in the table (the run's number is hashed), so the vertices of a row of
     cells, which marching cubes emits together, probe a few cache lines rather than one each.
-    One table for the whole mesh: what :func:`_targets_by_plane` falls back to."""
+    """
     n = verts.shape[0]
     nx, ny, nz = shape[0], shape[1], shape[2]
     size, down = _table_size(n)
     mask = size - 1
-    tables = np.full((1, 2 * size), -1, dtype=np.int64)  # one table of (key, first vertex)
+    table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) slots
     target = np.empty(n, dtype=np.int64)
     any_merge = False
     for v in range(n):
@@ -373,11 +233,43 @@ def _targets_kernel(verts, shift, edges, moved, shape):
         )  # fmt: skip
         if key < 0:
             continue
-        first = _find_or_add(tables, 0, key, v, down, mask, np.int64(0))
+        first = _find_or_add(table, key, v, down, mask)
         if first != v:
             target[v] = first
             any_merge = True
     return target, any_merge
+
+
+@njit(**KERNEL)
+def _edge_groups(edges, on_edge, shape, target):
+    """The groups of the grid edges of the vertices ``on_edge`` (cells' centres placed on an
+    edge, :func:`same_targets`): a table of those edges alone, then every vertex on an edge,
+    in order, looked up in it; a vertex whose edge an earlier vertex holds takes that one as
+    its target (into ``target``). Returns whether any did."""
+    ny, nz = shape[1], shape[2]
+    size, down = _table_size(on_edge.size)
+    mask = size - 1
+    table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) slots
+    unseen = np.int64(edges.shape[0])  # a key of the table no vertex has reached yet
+    for q in range(on_edge.size):
+        v = on_edge[q]
+        key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + edges[v, 0]
+        _find_or_add(table, key, unseen, down, mask)
+    merged = False
+    for v in range(edges.shape[0]):
+        axis = edges[v, 0]
+        if axis < 0:
+            continue
+        key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + axis
+        h = _slot(table, key, down, mask)
+        if table[2 * h] != key:
+            continue
+        if table[2 * h + 1] == unseen:
+            table[2 * h + 1] = v
+        else:
+            target[v] = table[2 * h + 1]
+            merged = True
+    return merged
 
 
 @njit(**KERNEL)

@@ -279,7 +279,10 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
     else empty), per vertex the face-layer slot of an x or y edge of the run's first plane
     that it was made for (-1 for the others), which the run before may hold already; the last
     plane's second layer (slot -> vertex: the next plane's first layer; int32, as ``head``)
-    and that plane's z.
+    and that plane's z. Last, the vertices it made at a cell's centre (int64, ascending): the
+    only ones that may share a grid edge with another once placed
+    (:func:`~surfgen.generator.mesh.placement.same_targets`), every edge's crossing having one
+    vertex.
 
     ``layers``, ``verts``, ``faces``, ``head``: the arrays it writes into (their contents
     undefined; :func:`run_buffers`), which the caller makes (on memory done with:
@@ -300,6 +303,8 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
     first_z = keys[c0] // plane if n_cells > 0 else np.int64(-2)
     nv = 0
     nf = 0
+    centres = np.empty(_RUN, dtype=np.int64)  # the vertices made at a cell's centre
+    nc = 0
     v = np.empty(8)  # v0..v7
     vv = np.empty(8)  # skimage's vv: the corners indexed by bits (x, y, z)
     tri = np.empty(36, dtype=np.int64)  # edge indices of the cell's triangles, then vertices
@@ -309,12 +314,16 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
         # the cells in runs with room for the most a cell can add (13 vertices, 12
         # triangles), the arrays grown between runs: no array is reassigned within a run,
         # so numba counts no reference per cell (that took most of the marching's time)
-        run = min(c1 - c, (verts.shape[0] - nv) // _ROOM, (faces.shape[0] - nf) // 12)
+        room = min((verts.shape[0] - nv) // _ROOM, (faces.shape[0] - nf) // 12)
+        run = min(c1 - c, room, centres.size - nc)  # a cell makes at most one centre
         if run < min(c1 - c, _RUN):
-            verts = grown(verts, np.int64(nv), _ROOM * _RUN)
-            if track:
-                head = grown(head, np.int64(nv), _ROOM * _RUN)
-            faces = grown(faces, np.int64(nf), np.int64(12) * _RUN)
+            if room < _RUN:
+                verts = grown(verts, np.int64(nv), _ROOM * _RUN)
+                if track:
+                    head = grown(head, np.int64(nv), _ROOM * _RUN)
+                faces = grown(faces, np.int64(nf), np.int64(12) * _RUN)
+            if centres.size - nc < _RUN:
+                centres = grown(centres, np.int64(nc), _RUN)
             continue
         for cell in range(c, c + run):
             key = keys[cell]
@@ -406,6 +415,8 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
                             cy12 = np.float64(y) + 1.0 * fy / ff
                             cz12 = np.float64(z) + 1.0 * fz / ff
                             have12 = True
+                        centres[nc] = nv
+                        nc += 1
                         px, py, pz = cx12, cy12, cz12
                     else:
                         dx1, dx2 = EDGE_X[vi, 0], EDGE_X[vi, 1]
@@ -447,7 +458,14 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
                 faces[nf + t, 2] = tri[3 * t]  # a seventh of the marching (49 -> 42 ns a cell)
             nf += nt
         c += run
-    return verts[:nv], faces[:nf], head[: nv if track else 0], layers[1 - one], last_z
+    return (
+        verts[:nv],
+        faces[:nf],
+        head[: nv if track else 0],
+        layers[1 - one],
+        last_z,
+        centres[:nc],
+    )
 
 
 #: Cells a run of :func:`lewiner_range` takes at least between two growths of its arrays.

@@ -137,10 +137,10 @@ def extract_sparse_with_edges(
     spare = [offset]
     del offset, pad_keys, pad_corners
     size = shape + 2 * shift
-    verts, faces = lewiner_cells(cells, int(size[2]), int(size[1]), threads, spare=spare)
+    verts, faces, centres = lewiner_cells(cells, int(size[2]), int(size[1]), threads, spare=spare)
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
         raise EmptySurface(_empty_message("outside", sf))
-    return finish_marching(verts, faces, sf.grid, level, cap, threads, spare)
+    return finish_marching(verts, faces, centres, sf.grid, level, cap, threads, spare)
 
 
 def extract_sparse_labelled(

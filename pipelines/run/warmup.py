@@ -419,7 +419,7 @@ def _warm_rare_mesh(field) -> None:
     on a sample) given an offset from their neighbours, and a crossing a hair from its sample
     raised off it (the dense path's raises run only then); the warm ball has none of them."""
     from surfgen.generator.mesh.mesh import extract_with_edges
-    from surfgen.generator.mesh.placement import merge_same
+    from surfgen.generator.mesh.placement import merge_same, same_targets
 
     merge_same(
         np.zeros((3, 3)),
@@ -427,6 +427,16 @@ def _warm_rare_mesh(field) -> None:
         np.full((3, 4), -1, dtype=np.int64),
         np.arange(3),
     )
+    # two cap copies on one box sample (moved) and a cell's centre on a crossing's edge
+    same_targets(
+        np.array([[-0.5, 1.0, 1.0], [1.0, -0.5, 1.0], [2.0, 1.5, 1.0], [2.0, 1.5, 1.0]],
+                 dtype=np.float32),
+        1.0,
+        np.array([[-1, -1, -1, -1], [-1, -1, -1, -1], [1, 1, 0, 0], [1, 1, 0, 0]]),
+        np.array([True, True, False, False]),
+        np.array([3], dtype=np.int64),
+        np.array([4, 4, 4], dtype=np.int64),
+    )  # fmt: skip
     holed = _doctored(field.values)
     holed[7, 7, 7] = np.nan
     extract_with_edges(Field(field.grid, holed), 0.0, cap=True)  # read-only, as the sampler's

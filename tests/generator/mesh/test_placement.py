@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from surfgen.generator.eval.grid import Box, Grid
+from surfgen.generator.eval.grid import Box, Field, Grid
 from surfgen.generator.eval.reference import evaluate_reference
 from surfgen.generator.formula.parser import parse
 from surfgen.generator.mesh import mesh as mesh_module
@@ -46,93 +46,28 @@ def test_vertices_placed_in_runs_are_one_pass(threads, monkeypatch):
     assert not placement.place_vertices(verts, 1.0, shape, lo, hi, spacing, threads)[3]
 
 
-@pytest.mark.parametrize("threads, halves", [(1, False), (2, True)])
-def test_halves_from_their_own_count_on_threads(threads, halves, monkeypatch):
-    # below the plane tables' count, a mesh of HALVES_FROM vertices or more is grouped in two
-    # halves on more than one thread, in one table on one: the same targets
-    # the box cuts the sphere through its edges: the cap's vertices there group
-    sphere = evaluate_reference(parse("x^2+y^2+z^2-1"), Grid(Box.cube(0.6), (20, 21, 22)))
-    args = []
-    monkeypatch.setattr(
-        mesh_module, "same_targets", lambda *a: args.append(a[:5]) or placement.same_targets(*a)
-    )
-    extract_mesh(sphere, cap=True)
-    seen = []
-    real = placement._targets_in_halves
-    monkeypatch.setattr(
-        placement, "_targets_in_halves", lambda *a: seen.append(real(*a)) or seen[-1]
-    )
-    monkeypatch.setattr(placement, "HALVES_FROM", 100)
-    monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 1 << 40)
-    verts, shift, edges, moved, shape = args[0]
-    assert len(verts) > 100
-    got = placement.same_targets(verts, shift, edges, moved, shape, threads)
-    assert (len(seen) == 1 and seen[0] is not None) == halves
-    whole, merged = placement._targets_kernel(verts, shift, edges, moved, shape)
-    assert merged and got is not None and np.array_equal(got, whole)
-
-
-def test_plane_tables_reused_as_they_are_group_as_one_table():
-    # Many planes, each table reused every second plane with the keys of its earlier plane
-    # left in it (counted as free slots): the groups are those of one table for the mesh.
-    rng = np.random.default_rng(5)
-    shape = np.array([60, 9, 8], dtype=np.int64)
-    rows = []
-    for plane in range(shape[0] - 1):  # the cells of a plane make vertices on it and the next
-        n = int(rng.integers(20, 90))
-        e1 = plane + rng.integers(0, 2, size=n)
-        axis = rng.integers(0, 3, size=n)
-        e2, e3 = rng.integers(0, 4, size=n), rng.integers(0, 3, size=n)  # many repeats
-        rows.append(np.stack([axis, e1, e2, e3], axis=1))
-    edges = np.ascontiguousarray(np.concatenate(rows), dtype=np.int64)
-    n = len(edges)
-    edges[rng.random(n) < 0.05] = -1  # alone: a cell's centre
-    verts = np.zeros((n, 3), dtype=np.float32)
-    moved = np.zeros(n, dtype=np.bool_)
-    by_plane, merged, ordered = placement._targets_by_plane(verts, 0.0, edges, moved, shape)
-    whole, merged_whole = placement._targets_kernel(verts, 0.0, edges, moved, shape)
-    assert ordered and merged and merged_whole
-    assert np.array_equal(by_plane, whole)
-    # in two halves at once, the second's vertices of keys the first has linked to them
-    for cut in (n // 2, n // 3):  # through a plane's vertices: groups on both sides
-        halves, merged_halves = placement._targets_in_halves(verts, 0.0, edges, moved, shape, cut)
-        assert merged_halves and np.array_equal(halves, whole)
-        assert (halves[cut:] < cut).any()  # some of the second half's groups began before it
-    # the groups themselves: each vertex's target is the first vertex with its edge
-    key = {}
-    for v in range(n):
-        if edges[v, 0] >= 0:
-            key.setdefault(tuple(edges[v]), v)
-            assert whole[v] == key[tuple(edges[v])]
-        else:
-            assert whole[v] == v
-
-
-def _groups_both_ways(field, monkeypatch, permute=None):
-    """The vertex groups of ``field``'s capped mesh by the per-plane tables and by the whole
-    mesh's table (``permute``: the vertices in another order first)."""
+def _groups_both_ways(field, cap, monkeypatch):
+    """The vertex groups of ``field``'s mesh as :func:`placement.same_targets` finds them (the
+    moved vertices' table, the centres' edges) and by one table of every vertex, each call's
+    ``(got, whole, merged, moved)``."""
     seen = []
     real = mesh_module.same_targets
-    monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)  # the tables by plane on any mesh
 
-    def spy(verts, shift, edges, moved, shape, threads=1):
-        args = (verts, shift, edges, moved, shape)
-        if permute is not None:
-            order = permute(len(verts))
-            args = (verts[order], shift, edges[order], moved[order], shape)
-        seen.append(
-            (
-                placement._targets_by_plane(*args),
-                placement._targets_kernel(*args),
-                real(*args),
-                placement._targets_in_halves(*args),
-            )
-        )
-        return real(verts, shift, edges, moved, shape, threads)
+    def spy(verts, shift, edges, moved, centres, shape):
+        whole, merged = placement._targets_kernel(verts, shift, edges, moved, shape)
+        got = real(verts, shift, edges, moved, centres, shape)
+        seen.append((got, whole, merged, moved))
+        return got
 
     monkeypatch.setattr(mesh_module, "same_targets", spy)
-    extract_mesh(field, cap=True)
-    return seen[0]
+    extract_mesh(field, cap=cap)
+    return seen
+
+
+def _assert_whole_meshs(seen):
+    for got, whole, merged, _ in seen:
+        assert (got is not None) == merged
+        assert got is None or np.array_equal(got, whole)
 
 
 @pytest.mark.parametrize(
@@ -145,19 +80,71 @@ def _groups_both_ways(field, monkeypatch, permute=None):
         ("x^2+y^2+z^2-1.8", False),  # a ball inside the box: no group
     ],
 )
-def test_vertex_groups_by_plane_are_the_whole_meshs(formula, groups, monkeypatch):
+def test_vertex_groups_are_the_whole_meshs(formula, groups, monkeypatch):
     grid = Grid(Box((-1.2, -1.0, -1.1), (1.2, 1.3, 1.1)), (23, 26, 21))
     field = evaluate_reference(parse(formula), grid)
-    (by_plane, merged, ordered), (whole, merged_whole), got, halves = _groups_both_ways(
-        field, monkeypatch
+    seen = _groups_both_ways(field, True, monkeypatch)
+    _assert_whole_meshs(seen)
+    assert seen[0][2] == groups
+
+
+def _ambiguous_field(rng: np.random.Generator, kind: int) -> Field:
+    """A small field full of ambiguous cells: random values, or values at the level, a
+    hair from it on either side, NaN and infinities (cells' centres drawn onto a corner)."""
+    shape = tuple(int(n) for n in rng.integers(4, 17, size=3))
+    if kind == 0:
+        values = rng.uniform(-1.0, 1.0, size=shape)
+    else:
+        values = rng.choice([-1.0, 0.0, 1.0, 1e-30, -1e-30, np.nan, np.inf], size=shape)
+    return Field(Grid(Box((-1.0, -1.2, -0.9), (1.0, 1.1, 1.3)), shape), values)
+
+
+@pytest.mark.parametrize("cap", [False, True])
+def test_vertex_groups_on_ambiguous_fields_are_the_whole_meshs(cap, monkeypatch):
+    # Only a moved vertex or a cell's centre can share a point with another: on fields full of
+    # ambiguous cells, a table of every vertex finds the groups same_targets finds
+    rng = np.random.default_rng(11)
+    by_centres = 0
+    for trial in range(40):
+        seen = _groups_both_ways(_ambiguous_field(rng, trial % 2), cap, monkeypatch)
+        _assert_whole_meshs(seen)
+        got, _, _, moved = seen[0]
+        by_centres += got is not None and bool((got != np.arange(len(got)))[~moved].any())
+    assert by_centres >= 5  # groups of vertices not moved came: the centres' table is needed
+
+
+def test_centres_on_edges_group_with_their_edges_vertex():
+    # each vertex's target is the first vertex on its edge: a centre before the edge's own
+    # vertex, one after it, two centres on one edge, a centre alone on its edge, one on none
+    shape = np.array([6, 5, 4], dtype=np.int64)
+    edges = np.array(
+        [
+            (0, 3, 3, 3),  # 0, a centre: before its edge's own vertex (10)
+            (0, 1, 1, 1),
+            (1, 1, 1, 1),
+            (2, 1, 1, 1),  # 3
+            (0, 2, 3, 1),  # 4
+            (0, 2, 3, 1),  # 5, a centre after its edge's vertex (4)
+            (-1, -1, -1, -1),  # 6, a centre on no edge
+            (1, 4, 4, 3),  # 7, a centre alone on its edge
+            (2, 1, 1, 1),  # 8 and 9: two centres on the edge of 3
+            (2, 1, 1, 1),
+            (0, 3, 3, 3),  # 10
+            (1, 2, 2, 2),
+        ],
+        dtype=np.int64,
     )
-    assert ordered and merged == merged_whole == groups
-    assert np.array_equal(by_plane, whole)
-    assert (got is None) == (not merged)
-    assert np.array_equal(halves[0], whole) and halves[1] == merged
+    target = np.arange(len(edges), dtype=np.int64)
+    centres = np.array([0, 5, 6, 7, 8, 9], dtype=np.int64)
+    on_edge = centres[edges[centres, 0] >= 0]
+    assert placement._edge_groups(edges, on_edge, shape, target)
+    assert target.tolist() == [0, 1, 2, 3, 4, 4, 6, 7, 3, 3, 0, 11]
+    alone = np.arange(len(edges), dtype=np.int64)
+    assert not placement._edge_groups(edges, np.array([7], dtype=np.int64), shape, alone)
+    assert np.array_equal(alone, np.arange(len(edges)))
 
 
-@pytest.mark.parametrize("kernel", ["_targets_kernel", "_plane_groups", "_link_halves"])
+@pytest.mark.parametrize("kernel", ["_targets_kernel", "_edge_groups"])
 def test_vertex_groups_count_no_references_per_vertex(kernel):
     # the vertex's key and its table's probe are read in the loop itself: helpers given the
     # arrays (inlined by numba) counted references to each of them at every vertex, atomic
@@ -166,24 +153,9 @@ def test_vertex_groups_count_no_references_per_vertex(kernel):
     edges = np.zeros((4, 4), dtype=np.int64)
     moved = np.zeros(4, dtype=np.bool_)
     shape = np.array([3, 3, 3], dtype=np.int64)
-    args = (verts, 0.5, edges, moved, shape)
-    target, v0, v1 = np.zeros(4, dtype=np.int64), np.int64(0), np.int64(4)
-    if kernel == "_plane_groups":
-        args = (*args, target, v0, v1)
-    elif kernel == "_link_halves":
-        tables = np.full((2, 2048), -1, dtype=np.int64)
-        args = (*args, target, v0, tables, np.uint64(54), np.int64(1023), np.int64(1))
+    if kernel == "_targets_kernel":
+        args = (verts, 0.5, edges, moved, shape)
+    else:
+        args = (edges, np.array([1], dtype=np.int64), shape, np.zeros(4, dtype=np.int64))
     body = kernel_ir(getattr(placement, kernel).py_func, *args)
     assert refcounts_in_loops(body) == 0
-
-
-def test_vertex_groups_out_of_plane_order_fall_back_to_one_table(monkeypatch):
-    grid = Grid(Box.cube(1.5), (25, 25, 25))
-    field = evaluate_reference(parse("z-0.3"), grid)  # cut by the box: merges
-
-    def backwards(n):
-        return np.arange(n)[::-1].copy()
-
-    (_, _, ordered), (whole, merged), got, halves = _groups_both_ways(field, monkeypatch, backwards)
-    assert not ordered and merged and halves is None
-    assert np.array_equal(got, whole)

@@ -32,9 +32,9 @@ def cells_of(work: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 def run_port(
     work: np.ndarray, mask: np.ndarray, threads: int = 1, min_cells: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The port on the cells ``mask`` lets through: it returns what skimage's
-    ``marching_cubes`` returns ('descent'), faces int64."""
+    ``marching_cubes`` returns ('descent'), faces int64, and the centre vertices' numbers."""
     keys, corners = cells_of(work, mask)
     return lewiner_cells([keys, corners], work.shape[2], work.shape[1], threads, min_cells)
 
@@ -72,7 +72,7 @@ def test_mixed_cells_lists_the_cells_skimage_would_visit(kind):
 def test_port_is_skimage_bit_for_bit(kind, threads):
     # threads > 1: runs of whole planes (down to one plane each here) joined into one numbering
     rng = np.random.default_rng(100 + kind)
-    checked = 0
+    checked = found = 0
     for _ in range(12):
         shape = tuple(int(n) for n in rng.integers(2, 12, 3))
         w = volume(kind, shape, rng)
@@ -80,12 +80,19 @@ def test_port_is_skimage_bit_for_bit(kind, threads):
             continue
         mask = skimage_mask(w)
         ref_v, ref_f, _n, _v = marching_cubes(w, 0.0, gradient_direction="descent", mask=mask)
-        v, f = run_port(w, mask, threads)
+        v, f, centres = run_port(w, mask, threads)
         assert v.dtype == ref_v.dtype == np.float32
         assert np.array_equal(v, ref_v)
         assert np.array_equal(f, ref_f)
+        # every vertex not listed as a cell's centre lies on a grid edge: two whole coordinates
+        whole = (v == np.floor(v)).sum(axis=1)
+        assert (whole[np.setdiff1d(np.arange(len(v)), centres)] >= 2).all()
+        assert np.array_equal(centres, np.unique(centres))
+        assert np.array_equal(centres, run_port(w, mask, 1)[2])  # the runs' join: one pass's
+        found += (whole[centres] < 2).sum()
         checked += 1
     assert checked >= 8
+    assert found > 0 or kind == 2  # centres off the edges: listed (noise has many)
 
 
 def test_the_case_tests_are_compiled_once():
@@ -121,7 +128,7 @@ def test_port_follows_skimage_layers_with_gaps(threads):
     mask[:, 2] = False
     mask[5, :, ::2] = False
     ref_v, ref_f, _n, _v = marching_cubes(w, 0.0, gradient_direction="descent", mask=mask)
-    v, f = run_port(w, mask, threads)
+    v, f, _ = run_port(w, mask, threads)
     assert np.array_equal(v, ref_v) and np.array_equal(f, ref_f)
 
 
@@ -162,7 +169,7 @@ def test_threads_need_enough_cells_for_a_run(monkeypatch):
     assert calls == [False]
     for min_cells, runs in ((1, 3), (50, 3), (10**9, 1)):
         calls.clear()
-        v, f = run_port(w, mask, threads=3, min_cells=min_cells)
+        v, f, _ = run_port(w, mask, threads=3, min_cells=min_cells)
         assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
         # the runs number in int32; the joined (or single) pass hands the mesh's int64
         assert f.dtype == one[1].dtype == np.int64 and v.dtype == np.float32
@@ -186,7 +193,7 @@ def test_the_joined_mesh_takes_the_cells_memory(monkeypatch, giving_back):
     alive = [] if giving_back else [weakref.ref(keys), weakref.ref(corners)]
     cells = [keys, corners]
     del keys, corners
-    v, f = lewiner_cells(cells, w.shape[2], w.shape[1], threads=2, min_cells=1)
+    v, f, _ = lewiner_cells(cells, w.shape[2], w.shape[1], threads=2, min_cells=1)
     assert cells == [] and len(f) > 0
     if giving_back:
         assert v.base.dtype == np.float32 and v.base.size >= 3 * len(v) and f.base is None
@@ -223,7 +230,7 @@ def test_the_runs_share_the_spare_memory_kind_by_kind(monkeypatch, giving_back):
     one = run_port(w, mask, threads=1)
     keys, corners = cells_of(w, mask)
     spare = [np.empty(keys.size * 6, dtype=np.float32)]
-    v, f = lewiner_cells([keys, corners], w.shape[2], w.shape[1], 2, 1, spare=spare)
+    v, f, _ = lewiner_cells([keys, corners], w.shape[2], w.shape[1], 2, 1, spare=spare)
     assert np.array_equal(v, one[0]) and np.array_equal(f, one[1])
 
 
@@ -263,7 +270,7 @@ def test_the_pass_grows_its_arrays_with_one_compile_per_array_type(monkeypatch):
     numba.njit(**{**KERNEL, "cache": False})(lw.lewiner_range.py_func).compile(
         tuple(numba.typeof(a) for a in args)
     )
-    assert len(fresh.signatures) == 3  # float32 vertices, int32 faces, int32 heads
+    assert len(fresh.signatures) == 4  # float32 vertices, int32 faces and heads, int64 centres
     assert not [s for s in fresh.signatures if any(isinstance(t, types.Literal) for t in s)]
 
 

@@ -179,19 +179,6 @@ def test_special_fields(formula, bounds_, shape, bounds):
         assert_same(dense, sparse)
 
 
-def _returns(monkeypatch, module, name: str) -> list:
-    """What each call of ``module.name`` returns from now on (the test's monkeypatch)."""
-    seen: list = []
-    real = getattr(module, name)
-
-    def spy(*args):
-        seen.append(real(*args))
-        return seen[-1]
-
-    monkeypatch.setattr(module, name, spy)
-    return seen
-
-
 @pytest.mark.parametrize(
     "formula, bounds_",
     [
@@ -205,37 +192,31 @@ def _returns(monkeypatch, module, name: str) -> list:
 @pytest.mark.parametrize("threads", [2, 3])
 def test_threads_give_the_same_mesh(monkeypatch, formula, bounds_, threads):
     # runs of a brick or more for the offsets, the scan and the cells, of a plane or more for
-    # the marching (lewiner_chunks), of a vertex or more for the placement, the groups in two
-    # halves: the one-thread mesh, bit for bit
+    # the marching (lewiner_chunks), of a vertex or more for the placement: the one-thread
+    # mesh, bit for bit
     from surfgen.generator.mesh import lewiner_chunks, placement, sparse_bricks
 
     monkeypatch.setattr(sparse_bricks, "RUN_BRICKS", 1)
     monkeypatch.setattr(lewiner_chunks, "CHUNK_CELLS", 1)
     monkeypatch.setattr(placement, "PLACE_RUN", 1)
-    monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)  # the groups in two halves too
-    halves = _returns(monkeypatch, placement, "_targets_in_halves")
     grid = Grid(Box.from_bounds(bounds_), (31, 30, 29))
     for cap in (False, True):
         dense, sparse, _sf = both_paths(
             parse(formula), grid, {}, 0.0, cap, block=4, threads=threads
         )
         assert_same(dense, sparse)
-    assert halves and all(found is not None for found in halves)  # grouped in halves, linked
 
 
-def test_groups_linked_across_the_halves_give_the_same_mesh(monkeypatch):
-    # a box edge along x inside the surface on the middle planes: the cap's vertices moved onto
-    # its samples group across the two halves of the vertices, which the link joins
-    from surfgen.generator.mesh import placement
-
-    monkeypatch.setattr(placement, "PLANE_TABLES_FROM", 0)
-    linked = _returns(monkeypatch, placement, "_link_halves")
+def test_cap_copies_on_a_box_edge_merge_as_the_dense_ones():
+    # a box edge along x inside the surface: the cap's vertices moved onto its samples from
+    # two faces group (same_targets' moved vertices), made in runs of planes on two threads
     grid = Grid(Box.from_bounds((-3.0, 3.0, -1.0, 1.0, -0.5, 0.5)), (30, 31, 29))
     dense, sparse, _sf = both_paths(
         parse("y^2+z^2+0.1*x-1.3"), grid, {}, 0.0, True, block=4, threads=2
     )
     assert_same(dense, sparse)
-    assert linked == [True]
+    vertices = dense[0].vertices
+    assert len(np.unique(vertices, axis=0)) == len(vertices)  # one vertex a point: merged
 
 
 def test_steps_on_recycled_memory_give_the_same_mesh(monkeypatch):
