@@ -21,25 +21,28 @@ def locate(slot, block, i, j, k):
 
     A point on a leaf's face is in up to 8 bricks (all hold the same value); the one of the
     leaf ``index // block`` is tried first, then the lower neighbours where the point is on
-    their face."""
+    their face.  One exit, at the end: an inlined helper given an array that returns from
+    within its loops leaves numba counting references to the array at every call in the
+    caller's loops (the raises' worklist: six a sample)."""
     n0, n1, n2 = slot.shape
     b0, b1, b2 = i // block, j // block, k // block
+    found, a, b, c = np.int64(-1), np.int64(0), np.int64(0), np.int64(0)
     for d0 in range(2):
         c0 = b0 - d0
-        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+        if found >= 0 or c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
             continue
         for d1 in range(2):
             c1 = b1 - d1
-            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+            if found >= 0 or c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
                 continue
             for d2 in range(2):
                 c2 = b2 - d2
-                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                if found >= 0 or c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
                     continue
                 s = slot[c0, c1, c2]
                 if s >= 0:
-                    return s, i - c0 * block, j - c1 * block, k - c2 * block
-    return -1, 0, 0, 0
+                    found, a, b, c = s, i - c0 * block, j - c1 * block, k - c2 * block
+    return found, a, b, c
 
 
 @njit(**INLINE)

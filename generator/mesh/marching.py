@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
-from surfgen.generator.mesh.raise_table import find, push, seeded
+from surfgen.generator.mesh.raise_table import POPS, find, push, seeded, with_room
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
@@ -258,13 +258,33 @@ def _raise_from(ta, tb, ma, mb, offset, p):
     it (:func:`_tight_edges`, with their magnitudes ``(ma, mb)``; the grid's samples from ``p``
     on along each axis): an edge raises a sample short of it; a raised sample puts its
     crossing edges to the test again (a worklist, the raised magnitudes in float64:
-    :mod:`~.raise_table`). The raised samples are written once, rounded to float32 with their
-    sign. Returns how many were raised."""
+    :mod:`~.raise_table`; :func:`_raise_run`). The raised samples are written once, rounded to
+    float32 with their sign. Returns how many were raised."""
+    flat = offset.reshape(-1)
+    keys, mags, stack, top, n = seeded(ta, tb, ma, mb, _RATIO)  # raised samples -> magnitudes
+    while top > 0:
+        keys, mags, stack = with_room(keys, mags, stack, top, n)
+        top, n = _raise_run(keys, mags, stack, top, n, offset, p)
+    for h in range(keys.size):
+        g = keys[h]
+        if g != -1:
+            m = np.float32(mags[h])
+            flat[g] = -m if flat[g] < 0 else m
+    return n
+
+
+@njit(**KERNEL)
+def _raise_run(keys, mags, stack, top, n, offset, p):
+    """Up to :data:`~.raise_table.POPS` samples taken off the worklist (which has room for
+    what they put back, :func:`~.raise_table.with_room`), each putting its neighbours across a
+    crossing edge that are short of its raised magnitude times the ratio back on it; returns
+    the worklist's top and the raised count."""
     m0, m1, m2 = offset.shape
     flat = offset.reshape(-1)
     s0 = m1 * m2
-    keys, mags, stack, top, n = seeded(ta, tb, ma, mb, _RATIO)  # raised samples -> magnitudes
-    while top > 0:
+    for _ in range(POPS):
+        if top == 0:
+            break
         top -= 1
         g = stack[top]
         i, j, k = g // s0, (g // m2) % m1, g % m2  # in offset: the grid's first sample at p
@@ -288,13 +308,8 @@ def _raise_from(ta, tb, ma, mb, offset, p):
             h = find(keys, x)
             if need <= (mags[h] if keys[h] == x else abs(np.float64(flat[x]))):
                 continue
-            keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
-    for h in range(keys.size):
-        g = keys[h]
-        if g != -1:
-            m = np.float32(mags[h])
-            flat[g] = -m if flat[g] < 0 else m
-    return n
+            top, n = push(keys, mags, stack, top, n, h, x, need)
+    return top, n
 
 
 @njit(**INLINE)

@@ -30,7 +30,7 @@ from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.marching import _RATIO, offset_of, too_near
-from surfgen.generator.mesh.raise_table import find, push, seeded
+from surfgen.generator.mesh.raise_table import POPS, find, push, seeded, with_room
 from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
@@ -217,11 +217,35 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
     own, the dense path's (the least solution, whatever the order the edges come in).  An
     edge raises a sample that is short of it; a raised sample puts its crossing edges (the
     neighbours on the other side that a brick holds: an edge no brick holds lies in an
-    unsampled leaf, on one side) to the test again.  The raised samples, rounded to float32
-    with their sign, are written to every brick holding them.  Returns how many were raised."""
+    unsampled leaf, on one side) to the test again (:func:`_raise_run`).  The raised samples,
+    rounded to float32 with their sign, are written to every brick holding them.  Returns how
+    many were raised."""
     s1, s2 = shape[1] * shape[2], shape[2]
     keys, mags, stack, top, n = seeded(ta, tb, ma, mb, _RATIO)  # raised samples -> magnitudes
     while top > 0:
+        keys, mags, stack = with_room(keys, mags, stack, top, n)
+        top, n = _raise_run(keys, mags, stack, top, n, offset, slot, block, shape)
+    for h in range(keys.size):
+        g = keys[h]
+        if g == -1:
+            continue
+        i, j, k = g // s1, (g // s2) % shape[1], g % s2
+        m = np.float32(mags[h])
+        neg = _sample_at(offset, slot, block, i, j, k) < 0
+        _write_sample(offset, slot, block, i, j, k, -m if neg else m)
+    return n
+
+
+@njit(**KERNEL)
+def _raise_run(keys, mags, stack, top, n, offset, slot, block, shape):
+    """Up to :data:`~.raise_table.POPS` samples taken off the worklist (which has room for
+    what they put back, :func:`~.raise_table.with_room`), each putting its neighbours across a
+    crossing edge that are short of its raised magnitude times the ratio back on it; returns
+    the worklist's top and the raised count."""
+    s1, s2 = shape[1] * shape[2], shape[2]
+    for _ in range(POPS):
+        if top == 0:
+            break
         top -= 1
         g = stack[top]
         i, j, k = g // s1, (g // s2) % shape[1], g % s2
@@ -255,16 +279,8 @@ def raise_bricks(ta, tb, ma, mb, offset, slot, block, shape):
             h = find(keys, x)
             if need <= (mags[h] if keys[h] == x else abs(np.float64(offset[s, la, lc, lf]))):
                 continue
-            keys, mags, stack, top, n = push(keys, mags, stack, top, n, h, x, need)
-    for h in range(keys.size):
-        g = keys[h]
-        if g == -1:
-            continue
-        i, j, k = g // s1, (g // s2) % shape[1], g % s2
-        m = np.float32(mags[h])
-        neg = _sample_at(offset, slot, block, i, j, k) < 0
-        _write_sample(offset, slot, block, i, j, k, -m if neg else m)
-    return n
+            top, n = push(keys, mags, stack, top, n, h, x, need)
+    return top, n
 
 
 # The raise's lookups (a worklist, nothing to vectorise) are functions of their own rather than
