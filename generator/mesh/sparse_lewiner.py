@@ -279,10 +279,9 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
     else empty), per vertex the face-layer slot of an x or y edge of the run's first plane
     that it was made for (-1 for the others), which the run before may hold already; the last
     plane's second layer (slot -> vertex: the next plane's first layer; int32, as ``head``)
-    and that plane's z. Last, the vertices it made at a cell's centre (int64, ascending): the
-    only ones that may share a grid edge with another once placed
-    (:func:`~surfgen.generator.mesh.placement.same_targets`), every edge's crossing having one
-    vertex.
+    and that plane's z. Last, the vertices it made at a cell's centre (int64, ascending): with
+    a cap's copies, the only ones that may be one point with another once placed
+    (:func:`~surfgen.generator.mesh.placement.same_targets`).
 
     ``layers``, ``verts``, ``faces``, ``head``: the arrays it writes into (their contents
     undefined; :func:`run_buffers`), which the caller makes (on memory done with:
@@ -431,9 +430,6 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
                         w2 = 1.0 / (_EPS + abs(vv[dz2 * 4 + dy2 * 2 + dx2]))
                         ff = 0.0 + w1
                         ff += w2
-                        # skimage's (dx1 w1 + dx2 w2) / ff per axis: off the edge's axis
-                        # d (w1 + w2) / ff, exactly d (the sum is ff's, bit for bit: the
-                        # corners are finite); along it the upper corner's weight over ff
                         px = np.float64(x) + _along(dx1, dx2, w1, w2, ff)
                         py = np.float64(y) + _along(dy1, dy2, w1, w2, ff)
                         pz = np.float64(z) + _along(dz1, dz2, w1, w2, ff)
@@ -460,14 +456,8 @@ def lewiner_range(keys, corners, c0, c1, nx, ny, track, layers, verts, faces, he
                 faces[nf + t, 2] = tri[3 * t]  # a seventh of the marching (49 -> 42 ns a cell)
             nf += nt
         c += run
-    return (
-        verts[:nv],
-        faces[:nf],
-        head[: nv if track else 0],
-        layers[1 - one],
-        last_z,
-        centres[:nc],
-    )
+    heads = head[: nv if track else 0]
+    return verts[:nv], faces[:nf], heads, layers[1 - one], last_z, centres[:nc]
 
 
 @njit(**INLINE)
