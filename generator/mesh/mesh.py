@@ -223,11 +223,11 @@ def finish_marching(
 ) -> tuple[Mesh, np.ndarray]:
     """The end of :func:`extract_with_edges` after marching cubes (``verts``, ``faces``: what
     skimage's ``marching_cubes`` gives, in index coordinates, with the cap's pad when
-    ``cap``; ``centres``: the vertices it made at a cell's centre): vertices placed on the box, interior vertices kept off their cell's faces, one
-    vertex per grid edge (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place and
-    group a large mesh's vertices in runs at once; ``spare``: memory done with, for the
-    placement's arrays). The sparse path (:mod:`~surfgen.generator.mesh.sparse_marching`)
-    ends here too."""
+    ``cap``; ``centres``: the vertices it made at a cell's centre): vertices placed on the
+    box, interior vertices kept off their cell's faces, one vertex per grid edge
+    (:mod:`~surfgen.generator.mesh.placement`; ``threads`` place a large mesh's vertices in
+    runs at once; ``spare``: memory done with, for the placement's arrays). The sparse path
+    (:mod:`~surfgen.generator.mesh.sparse_marching`) ends here too."""
     lo = np.asarray(grid.box.lo, dtype=np.float64)
     hi = np.asarray(grid.box.hi, dtype=np.float64)
     spacing = np.asarray(grid.spacing, dtype=np.float64)
