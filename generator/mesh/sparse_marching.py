@@ -110,7 +110,7 @@ def extract_sparse_with_edges(
     del values
     if release:  # then nothing else holds them: the cells' corners take their memory
         sf.release_samples()
-    per, ta, tb, ma, mb = scan_bricks(offset, extent, corner, shape, threads)
+    per, ta, tb, ma, mb, masks = scan_bricks(offset, extent, corner, shape, threads)
     shift = 1 if cap else 0
     # the pad's cells by the samples' sides, which the raises keep (their corners after)
     pad_keys = np.unique(_pad_cells(offset, extent, corner, shape)) if cap else _NO_KEYS
@@ -128,14 +128,14 @@ def extract_sparse_with_edges(
         budget.check(
             budget.mesh_bytes(n_cells), f"meshing the {n_cells:,} cells the surface crosses"
         )
-    cells = list(brick_cells(offset, extent, corner, shape, shift, per, pad_keys, pad_corners,
-                             threads, corners))  # fmt: skip
+    cells = list(brick_cells(offset, extent, corner, shape, shift, per, masks, pad_keys,
+                             pad_corners, threads, corners))  # fmt: skip
     del corners
     # each step's inputs given to the next as soon as it has what it needs (a third of the
     # memory a 512^3 surface adds, and their pages not faulted again: allocator.recycled):
     # the offsets to the marching's runs, the cells to their join, the runs to the placement
     spare = [offset]
-    del offset, pad_keys, pad_corners
+    del offset, masks, pad_keys, pad_corners
     size = shape + 2 * shift
     verts, faces, centres = lewiner_cells(cells, int(size[2]), int(size[1]), threads, spare=spare)
     if len(verts) == 0:  # skimage raises here; a field with both sides always has a crossing
