@@ -14,8 +14,8 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.growing import grown
 from surfgen.generator.mesh.raise_table import POPS, find, push, seeded, with_room
-from surfgen.generator.mesh.sparse_lewiner import grown
 
 # skimage runs marching cubes in float32, so we hand it float32 offsets from the level whose signs
 # we have fixed ourselves; magnitudes are clipped to stay finite there.

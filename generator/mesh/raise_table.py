@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.growing import grown
 
 #: Samples a run of the raises' worklist takes from it at most (:func:`with_room` makes room
 #: for what they may put back on it, six neighbours each, before the run).
@@ -90,9 +91,7 @@ def with_room(keys, mags, stack, top, n):
     while 2 * (n + more) > keys.size:
         keys, mags = _rehash(keys, mags)
     if top + more > stack.size:
-        grown = np.empty(stack.size + stack.size // 2 + more, dtype=np.int64)
-        grown[:top] = stack[:top]
-        stack = grown
+        stack = grown(stack, np.int64(top), more)
     return keys, mags, stack
 
 

@@ -36,6 +36,7 @@ from skimage.measure import _marching_cubes_lewiner as _sk
 from skimage.measure import _marching_cubes_lewiner_luts as _luts
 
 from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.growing import grown
 
 # skimage's FLT_EPSILON is np.spacing(1.0): the double epsilon, despite the name.
 _EPS = float(np.spacing(1.0))
@@ -491,20 +492,6 @@ def _widest_plane(keys, c0, c1, plane):
 
 
 _ROOM = np.int64(13)  # room for what one cell adds (at most 12 edge vertices and its centre)
-
-
-@njit(**KERNEL)
-def grown(a, n, more):
-    """``a`` (rows ``:n`` used) moved to an array half as large again, room for ``more`` (the
-    sparse passes' growing arrays, here and in :mod:`~.sparse_bricks`).  Pass ``n`` and
-    ``more`` as int64 values, never literals: numba would compile it again per literal."""
-    out = np.empty((a.shape[0] + a.shape[0] // 2 + more,) + a.shape[1:], dtype=a.dtype)
-    # element by element: a slice copy would compile numba's shape error (1-2 s)
-    width = a.size // a.shape[0] if a.shape[0] else 0
-    flat_a, flat_out = a.reshape(-1), out.reshape(-1)
-    for i in range(n * width):
-        flat_out[i] = flat_a[i]
-    return out
 
 
 @njit(**KERNEL)
