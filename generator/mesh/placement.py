@@ -240,27 +240,32 @@ def _targets_kernel(verts, shift, edges, moved, shape):
     return target, any_merge
 
 
+@njit(**INLINE)
+def _edge_key(axis, e1, e2, e3, nx, ny, nz):
+    """:func:`_vertex_key` of a vertex that is not moved: its edge's key, -1 on no edge."""
+    return _vertex_key(axis, e1, e2, e3, False, 0.0, 0.0, 0.0, 0.0, nx, ny, nz)
+
+
 @njit(**KERNEL)
 def _edge_groups(edges, on_edge, shape, target):
     """The groups of the grid edges of the vertices ``on_edge`` (cells' centres placed on an
     edge, :func:`same_targets`): a table of those edges alone, then every vertex on an edge,
     in order, looked up in it; a vertex whose edge an earlier vertex holds takes that one as
     its target (into ``target``). Returns whether any did."""
-    ny, nz = shape[1], shape[2]
+    nx, ny, nz = shape[0], shape[1], shape[2]
     size, down = _table_size(on_edge.size)
     mask = size - 1
     table = np.full(2 * size, -1, dtype=np.int64)  # (key, first vertex) slots
     unseen = np.int64(edges.shape[0])  # a key of the table no vertex has reached yet
     for q in range(on_edge.size):
         v = on_edge[q]
-        key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + edges[v, 0]
+        key = _edge_key(edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], nx, ny, nz)
         _find_or_add(table, key, unseen, down, mask)
     merged = False
     for v in range(edges.shape[0]):
-        axis = edges[v, 0]
-        if axis < 0:
+        key = _edge_key(edges[v, 0], edges[v, 1], edges[v, 2], edges[v, 3], nx, ny, nz)
+        if key < 0:  # on no edge
             continue
-        key = (((edges[v, 1] * ny + edges[v, 2]) * nz + edges[v, 3]) << 2) + axis
         h = _slot(table, key, down, mask)
         if table[2 * h] != key:
             continue
