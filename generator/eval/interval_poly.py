@@ -80,13 +80,14 @@ _JOINS = ("+", "-", "*", "/", "neg", "abs", "max", "min")
 @dataclass(frozen=True)
 class Polynomial:
     """An expanded polynomial: ``coefs[m] * x^exps[m,0] * y^exps[m,1] * z^exps[m,2]``, the
-    coefficients of its exact expansion rounded; ``absolute`` the same for ``P~``; ``ops`` the
-    roundings on its longest path (the expansion's rounding of the coefficients included);
-    ``taylor`` its Taylor shift's pairs (:func:`_taylor`)."""
+    coefficients of its exact expansion rounded; ``absolute`` the same for ``P~`` (exponents,
+    coefficients' magnitudes and their group, 0: as :func:`~.interval_taylor.taylor_bounds`
+    reads them); ``ops`` the roundings on its longest path (the expansion's rounding of the
+    coefficients included); ``taylor`` its Taylor shift's pairs."""
 
     exps: np.ndarray
     coefs: np.ndarray
-    absolute: tuple[np.ndarray, np.ndarray]
+    absolute: tuple[np.ndarray, np.ndarray, np.ndarray]
     ops: int
     taylor: tuple[np.ndarray, ...]  # :func:`~.interval_taylor.taylor_pairs`
 
@@ -268,9 +269,8 @@ def _quotient(num: Polynomial, den: Polynomial, power: float = 1.0) -> Quotient 
     )
     if taylor is None:
         return None
-    (e0, c0), (e1, c1) = num.absolute, den.absolute
-    absolute = (np.vstack([e0, e1]), np.abs(np.concatenate([c0, c1])),
-                np.array([0] * len(e0) + [1] * len(e1), dtype=np.int64))  # fmt: skip
+    (e0, c0, g0), (e1, c1, g1) = num.absolute, den.absolute
+    absolute = (np.vstack([e0, e1]), np.concatenate([c0, c1]), np.concatenate([g0, g1 + 1]))
     return Quotient(num, den, taylor, absolute, max(num.ops, den.ops), power)
 
 
@@ -481,7 +481,9 @@ def _polynomial(p: dict) -> Polynomial | None:
     taylor = taylor_pairs(exps, coefs)
     if taylor is None:
         return None
-    return Polynomial(exps, coefs, arrays(p["a"]), p["ops"] + 1, taylor)
+    abs_exps, abs_coefs = arrays(p["a"])
+    absolute = (abs_exps, np.abs(abs_coefs), np.zeros(len(abs_exps), dtype=np.int64))
+    return Polynomial(exps, coefs, absolute, p["ops"] + 1, taylor)
 
 
 def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1):
@@ -489,6 +491,4 @@ def _poly_bounds(p: Polynomial, lo: np.ndarray, hi: np.ndarray, threads: int = 1
     its Taylor form at the box's centre c, ``Σ_β d_β t^β`` with ``|t_i| <= h_i``, each
     ``d_β`` computed with a bound on its rounding (:func:`~.interval_taylor.taylor_bounds`),
     in ``threads`` runs of boxes at once."""
-    abs_exps, abs_coefs = p.absolute
-    absolute = (abs_exps, np.abs(abs_coefs), np.zeros(len(abs_exps), np.int64))
-    return taylor_bounds(p.taylor, absolute, p.ops, _UNIT, lo, hi, threads)
+    return taylor_bounds(p.taylor, p.absolute, p.ops, _UNIT, lo, hi, threads)
