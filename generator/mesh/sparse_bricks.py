@@ -29,9 +29,9 @@ from numba import njit
 from surfgen.generator.eval.brick_lookup import locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
+from surfgen.generator.mesh.growing import grown
 from surfgen.generator.mesh.marching import _RATIO, offset_of, too_near
 from surfgen.generator.mesh.raise_table import POPS, find, push, seeded, with_room
-from surfgen.generator.mesh.sparse_lewiner import grown
 
 #: Bricks per thread at least (a brick's pass takes about a microsecond: 13,000 bricks of
 #: sculpture-1 at 512^3 in 11 ms).
@@ -113,11 +113,11 @@ def scan_bricks(offset, extent, corner, shape, threads: int = 1):
 @njit(**KERNEL)
 def _scan(offset, extent, corner, shape, per, masks, b0, b1):
     """:func:`scan_bricks` of bricks ``b0:b1`` (their counts into ``per``, their row masks
-    into ``masks``). Each row of a
-    brick along its last axis is a bit mask of its inside samples (:func:`_row_mask`), so a
-    pair of rows' mixed cells and a row's crossing edges are a few operations on masks, and
-    only a crossing is looked at sample by sample (sculpture-1 at 512^3: 32 -> 15 ms a thread,
-    against the flags summed column by column)."""
+    into ``masks``). Each row of a brick along its last axis is a bit mask of its inside
+    samples (:func:`_row_mask`), so a pair of rows' mixed cells and a row's crossing edges
+    are a few operations on masks, and only a crossing is looked at sample by sample
+    (sculpture-1 at 512^3: 32 -> 15 ms a thread, against the flags summed column by
+    column)."""
     rows = np.empty((offset.shape[1], offset.shape[2]), dtype=np.int64)
     ta = np.empty(64, dtype=np.int64)
     tb = np.empty(64, dtype=np.int64)
@@ -317,9 +317,10 @@ def brick_cells(
     corners=None,
 ):  # fmt: skip
     """The mixed cells of the bricks (``per``: each brick's count, and ``masks``: their row
-    masks, :func:`scan_bricks`) and the pad's cells ``pad_keys`` (sorted, none a brick cell; corners ``pad_corners``) in skimage's
-    order (C order of the volume): flat numbers in the (padded when ``shift``) volume and
-    their corners in skimage's order (:func:`~.sparse_lewiner.lewiner_cells`).
+    masks, :func:`scan_bricks`) and the pad's cells ``pad_keys`` (sorted, none a brick cell;
+    corners ``pad_corners``) in skimage's order (C order of the volume): flat numbers in the
+    (padded when ``shift``) volume and their corners in skimage's order
+    (:func:`~.sparse_lewiner.lewiner_cells`).
 
     A *slab* (the bricks of one leaf x, consecutive: the bricks are in C order of their
     leaves) holds the cells of its own planes only, so the list is the slabs' cells one slab
@@ -387,7 +388,7 @@ def _slab_cells(offset, masks, extent, corner, shift, shape, pad_keys, pad_corne
                 for j in range(extent[c0, 1] - 1):
                     for b in range(c0, c1):
                         e2 = extent[b, 2]
-                        # the scan's masks (made again here, they took a third of the listing)
+                        # the scan's masks (making them again took a third of the listing)
                         mixed = _mixed(np.int64(masks[b, i, j]), np.int64(masks[b, i, j + 1]),
                                        np.int64(masks[b, i + 1, j]),
                                        np.int64(masks[b, i + 1, j + 1]), e2)  # fmt: skip
