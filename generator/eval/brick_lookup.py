@@ -14,6 +14,25 @@ from numba import njit
 
 from surfgen.generator.jit.options import INLINE, KERNEL
 
+#: Per leaf size (0 to 64, :data:`~.sparse.MAX_BLOCK` at most), the exponent of the power of
+#: two it is, -1 for the sizes that are none.
+_SHIFTS = np.array([b.bit_length() - 1 if b > 0 and b & (b - 1) == 0 else -1 for b in range(65)])
+
+
+@njit(**INLINE)
+def leaf_of(i, j, k, block):
+    """The leaf holding grid index ``(i, j, k)`` (``index // block`` per axis) and the index's
+    place in it (``index % block``): by shifts for a leaf size that is a power of two
+    (:data:`~.sparse.BLOCK`), as a floor division does for negative indices too. Three
+    divisions a lookup took a seventh of the raises' time (5.9 -> 5.0 ms, sculpture-1 at
+    512^3) and of the walls' line reading."""
+    shift = _SHIFTS[block]
+    if shift >= 0:
+        b0, b1, b2 = i >> shift, j >> shift, k >> shift
+    else:
+        b0, b1, b2 = i // block, j // block, k // block
+    return b0, b1, b2, i - b0 * block, j - b1 * block, k - b2 * block
+
 
 @njit(**INLINE)
 def locate(slot, block, i, j, k):
@@ -25,19 +44,19 @@ def locate(slot, block, i, j, k):
     within its loops leaves numba counting references to the array at every call in the
     caller's loops (the raises' worklist: six a sample)."""
     n0, n1, n2 = slot.shape
-    b0, b1, b2 = i // block, j // block, k // block
+    b0, b1, b2, r0, r1, r2 = leaf_of(i, j, k, block)
     found, a, b, c = np.int64(-1), np.int64(0), np.int64(0), np.int64(0)
     for d0 in range(2):
         c0 = b0 - d0
-        if found >= 0 or c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+        if found >= 0 or c0 < 0 or c0 >= n0 or (d0 == 1 and r0 != 0):
             continue
         for d1 in range(2):
             c1 = b1 - d1
-            if found >= 0 or c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+            if found >= 0 or c1 < 0 or c1 >= n1 or (d1 == 1 and r1 != 0):
                 continue
             for d2 in range(2):
                 c2 = b2 - d2
-                if found >= 0 or c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                if found >= 0 or c2 < 0 or c2 >= n2 or (d2 == 1 and r2 != 0):
                     continue
                 s = slot[c0, c1, c2]
                 if s >= 0:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.brick_lookup import locate
+from surfgen.generator.eval.brick_lookup import leaf_of, locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.growing import grown
@@ -292,17 +292,18 @@ def _sample_at(offset, slot, block, i, j, k):
 def _write_sample(offset, slot, block, i, j, k, value):
     """Write ``value`` at grid sample ``(i, j, k)`` of every brick holding it."""
     n0, n1, n2 = slot.shape
+    b0, b1, b2, r0, r1, r2 = leaf_of(i, j, k, block)
     for d0 in range(2):
-        c0 = i // block - d0
-        if c0 < 0 or c0 >= n0 or (d0 == 1 and i % block != 0):
+        c0 = b0 - d0
+        if c0 < 0 or c0 >= n0 or (d0 == 1 and r0 != 0):
             continue
         for d1 in range(2):
-            c1 = j // block - d1
-            if c1 < 0 or c1 >= n1 or (d1 == 1 and j % block != 0):
+            c1 = b1 - d1
+            if c1 < 0 or c1 >= n1 or (d1 == 1 and r1 != 0):
                 continue
             for d2 in range(2):
-                c2 = k // block - d2
-                if c2 < 0 or c2 >= n2 or (d2 == 1 and k % block != 0):
+                c2 = b2 - d2
+                if c2 < 0 or c2 >= n2 or (d2 == 1 and r2 != 0):
                     continue
                 s = slot[c0, c1, c2]
                 if s >= 0:
