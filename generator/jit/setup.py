@@ -6,8 +6,9 @@ test, the user's own code):
 - before: on a CPU with AVX-512, ``NUMBA_CPU_FEATURES`` without LLVM's ``prefer-256-bit``
   (:func:`wide_vector_features`), which numba reads when it is imported;
 - after, before any of surfgen's jitted functions is defined: the cache locator that stamps
-  surfgen's numba sources (:mod:`surfgen.generator.jit.cache`) and the listener that compiles
-  the evaluator's loops with four vectors per iteration (:mod:`surfgen.generator.jit.interleave`).
+  surfgen's numba sources (:mod:`surfgen.generator.jit.cache`), the listener that compiles
+  the evaluator's loops with four vectors per iteration (:mod:`surfgen.generator.jit.interleave`),
+  and cached kernels loaded without a parsed copy for linking (:mod:`surfgen.generator.jit.linking`).
 
 They used to run when ``surfgen.generator`` was imported, which imported numba (and llvmlite,
 and through them scipy) into every process: about a second before ``surfgen --help`` or
@@ -36,6 +37,7 @@ from typing import Any
 
 from surfgen.generator.jit.cache import install_cache_stamp
 from surfgen.generator.jit.interleave import install as install_interleave
+from surfgen.generator.jit.linking import install_lazy_linking
 
 _LOCK = threading.Lock()
 _DONE = False
@@ -82,6 +84,7 @@ def _after_numba() -> None:
             return
         install_cache_stamp()
         install_interleave()
+        install_lazy_linking()
         _DONE = True
 
 
