@@ -37,7 +37,7 @@ def install_lazy_linking() -> bool:
     global _installed
     if _installed:
         return True
-    try:
+    try:  # deferred: jit/setup.py imports this module before numba is imported
         from llvmlite import binding as llvm
         from numba.core import codegen
     except ImportError:  # pragma: no cover (numba requires llvmlite)
@@ -46,7 +46,7 @@ def install_lazy_linking() -> bool:
     load = library.__dict__.get("_unserialize")
     link = library.__dict__.get("_get_module_for_linking")
     if not isinstance(load, classmethod) or not callable(link):
-        log.debug("numba %s: cached libraries' linking modules left as they are", codegen)
+        log.debug("this numba's libraries load otherwise: their linking modules left as they are")
         return False
     numba_load = load.__func__
 
