@@ -35,32 +35,36 @@ def leaf_of(i, j, k, block):
 
 
 @njit(**INLINE)
+def holder(slot, block, b0, b1, b2, r0, r1, r2, d):
+    """Candidate ``d`` (0-7) of the up to 8 bricks that may hold a grid point in leaf
+    ``(b0, b1, b2)`` at place ``(r0, r1, r2)`` (:func:`leaf_of`): the leaf itself for 0, the
+    lower neighbour along i, j, k where bit 2, 1, 0 of ``d`` is set (holding the point only
+    where it is on that face). Returns the brick and the point's place in it, brick -1 where
+    that leaf is past the grid, not sampled, or the point not on its face. One exit (see
+    :func:`locate`)."""
+    n0, n1, n2 = slot.shape
+    d0, d1, d2 = d >> 2, (d >> 1) & 1, d & 1
+    c0, c1, c2 = b0 - d0, b1 - d1, b2 - d2
+    on_faces = (d0 == 0 or r0 == 0) and (d1 == 0 or r1 == 0) and (d2 == 0 or r2 == 0)
+    inside = 0 <= c0 < n0 and 0 <= c1 < n1 and 0 <= c2 < n2
+    s = np.int64(slot[c0, c1, c2]) if on_faces and inside else np.int64(-1)
+    return s, r0 + d0 * block, r1 + d1 * block, r2 + d2 * block
+
+
+@njit(**INLINE)
 def locate(slot, block, i, j, k):
     """The brick holding grid point ``(i, j, k)`` and the point's place in it, or brick -1.
 
-    A point on a leaf's face is in up to 8 bricks (all hold the same value); the one of the
-    leaf ``index // block`` is tried first, then the lower neighbours where the point is on
-    their face.  One exit, at the end: an inlined helper given an array that returns from
-    within its loops leaves numba counting references to the array at every call in the
-    caller's loops (the raises' worklist: six a sample)."""
-    n0, n1, n2 = slot.shape
+    A point on a leaf's face is in up to 8 bricks (all hold the same value, :func:`holder`);
+    the one of the leaf ``index // block`` is tried first, then the lower neighbours where the
+    point is on their face.  One exit, at the end: an inlined helper given an array that
+    returns from within its loops leaves numba counting references to the array at every
+    call in the caller's loops (the raises' worklist: six a sample)."""
     b0, b1, b2, r0, r1, r2 = leaf_of(i, j, k, block)
     found, a, b, c = np.int64(-1), np.int64(0), np.int64(0), np.int64(0)
-    for d0 in range(2):
-        c0 = b0 - d0
-        if found >= 0 or c0 < 0 or c0 >= n0 or (d0 == 1 and r0 != 0):
-            continue
-        for d1 in range(2):
-            c1 = b1 - d1
-            if found >= 0 or c1 < 0 or c1 >= n1 or (d1 == 1 and r1 != 0):
-                continue
-            for d2 in range(2):
-                c2 = b2 - d2
-                if found >= 0 or c2 < 0 or c2 >= n2 or (d2 == 1 and r2 != 0):
-                    continue
-                s = slot[c0, c1, c2]
-                if s >= 0:
-                    found, a, b, c = s, i - c0 * block, j - c1 * block, k - c2 * block
+    for d in range(8):
+        if found < 0:
+            found, a, b, c = holder(slot, block, b0, b1, b2, r0, r1, r2, d)
     return found, a, b, c
 
 

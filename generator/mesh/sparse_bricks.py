@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from surfgen.generator.eval.brick_lookup import leaf_of, locate
+from surfgen.generator.eval.brick_lookup import holder, leaf_of, locate
 from surfgen.generator.eval.tape import run_at_once
 from surfgen.generator.jit.options import INLINE, KERNEL
 from surfgen.generator.mesh.growing import grown
@@ -282,25 +282,13 @@ def _raise_run(keys, mags, stack, top, n, offset, slot, block, shape):
 @njit(**KERNEL)
 def _write_raised(offset, slot, block, i, j, k, m):
     """Write the raised magnitude ``m`` with the sample's own sign at grid sample ``(i, j, k)``
-    of every brick holding it (they all hold the same sample), the leaf found once."""
-    n0, n1, n2 = slot.shape
+    of every brick holding it (they all hold the same sample, :func:`holder`), the leaf found
+    once."""
     b0, b1, b2, r0, r1, r2 = leaf_of(i, j, k, block)
-    for d0 in range(2):
-        c0 = b0 - d0
-        if c0 < 0 or c0 >= n0 or (d0 == 1 and r0 != 0):
-            continue
-        for d1 in range(2):
-            c1 = b1 - d1
-            if c1 < 0 or c1 >= n1 or (d1 == 1 and r1 != 0):
-                continue
-            for d2 in range(2):
-                c2 = b2 - d2
-                if c2 < 0 or c2 >= n2 or (d2 == 1 and r2 != 0):
-                    continue
-                s = slot[c0, c1, c2]
-                if s >= 0:
-                    at = (s, i - c0 * block, j - c1 * block, k - c2 * block)
-                    offset[at] = -m if offset[at] < 0 else m
+    for d in range(8):
+        s, a, b, c = holder(slot, block, b0, b1, b2, r0, r1, r2, d)
+        if s >= 0:
+            offset[s, a, b, c] = -m if offset[s, a, b, c] < 0 else m
 
 
 # ----------------------------------------------------------------------------- cells
